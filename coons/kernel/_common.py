@@ -1,0 +1,102 @@
+"""Validation and small array helpers shared by curves and surfaces (bookkeeping, no geometry)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coons.errors import InvalidGeometryError, InvalidInputError
+
+#: Points evaluated per chunk in batched paths: bounds the temporary gathers to a few MB.
+CHUNK = 1 << 15
+
+
+def as_points(values, *, ndim: int, what: str) -> np.ndarray:
+    """Control points as a read-only float64 array with ``ndim`` axes, the last of size 2 or 3 (or more).
+
+    Raises
+    ------
+    InvalidGeometryError
+        Wrong number of axes, fewer than 2 coordinates, NaN or inf coordinates.
+    """
+    a = np.array(values, dtype=np.float64)
+    if a.ndim != ndim:
+        raise InvalidGeometryError(f"{what}: expected an array with {ndim} axes, got shape {a.shape}")
+    if a.shape[-1] < 2:
+        raise InvalidGeometryError(f"{what}: points need at least 2 coordinates, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise InvalidGeometryError(f"{what}: coordinate at index {tuple(int(i) for i in bad)} is not finite")
+    a.setflags(write=False)
+    return a
+
+
+def as_weights(values, shape: tuple[int, ...], *, what: str) -> np.ndarray:
+    """Weights as a read-only float64 array of ``shape``; ``None`` gives ones.
+
+    Raises
+    ------
+    InvalidGeometryError
+        Wrong shape, NaN/inf or non-positive weights.
+    """
+    if values is None:
+        w = np.ones(shape)
+    else:
+        w = np.array(values, dtype=np.float64)
+        if w.shape != shape:
+            raise InvalidGeometryError(f"{what}: expected weights of shape {shape}, got {w.shape}")
+        if not np.all(np.isfinite(w)):
+            raise InvalidGeometryError(f"{what}: weights must be finite")
+        if np.any(w <= 0):
+            bad = np.argwhere(w <= 0)[0]
+            raise InvalidGeometryError(
+                f"{what}: weights must be positive, weight at index {tuple(int(i) for i in bad)} is {w[tuple(bad)]!r}"
+            )
+    w.setflags(write=False)
+    return w
+
+
+def as_degree(value, *, what: str) -> int:
+    """A degree as a Python int >= 1.
+
+    Raises
+    ------
+    InvalidGeometryError
+        Not an integer, or below 1.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InvalidGeometryError(f"{what}: degree must be an integer, got {value!r}")
+    if value < 1:
+        raise InvalidGeometryError(f"{what}: degree must be >= 1, got {value}")
+    return int(value)
+
+
+def as_transform(matrix) -> np.ndarray:
+    """A 4×4 affine (or 3×3 linear) transform as a 4×4 float64 array.
+
+    Raises
+    ------
+    InvalidInputError
+        Wrong shape, non-finite entries or a projective last row.
+    """
+    T = np.asarray(matrix, dtype=np.float64)
+    if T.shape == (3, 3):
+        T4 = np.eye(4)
+        T4[:3, :3] = T
+        T = T4
+    if T.shape != (4, 4):
+        raise InvalidInputError(f"transform must be 3x3 or 4x4, got shape {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise InvalidInputError("transform has non-finite entries")
+    if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], rtol=0.0, atol=0.0):
+        raise InvalidInputError(f"transform must be affine (last row 0 0 0 1), got {T[3].tolist()}")
+    return T
+
+
+def binomials(n: int) -> np.ndarray:
+    """Pascal's triangle ``C[k, i] = k choose i`` for ``0 <= i <= k <= n``."""
+    C = np.zeros((n + 1, n + 1))
+    for k in range(n + 1):
+        C[k, 0] = 1.0
+        for i in range(1, k + 1):
+            C[k, i] = C[k - 1, i - 1] + (C[k - 1, i] if i <= k - 1 else 0.0)
+    return C

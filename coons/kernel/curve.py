@@ -1,0 +1,370 @@
+"""NURBS curves: an immutable value over read-only float64 arrays.
+
+:class:`NurbsCurve` holds control points ``(n, d)`` (``d`` = 2 for curves in a
+surface's parameter space, 3 in space), a knot vector ``(n + p + 1,)``, a degree
+``p >= 1`` and positive weights ``(n,)``.  Polynomial B-splines have unit weights.
+Clamped, floating and periodic knot vectors are all accepted: the domain is
+``[U[p], U[n]]``.
+
+Evaluation and derivatives follow numpy broadcasting: ``evaluate(u)`` returns
+``np.shape(u) + (d,)``.  They work in homogeneous coordinates and divide at the end
+(The NURBS Book A4.1, A4.2), in chunks of points so temporaries stay small.
+
+This module holds the value and its evaluation; knot insertion, refinement, removal,
+degree elevation and splitting live in :mod:`coons.kernel.refine`, differential
+geometry in :mod:`coons.kernel.differential`, closest points in
+:mod:`coons.kernel.projection`; the methods here delegate to them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from coons.errors import InvalidGeometryError, InvalidInputError
+from coons.kernel import basis as _b
+from coons.kernel._common import CHUNK, as_degree, as_points, as_transform, as_weights, binomials
+from coons.tolerance import Tolerance, resolve
+
+if TYPE_CHECKING:  # pragma: no cover
+    from coons.kernel.projection import ClosestPoints
+
+__all__ = ["NurbsCurve"]
+
+
+@dataclass(frozen=True, eq=False)
+class NurbsCurve:
+    """A (rational) B-spline curve of any degree in 2 or more dimensions.
+
+    Parameters
+    ----------
+    control_points : (n, d) array_like
+    knots : (n + p + 1,) array_like, non-decreasing
+    degree : int >= 1
+    weights : (n,) array_like of positive numbers, optional (default: all ones)
+
+    Raises
+    ------
+    InvalidGeometryError
+        Degree < 1, fewer than ``p + 1`` control points, wrong knot count,
+        decreasing knots, non-positive or non-finite weights, NaN/inf coordinates.
+
+    Examples
+    --------
+    >>> c = NurbsCurve([[0, 0, 0], [1, 1, 0], [2, 0, 0]], [0, 0, 0, 1, 1, 1], 2)
+    >>> c.evaluate(0.5).tolist()
+    [1.0, 0.5, 0.0]
+    """
+
+    control_points: np.ndarray
+    knots: np.ndarray
+    degree: int
+    weights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        p = as_degree(self.degree, what="NurbsCurve")
+        P = as_points(self.control_points, ndim=2, what="NurbsCurve control_points")
+        n = P.shape[0]
+        if n < p + 1:
+            raise InvalidGeometryError(f"NurbsCurve: degree {p} needs at least {p + 1} control points, got {n}")
+        U = _b.as_knot_vector(self.knots, p, n, what="NurbsCurve knots")
+        W = as_weights(self.weights, (n,), what="NurbsCurve")
+        object.__setattr__(self, "degree", p)
+        object.__setattr__(self, "control_points", P)
+        object.__setattr__(self, "knots", U)
+        object.__setattr__(self, "weights", W)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def dimension(self) -> int:
+        """Number of coordinates ``d`` of the control points."""
+        return int(self.control_points.shape[1])
+
+    @property
+    def n_control_points(self) -> int:
+        return int(self.control_points.shape[0])
+
+    @cached_property
+    def is_rational(self) -> bool:
+        """True when the weights are not all equal (the curve is then not polynomial)."""
+        w = self.weights
+        return bool(np.any(w != w[0]))
+
+    @cached_property
+    def domain(self) -> tuple[float, float]:
+        """Parametric domain ``(U[p], U[n])``."""
+        return _b.domain_of(self.knots, self.degree)
+
+    @cached_property
+    def homogeneous(self) -> np.ndarray:
+        """Control points in homogeneous form ``[w P, w]``, shape ``(n, d + 1)``, read-only."""
+        Pw = np.concatenate([self.control_points * self.weights[:, None], self.weights[:, None]], axis=1)
+        Pw.setflags(write=False)
+        return Pw
+
+    @classmethod
+    def from_homogeneous(cls, Pw: np.ndarray, knots, degree: int) -> "NurbsCurve":
+        """Build a curve from homogeneous control points ``(n, d + 1)``.
+
+        Raises
+        ------
+        InvalidGeometryError
+            Non-positive last coordinate (weight).
+        """
+        Pw = np.asarray(Pw, dtype=np.float64)
+        w = Pw[:, -1]
+        if np.any(w <= 0):
+            raise InvalidGeometryError(f"homogeneous weights must be positive, min is {w.min()!r}")
+        return cls(Pw[:, :-1] / w[:, None], knots, degree, w)
+
+    @cached_property
+    def knot_multiplicities(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distinct knots and their multiplicities, ``((k,), (k,))``."""
+        vals, counts = np.unique(self.knots, return_counts=True)
+        return vals, counts
+
+    # ------------------------------------------------------------------ evaluation
+    def _params(self, u, tol: Tolerance | None) -> np.ndarray:
+        return _b.check_parameters(u, self.domain, resolve(tol))
+
+    def _homogeneous_derivatives(self, u: np.ndarray, order: int) -> np.ndarray:
+        """Derivatives of the homogeneous curve, ``(m, order + 1, d + 1)``, for flat ``u``."""
+        p, Pw = self.degree, self.homogeneous
+        m = u.shape[0]
+        out = np.empty((m, order + 1, Pw.shape[1]))
+        for s in range(0, m, CHUNK):
+            uu = u[s : s + CHUNK]
+            spans = _b.find_spans(self.knots, p, uu)
+            if order == 0:
+                N = _b.basis_functions(self.knots, p, spans, uu)[:, None, :]
+            else:
+                N = _b.basis_derivatives(self.knots, p, spans, uu, order)
+            acc = np.zeros((uu.shape[0], order + 1, Pw.shape[1]))
+            base = spans - p
+            for j in range(p + 1):
+                acc += N[:, :, j, None] * Pw[base + j][:, None, :]
+            out[s : s + CHUNK] = acc
+        return out
+
+    def evaluate(self, u, tol: Tolerance | None = None) -> np.ndarray:
+        """Points of the curve.
+
+        Parameters
+        ----------
+        u : float or array_like, inside :attr:`domain`
+
+        Returns
+        -------
+        np.shape(u) + (d,) float64
+
+        Raises
+        ------
+        InvalidInputError
+            Parameters outside the domain (beyond round-off) or not finite.
+        """
+        u = self._params(u, tol)
+        shape = u.shape
+        Cw = self._homogeneous_derivatives(u.ravel(), 0)[:, 0, :]
+        C = Cw[:, :-1] / Cw[:, -1:]
+        return C.reshape(shape + (self.dimension,))
+
+    __call__ = evaluate
+
+    def derivatives(self, u, order: int = 1, tol: Tolerance | None = None) -> np.ndarray:
+        """Point and derivatives up to ``order`` (The NURBS Book A3.2 and A4.2).
+
+        Returns
+        -------
+        np.shape(u) + (order + 1, d) float64
+            ``[..., k, :]`` is the k-th derivative; ``[..., 0, :]`` the point.
+        """
+        if not isinstance(order, (int, np.integer)) or order < 0:
+            raise InvalidInputError(f"order must be an integer >= 0, got {order!r}")
+        u = self._params(u, tol)
+        shape = u.shape
+        A = self._homogeneous_derivatives(u.ravel(), int(order))
+        Aw, w = A[:, :, :-1], A[:, :, -1]
+        C = np.empty_like(Aw)
+        binom = binomials(order)
+        for k in range(order + 1):
+            v = Aw[:, k, :].copy()
+            for i in range(1, k + 1):
+                v -= binom[k, i] * w[:, i, None] * C[:, k - i, :]
+            C[:, k, :] = v / w[:, 0, None]
+        return C.reshape(shape + (order + 1, self.dimension))
+
+    def tangent(self, u, tol: Tolerance | None = None) -> np.ndarray:
+        """Unit tangent vectors, ``np.shape(u) + (d,)``.
+
+        Raises
+        ------
+        InvalidGeometryError
+            Where the first derivative vanishes (a singular point of the parametrisation).
+        """
+        d1 = self.derivatives(u, 1, tol)[..., 1, :]
+        norm = np.linalg.norm(d1, axis=-1, keepdims=True)
+        if np.any(norm == 0):
+            raise InvalidGeometryError("tangent undefined: the first derivative vanishes")
+        return d1 / norm
+
+    # ------------------------------------------------------------------ queries
+    def bounding_box(self) -> np.ndarray:
+        """Bounding box of the control polygon (contains the curve), ``(2, d)``: min row, max row."""
+        P = self.control_points
+        return np.stack([P.min(axis=0), P.max(axis=0)])
+
+    def is_close(self, other: "NurbsCurve", tol: Tolerance | None = None, samples: int = 64) -> bool:
+        """True if both curves have the same domain and their points agree within ``tol.linear``.
+
+        Compared at ``samples`` parameters per knot span of both curves (a sampled test,
+        not a proof).
+        """
+        t = resolve(tol)
+        if not isinstance(other, NurbsCurve) or other.dimension != self.dimension:
+            return False
+        a0, a1 = self.domain
+        b0, b1 = other.domain
+        scale = max(1.0, a1 - a0)
+        if abs(a0 - b0) > t.solver * scale or abs(a1 - b1) > t.solver * scale:
+            return False
+        knots = np.union1d(np.unique(self.knots), np.unique(other.knots))
+        knots = knots[(knots >= a0) & (knots <= a1)]
+        s = np.linspace(0.0, 1.0, samples, endpoint=False)
+        u = (knots[:-1, None] + np.diff(knots)[:, None] * s).ravel()
+        u = np.append(u, a1)
+        return bool(np.max(np.linalg.norm(self.evaluate(u) - other.evaluate(u), axis=-1)) <= t.linear)
+
+    # ------------------------------------------------------------------ new curves
+    def reversed(self) -> "NurbsCurve":
+        """The same point set traversed backwards over the same domain: ``c.reversed()(a + b - u) == c(u)``."""
+        a, b = self.domain
+        U = (a + b) - self.knots[::-1]
+        return NurbsCurve(self.control_points[::-1], U, self.degree, self.weights[::-1])
+
+    def reparametrized(self, start: float, end: float) -> "NurbsCurve":
+        """The same curve over the domain ``[start, end]`` (affine map of the knots).
+
+        Raises
+        ------
+        InvalidInputError
+            ``end <= start`` or non-finite bounds.
+        """
+        if not (np.isfinite(start) and np.isfinite(end) and end > start):
+            raise InvalidInputError(f"reparametrized: need finite start < end, got [{start!r}, {end!r}]")
+        a, b = self.domain
+        U = start + (self.knots - a) * ((end - start) / (b - a))
+        U[self.degree] = start
+        U[self.n_control_points] = end
+        return NurbsCurve(self.control_points, U, self.degree, self.weights)
+
+    def transformed(self, matrix) -> "NurbsCurve":
+        """The curve under an affine map (4×4 or 3×3 matrix); NURBS are affinely invariant.
+
+        Only for 3-D curves.
+        """
+        if self.dimension != 3:
+            raise InvalidInputError(f"transformed needs a 3-D curve, this one has dimension {self.dimension}")
+        T = as_transform(matrix)
+        P = self.control_points @ T[:3, :3].T + T[:3, 3]
+        return NurbsCurve(P, self.knots, self.degree, self.weights)
+
+    def translated(self, offset) -> "NurbsCurve":
+        """The curve moved by ``offset`` ``(d,)``."""
+        off = np.asarray(offset, dtype=np.float64)
+        if off.shape != (self.dimension,):
+            raise InvalidInputError(f"offset must have shape ({self.dimension},), got {off.shape}")
+        return NurbsCurve(self.control_points + off, self.knots, self.degree, self.weights)
+
+    # ------------------------------------------------------------------ delegated algorithms
+    def insert_knot(self, u: float, times: int = 1, tol: Tolerance | None = None) -> "NurbsCurve":
+        """Insert ``u`` ``times`` times (Boehm; The NURBS Book A5.1). See :mod:`coons.kernel.refine`."""
+        from coons.kernel import refine
+
+        return refine.curve_insert_knot(self, u, times, tol)
+
+    def refine_knots(self, new_knots, tol: Tolerance | None = None) -> "NurbsCurve":
+        """Insert many knots at once (Oslo / The NURBS Book A5.4). See :mod:`coons.kernel.refine`."""
+        from coons.kernel import refine
+
+        return refine.curve_refine_knots(self, new_knots, tol)
+
+    def remove_knot(self, u: float, times: int = 1, tol: Tolerance | None = None) -> "NurbsCurve":
+        """Remove ``u`` up to ``times`` times while the curve moves less than ``tol.linear`` (A5.8)."""
+        from coons.kernel import refine
+
+        return refine.curve_remove_knot(self, u, times, tol)
+
+    def elevate_degree(self, times: int = 1) -> "NurbsCurve":
+        """Raise the degree by ``times`` without changing the curve (The NURBS Book A5.9)."""
+        from coons.kernel import refine
+
+        return refine.curve_elevate_degree(self, times)
+
+    def split(self, u: float, tol: Tolerance | None = None) -> tuple["NurbsCurve", "NurbsCurve"]:
+        """Two clamped curves over ``[a, u]`` and ``[u, b]`` (subdivision by knot insertion)."""
+        from coons.kernel import refine
+
+        return refine.curve_split(self, u, tol)
+
+    def segment(self, start: float, end: float, tol: Tolerance | None = None) -> "NurbsCurve":
+        """The piece of the curve over ``[start, end]`` as a clamped curve."""
+        from coons.kernel import refine
+
+        return refine.curve_segment(self, start, end, tol)
+
+    def bezier_segments(self) -> list["NurbsCurve"]:
+        """Decomposition into Bézier pieces, one per non-empty knot span (The NURBS Book A5.6)."""
+        from coons.kernel import refine
+
+        return refine.curve_bezier_segments(self)
+
+    def clamped(self) -> "NurbsCurve":
+        """The same curve over the same domain with clamped end knots (multiplicity p + 1)."""
+        from coons.kernel import refine
+
+        return refine.curve_clamped(self)
+
+    def closest_parameters(self, points, tol: Tolerance | None = None) -> np.ndarray:
+        """Parameters of the closest curve points to ``points`` ``(..., d)``; see :mod:`coons.kernel.projection`."""
+        from coons.kernel import projection
+
+        return projection.curve_closest_parameters(self, points, tol)
+
+    def closest_points(self, points, tol: Tolerance | None = None) -> "ClosestPoints":
+        """Closest points, parameters and distances; see :mod:`coons.kernel.projection`."""
+        from coons.kernel import projection
+
+        return projection.curve_closest_points(self, points, tol)
+
+    def invert(self, points, tol: Tolerance | None = None) -> np.ndarray:
+        """Parameters of points that lie on the curve; raises ``ConvergenceError`` for points off it."""
+        from coons.kernel import projection
+
+        return projection.curve_invert(self, points, tol)
+
+    def curvature(self, u, tol: Tolerance | None = None) -> np.ndarray:
+        """Curvature ``|C' x C''| / |C'|^3``, ``np.shape(u)``; see :mod:`coons.kernel.differential`."""
+        from coons.kernel import differential
+
+        return differential.curve_curvature(self, u, tol)
+
+    def torsion(self, u, tol: Tolerance | None = None) -> np.ndarray:
+        """Torsion, ``np.shape(u)`` (3-D curves)."""
+        from coons.kernel import differential
+
+        return differential.curve_torsion(self, u, tol)
+
+    def frenet_frame(self, u, tol: Tolerance | None = None) -> np.ndarray:
+        """Frenet frame ``(T, N, B)`` as ``np.shape(u) + (3, 3)`` (rows T, N, B)."""
+        from coons.kernel import differential
+
+        return differential.curve_frenet_frame(self, u, tol)
+
+    def length(self, start: float | None = None, end: float | None = None, tol: Tolerance | None = None) -> float:
+        """Arc length over ``[start, end]`` (default: the domain) by Gauss–Legendre quadrature per span."""
+        from coons.kernel import differential
+
+        return differential.curve_length(self, start, end, tol)

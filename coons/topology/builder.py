@@ -1,0 +1,773 @@
+"""Building winged-edge B-reps: the Euler operators and a checked assembly from face loops.
+
+:class:`BRepBuilder` is the only place where topology changes.  It holds growable
+columns of the same tables as :class:`~coons.topology.brep.BRep` and offers the Euler
+operators of Baumgart and Mäntylä (Cohen–Riesenfeld–Elber ch. 19; Mäntylä, *An
+Introduction to Solid Modeling*, ch. 9), each of which keeps the Euler–Poincaré relation
+``V − E + F − (L − F) = 2 (S − G)``:
+
+======================  ==========================================  =====================
+operator                effect                                      inverse
+======================  ==========================================  =====================
+``mvfs(p)``             vertex, face (lone-vertex loop), shell      ``kvfs``
+``mev(l, c, p)``        edge from a loop vertex to a new vertex     ``kev``
+``mef(l, a, b)``        edge splitting a loop into two faces         ``kef``
+``kemr(e)``             kill an edge whose sides share a loop,       ``mekr``
+                        making a ring (an inner loop)
+``kfmrh(f, g)``         face ``f`` becomes an inner loop of ``g``    ``mfkrh``
+                        (a hole through the solid, or joins shells)
+``semv(e, p)``          split an edge at a new vertex               ``jekv``
+======================  ==========================================  =====================
+
+Coedge ids follow :mod:`coons.topology.brep`: ``c = 2 e + side``; ``mev``/``mef``/``mekr``
+take the coedge *after which* the new edge is inserted (it ends at the vertex where the
+new edge starts).  Geometry is attached with :meth:`set_vertex`, :meth:`set_edge_curve`,
+:meth:`set_pcurve` and :meth:`set_face_surface`.  :meth:`assemble` builds a whole shell
+from face loops at once — the structure a sequence of Euler operators would produce, with
+Euler–Poincaré verified rather than assumed; it serves meshes, importers and the
+Boolean's sewing.  :meth:`build` compacts killed entities, checks every invariant and
+returns an immutable ``BRep`` or raises :class:`~coons.errors.TopologyError`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from coons.errors import InvalidInputError, TopologyError
+from coons.tolerance import Tolerance, resolve
+from coons.topology.brep import BRep
+
+__all__ = ["BRepBuilder"]
+
+
+class BRepBuilder:
+    """Mutable winged-edge tables with Euler operators (see the module docstring)."""
+
+    def __init__(self, tol: Tolerance | None = None) -> None:
+        self.tol = resolve(tol)
+        # vertices
+        self.vpoint: list[np.ndarray] = []
+        self.vtol: list[float] = []
+        self.vcoedge: list[int] = []
+        self.valive: list[bool] = []
+        # edges (coedge columns: 2 per edge)
+        self.ev: list[list[int]] = []
+        self.ealive: list[bool] = []
+        self.ecurve: list[int] = []
+        self.erange: list[tuple[float, float]] = []
+        self.epcurve: list[list[int]] = []
+        self.etol: list[float] = []
+        self.nxt: list[int] = []
+        self.prv: list[int] = []
+        self.cloop: list[int] = []
+        # loops
+        self.lface: list[int] = []
+        self.lcoedge: list[int] = []
+        self.lvertex: list[int] = []
+        self.lalive: list[bool] = []
+        # faces
+        self.fsurface: list[int] = []
+        self.fsense: list[bool] = []
+        self.fshell: list[int] = []
+        self.fouter: list[int] = []
+        self.falive: list[bool] = []
+        # shells and solids
+        self.ssolid: list[int] = []
+        self.salive: list[bool] = []
+        self.souter: list[int] = []  # per solid: outer shell
+        self.solive: list[bool] = []
+        # geometry pools (deduplicated by identity)
+        self.surfaces: list[Any] = []
+        self.curves: list[Any] = []
+        self.pcurves: list[Any] = []
+        self._pool_index: dict[tuple[str, int], int] = {}
+
+    # ================================================================ small helpers
+    def _new_vertex(self, point) -> int:
+        p = np.asarray(point, dtype=np.float64)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise InvalidInputError(f"vertex point must be 3 finite numbers, got {point!r}")
+        self.vpoint.append(p)
+        self.vtol.append(self.tol.linear)
+        self.vcoedge.append(-1)
+        self.valive.append(True)
+        return len(self.vpoint) - 1
+
+    def _new_edge(self, v0: int, v1: int) -> int:
+        self.ev.append([v0, v1])
+        self.ealive.append(True)
+        self.ecurve.append(-1)
+        self.erange.append((0.0, 1.0))
+        self.epcurve.append([-1, -1])
+        self.etol.append(self.tol.linear)
+        self.nxt += [-1, -1]
+        self.prv += [-1, -1]
+        self.cloop += [-1, -1]
+        return len(self.ev) - 1
+
+    def _new_loop(self, face: int) -> int:
+        self.lface.append(face)
+        self.lcoedge.append(-1)
+        self.lvertex.append(-1)
+        self.lalive.append(True)
+        return len(self.lface) - 1
+
+    def _new_face(self, shell: int) -> int:
+        self.fsurface.append(-1)
+        self.fsense.append(True)
+        self.fshell.append(shell)
+        self.fouter.append(-1)
+        self.falive.append(True)
+        return len(self.fsurface) - 1
+
+    def _link(self, a: int, b: int) -> None:
+        self.nxt[a] = b
+        self.prv[b] = a
+
+    def origin(self, c: int) -> int:
+        """Vertex a coedge starts from."""
+        return self.ev[c >> 1][c & 1]
+
+    def target(self, c: int) -> int:
+        """Vertex a coedge ends at."""
+        return self.ev[c >> 1][1 - (c & 1)]
+
+    def _cycle(self, start: int) -> list[int]:
+        out = [start]
+        c = self.nxt[start]
+        while c != start:
+            out.append(c)
+            c = self.nxt[c]
+            if len(out) > len(self.nxt):
+                raise TopologyError(f"coedge cycle from {start} does not close")
+        return out
+
+    def _set_loop(self, coedges: Sequence[int], loop: int) -> None:
+        for c in coedges:
+            self.cloop[c] = loop
+        self.lcoedge[loop] = coedges[0]
+        self.lvertex[loop] = -1
+
+    def _check_coedge_in_loop(self, c: int, loop: int, what: str) -> None:
+        if not (0 <= c < len(self.nxt)) or not self.ealive[c >> 1] or self.cloop[c] != loop:
+            raise TopologyError(f"{what}: coedge {c} is not in loop {loop}")
+
+    def loop_coedges(self, loop: int) -> list[int]:
+        """Coedges of a loop in order (empty for a lone-vertex loop)."""
+        first = self.lcoedge[loop]
+        return [] if first < 0 else self._cycle(first)
+
+    def coedge_ending_at(self, loop: int, vertex: int) -> int:
+        """The coedge of ``loop`` that ends at ``vertex``.
+
+        Raises
+        ------
+        TopologyError
+            The vertex is not on the loop, or is met more than once (pass the coedge explicitly).
+        """
+        hits = [c for c in self.loop_coedges(loop) if self.target(c) == vertex]
+        if len(hits) != 1:
+            raise TopologyError(f"vertex {vertex} is met {len(hits)} times by loop {loop}; expected exactly once")
+        return hits[0]
+
+    # ================================================================ Euler operators
+    def mvfs(self, point) -> tuple[int, int, int, int]:
+        """Make vertex, face, shell (and a new solid holding the shell).
+
+        Returns
+        -------
+        (vertex, face, loop, shell)
+        """
+        solid = len(self.souter)
+        self.souter.append(-1)
+        self.solive.append(True)
+        shell = len(self.ssolid)
+        self.ssolid.append(solid)
+        self.salive.append(True)
+        self.souter[solid] = shell
+        v = self._new_vertex(point)
+        f = self._new_face(shell)
+        l = self._new_loop(f)
+        self.fouter[f] = l
+        self.lvertex[l] = v
+        return v, f, l, shell
+
+    def kvfs(self, vertex: int) -> None:
+        """Kill a lone vertex with its face and shell (inverse of :meth:`mvfs`)."""
+        if self.vcoedge[vertex] >= 0:
+            raise TopologyError(f"kvfs: vertex {vertex} still has edges")
+        loops = [l for l, v in enumerate(self.lvertex) if v == vertex and self.lalive[l]]
+        if len(loops) != 1:
+            raise TopologyError(f"kvfs: vertex {vertex} is not the lone vertex of exactly one loop")
+        l = loops[0]
+        f = self.lface[l]
+        if any(self.lalive[k] and self.lface[k] == f and k != l for k in range(len(self.lface))):
+            raise TopologyError(f"kvfs: face {f} has other loops")
+        s = self.fshell[f]
+        if sum(1 for g, a in enumerate(self.falive) if a and self.fshell[g] == s) != 1:
+            raise TopologyError(f"kvfs: shell {s} has other faces")
+        self.valive[vertex] = self.lalive[l] = self.falive[f] = self.salive[s] = False
+        solid = self.ssolid[s]
+        if self.souter[solid] == s:
+            self.solive[solid] = False
+
+    def mev(self, loop: int, after: int | None, point) -> tuple[int, int]:
+        """Make an edge from a vertex of ``loop`` to a new vertex at ``point``.
+
+        Parameters
+        ----------
+        loop : int
+        after : int or None
+            The coedge of ``loop`` ending at the start vertex, after which the new edge
+            (a strut: out and back) is inserted; None for a lone-vertex loop.
+
+        Returns
+        -------
+        (edge, new_vertex); the edge runs from the loop's vertex to the new vertex.
+        """
+        if after is None:
+            v = self.lvertex[loop]
+            if v < 0:
+                raise TopologyError(f"mev: loop {loop} has edges; say after which coedge to insert")
+        else:
+            self._check_coedge_in_loop(after, loop, "mev")
+            v = self.target(after)
+        w = self._new_vertex(point)
+        e = self._new_edge(v, w)
+        c0, c1 = 2 * e, 2 * e + 1
+        self.cloop[c0] = self.cloop[c1] = loop
+        if after is None:
+            self._link(c0, c1)
+            self._link(c1, c0)
+            self.lcoedge[loop] = c0
+            self.lvertex[loop] = -1
+        else:
+            b = self.nxt[after]
+            self._link(after, c0)
+            self._link(c0, c1)
+            self._link(c1, b)
+        if self.vcoedge[v] < 0:
+            self.vcoedge[v] = c0
+        self.vcoedge[w] = c1
+        return e, w
+
+    def kev(self, edge: int) -> None:
+        """Kill an edge and its dangling end vertex (inverse of :meth:`mev`)."""
+        c0, c1 = 2 * edge, 2 * edge + 1
+        if self.nxt[c0] == c1:
+            keep_c, dangling = c0, self.target(c0)
+        elif self.nxt[c1] == c0:
+            keep_c, dangling = c1, self.target(c1)
+        else:
+            raise TopologyError(f"kev: edge {edge} has no dangling vertex")
+        other = keep_c ^ 1
+        loop = self.cloop[c0]
+        keep_v = self.origin(keep_c)
+        if self.nxt[other] == keep_c:  # the last edge of the loop: back to a lone vertex
+            self.lcoedge[loop] = -1
+            self.lvertex[loop] = keep_v
+            self.vcoedge[keep_v] = -1
+        else:
+            a, b = self.prv[keep_c], self.nxt[other]
+            self._link(a, b)
+            if self.lcoedge[loop] in (c0, c1):
+                self.lcoedge[loop] = b
+            if self.vcoedge[keep_v] in (c0, c1):
+                self.vcoedge[keep_v] = b
+        self.ealive[edge] = False
+        self.valive[dangling] = False
+
+    def mef(self, loop: int, a: int, b: int) -> tuple[int, int, int]:
+        """Make an edge and a face by joining two vertices of one loop.
+
+        The new edge runs from the end of coedge ``a`` to the end of coedge ``b``. The
+        part of the loop after ``b`` (with the edge's right side) becomes the new face.
+
+        Returns
+        -------
+        (edge, new_face, new_loop)
+        """
+        self._check_coedge_in_loop(a, loop, "mef")
+        self._check_coedge_in_loop(b, loop, "mef")
+        v1, v2 = self.target(a), self.target(b)
+        e = self._new_edge(v1, v2)
+        c0, c1 = 2 * e, 2 * e + 1
+        f_old = self.lface[loop]
+        f_new = self._new_face(self.fshell[f_old])
+        l_new = self._new_loop(f_new)
+        self.fouter[f_new] = l_new
+        self.fsurface[f_new] = self.fsurface[f_old]
+        self.fsense[f_new] = self.fsense[f_old]
+        if a == b:  # a closed edge at one vertex: the new face is bounded by that edge alone
+            an = self.nxt[a]
+            self._link(a, c0)
+            self._link(c0, an)
+            self._link(c1, c1)
+        else:
+            an, bn = self.nxt[a], self.nxt[b]
+            self._link(a, c0)
+            self._link(c0, bn)
+            self._link(b, c1)
+            self._link(c1, an)
+        self.cloop[c0] = loop
+        self.lcoedge[loop] = c0
+        self._set_loop(self._cycle(c1), l_new)
+        for c in self._cycle(c0):
+            self.cloop[c] = loop
+        return e, f_new, l_new
+
+    def kef(self, edge: int) -> None:
+        """Kill an edge between two faces, merging the right side's face into the left's (inverse of :meth:`mef`)."""
+        c0, c1 = 2 * edge, 2 * edge + 1
+        l0, l1 = self.cloop[c0], self.cloop[c1]
+        f0, f1 = self.lface[l0], self.lface[l1]
+        if f0 == f1:
+            raise TopologyError(f"kef: edge {edge} has the same face {f0} on both sides; use kemr")
+        if self.fouter[f1] != l1 or any(
+            self.lalive[k] and self.lface[k] == f1 and k != l1 for k in range(len(self.lface))
+        ):
+            raise TopologyError(f"kef: face {f1} has inner loops; move them first")
+        self._unlink_edge_join(edge, l0)
+        self.lalive[l1] = False
+        self.falive[f1] = False
+
+    def _unlink_edge_join(self, edge: int, loop: int) -> None:
+        """Remove an edge whose two sides lie in different cycles, joining them into ``loop``."""
+        c0, c1 = 2 * edge, 2 * edge + 1
+        p0, n0, p1, n1 = self.prv[c0], self.nxt[c0], self.prv[c1], self.nxt[c1]
+        v0, v1 = self.origin(c0), self.origin(c1)
+        if n0 == c0 or n1 == c1:
+            raise TopologyError(f"edge {edge} is a closed edge alone in a loop; cannot remove it this way")
+        self._link(p0, n1)
+        self._link(p1, n0)
+        for v, repl in ((v0, n1), (v1, n0)):
+            if self.vcoedge[v] in (c0, c1):
+                self.vcoedge[v] = repl
+        self._set_loop(self._cycle(n0), loop)
+        self.ealive[edge] = False
+
+    def kemr(self, edge: int) -> int:
+        """Kill an edge whose sides lie in one loop, making a ring (inverse of :meth:`mekr`).
+
+        The cycle through the edge's right side's successor becomes the new loop; when a
+        cycle is left without coedges, the new loop is the lone vertex there.
+
+        Returns
+        -------
+        new loop
+        """
+        c0, c1 = 2 * edge, 2 * edge + 1
+        loop = self.cloop[c0]
+        if self.cloop[c1] != loop:
+            raise TopologyError(f"kemr: the sides of edge {edge} lie in different loops; use kef")
+        face = self.lface[loop]
+        p0, n0, p1, n1 = self.prv[c0], self.nxt[c0], self.prv[c1], self.nxt[c1]
+        v0, v1 = self.origin(c0), self.origin(c1)
+        new = self._new_loop(face)
+        # After removal: p0 -> n1 (cycle A, around v0) and p1 -> n0 (cycle B, around v1).
+        a_empty = n1 == c0  # c0 is directly preceded by c1 at v0: v0 becomes isolated
+        b_empty = n0 == c1
+        if a_empty and b_empty:
+            raise TopologyError(f"kemr: edge {edge} is the only edge of its loop; use kev")
+        if not a_empty:
+            self._link(p0, n1)
+        if not b_empty:
+            self._link(p1, n0)
+        if a_empty:
+            self.lcoedge[loop], self.lvertex[loop] = -1, -1
+            self._set_loop(self._cycle(n0), loop)
+            self.lcoedge[new], self.lvertex[new] = -1, v0
+            self.vcoedge[v0] = -1
+        elif b_empty:
+            self._set_loop(self._cycle(n1), loop)
+            self.lcoedge[new], self.lvertex[new] = -1, v1
+            self.vcoedge[v1] = -1
+        else:
+            self._set_loop(self._cycle(n1), loop)
+            self._set_loop(self._cycle(n0), new)
+        for v, repl in ((v0, n1), (v1, n0)):
+            if self.vcoedge[v] in (c0, c1):
+                self.vcoedge[v] = repl
+        self.ealive[edge] = False
+        return new
+
+    def mekr(self, loop_a: int, a: int | None, loop_b: int, b: int | None) -> int:
+        """Make an edge joining two loops of one face, killing ``loop_b`` (inverse of :meth:`kemr`).
+
+        ``a`` / ``b`` are the coedges after which the edge leaves / arrives (None for a
+        lone-vertex loop).  The edge runs from ``loop_a`` to ``loop_b``.
+        """
+        if self.lface[loop_a] != self.lface[loop_b] or loop_a == loop_b:
+            raise TopologyError(f"mekr: loops {loop_a} and {loop_b} must be two loops of one face")
+        va = self.lvertex[loop_a] if a is None else self.target(a)
+        vb = self.lvertex[loop_b] if b is None else self.target(b)
+        if a is not None:
+            self._check_coedge_in_loop(a, loop_a, "mekr")
+        if b is not None:
+            self._check_coedge_in_loop(b, loop_b, "mekr")
+        if va < 0 or vb < 0:
+            raise TopologyError("mekr: a loop with edges needs the coedge after which to insert")
+        e = self._new_edge(va, vb)
+        c0, c1 = 2 * e, 2 * e + 1
+        an = self.nxt[a] if a is not None else c1
+        bn = self.nxt[b] if b is not None else c0
+        if a is not None:
+            self._link(a, c0)
+        else:
+            self._link(c1, c0)
+        if b is not None:
+            self._link(b, c1)
+        else:
+            self._link(c0, c1)
+        self._link(c0, bn)
+        self._link(c1, an)
+        for v, c in ((va, c0), (vb, c1)):
+            if self.vcoedge[v] < 0:
+                self.vcoedge[v] = c
+        self._set_loop(self._cycle(c0), loop_a)
+        if self.fouter[self.lface[loop_b]] == loop_b:
+            self.fouter[self.lface[loop_b]] = loop_a
+        self.lalive[loop_b] = False
+        return e
+
+    def kfmrh(self, face_kill: int, face_keep: int) -> None:
+        """Turn ``face_kill`` (one loop) into an inner loop of ``face_keep`` and remove it.
+
+        In one shell this makes a through hole (genus + 1); across two shells it merges them.
+        """
+        loops = [l for l in range(len(self.lface)) if self.lalive[l] and self.lface[l] == face_kill]
+        if len(loops) != 1:
+            raise TopologyError(f"kfmrh: face {face_kill} must have exactly one loop, has {len(loops)}")
+        l = loops[0]
+        self.lface[l] = face_keep
+        self.falive[face_kill] = False
+        s_kill, s_keep = self.fshell[face_kill], self.fshell[face_keep]
+        if s_kill != s_keep:
+            for g, alive in enumerate(self.falive):
+                if alive and self.fshell[g] == s_kill:
+                    self.fshell[g] = s_keep
+            self.salive[s_kill] = False
+            solid = self.ssolid[s_kill]
+            if self.souter[solid] == s_kill:
+                self.solive[solid] = False
+
+    def mfkrh(self, loop: int) -> int:
+        """Make a face from an inner loop (inverse of :meth:`kfmrh` within one shell).
+
+        Returns
+        -------
+        the new face
+        """
+        f = self.lface[loop]
+        if self.fouter[f] == loop:
+            raise TopologyError(f"mfkrh: loop {loop} is the outer loop of face {f}")
+        g = self._new_face(self.fshell[f])
+        self.lface[loop] = g
+        self.fouter[g] = loop
+        self.fsurface[g] = self.fsurface[f]
+        self.fsense[g] = self.fsense[f]
+        return g
+
+    def semv(self, edge: int, point, t: float | None = None) -> tuple[int, int]:
+        """Split an edge at a new vertex (Euler: one vertex and one edge more).
+
+        The old edge keeps its start and ends at the new vertex; the new edge runs from
+        the new vertex to the old end.  Both keep the curve and p-curves; the parameter
+        range splits at ``t`` (default: the middle of the range).
+
+        Returns
+        -------
+        (new_vertex, new_edge)
+        """
+        c0, c1 = 2 * edge, 2 * edge + 1
+        s, e_end = self.ev[edge]
+        v = self._new_vertex(point)
+        e2 = self._new_edge(v, e_end)
+        d0, d1 = 2 * e2, 2 * e2 + 1
+        self.ev[edge][1] = v
+        n0 = self.nxt[c0]
+        self._link(c0, d0)
+        self._link(d0, n0)
+        p1 = self.prv[c1]
+        self._link(p1, d1)
+        self._link(d1, c1)
+        self.cloop[d0], self.cloop[d1] = self.cloop[c0], self.cloop[c1]
+        if self.vcoedge[e_end] == c1:
+            self.vcoedge[e_end] = d1
+        self.vcoedge[v] = d0
+        a, b = self.erange[edge]
+        tm = 0.5 * (a + b) if t is None else float(t)
+        if not a < tm < b:
+            raise InvalidInputError(f"semv: split parameter {tm!r} is not inside the edge range ({a!r}, {b!r})")
+        self.erange[edge] = (a, tm)
+        self.erange[e2] = (tm, b)
+        self.ecurve[e2] = self.ecurve[edge]
+        self.epcurve[e2] = list(self.epcurve[edge])
+        self.etol[e2] = self.etol[edge]
+        return v, e2
+
+    def sweep_loop(self, loop: int, offset) -> dict[str, list[int]]:
+        """Translational sweep of one loop (Mäntylä's sweep by ``mev`` + ``mef``).
+
+        Every vertex ``v`` of ``loop`` gets a strut edge to ``v + offset``; consecutive new
+        vertices are joined, each join making a side face.  Afterwards ``loop`` is the
+        swept copy (the lid) and the side faces follow the loop's edges.
+
+        Returns
+        -------
+        dict with, per original coedge in loop order: ``"coedges"`` (the original coedge),
+        ``"struts"`` (edge from its origin up), ``"lids"`` (edge of the lid above it, running
+        like the original coedge) and ``"faces"`` (the side face on it).
+        """
+        off = np.asarray(offset, dtype=np.float64)
+        cs = self.loop_coedges(loop)
+        if not cs:
+            raise TopologyError(f"sweep_loop: loop {loop} has no edges")
+        struts = []
+        for c in cs:
+            e, _ = self.mev(loop, self.prv[c], self.vpoint[self.origin(c)] + off)
+            struts.append(e)
+        lids, faces = [], []
+        n = len(cs)
+        a = 2 * struts[0]
+        for i in range(n):
+            # New edge from the top of strut i (the end of ``a``, in the lid loop) to the top
+            # of strut i + 1; the cycle through the original coedge i becomes the side face.
+            e, f, _ = self.mef(loop, a, 2 * struts[(i + 1) % n])
+            lids.append(e)
+            faces.append(f)
+            a = 2 * e
+        return {"coedges": cs, "struts": struts, "lids": lids, "faces": faces}
+
+    # ================================================================ geometry
+    def _pool(self, kind: str, obj: Any) -> int:
+        if obj is None:
+            return -1
+        key = (kind, id(obj))
+        if key not in self._pool_index:
+            pool = getattr(self, kind)
+            pool.append(obj)
+            self._pool_index[key] = len(pool) - 1
+        return self._pool_index[key]
+
+    def set_vertex(self, vertex: int, point=None, tol: float | None = None) -> None:
+        if point is not None:
+            self.vpoint[vertex] = np.asarray(point, dtype=np.float64)
+        if tol is not None:
+            self.vtol[vertex] = float(tol)
+
+    def set_edge_curve(self, edge: int, curve: Any, t_range: tuple[float, float], tol: float | None = None) -> None:
+        """Attach a 3-D curve over ``t_range`` (curve(t0) at the start vertex, t0 < t1)."""
+        t0, t1 = float(t_range[0]), float(t_range[1])
+        if not t0 < t1:
+            raise InvalidInputError(f"edge {edge}: curve range must increase, got ({t0!r}, {t1!r})")
+        self.ecurve[edge] = self._pool("curves", curve)
+        self.erange[edge] = (t0, t1)
+        if tol is not None:
+            self.etol[edge] = float(tol)
+
+    def set_pcurve(self, coedge: int, pcurve: Any) -> None:
+        """Attach the p-curve of one side of an edge (same parameter as the 3-D curve)."""
+        self.epcurve[coedge >> 1][coedge & 1] = self._pool("pcurves", pcurve)
+
+    def set_face_surface(self, face: int, surface: Any, sense: bool = True) -> None:
+        self.fsurface[face] = self._pool("surfaces", surface)
+        self.fsense[face] = bool(sense)
+
+    # ================================================================ assembly from loops
+    def assemble(
+        self,
+        points: np.ndarray,
+        edges: np.ndarray,
+        face_loops: Sequence[Sequence[Sequence[int]]],
+        *,
+        face_surfaces: Sequence[Any] | None = None,
+        face_senses: Sequence[bool] | None = None,
+    ) -> None:
+        """Add shells given as faces of oriented edge loops.
+
+        Parameters
+        ----------
+        points : (V, 3) vertex positions (new vertices of this builder)
+        edges : (E, 2) vertex index pairs (start, end), local to ``points``
+        face_loops : per face, a list of loops (outer first), each a list of signed edge
+            references ``+(e + 1)`` (edge traversed start → end) or ``-(e + 1)`` (reversed)
+        face_surfaces, face_senses : optional geometry per face
+
+        Each edge must be used exactly once in each direction.  Shells are the connected
+        components of the faces; each becomes the outer shell of its own solid (use
+        :meth:`nest_shells` to make voids).
+
+        Raises
+        ------
+        TopologyError
+            An edge used other than once forwards and once backwards, a loop whose
+            consecutive edges do not meet, or a shell failing Euler–Poincaré.
+        """
+        points = np.asarray(points, dtype=np.float64)
+        edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+        v_off, e_off = len(self.vpoint), len(self.ev)
+        for p in points:
+            self._new_vertex(p)
+        for a, b in edges:
+            self._new_edge(int(a) + v_off, int(b) + v_off)
+        used = np.zeros((len(edges), 2), dtype=np.int64)
+        face_ids: list[int] = []
+        loop_ids_per_face: list[list[int]] = []
+        for fi, loops in enumerate(face_loops):
+            f = self._new_face(-1)
+            face_ids.append(f)
+            if face_surfaces is not None:
+                self.fsurface[f] = self._pool("surfaces", face_surfaces[fi])
+            if face_senses is not None:
+                self.fsense[f] = bool(face_senses[fi])
+            lids = []
+            for li, loop in enumerate(loops):
+                l = self._new_loop(f)
+                lids.append(l)
+                if li == 0:
+                    self.fouter[f] = l
+                cs = []
+                for ref in loop:
+                    if ref == 0 or abs(ref) > len(edges):
+                        raise TopologyError(f"face {fi}: edge reference {ref} out of range 1..{len(edges)}")
+                    e = abs(int(ref)) - 1
+                    side = 0 if ref > 0 else 1
+                    used[e, side] += 1
+                    cs.append(2 * (e + e_off) + side)
+                for i, c in enumerate(cs):
+                    n = cs[(i + 1) % len(cs)]
+                    if self.target(c) != self.origin(n):
+                        raise TopologyError(
+                            f"face {fi}, loop {li}: edge {abs(loop[i]) - 1} ends at vertex {self.target(c) - v_off} "
+                            f"but the next edge {abs(loop[(i + 1) % len(cs)]) - 1} starts at vertex {self.origin(n) - v_off}"
+                        )
+                    self._link(c, n)
+                self._set_loop(cs, l)
+            loop_ids_per_face.append(lids)
+        bad = np.flatnonzero((used[:, 0] != 1) | (used[:, 1] != 1))
+        if bad.size:
+            e = int(bad[0])
+            raise TopologyError(
+                f"edge {e} (vertices {edges[e].tolist()}) is used {used[e, 0]} times forwards and "
+                f"{used[e, 1]} times backwards; a closed manifold shell uses each edge once each way"
+            )
+        for e in range(len(edges)):
+            for side in (0, 1):
+                c = 2 * (e + e_off) + side
+                v = self.origin(c)
+                if self.vcoedge[v] < 0:
+                    self.vcoedge[v] = c
+        # Shells: connected components of faces through shared edges.
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        nf = len(face_ids)
+        ce = np.arange(2 * e_off, 2 * len(self.ev))
+        cf = np.array([self.lface[self.cloop[c]] for c in ce]) - face_ids[0] if nf else np.empty(0, int)
+        a, b = cf[0::2], cf[1::2]
+        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
+        n_comp, labels = connected_components(graph, directed=False)
+        for k in range(n_comp):
+            solid = len(self.souter)
+            shell = len(self.ssolid)
+            self.ssolid.append(solid)
+            self.salive.append(True)
+            self.souter.append(shell)
+            self.solive.append(True)
+            for fi in np.flatnonzero(labels == k):
+                self.fshell[face_ids[int(fi)]] = shell
+
+    def nest_shells(self, outer_shell: int, void_shell: int) -> None:
+        """Make ``void_shell`` (oriented inward) a void of the solid of ``outer_shell``."""
+        solid_void = self.ssolid[void_shell]
+        if self.souter[solid_void] == void_shell:
+            self.solive[solid_void] = False
+        self.ssolid[void_shell] = self.ssolid[outer_shell]
+
+    # ================================================================ build
+    def build(self, *, check: bool = True) -> BRep:
+        """Compact killed entities and return an immutable :class:`BRep`.
+
+        Raises
+        ------
+        TopologyError
+            When ``check`` is set and the B-rep breaks an invariant; the message lists the problems.
+        """
+        valive = np.asarray(self.valive, dtype=bool)
+        ealive = np.asarray(self.ealive, dtype=bool)
+        lalive = np.asarray(self.lalive, dtype=bool)
+        falive = np.asarray(self.falive, dtype=bool)
+        salive = np.asarray(self.salive, dtype=bool)
+        solive = np.asarray(self.solive, dtype=bool)
+
+        def remap(alive: np.ndarray) -> np.ndarray:
+            m = np.full(alive.shape[0] + 1, -1, dtype=np.int64)  # index -1 maps to -1
+            m[:-1][alive] = np.arange(int(alive.sum()))
+            return m
+
+        vm, em, lm, fm, sm, om = (remap(a) for a in (valive, ealive, lalive, falive, salive, solive))
+        cm = np.full(2 * len(self.ev) + 1, -1, dtype=np.int64)
+        alive_c = np.repeat(ealive, 2)
+        cm[:-1][alive_c] = np.arange(int(alive_c.sum()))
+
+        nxt = np.asarray(self.nxt, dtype=np.int64)[alive_c]
+        prv = np.asarray(self.prv, dtype=np.int64)[alive_c]
+        cloop = np.asarray(self.cloop, dtype=np.int64)[alive_c]
+        wing = np.stack([cm[prv[0::2]], cm[nxt[0::2]], cm[prv[1::2]], cm[nxt[1::2]]], axis=1) if nxt.size else np.zeros((0, 4), np.int64)
+
+        lface = fm[np.asarray(self.lface, dtype=np.int64)[lalive]]
+        fshell = sm[np.asarray(self.fshell, dtype=np.int64)[falive]]
+        ssolid = om[np.asarray(self.ssolid, dtype=np.int64)[salive]]
+        fouter = lm[np.asarray(self.fouter, dtype=np.int64)[falive]]
+        souter = sm[np.asarray(self.souter, dtype=np.int64)[solive]]
+
+        def csr(owner: np.ndarray, n_owner: int, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            items = np.arange(owner.shape[0])
+            key = owner * 2 + (items != first[owner]).astype(np.int64) if owner.size else owner
+            order = np.lexsort((items, key)) if owner.size else items
+            ptr = np.zeros(n_owner + 1, dtype=np.int64)
+            np.add.at(ptr, owner + 1, 1)
+            return np.cumsum(ptr), items[order]
+
+        face_loop_ptr, face_loops = csr(lface, int(falive.sum()), fouter)
+        shell_face_ptr, shell_faces = csr(fshell, int(salive.sum()), np.zeros(int(salive.sum()), np.int64) - 1)
+        solid_shell_ptr, solid_shells = csr(ssolid, int(solive.sum()), souter)
+
+        brep = BRep(
+            vertex_point=np.asarray(self.vpoint, dtype=np.float64).reshape(-1, 3)[valive],
+            vertex_tol=np.asarray(self.vtol)[valive],
+            vertex_coedge=cm[np.asarray(self.vcoedge, dtype=np.int64)[valive]],
+            edge_vertex=vm[np.asarray(self.ev, dtype=np.int64).reshape(-1, 2)[ealive]],
+            edge_loop=lm[cloop].reshape(-1, 2),
+            edge_wing=wing,
+            edge_curve=np.asarray(self.ecurve, dtype=np.int64)[ealive],
+            edge_range=np.asarray(self.erange, dtype=np.float64).reshape(-1, 2)[ealive],
+            edge_pcurve=np.asarray(self.epcurve, dtype=np.int64).reshape(-1, 2)[ealive],
+            edge_tol=np.asarray(self.etol)[ealive],
+            loop_face=lface,
+            loop_coedge=cm[np.asarray(self.lcoedge, dtype=np.int64)[lalive]],
+            loop_vertex=vm[np.asarray(self.lvertex, dtype=np.int64)[lalive]],
+            face_surface=np.asarray(self.fsurface, dtype=np.int64)[falive],
+            face_sense=np.asarray(self.fsense, dtype=bool)[falive],
+            face_shell=fshell,
+            face_loop_ptr=face_loop_ptr,
+            face_loops=face_loops,
+            shell_solid=ssolid,
+            shell_face_ptr=shell_face_ptr,
+            shell_faces=shell_faces,
+            solid_shell_ptr=solid_shell_ptr,
+            solid_shells=solid_shells,
+            surfaces=tuple(self.surfaces),
+            curves=tuple(self.curves),
+            pcurves=tuple(self.pcurves),
+        )
+        if check:
+            from coons.topology.check import check as _check
+
+            report = _check(brep, tol=self.tol)
+            if not report.ok:
+                raise TopologyError("the built B-rep is invalid:\n" + report.summary())
+        return brep

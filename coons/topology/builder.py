@@ -411,16 +411,14 @@ class BRepBuilder:
             raise TopologyError("mekr: a loop with edges needs the coedge after which to insert")
         e = self._new_edge(va, vb)
         c0, c1 = 2 * e, 2 * e + 1
-        an = self.nxt[a] if a is not None else c1
-        bn = self.nxt[b] if b is not None else c0
+        # a -> c0 -> (b's old successor) ... b -> c1 -> (a's old successor); a lone-vertex
+        # loop contributes no coedge, so the edge turns straight back there.
+        an = self.nxt[a] if a is not None else c0
+        bn = self.nxt[b] if b is not None else c1
         if a is not None:
             self._link(a, c0)
-        else:
-            self._link(c1, c0)
         if b is not None:
             self._link(b, c1)
-        else:
-            self._link(c0, c1)
         self._link(c0, bn)
         self._link(c1, an)
         for v, c in ((va, c0), (vb, c1)):

@@ -178,8 +178,10 @@ def _check_euler(b: BRep, out: list[Problem]) -> None:
     F = np.bincount(shell_of_face, minlength=ns)
     L = np.bincount(shell_of_face[b.loop_face], minlength=ns)
     E = np.bincount(shell_of_face[b.edge_face[:, 0]], minlength=ns) if b.n_edges else np.zeros(ns, int)
+    edge_shell = shell_of_face[b.edge_face[:, 0]]
     vs_pairs = np.concatenate([
-        np.stack([b.edge_vertex[:, 0], shell_of_face[b.edge_face[:, 0]]], 1),
+        np.stack([b.edge_vertex[:, 0], edge_shell], 1),
+        np.stack([b.edge_vertex[:, 1], edge_shell], 1),
         np.stack([b.loop_vertex[b.loop_vertex >= 0], shell_of_face[b.loop_face[b.loop_vertex >= 0]]], 1),
     ])
     V = np.bincount(np.unique(vs_pairs, axis=0)[:, 1], minlength=ns)

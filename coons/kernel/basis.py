@@ -29,6 +29,7 @@ __all__ = [
     "basis_functions",
     "basis_derivatives",
     "basis_matrix",
+    "mapped_knots",
     "clamped_uniform_knots",
     "periodic_uniform_knots",
 ]
@@ -136,8 +137,11 @@ def find_spans(knots: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
     (m,) int64 in ``[p, n - 1]``
     """
     n = knots.shape[0] - degree - 1
-    spans = np.searchsorted(knots, u, side="right") - 1
-    return np.clip(spans, degree, n - 1).astype(np.int64, copy=False)
+    # The last non-empty span: with a floating knot vector U[n] may repeat above the
+    # domain, so span n - 1 can be empty and u = U[n] belongs to the span before it.
+    last = int(np.searchsorted(knots, knots[n], side="left")) - 1
+    spans = np.minimum(np.searchsorted(knots, u, side="right") - 1, last)
+    return np.maximum(spans, degree).astype(np.int64, copy=False)
 
 
 def basis_functions(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -240,6 +244,27 @@ def basis_matrix(knots: np.ndarray, degree: int, u: np.ndarray, order: int = 0) 
     cols = spans[:, None] - degree + np.arange(degree + 1)
     indptr = np.arange(0, m * (degree + 1) + 1, degree + 1)
     return sp.csr_matrix((vals.ravel(), cols.ravel(), indptr), shape=(m, n))
+
+
+def mapped_knots(knots: np.ndarray, degree: int, start: float, end: float) -> np.ndarray:
+    """The knot vector moved affinely so its domain becomes ``[start, end]``.
+
+    The domain ends land exactly on ``start`` and ``end`` and the result stays
+    non-decreasing despite round-off.
+
+    Raises
+    ------
+    InvalidInputError
+        ``end <= start`` or non-finite bounds.
+    """
+    if not (np.isfinite(start) and np.isfinite(end) and end > start):
+        raise InvalidInputError(f"need finite start < end, got [{start!r}, {end!r}]")
+    a, b = domain_of(knots, degree)
+    s = (knots - a) / (b - a)
+    U = start + s * (end - start)
+    U[s == 0.0] = start
+    U[s == 1.0] = end
+    return np.maximum.accumulate(U)
 
 
 def clamped_uniform_knots(n_coefficients: int, degree: int, domain: tuple[float, float] = (0.0, 1.0)) -> np.ndarray:

@@ -252,12 +252,10 @@ class NurbsCurve:
         InvalidInputError
             ``end <= start`` or non-finite bounds.
         """
-        if not (np.isfinite(start) and np.isfinite(end) and end > start):
-            raise InvalidInputError(f"reparametrized: need finite start < end, got [{start!r}, {end!r}]")
-        a, b = self.domain
-        U = start + (self.knots - a) * ((end - start) / (b - a))
-        U[self.degree] = start
-        U[self.n_control_points] = end
+        try:
+            U = _b.mapped_knots(self.knots, self.degree, start, end)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"reparametrized: {exc}") from None
         return NurbsCurve(self.control_points, U, self.degree, self.weights)
 
     def transformed(self, matrix) -> "NurbsCurve":

@@ -322,16 +322,13 @@ class NurbsSurface:
 
     def reparametrized(self, domain_u: tuple[float, float], domain_v: tuple[float, float]) -> "NurbsSurface":
         """The same surface over new domains (affine maps of each knot vector)."""
-        knots = []
-        for (s, e), (a, b), U, p, n in (
-            (domain_u, self.domain_u, self.knots_u, self.degree_u, self.shape[0]),
-            (domain_v, self.domain_v, self.knots_v, self.degree_v, self.shape[1]),
-        ):
-            if not (np.isfinite(s) and np.isfinite(e) and e > s):
-                raise InvalidInputError(f"reparametrized: need finite start < end, got [{s!r}, {e!r}]")
-            K = s + (U - a) * ((e - s) / (b - a))
-            K[p], K[n] = s, e
-            knots.append(K)
+        try:
+            knots = [
+                _b.mapped_knots(self.knots_u, self.degree_u, *domain_u),
+                _b.mapped_knots(self.knots_v, self.degree_v, *domain_v),
+            ]
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"reparametrized: {exc}") from None
         return NurbsSurface(self.control_points, knots[0], knots[1], self.degree_u, self.degree_v, self.weights)
 
     # ------------------------------------------------------------------ delegated algorithms

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from coons.errors import CoonsError
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 
@@ -272,7 +273,11 @@ def _check_orientation(b: BRep, t: Tolerance, out: list[Problem]) -> None:
         from coons.topology.mass import shell_volumes
     except ImportError:  # pragma: no cover - mass properties land with the primitives
         return
-    vols = shell_volumes(b)
+    try:
+        vols = shell_volumes(b)
+    except CoonsError as exc:  # geometry the integrator does not know: report, do not crash
+        out.append(Problem("orientation-unchecked", "brep", 0, f"shell volumes could not be computed: {exc}"))
+        return
     outer = np.zeros(b.n_shells, dtype=bool)
     outer[b.solid_shells[b.solid_shell_ptr[:-1]]] = True
     for s in range(b.n_shells):

@@ -18,10 +18,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coons.errors import CoonsError
+from coons.kernel.analytic import Line, PlanarSurface
+from coons.kernel.pcurve import Line2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]
+
+_ENDS = np.array([0.0, 1.0])  # sample parameters of a straight segment: its two ends
 
 
 @dataclass(frozen=True)
@@ -87,6 +91,7 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         _check_euler(b, problems)
     if geometry and topo_ok:
         _check_geometry(b, t, samples, problems)
+        _check_trims(b, t, samples, problems)
         if not problems:
             _check_orientation(b, t, problems)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
@@ -185,7 +190,11 @@ def _check_euler(b: BRep, out: list[Problem]) -> None:
         np.stack([b.edge_vertex[:, 1], edge_shell], 1),
         np.stack([b.loop_vertex[b.loop_vertex >= 0], shell_of_face[b.loop_face[b.loop_vertex >= 0]]], 1),
     ])
-    V = np.bincount(np.unique(vs_pairs, axis=0)[:, 1], minlength=ns)
+    # Distinct (vertex, shell) pairs through a sorted 1-D key (np.unique, with or without axis=0, is
+    # many times slower than a sort on millions of pairs).
+    key = np.sort(vs_pairs[:, 0] * ns + vs_pairs[:, 1])
+    distinct = key[np.concatenate([[True], key[1:] != key[:-1]])] if key.size else key
+    V = np.bincount(distinct % ns, minlength=ns)
     chi = V - E + F - (L - F)
     for s in range(ns):
         if chi[s] % 2 or chi[s] > 2:
@@ -194,51 +203,56 @@ def _check_euler(b: BRep, out: list[Problem]) -> None:
 
 
 # ---------------------------------------------------------------------- geometry
-def _edge_samples(b: BRep, samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """Parameters ``(E, k)`` and 3-D points ``(E, k, 3)`` along every edge."""
+def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters ``(k, samples)`` and 3-D points ``(k, samples, 3)`` along the given edges (default: all)."""
+    edges = np.arange(b.n_edges) if edges is None else np.asarray(edges, dtype=np.int64)
     s = np.linspace(0.0, 1.0, samples)
-    r = b.edge_range
+    r = b.edge_range[edges]
     T = r[:, :1] + (r[:, 1:] - r[:, :1]) * s
     P = np.empty(T.shape + (3,))
-    straight = b.edge_curve < 0
+    curve = b.edge_curve[edges]
+    straight = curve < 0
     if np.any(straight):
-        a = b.vertex_point[b.edge_vertex[straight, 0]]
-        c = b.vertex_point[b.edge_vertex[straight, 1]]
+        a = b.vertex_point[b.edge_vertex[edges[straight], 0]]
+        c = b.vertex_point[b.edge_vertex[edges[straight], 1]]
         P[straight] = a[:, None, :] + s[None, :, None] * (c - a)[:, None, :]
-    for ci in np.unique(b.edge_curve[~straight]):
-        rows = np.flatnonzero(b.edge_curve == ci)
+    for ci in np.unique(curve[~straight]):
+        rows = np.flatnonzero(curve == ci)
         P[rows] = b.curves[int(ci)].evaluate(T[rows])
     return T, P
 
 
 def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> None:
-    T, P = _edge_samples(b, samples)
-    ends = b.vertex_point[b.edge_vertex]  # (E, 2, 3)
-    allow = b.edge_tol[:, None] + b.vertex_tol[b.edge_vertex] + t.linear
+    # Only edges with a 3-D curve or a p-curve on a surface are sampled: a straight edge without
+    # p-curves is the segment between its vertices, nothing about it can deviate.
+    has_pc = (b.edge_pcurve >= 0) & (b.face_surface[b.edge_face] >= 0)  # (E, 2)
+    rows = np.flatnonzero((b.edge_curve >= 0) | has_pc.any(axis=1))
+    T, P = _edge_samples(b, samples, rows)
+    ev = b.edge_vertex[rows]
+    ends = b.vertex_point[ev]  # (k, 2, 3)
+    allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
     gap = np.linalg.norm(P[:, [0, -1], :] - ends, axis=-1)
     bad = np.argwhere(gap > allow)
-    for e, k in bad[:10]:
-        out.append(Problem("vertex-off-edge", "edge", int(e),
-                           f"its {'start' if k == 0 else 'end'} is {gap[e, k]:.3g} from vertex {int(b.edge_vertex[e, k])} "
-                           f"(allowed {allow[e, k]:.3g})"))
+    for r, k in bad[:10]:
+        out.append(Problem("vertex-off-edge", "edge", int(rows[r]),
+                           f"its {'start' if k == 0 else 'end'} is {gap[r, k]:.3g} from vertex {int(ev[r, k])} "
+                           f"(allowed {allow[r, k]:.3g})"))
     # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance.
     uv_end = {}
-    for e in range(b.n_edges):
-        for side in (0, 1):
-            pi = int(b.edge_pcurve[e, side])
-            f = int(b.edge_face[e, side])
-            si = int(b.face_surface[f])
-            if pi < 0 or si < 0:
-                continue
-            uv = b.pcurves[pi].evaluate(T[e])
-            Q = b.surfaces[si].evaluate(uv[:, 0], uv[:, 1])
-            dev = float(np.max(np.linalg.norm(Q - P[e], axis=-1)))
-            if dev > b.edge_tol[e] + t.linear:
-                out.append(Problem("pcurve-deviation", "edge", e,
-                                   f"p-curve in face {f} is {dev:.3g} from the 3-D curve (edge tolerance {b.edge_tol[e]:.3g})"))
-            c = 2 * e + side
-            # Coedge start/end in parameter space (the right side runs backwards).
-            uv_end[c] = (uv[0], uv[-1]) if side == 0 else (uv[-1], uv[0])
+    for r, side in np.argwhere(has_pc[rows]):
+        e, side = int(rows[r]), int(side)
+        pi = int(b.edge_pcurve[e, side])
+        f = int(b.edge_face[e, side])
+        si = int(b.face_surface[f])
+        uv = b.pcurves[pi].evaluate(T[r])
+        Q = b.surfaces[si].evaluate(uv[:, 0], uv[:, 1])
+        dev = float(np.max(np.linalg.norm(Q - P[r], axis=-1)))
+        if dev > b.edge_tol[e] + t.linear:
+            out.append(Problem("pcurve-deviation", "edge", e,
+                               f"p-curve in face {f} is {dev:.3g} from the 3-D curve (edge tolerance {b.edge_tol[e]:.3g})"))
+        c = 2 * e + side
+        # Coedge start/end in parameter space (the right side runs backwards).
+        uv_end[c] = (uv[0], uv[-1]) if side == 0 else (uv[-1], uv[0])
     # Loops closed in parameter space, allowing a jump along a collapsed side (a pole).
     nxt = b.coedge_next
     for c, (_, end) in uv_end.items():
@@ -258,13 +272,241 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
                                f"in face {f} the p-curve ends at {end.round(9).tolist()} but the next starts at "
                                f"{start.round(9).tolist()}"))
     # Polyhedral faces: vertices on one plane.
-    implicit = np.flatnonzero(b.face_surface < 0)
+    # A face with at most three coedges has at most three vertices, always on one plane.
+    n_coedges = np.bincount(b.coedge_face, minlength=b.n_faces)
+    implicit = np.flatnonzero((b.face_surface < 0) & (n_coedges > 3))
     if implicit.size:
         from coons.topology.polyhedral import face_plane_deviation
 
         dev = face_plane_deviation(b, implicit)
         for f, d in zip(implicit[dev > t.linear][:10], dev[dev > t.linear][:10]):
             out.append(Problem("non-planar-face", "face", int(f), f"vertices are up to {d:.3g} off the face's plane"))
+
+
+# ---------------------------------------------------------------------- trims
+def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> None:
+    """Self-intersecting trim loops: two segments of a face's boundary polylines crossing properly.
+
+    Every loop of a face is turned into a closed polyline in the face's parameter plane (its
+    p-curves sampled at ``samples`` parameters, straight p-curves at their ends, the jump at a
+    pole as one segment); implicit planar faces use their vertices (and sampled curved edges)
+    projected on the face's Newell plane.  All segment pairs of all loops of a face are tested
+    for a *proper* crossing (each segment's ends strictly on opposite sides of the other's
+    line), neighbours in a loop excluded, after a sweep-and-prune broad phase along ``u``
+    (all faces at once).  "Strictly" means farther than a parameter-space tolerance: ``tol.linear``
+    for implicit planes, ``tol.linear / max(|Su|, |Sv|)`` over the loop's samples on surfaces
+    (a parameter step that maps to less than ``tol.linear`` in space is touching, not crossing).
+    Touching loops and shared vertices are therefore accepted.  The polylines are samples: a
+    crossing of the true curves that the chords miss (or the reverse, within the sagitta of
+    nearly tangent loops) is not found.  Planar faces made of one loop of at most three straight
+    edges cannot self-intersect and are skipped.
+    """
+    if b.n_faces == 0 or b.n_edges == 0:
+        return
+    parts: list[tuple[np.ndarray, ...]] = []
+    # Index -1 (no curve: a straight segment; no p-curve) reads the appended True.
+    straight_curve = np.array([isinstance(c, Line) for c in b.curves] + [True])[b.edge_curve]
+    straight_pc = np.array([isinstance(p, Line2D) for p in b.pcurves] + [True])[b.edge_pcurve]  # (E, 2)
+    implicit = b.face_surface < 0
+    cf = b.coedge_face
+    straight_c = np.where(implicit[cf], np.repeat(straight_curve, 2), straight_pc.ravel())
+    all_straight = np.ones(b.n_faces, dtype=bool)
+    all_straight[cf[~straight_c]] = False
+    n_loops = np.diff(b.face_loop_ptr)
+    n_coedges = np.bincount(cf, minlength=b.n_faces)
+    # At most three straight edges in one loop cannot cross each other — unless the loop also jumps
+    # across a collapsed side in parameter space, which only non-planar surfaces have.
+    flat = np.array([isinstance(S, PlanarSurface) for S in b.surfaces] + [True])[b.face_surface]
+    simple = (n_loops == 1) & (n_coedges <= 3) & all_straight & flat
+    vec_faces = implicit & all_straight & ~simple
+    if np.any(vec_faces):
+        parts.append(_implicit_segments(b, vec_faces, t))
+    for f in np.flatnonzero(~simple & ~vec_faces):
+        seg = _face_segments(b, int(f), samples, t)
+        if seg is not None:
+            parts.append(seg)
+    if not parts:
+        return
+    offsets = np.cumsum([0] + [p[0].shape[0] for p in parts[:-1]])
+    A = np.concatenate([p[0] for p in parts])
+    B = np.concatenate([p[1] for p in parts])
+    face = np.concatenate([p[2] for p in parts])
+    nxt = np.concatenate([p[3] + o for p, o in zip(parts, offsets)])
+    coedge = np.concatenate([p[4] for p in parts])
+    eps = np.concatenate([p[5] for p in parts])
+    i, j = _sweep_pairs(A, B, face)
+    if i.size == 0:
+        return
+    keep = (nxt[i] != j) & (nxt[j] != i)
+    i, j = i[keep], j[keep]
+    di, dj = B[i] - A[i], B[j] - A[j]
+    li, lj = np.linalg.norm(di, axis=1), np.linalg.norm(dj, axis=1)
+    ok = (li > 0) & (lj > 0)
+    i, j, di, dj, li, lj = i[ok], j[ok], di[ok], dj[ok], li[ok], lj[ok]
+
+    def side(d, l, o, p):  # signed distance of p from the line through o along d
+        q = p - o
+        return (d[:, 0] * q[:, 1] - d[:, 1] * q[:, 0]) / l
+
+    e = eps[i]
+    s1, s2 = side(di, li, A[i], A[j]), side(di, li, A[i], B[j])
+    s3, s4 = side(dj, lj, A[j], A[i]), side(dj, lj, A[j], B[i])
+    cross = (((s1 > e) & (s2 < -e)) | ((s1 < -e) & (s2 > e))) & (((s3 > e) & (s4 < -e)) | ((s3 < -e) & (s4 > e)))
+    hits = np.flatnonzero(cross)
+    if hits.size == 0:
+        return
+    seen: set[int] = set()
+    for k in hits:
+        f = int(face[i[k]])
+        if f in seen:
+            continue
+        seen.add(f)
+        ci, cj = int(coedge[i[k]]), int(coedge[j[k]])
+        li_, lj_ = int(b.coedge_loop[ci]), int(b.coedge_loop[cj])
+        w = s1[k] / (s1[k] - s2[k])
+        x = A[j[k]] + w * (B[j[k]] - A[j[k]])
+        out.append(Problem("self-intersecting-trim", "face", f,
+                           f"edge {ci >> 1} of loop {li_} crosses edge {cj >> 1} of loop {lj_} near "
+                           f"{np.round(x, 9).tolist()} in the face's parameter plane"))
+        if len(seen) >= 10:
+            break
+
+
+def _implicit_segments(b: BRep, faces: np.ndarray, t: Tolerance) -> tuple[np.ndarray, ...]:
+    """One segment per coedge of implicit planar faces with straight edges, projected on each face's Newell plane."""
+    from coons.topology.polyhedral import newell_normals
+
+    c = np.flatnonzero(faces[b.coedge_face])
+    f = b.coedge_face[c]
+    P0, P1 = b.vertex_point[b.coedge_origin[c]], b.vertex_point[b.coedge_target[c]]
+    ids, local = np.unique(f, return_inverse=True)
+    N = newell_normals(P0, P1, local, ids.size)
+    norm = np.linalg.norm(N, axis=1)
+    N = np.divide(N, norm[:, None], out=np.zeros_like(N), where=norm[:, None] > 0)
+    k = np.argmin(np.abs(N), axis=1)
+    X = np.cross(N, np.eye(3)[k])
+    X /= np.maximum(np.linalg.norm(X, axis=1), np.finfo(float).tiny)[:, None]
+    Y = np.cross(N, X)
+    ref = np.zeros((ids.size, 3))
+    ref[local] = P0  # any vertex of the face: coordinates relative to it keep precision
+    Xl, Yl, Rl = X[local], Y[local], ref[local]
+    A = np.stack([np.einsum("ij,ij->i", P0 - Rl, Xl), np.einsum("ij,ij->i", P0 - Rl, Yl)], axis=1)
+    B = np.stack([np.einsum("ij,ij->i", P1 - Rl, Xl), np.einsum("ij,ij->i", P1 - Rl, Yl)], axis=1)
+    pos = np.full(2 * b.n_edges, -1, dtype=np.int64)
+    pos[c] = np.arange(c.size)
+    return A, B, f, pos[b.coedge_next[c]], c, np.full(c.size, t.linear)
+
+
+def _face_segments(b: BRep, f: int, samples: int, t: Tolerance) -> tuple[np.ndarray, ...] | None:
+    """Boundary polylines of one face in its parameter plane (or Newell plane), as segments.
+
+    Returns None when a coedge of a face on a surface has no p-curve (nothing to sample).
+    """
+    si = int(b.face_surface[f])
+    s = np.linspace(0.0, 1.0, samples)
+    rings, owners = [], []
+    for loop in b.face_loop_ids(f):
+        pts, own = [], []
+        for c in b.loop_coedges(int(loop)):
+            e, sd = int(c) >> 1, int(c) & 1
+            t0, t1 = b.edge_range[e]
+            if si >= 0:
+                pi = int(b.edge_pcurve[e, sd])
+                if pi < 0:
+                    return None
+                pc = b.pcurves[pi]
+                u = _ENDS if isinstance(pc, Line2D) else s
+                w = u if sd == 0 else 1.0 - u  # the right side runs backwards
+                pts.append(pc.evaluate(t0 + (t1 - t0) * w))
+            else:
+                ci = int(b.edge_curve[e])
+                u = _ENDS if ci < 0 or isinstance(b.curves[ci], Line) else s
+                w = u if sd == 0 else 1.0 - u
+                # Straight edges without a curve are parametrised over [0, 1] by edge_points.
+                pts.append(b.edge_points(e, w if ci < 0 else t0 + (t1 - t0) * w))
+            own.append(np.full(u.size, int(c)))
+        if pts:
+            rings.append(np.concatenate(pts))
+            owners.append(np.concatenate(own))
+    if not rings:
+        return None
+    if si < 0:  # project the 3-D rings on the Newell plane of the face
+        allp = np.concatenate(rings)
+        nxtp = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+        N = np.cross(allp - allp[0], nxtp - allp[0]).sum(axis=0)
+        N /= max(float(np.linalg.norm(N)), np.finfo(float).tiny)
+        X = np.cross(N, np.eye(3)[int(np.argmin(np.abs(N)))])
+        X /= np.linalg.norm(X)
+        Y = np.cross(N, X)
+        rings = [np.stack([(r - allp[0]) @ X, (r - allp[0]) @ Y], axis=1) for r in rings]
+        eps = t.linear
+    else:
+        allp = np.concatenate(rings)
+        try:
+            D = b.surfaces[si].derivatives(allp[:, 0], allp[:, 1], 1)
+            stretch = float(max(np.linalg.norm(D[:, 1, 0], axis=-1).max(), np.linalg.norm(D[:, 0, 1], axis=-1).max()))
+        except CoonsError:  # samples outside a NURBS domain: fall back to the linear tolerance itself
+            stretch = 1.0
+        # A parameter step below t.linear / stretch moves the point by less than t.linear in space.
+        eps = t.linear / stretch if stretch > 0 else t.linear
+    A, B, nxt, cc = [], [], [], []
+    n = 0
+    for r, o in zip(rings, owners):
+        # Drop consecutive repeats (shared ends, closing points within round-off): closer than eps
+        # they are one point for the crossing test anyway.
+        keep = np.linalg.norm(r - np.roll(r, 1, axis=0), axis=1) > eps
+        if not np.any(keep):
+            continue
+        r, o = r[keep], o[keep]
+        m = r.shape[0]
+        A.append(r)
+        B.append(np.roll(r, -1, axis=0))
+        nxt.append(n + (np.arange(m) + 1) % m)
+        cc.append(o)
+        n += m
+    if n == 0:
+        return None
+    return (np.concatenate(A), np.concatenate(B), np.full(n, f, dtype=np.int64), np.concatenate(nxt),
+            np.concatenate(cc), np.full(n, eps))
+
+
+def _sweep_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, chunk: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of segments of one face whose boxes overlap (sweep and prune along ``u``).
+
+    Each face's ``u`` is mapped monotonically into ``[face, face + 1)`` so that one sort and one
+    ``searchsorted`` serve all faces at once; a monotone map keeps ``lo_j <= hi_i`` as a
+    (possibly larger) candidate set, never a smaller one.
+    """
+    lo = np.minimum(A, B)
+    hi = np.maximum(A, B)
+    ids, local = np.unique(face, return_inverse=True)
+    fmin = np.full(ids.size, np.inf)
+    fmax = np.full(ids.size, -np.inf)
+    np.minimum.at(fmin, local, lo[:, 0])
+    np.maximum.at(fmax, local, hi[:, 0])
+    span = np.maximum(fmax - fmin, np.finfo(float).tiny) * 2.0  # factor 2: normalised values stay below 1/2
+    g_lo = local + (lo[:, 0] - fmin[local]) / span[local]
+    g_hi = local + (hi[:, 0] - fmin[local]) / span[local]
+    order = np.argsort(g_lo, kind="stable")
+    gs = g_lo[order]
+    end = np.searchsorted(gs, g_hi[order], side="right")
+    count = np.maximum(end - np.arange(order.size) - 1, 0)
+    I, J = [], []
+    start = 0
+    while start < order.size:
+        # Grow the block while the number of candidate pairs stays within ``chunk``.
+        csum = np.cumsum(count[start:])
+        stop = start + max(1, int(np.searchsorted(csum, chunk, side="right")))
+        cnt = count[start:stop]
+        p = np.repeat(np.arange(start, stop), cnt)
+        off = np.arange(p.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        q = p + 1 + off
+        i, j = order[p], order[q]
+        v_ok = (np.maximum(lo[i, 1], lo[j, 1]) <= np.minimum(hi[i, 1], hi[j, 1])) & (face[i] == face[j])
+        I.append(i[v_ok])
+        J.append(j[v_ok])
+        start = stop
+    return np.concatenate(I), np.concatenate(J)
 
 
 def _check_orientation(b: BRep, t: Tolerance, out: list[Problem]) -> None:

@@ -1,0 +1,457 @@
+"""The checker finds every invariant violation it promises, and nothing in valid solids.
+
+Each case corrupts the tables of a valid B-rep (arrays copied with ``np.array``, modified,
+``BRep(...)`` rebuilt directly — no builder involved) or builds an invalid one with the Euler
+operators / ``assemble`` and ``build(check=False)``, and asserts the problem's code and entity.
+A meta-test asserts that every code written in ``coons/topology/check.py`` has a case here.
+Valid primitives, mesh solids and merged polygon solids are clean.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import coons.topology.check as check_module
+from coons.kernel.analytic import PlanarSurface
+from coons.kernel.pcurve import Line2D
+from coons.topology.brep import BRep
+from coons.topology.builder import BRepBuilder
+from coons.topology.check import CheckReport, Problem, check
+from coons.topology.from_mesh import from_mesh
+from coons.topology.primitives import Box, Cone, Cylinder, Sphere, Torus
+from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces
+from coons.errors import TopologyError
+
+CUBE_T = [[1, 3, 0], [4, 1, 0], [0, 3, 2], [2, 4, 0], [1, 7, 3], [5, 1, 4],
+          [5, 7, 1], [3, 7, 2], [6, 4, 2], [2, 7, 6], [6, 5, 4], [7, 5, 6]]
+TET_P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+TET_E = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]]
+TET_FACES = [[[-3, -2, -1]], [[1, 5, -4]], [[2, 6, -5]], [[3, 4, -6]]]  # outward
+
+
+# ============================================================================ helpers
+def columns(b: BRep) -> dict:
+    """Writable copies of every table of ``b`` (geometry pools as lists)."""
+    out = {}
+    for f in dataclasses.fields(b):
+        v = getattr(b, f.name)
+        out[f.name] = np.array(v) if isinstance(v, np.ndarray) else list(v)
+    return out
+
+
+def corrupted(b: BRep, change) -> BRep:
+    cols = columns(b)
+    change(cols)
+    return BRep(**cols)
+
+
+def cube_points(lo, hi) -> np.ndarray:
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    bits = (np.arange(8)[:, None] >> np.array([2, 1, 0])) & 1
+    return lo + bits * (hi - lo)
+
+
+def assemble_triangles(parts, nest: tuple[int, int] | None = None) -> BRep:
+    """Unchecked B-rep of triangle shells ``[(points, triangles), ...]`` through ``assemble``."""
+    b = BRepBuilder()
+    for P, T in parts:
+        T = np.asarray(T)
+        key = {}
+        edges, faces = [], []
+        for tri in T:
+            loop = []
+            for k in range(3):
+                a, c = int(tri[k]), int(tri[(k + 1) % 3])
+                if (c, a) in key:
+                    loop.append(-(key[(c, a)] + 1))
+                else:
+                    key[(a, c)] = len(edges)
+                    edges.append((a, c))
+                    loop.append(key[(a, c)] + 1)
+            faces.append([loop])
+        b.assemble(P, edges, faces)
+    if nest:
+        b.nest_shells(*nest)
+    return b.build(check=False)
+
+
+def codes(b) -> set[str]:
+    return check(b).codes()
+
+
+def problem(b, code: str) -> Problem:
+    report = check(b)
+    hits = [p for p in report.problems if p.code == code]
+    assert hits, f"expected {code!r}, got {report.summary()}"
+    return hits[0]
+
+
+def plate_with_hole(hole_lo, hole_hi) -> BRep:
+    """Unchecked polyhedral plate [0, 4]² × [0, 1] with a square through hole (quads, implicit planes)."""
+    (x0, y0), (x1, y1) = hole_lo, hole_hi
+    outer = [(0, 0), (4, 0), (4, 4), (0, 4)]
+    inner = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+    P = np.array([(x, y, z) for z in (0.0, 1.0) for x, y in outer + inner], float)
+    # vertex ids: bottom outer 0-3, bottom inner 4-7, top outer 8-11, top inner 12-15
+    edges, index = [], {}
+
+    def ref(a, c):
+        if (c, a) in index:
+            return -(index[(c, a)] + 1)
+        index[(a, c)] = len(edges)
+        edges.append((a, c))
+        return len(edges)
+
+    def loop(vs):
+        return [ref(vs[i], vs[(i + 1) % len(vs)]) for i in range(len(vs))]
+
+    faces = [
+        [loop([8, 9, 10, 11]), loop([12, 15, 14, 13])],  # top: outer ccw, hole cw seen from +z
+        [loop([0, 3, 2, 1]), loop([4, 5, 6, 7])],  # bottom seen from -z
+    ]
+    for i in range(4):  # outer sides
+        j = (i + 1) % 4
+        faces.append([loop([i, j, 8 + j, 8 + i])])
+    for i in range(4):  # hole sides face into the hole
+        j = (i + 1) % 4
+        faces.append([loop([4 + j, 4 + i, 12 + i, 12 + j])])
+    b = BRepBuilder()
+    b.assemble(P, edges, faces)
+    return b.build(check=False)
+
+
+# ============================================================================ corruption cases
+def case_dangling_pointer():
+    return corrupted(Box(1, 1, 1).brep, lambda c: c["edge_wing"].__setitem__((0, 1), 10**6)), "coedge", 0
+
+
+def case_wing_mismatch():
+    def change(c):
+        c["edge_wing"][0, 0] = c["edge_wing"][0, 1]  # prev of coedge 0 := its next
+
+    return corrupted(Box(1, 1, 1).brep, change), "coedge", None
+
+
+def case_loop_mismatch():
+    b = Box(1, 1, 1).brep
+    other = int(b.edge_loop[0, 1])
+    return corrupted(b, lambda c: c["edge_loop"].__setitem__((0, 0), other)), "coedge", None
+
+
+def case_loop_not_connected():
+    return corrupted(Box(1, 1, 1).brep, lambda c: c["edge_vertex"].__setitem__(0, c["edge_vertex"][0, ::-1].copy())), \
+        "coedge", None
+
+
+def case_loop_first_coedge():
+    b = Box(1, 1, 1).brep
+    return corrupted(b, lambda c: c["loop_coedge"].__setitem__(0, int(b.loop_coedge[1]))), "loop", 0
+
+
+def _merge_loop_1_into_0(c, lone_vertex: int):
+    """Coedges of loop 1 relabelled to loop 0; loop 1 left as a lone vertex (or empty with -1)."""
+    c["edge_loop"][c["edge_loop"] == 1] = 0
+    c["loop_coedge"][1] = -1
+    c["loop_vertex"][1] = lone_vertex
+
+
+def case_loop_split():
+    return corrupted(Box(1, 1, 1).brep, lambda c: _merge_loop_1_into_0(c, 0)), "loop", 0
+
+
+def case_empty_loop():
+    return corrupted(Box(1, 1, 1).brep, lambda c: _merge_loop_1_into_0(c, -1)), "loop", 1
+
+
+def case_seam_edge():
+    """A lamina strut: mvfs + mev leaves one face whose loop runs along both sides of the edge."""
+    b = BRepBuilder()
+    _, _, loop, _ = b.mvfs([0, 0, 0])
+    b.mev(loop, None, [1, 0, 0])
+    return b.build(check=False), "edge", 0
+
+
+def case_non_manifold_vertex():
+    """Two tetrahedra touching at vertex 0 only."""
+    T = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+    mirrored = [[a if a == 0 else a + 3 for a in t[::-1]] for t in T]  # vertices 4-6 are -1 times 1-3
+    return assemble_triangles([(np.concatenate([TET_P, -TET_P[1:]]), T + mirrored)]), "vertex", 0
+
+
+def case_isolated_vertex():
+    def change(c):
+        c["vertex_point"] = np.concatenate([c["vertex_point"], [[5.0, 5.0, 5.0]]])
+        c["vertex_tol"] = np.append(c["vertex_tol"], 1e-7)
+        c["vertex_coedge"] = np.append(c["vertex_coedge"], -1)
+
+    return corrupted(Box(1, 1, 1).brep, change), "vertex", 8
+
+
+def case_shell_mismatch():
+    b = assemble_triangles([(TET_P, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]),
+                            (TET_P + 5.0, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])])
+
+    def change(c):
+        c["face_shell"][4] = 0  # a face of the second tetrahedron claimed by the first shell
+        c["shell_face_ptr"] = np.array([0, 5, 8])
+        c["shell_faces"] = np.array([0, 1, 2, 3, 4, 5, 6, 7])
+
+    return corrupted(b, change), "edge", None
+
+
+def case_euler_poincare():
+    b = assemble_triangles([(TET_P, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]),
+                            (TET_P + 5.0, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])])
+
+    def change(c):  # both tetrahedra in one shell: V - E + F = 4 is not 2 (1 - G)
+        c["face_shell"][:] = 0
+        c["shell_solid"] = np.array([0])
+        c["shell_face_ptr"] = np.array([0, 8])
+        c["shell_faces"] = np.arange(8)
+        c["solid_shell_ptr"] = np.array([0, 1])
+        c["solid_shells"] = np.array([0])
+
+    return corrupted(b, change), "shell", 0
+
+
+def case_vertex_off_edge():
+    return corrupted(Box(1, 1, 1).brep, lambda c: c["vertex_point"].__setitem__((0, 0), c["vertex_point"][0, 0] + 1e-3)), \
+        "edge", None
+
+
+def case_pcurve_deviation():
+    b = Box(1, 1, 1).brep
+    k = int(b.edge_pcurve[0, 0])
+
+    def change(c):
+        pc = c["pcurves"][k]
+        c["pcurves"][k] = Line2D(pc.origin + [0.0, 0.01], pc.direction)
+
+    return corrupted(b, change), "edge", 0
+
+
+def case_pcurve_loop_open():
+    """A cylinder's bottom half-circle p-curve shifted by 2π in u: the same 3-D points, an open uv loop."""
+    b = Cylinder(1, 2).brep
+    k = next(i for i, pc in enumerate(b.pcurves)
+             if isinstance(pc, Line2D) and np.allclose(pc.origin, 0) and np.allclose(pc.direction, [1, 0]))
+
+    def change(c):
+        c["pcurves"][k] = Line2D([2 * math.pi, 0.0], [1.0, 0.0])
+
+    bad = corrupted(b, change)
+    assert "pcurve-deviation" not in codes(bad)
+    return bad, "coedge", None
+
+
+def case_non_planar_face():
+    s = from_mesh(cube_points([0, 0, 0], [1, 1, 1]), CUBE_T, merge_coplanar=True)
+    return corrupted(s.brep, lambda c: c["vertex_point"].__setitem__((7, 2), 1.001)), "face", None
+
+
+def case_self_intersecting_trim():
+    return plate_with_hole((3, 1), (5, 2)), "face", 0
+
+
+def case_inward_shell():
+    """A sphere turned inside out: every loop reversed (the sides of each edge swap, with their
+    p-curves), every sense flipped — consistent, but enclosing negative volume."""
+    b = Sphere(1).brep
+
+    def change(c):
+        twin = np.arange(2 * b.n_edges) ^ 1
+        nxt, prv = b.coedge_prev[twin] ^ 1, b.coedge_next[twin] ^ 1  # the reversed cycles
+        c["edge_loop"] = c["edge_loop"][:, ::-1].copy()
+        c["edge_wing"] = np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1)
+        c["edge_pcurve"] = c["edge_pcurve"][:, ::-1].copy()
+        c["loop_coedge"] = c["loop_coedge"] ^ 1
+        c["face_sense"] = ~c["face_sense"]
+
+    bad = corrupted(b, change)
+    assert codes(bad) == {"inward-shell"}
+    return bad, "shell", 0
+
+
+def case_outward_void():
+    outer, inner = cube_points([0, 0, 0], [4, 4, 4]), cube_points([1, 1, 1], [3, 3, 3])
+    return assemble_triangles([(outer, CUBE_T), (inner, CUBE_T)], nest=(0, 1)), "shell", 1
+
+
+class _OpaquePcurve:
+    """A correct p-curve of a type the mass integrator does not know."""
+
+    def __init__(self, pc):
+        self.pc = pc
+
+    def evaluate(self, t):
+        return self.pc.evaluate(t)
+
+    def derivatives(self, t, order=1):
+        return self.pc.derivatives(t, order)
+
+
+def case_orientation_unchecked():
+    b = Cylinder(1, 2).brep  # its faces are integrated along their p-curves
+
+    def change(c):
+        c["pcurves"][0] = _OpaquePcurve(c["pcurves"][0])
+
+    return corrupted(b, change), "brep", 0
+
+
+CASES = {
+    "dangling-pointer": case_dangling_pointer,
+    "wing-mismatch": case_wing_mismatch,
+    "loop-mismatch": case_loop_mismatch,
+    "loop-not-connected": case_loop_not_connected,
+    "loop-first-coedge": case_loop_first_coedge,
+    "loop-split": case_loop_split,
+    "empty-loop": case_empty_loop,
+    "seam-edge": case_seam_edge,
+    "non-manifold-vertex": case_non_manifold_vertex,
+    "isolated-vertex": case_isolated_vertex,
+    "shell-mismatch": case_shell_mismatch,
+    "euler-poincare": case_euler_poincare,
+    "vertex-off-edge": case_vertex_off_edge,
+    "pcurve-deviation": case_pcurve_deviation,
+    "pcurve-loop-open": case_pcurve_loop_open,
+    "non-planar-face": case_non_planar_face,
+    "self-intersecting-trim": case_self_intersecting_trim,
+    "inward-shell": case_inward_shell,
+    "outward-void": case_outward_void,
+    "orientation-unchecked": case_orientation_unchecked,
+}
+
+
+@pytest.mark.parametrize("code", sorted(CASES))
+def test_each_violation_is_found(code):
+    brep, entity, index = CASES[code]()
+    p = problem(brep, code)
+    assert p.entity == entity
+    if index is not None:
+        assert p.index == index
+    assert str(p).startswith(f"{code} [{entity} {p.index}]: ")
+    assert not check(brep).ok
+
+
+def test_every_code_of_the_checker_has_a_case():
+    source = Path(check_module.__file__).read_text()
+    written = set(re.findall(r'Problem\(\s*"([a-z-]+)"', source))
+    assert written == set(CASES)
+
+
+# ============================================================================ details of some checks
+def test_topology_only_skips_the_geometric_checks():
+    brep, _, _ = case_vertex_off_edge()
+    assert check(brep, geometry=False).ok
+    brep, _, _ = case_self_intersecting_trim()
+    assert check(brep, geometry=False).ok
+
+
+def test_pointer_problems_stop_before_the_other_checks():
+    brep, _, _ = case_dangling_pointer()
+    assert codes(brep) == {"dangling-pointer"}
+
+
+def test_geometric_problems_suppress_the_orientation_check():
+    brep, _, _ = case_vertex_off_edge()
+    assert "inward-shell" not in codes(brep) and "outward-void" not in codes(brep)
+
+
+def test_euler_message_gives_the_counts():
+    brep, _, _ = case_euler_poincare()
+    assert "V - E + F - (L - F) = 4 (V=8, E=12, F=8, L=8) is not 2(1 - G)" in problem(brep, "euler-poincare").message
+
+
+def test_trim_crossing_is_located():
+    p = problem(plate_with_hole((3, 1), (5, 2)), "self-intersecting-trim")
+    assert re.search(r"edge \d+ of loop \d+ crosses edge \d+ of loop \d+ near \[", p.message)
+    # Both the top (face 0) and the bottom (face 1) have the hole crossing their outer loop.
+    report = check(plate_with_hole((3, 1), (5, 2)))
+    assert {q.index for q in report.problems if q.code == "self-intersecting-trim"} == {0, 1}
+
+
+def test_hole_inside_and_hole_touching_the_boundary_are_not_crossings():
+    assert check(plate_with_hole((1, 1), (2, 3))).ok
+    # Hole edges lying on the outer boundary (x = 4) touch it without crossing.
+    assert "self-intersecting-trim" not in codes(plate_with_hole((3, 1), (4, 2)))
+
+
+def test_crossing_trims_with_surfaces_and_pcurves_are_found():
+    """The plate's faces on PlanarSurfaces with Line2D p-curves: the check samples p-curves in (u, v)."""
+    def planar(specs):
+        out = []
+        for f in specs:
+            P = np.array([e.curve.evaluate(e.t0) for e in f.loops[0]])
+            n = np.cross(P - P[0], np.roll(P, -1, 0) - P[0]).sum(0)
+            x = P[1] - P[0]
+            S = PlanarSurface(P[0], n, x - np.dot(x, n) / np.dot(n, n) * n)
+            X, Y = S.frame[0], S.frame[1]
+            loops = [[EdgeSpec(e.curve, e.t0, e.t1,
+                               Line2D(S.closest_parameters(e.curve.origin),
+                                      [np.dot(e.curve.direction, X), np.dot(e.curve.direction, Y)]))
+                      for e in loop] for loop in f.loops]
+            out.append(FaceSpec(S, True, loops))
+        return out
+
+    good = sew_faces(planar(face_specs(plate_with_hole((1, 1), (2, 3)))))
+    assert check(good).ok and good.brep.surfaces
+    with pytest.raises(TopologyError, match=r"self-intersecting-trim \[face \d+\]"):
+        sew_faces(planar(face_specs(plate_with_hole((3, 1), (5, 2)))))
+
+
+def test_report_api():
+    report = check(Box(1, 2, 3))
+    assert isinstance(report, CheckReport) and report.ok and bool(report) and report.summary() == "valid"
+    assert report.counts == {"vertices": 8, "edges": 12, "loops": 6, "faces": 6, "shells": 1, "solids": 1}
+    bad = check(case_wing_mismatch()[0])
+    assert not bad and "wing-mismatch" in bad.summary()
+    many = CheckReport(tuple(Problem("x", "edge", i, "m") for i in range(25)))
+    assert many.summary(limit=3).endswith("... and 22 more")
+
+
+# ============================================================================ valid shapes are clean
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: Box(1, 2, 3),
+        lambda: Cylinder(1, 2),
+        lambda: Cone(1, 0.5, 2),
+        lambda: Cone(1, 0, 2),
+        lambda: Sphere(1),
+        lambda: Torus(3, 1),
+        lambda: Torus(3, 1).mirror(),
+        lambda: from_mesh(trimesh.creation.icosphere(subdivisions=4)),
+        lambda: from_mesh(trimesh.creation.torus(major_radius=3, minor_radius=1), merge_coplanar=True),
+        lambda: from_mesh(trimesh.creation.cylinder(radius=1, height=2, sections=32), merge_coplanar=True),
+    ],
+)
+def test_valid_shapes_are_clean(make):
+    report = check(make())
+    assert report.ok, report.summary()
+
+
+def test_implicit_faces_with_curved_edges_are_sampled():
+    """A cylinder whose disks are implicit planes (no surface, no p-curves) bounded by circle arcs."""
+    specs = face_specs(Cylinder(1, 2))
+    implicit = [FaceSpec(None, True, [[EdgeSpec(e.curve, e.t0, e.t1, None, e.tol) for e in l] for l in f.loops])
+                if isinstance(f.surface, PlanarSurface) else f for f in specs]
+    solid = sew_faces(implicit)
+    assert (solid.brep.face_surface < 0).sum() == 2
+    assert check(solid).ok
+    np.testing.assert_allclose(solid.volume, 2 * math.pi, rtol=1e-9)
+    # The trim polyline of a disk in its Newell plane: two arcs of 9 samples, each shared end kept once.
+    from coons.topology.check import _face_segments
+    from coons.tolerance import DEFAULT_TOLERANCE
+
+    f = int(np.flatnonzero(solid.brep.face_surface < 0)[0])
+    A, B, face, nxt, coedge, eps = _face_segments(solid.brep, f, 9, DEFAULT_TOLERANCE)
+    assert A.shape == (16, 2) and np.all(face == f) and np.all(eps == DEFAULT_TOLERANCE.linear)
+    np.testing.assert_allclose(np.linalg.norm(A - A.mean(axis=0), axis=1), 1.0, rtol=1e-12)  # on the unit circle

@@ -1,0 +1,367 @@
+"""sew_faces and face_specs: sewing trimmed faces back into checked solids.
+
+Round trips: every primitive (and moved, mirrored, scaled ones), a mesh solid and a merged
+polygon solid with holes are taken apart with ``face_specs``, shuffled (faces and the first
+edge of every loop) and sewn back: the result is clean (``check``) with the same counts,
+volume and area.  Sewing recovers same-parameter p-curves when the two faces of an edge carry
+their own, differently parametrised copies of the curve; nests voids; honours edge tolerances;
+and refuses open, non-manifold and inconsistently oriented shells, open loops, degenerate
+edges and curves that are not affine copies, naming the face and edge.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from coons.errors import InvalidInputError, TopologyError
+from coons.kernel.analytic import Circle, Line
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.pcurve import Line2D, Trig2D
+from coons.topology.check import check
+from coons.topology.from_mesh import from_mesh
+from coons.topology.primitives import Box, Cone, Cylinder, Sphere, Torus
+from coons.topology.sew import EdgeSpec, FaceSpec, _affine_pcurve, face_specs, sew_faces
+from coons.topology.transform import Pos, Rot
+
+#: Volumes and areas of a re-sewn solid are computed from the same geometry: round-off only.
+RTOL = 1e-12
+
+PRIMITIVES = {
+    "box": lambda: Box(1, 2, 3),
+    "cylinder": lambda: Cylinder(1, 2),
+    "frustum": lambda: Cone(1, 0.5, 2),
+    "cone": lambda: Cone(1, 0, 2),
+    "cone_apex_down": lambda: Cone(0, 1, 2, direction=(1, 1, 0)),
+    "sphere": lambda: Sphere(1.5),
+    "torus": lambda: Torus(3, 1),
+    "moved_box": lambda: Pos(1, 2, 3) * Rot(10, 20, 30) * Box(1, 2, 3),
+    "tilted_cylinder": lambda: Cylinder(0.5, 3, direction=(1, 2, 3)),
+    "mirrored_torus": lambda: Torus(3, 1).mirror((0, 0, 0), (1, 2, 0)),
+    "scaled_sphere": lambda: Sphere(2).scale(2.5).translate((0, 0, 7)),
+    "mirrored_frustum": lambda: Cone(2, 1, 1).mirror(),
+}
+
+
+def counts(solid):
+    b = solid.brep
+    return b.n_vertices, b.n_edges, b.n_faces, b.n_loops, b.n_shells, b.n_solids
+
+
+def shuffled(specs: list[FaceSpec], seed: int) -> list[FaceSpec]:
+    """The faces in a random order, every loop starting at a random edge."""
+    rng = random.Random(seed)
+    out = []
+    for f in specs:
+        loops = []
+        for loop in f.loops:
+            k = rng.randrange(len(loop))
+            loops.append(list(loop[k:]) + list(loop[:k]))
+        out.append(FaceSpec(f.surface, f.sense, loops))
+    rng.shuffle(out)
+    return out
+
+
+def reversed_specs(specs: list[FaceSpec]) -> list[FaceSpec]:
+    """The same faces bounding the complement: loops reversed, senses flipped."""
+    return [FaceSpec(f.surface, not f.sense,
+                     [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in f.loops])
+            for f in specs]
+
+
+def assert_same_solid(a, b):
+    assert check(b).ok
+    assert counts(b) == counts(a)
+    np.testing.assert_allclose(b.volume, a.volume, rtol=RTOL)
+    np.testing.assert_allclose(b.area, a.area, rtol=RTOL)
+    np.testing.assert_allclose(b.bounding_box(), a.bounding_box(), rtol=RTOL, atol=1e-12)
+
+
+# ============================================================================ round trips
+@pytest.mark.parametrize("name", sorted(PRIMITIVES))
+@pytest.mark.parametrize("seed", [0, 1])
+def test_primitives_round_trip(name, seed):
+    solid = PRIMITIVES[name]()
+    assert_same_solid(solid, sew_faces(shuffled(face_specs(solid), seed)))
+
+
+@given(
+    st.sampled_from(["box", "cylinder", "cone", "sphere", "torus"]),
+    st.tuples(*[st.floats(-180, 180)] * 3),
+    st.tuples(*[st.floats(-10, 10)] * 3),
+    st.integers(0, 1000),
+)
+def test_placed_primitives_round_trip(name, angles, offset, seed):
+    solid = Pos(*offset) * Rot(*angles) * PRIMITIVES[name]()
+    assert_same_solid(solid, sew_faces(shuffled(face_specs(solid), seed)))
+
+
+def test_face_specs_shares_one_curve_per_edge():
+    specs = face_specs(Cylinder(1, 2))
+    uses = [e for f in specs for loop in f.loops for e in loop]
+    # Both uses of an edge refer to one curve object over one range (the two bottom half-circles
+    # share a Circle, over [0, π] and [π, 2π]).
+    edges = {(id(e.curve), min(e.t0, e.t1), max(e.t0, e.t1)) for e in uses}
+    assert len(uses) == 12 and len(edges) == 6
+    assert all(isinstance(e.pcurve, (Line2D, Trig2D)) for e in uses)
+
+
+def test_mesh_solid_round_trip_with_lines_for_straight_edges():
+    import trimesh
+
+    mesh = from_mesh(trimesh.creation.icosphere(subdivisions=2))
+    specs = face_specs(mesh)
+    assert all(f.surface is None for f in specs)
+    assert all(isinstance(e.curve, Line) and e.pcurve is None for f in specs for l in f.loops for e in l)
+    assert_same_solid(mesh, sew_faces(shuffled(specs, 3)))
+
+
+def test_polygon_faces_with_holes_round_trip():
+    import manifold3d as m3
+
+    plate = m3.Manifold.cube([4, 4, 1]) - m3.Manifold.cube([2, 2, 3]).translate([1, 1, -1])
+    m = plate.to_mesh()
+    solid = from_mesh(np.asarray(m.vert_properties)[:, :3].astype(float), np.asarray(m.tri_verts), merge_coplanar=True)
+    again = sew_faces(shuffled(face_specs(solid), 5))
+    assert_same_solid(solid, again)
+    assert sorted(len(f.loops()) for f in again.faces()) == [1] * 8 + [2] * 2
+
+
+def test_vertex_ids_follow_the_input_order():
+    box = Box(1, 1, 1)
+    again = sew_faces(face_specs(box))
+    first = face_specs(box)[0].loops[0][0]
+    np.testing.assert_allclose(again.brep.vertex_point[0], first.curve.evaluate(first.t0), atol=1e-15)
+
+
+# ============================================================================ same parameter
+def own_copies(specs: list[FaceSpec]) -> list[FaceSpec]:
+    """Give every use running against its curve its own reversed copy of the curve.
+
+    Lines become ``Line(end, -direction)`` over ``[0, L]``; circles ``Circle(C, -normal, X, R)``
+    whose angle is minus the original's; p-curves are rewritten in the new parameter
+    (``Line2D`` by hand, ``Trig2D(C, A, -B)`` for ``t -> -t``).  Sewing must map them back.
+    """
+    out = []
+    for f in specs:
+        loops = []
+        for loop in f.loops:
+            new = []
+            for e in loop:
+                if e.t0 < e.t1:
+                    new.append(e)
+                    continue
+                if isinstance(e.curve, Line):
+                    start = e.curve.evaluate(e.t0)
+                    curve = Line(start, -e.curve.direction)
+                    pc = e.pcurve
+                    if isinstance(pc, Line2D):  # old(t) with t = t0 - s
+                        pc = Line2D(pc.origin + e.t0 * pc.direction, -pc.direction)
+                    new.append(EdgeSpec(curve, 0.0, e.t0 - e.t1, pc, e.tol))
+                elif isinstance(e.curve, Circle):
+                    c = e.curve
+                    curve = Circle(c.center, -c.frame[2], c.frame[0], c.radius)
+                    pc = e.pcurve
+                    pc = Line2D(pc.origin, -pc.direction) if isinstance(pc, Line2D) else Trig2D(pc.center, pc.a, -pc.b)
+                    new.append(EdgeSpec(curve, -e.t0, -e.t1, pc, e.tol))
+                else:
+                    raise AssertionError(f"unexpected curve {type(e.curve).__name__}")
+            loops.append(new)
+        out.append(FaceSpec(f.surface, f.sense, loops))
+    return out
+
+
+@pytest.mark.parametrize("name", ["box", "cylinder", "frustum", "moved_box", "tilted_cylinder"])
+def test_reversed_curve_copies_are_made_same_parameter(name):
+    solid = PRIMITIVES[name]()
+    specs = own_copies(face_specs(solid))
+    uses = [e for f in specs for l in f.loops for e in l]
+    along = {id(e.curve) for e in uses if e.t0 < e.t1}
+    against = {id(e.curve) for e in uses if e.t0 > e.t1}
+    assert not against and len(along) >= solid.brep.n_edges  # the two uses of an edge have different curves
+    for seed in (0, 1):
+        assert_same_solid(solid, sew_faces(shuffled(specs, seed)))
+
+
+def test_affine_pcurve_closed_forms():
+    t = np.linspace(-2.0, 3.0, 11)
+    line = Line2D([1.0, 2.0], [0.5, -1.0])
+    trig = Trig2D([1.0, -1.0], [2.0, 0.5], [-0.3, 1.0])
+    nurbs = NurbsCurve([[0, 0], [1, 2], [3, 1], [4, 4]], [0, 0, 0, 0.4, 1, 1, 1], 2, [1.0, 0.8, 1.2, 1.0])
+    for pc, maps in ((line, [(2.0, 0.5), (-0.25, 1.0)]), (trig, [(1.0, 0.7), (-1.0, -2.0)])):
+        for a, c in maps:
+            np.testing.assert_allclose(_affine_pcurve(pc, a, c).evaluate(t), pc.evaluate(a * t + c), atol=1e-14)
+    for a, c in ((2.0, 0.5), (-0.5, 0.25)):
+        new = _affine_pcurve(nurbs, a, c)
+        s = (np.linspace(0.0, 1.0, 9) - c) / a
+        np.testing.assert_allclose(new.evaluate(s), nurbs.evaluate(a * s + c), atol=1e-14)
+    with pytest.raises(InvalidInputError, match=r"cannot re-parametrise a Trig2D p-curve by t -> 2 t \+ 0"):
+        _affine_pcurve(trig, 2.0, 0.0)
+    with pytest.raises(InvalidInputError, match="cannot re-parametrise a str p-curve"):
+        _affine_pcurve("x", 1.0, 1.0)
+
+
+def test_curves_that_are_not_affine_copies_are_refused():
+    """The second use of a half-circle is a rational NURBS: same points, another parameter."""
+    specs = face_specs(Cylinder(1, 2))
+    f = specs[0]
+    loops = [list(l) for l in f.loops]
+    k = next(i for i, e in enumerate(loops[0]) if isinstance(e.curve, Circle))
+    e = loops[0][k]
+    lo, hi = sorted((e.t0, e.t1))
+    nurbs = e.curve.to_nurbs((lo, hi))
+    loops[0][k] = EdgeSpec(nurbs, e.t0, e.t1, e.pcurve, e.tol)
+    specs[0] = FaceSpec(f.surface, f.sense, loops)
+    # Matched geometrically (the parametric midpoints differ), then refused for same-parameter.
+    with pytest.raises(TopologyError, match=r"not affinely reparametrised copies of each other \(deviation"):
+        sew_faces(specs[1:] + specs[:1])
+
+
+# ============================================================================ voids and tolerances
+def test_spherical_void_in_a_box():
+    box, ball = Box(4, 4, 4), Sphere(1).translate((0.5, 0, 0))
+    solid = sew_faces(face_specs(box) + reversed_specs(face_specs(ball)))
+    assert (solid.brep.n_shells, solid.brep.n_solids) == (2, 1)
+    assert check(solid).ok
+    np.testing.assert_allclose(solid.volume, 64 - 4 / 3 * math.pi, rtol=1e-12)
+
+
+def test_void_goes_to_the_shell_around_it():
+    left, right = Box(4, 4, 4).translate((-5, 0, 0)), Box(4, 4, 4).translate((5, 0, 0))
+    hole = reversed_specs(face_specs(Torus(1.2, 0.5).translate((5, 0, 0))))
+    solid = sew_faces(face_specs(left) + hole + face_specs(right))
+    b = solid.brep
+    assert (b.n_shells, b.n_solids) == (3, 2)
+    lumps = {len(l.shells()): l for l in solid.lumps()}
+    assert set(lumps) == {1, 2}
+    centre = np.mean([v.point for s in lumps[2].shells() for f in s.faces() for v in f.vertices()], axis=0)
+    assert centre[0] > 0  # the lump with the void is the right box
+    np.testing.assert_allclose(solid.volume, 128 - 2 * math.pi**2 * 1.2 * 0.25, rtol=1e-12)
+
+
+def shifted_face(spec: FaceSpec, delta, tol) -> FaceSpec:
+    """A planar face moved by ``delta`` (p-curves kept: they deviate by |delta|), edges of tolerance ``tol``."""
+    loops = [[EdgeSpec(Line(e.curve.origin + delta, e.curve.direction), e.t0, e.t1, e.pcurve, tol) for e in l]
+             for l in spec.loops]
+    return FaceSpec(spec.surface, spec.sense, loops)
+
+
+def test_edge_tolerances_widen_vertex_merging():
+    specs = face_specs(Box(1, 1, 1))
+    gap = np.array([1e-5, 0.0, 0.0])
+    with pytest.raises(TopologyError, match="matches no other edge: the shell is open there"):
+        sew_faces([shifted_face(specs[0], gap, None)] + specs[1:])
+    # Every edge of the shifted face carries tolerance 1e-4: its ends merge with the others'.
+    solid = sew_faces([shifted_face(specs[0], gap, 1e-4)] + specs[1:])
+    b = solid.brep
+    assert counts(solid) == (8, 12, 6, 6, 1, 1)
+    assert b.vertex_tol.max() >= 1e-5 / 2 and b.vertex_tol.max() <= 1e-5
+    assert b.edge_tol.max() == 1e-4
+    np.testing.assert_allclose(solid.volume, 1.0, rtol=1e-4)
+
+
+# ============================================================================ refusals
+def test_open_shell_names_the_face_and_edge():
+    specs = face_specs(Box(1, 1, 1))
+    with pytest.raises(TopologyError, match=r"face \d, loop 0, edge \d \(from \[.*\] to \[.*\]\) matches no other edge: "
+                                            "the shell is open there"):
+        sew_faces(specs[1:])
+
+
+def test_non_manifold_edge_names_all_uses():
+    specs = face_specs(Box(1, 1, 1))
+    with pytest.raises(TopologyError, match=r"is shared by 3 edges \(face \d, loop 0, edge \d; .*\); a closed manifold "
+                                            "shell uses each edge exactly twice"):
+        sew_faces(specs + specs[:1])
+
+
+def test_inconsistent_orientation_names_both_uses():
+    specs = face_specs(Box(1, 1, 1))
+    flipped = reversed_specs(specs[2:3])
+    with pytest.raises(TopologyError, match=r"face \d, loop 0, edge \d and face \d, loop 0, edge \d .* run the same way; "
+                                            r"neighbouring faces must use a shared edge in opposite directions"):
+        sew_faces(specs[:2] + flipped + specs[3:])
+
+
+def test_all_faces_reversed_is_an_inward_shell():
+    with pytest.raises(TopologyError, match="inward-shell"):
+        sew_faces(reversed_specs(face_specs(Box(1, 1, 1))))
+
+
+def test_a_void_outside_every_shell_is_refused():
+    specs = face_specs(Box(1, 1, 1)) + reversed_specs(face_specs(Box(1, 1, 1).translate((3, 0, 0))))
+    with pytest.raises(TopologyError, match=r"shell 1 \(faces .*\) encloses volume -1 < 0 and lies inside no other "
+                                            "shell: its faces are oriented inward"):
+        sew_faces(specs)
+
+
+def test_open_loop_is_refused_with_the_gap():
+    specs = face_specs(Box(1, 1, 1))
+    f = specs[0]
+    loop = list(f.loops[0])
+    e = loop[1]
+    loop[1] = EdgeSpec(e.curve, e.t0, e.t1 - 0.25 * (e.t1 - e.t0), e.pcurve)
+    specs[0] = FaceSpec(f.surface, f.sense, [loop])
+    with pytest.raises(TopologyError, match=r"face 0, loop 0, edge 1 ends at .* but the next edge of the loop starts "
+                                            r"at .* \(gap 0.25 > tolerance 1e-07\); loops must close"):
+        sew_faces(specs)
+
+
+def test_degenerate_edge_is_refused():
+    specs = face_specs(Box(1, 1, 1))
+    f = specs[0]
+    e = f.loops[0][0]
+    tiny = EdgeSpec(Line(e.curve.evaluate(e.t0), [0.0, 0.0, 1.0]), 0.0, 1e-9)
+    specs[0] = FaceSpec(f.surface, f.sense, [[tiny] + list(f.loops[0])])
+    with pytest.raises(TopologyError, match=r"face 0, loop 0, edge 0 is degenerate: its ends and its midpoint are within "
+                                            "1e-07 of vertex"):
+        sew_faces(specs)
+
+
+class _Broken:
+    def __init__(self, exc=None):
+        self.exc = exc
+
+    def evaluate(self, t):
+        if self.exc:
+            raise self.exc
+        return np.full(np.shape(t) + (3,), np.nan)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: sew_faces([]), "sew_faces needs at least one FaceSpec, got none"),
+        (lambda: sew_faces(["face"]), r"faces\[0\] must be a FaceSpec, got str"),
+        (lambda: EdgeSpec("curve", 0, 1), "EdgeSpec.curve must have an evaluate"),
+        (lambda: EdgeSpec(Line([0, 0, 0], [1, 0, 0]), 1, 1), "finite, different parameters"),
+        (lambda: EdgeSpec(Line([0, 0, 0], [1, 0, 0]), 0, math.nan), "finite, different parameters"),
+        (lambda: EdgeSpec(Line([0, 0, 0], [1, 0, 0]), 0, 1, pcurve=3), "EdgeSpec.pcurve must have an evaluate"),
+        (lambda: EdgeSpec(Line([0, 0, 0], [1, 0, 0]), 0, 1, tol=-1), "EdgeSpec.tol must be a finite number >= 0"),
+        (lambda: FaceSpec(None, True, []), "FaceSpec needs at least one loop"),
+        (lambda: FaceSpec(None, True, [[]]), "FaceSpec loop 0 is empty"),
+        (lambda: FaceSpec(None, True, [["e"]]), "FaceSpec loop 0 item 0 must be an EdgeSpec, got str"),
+        (lambda: sew_faces([FaceSpec(None, True, [[EdgeSpec(_Broken(ValueError("bad t")), 0, 1)]])]),
+         "face 0, loop 0, edge 0: its curve cannot be evaluated on its range: bad t"),
+        (lambda: sew_faces([FaceSpec(None, True, [[EdgeSpec(_Broken(), 0, 1)]])]),
+         "face 0, loop 0, edge 0: its curve evaluates to non-finite points"),
+        (lambda: face_specs("box"), "face_specs needs a Solid or BRep, got str"),
+    ],
+)
+def test_invalid_input(make, message):
+    with pytest.raises(InvalidInputError, match=message):
+        make()
+
+
+def test_face_specs_refuses_a_lone_vertex_loop():
+    from coons.topology.builder import BRepBuilder
+
+    b = BRepBuilder()
+    b.mvfs([0.0, 0.0, 0.0])
+    with pytest.raises(TopologyError, match="face 0: loop 0 is a lone vertex; a FaceSpec loop needs edges"):
+        face_specs(b.build(check=False))

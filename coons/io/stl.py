@@ -1,7 +1,8 @@
 """STL read and write (binary and ASCII), vectorised.
 
 Writes triangle meshes given as ``(vertices (n, 3), triangles (m, 3))`` or any object
-with ``vertices`` and ``triangles`` arrays (a coons mesh).  Files are written to a
+with ``vertices`` and ``triangles`` arrays (a coons mesh), and solids (tessellated first by
+:func:`coons.topology.tessellate.tessellate`).  Files are written to a
 temporary file in the destination folder and renamed into place, so a failure never
 leaves a half-written file.  Reading merges bit-identical vertices, which rebuilds
 the connectivity that STL's triangle soup loses; it does not heal near-coincident
@@ -73,15 +74,18 @@ def _atomic_write(path: Path, data: bytes) -> None:
         raise
 
 
-def export_stl(mesh, path, *, binary: bool = True, name: str = "coons") -> Path:
-    """Write a triangle mesh as STL.
+def export_stl(mesh, path, *, binary: bool = True, name: str = "coons", deflection: float | None = None) -> Path:
+    """Write a triangle mesh, or a solid tessellated by :func:`coons.topology.tessellate.tessellate`, as STL.
 
     Parameters
     ----------
-    mesh : (vertices, triangles) or mesh-like
+    mesh : (vertices, triangles), mesh-like, Solid or BRep
     path : str or Path
     binary : bool
         Binary (default, float32 as the format requires) or ASCII (``%.9e``, float64 precision kept to 10 digits).
+    deflection : float, optional
+        For a Solid or BRep: the tessellation's deflection (default: ``tessellate``'s,
+        1e-3 of the bounding-box diagonal).  Not allowed with a mesh.
 
     Returns
     -------
@@ -90,8 +94,16 @@ def export_stl(mesh, path, *, binary: bool = True, name: str = "coons") -> Path:
     Raises
     ------
     InvalidInputError
-        Invalid mesh arrays, or a name with a newline.
+        Invalid mesh arrays, a name with a newline, or ``deflection`` given with a mesh.
     """
+    from coons.topology.brep import BRep
+
+    if isinstance(mesh, BRep) or isinstance(getattr(mesh, "brep", None), BRep):
+        from coons.topology.tessellate import tessellate
+
+        mesh = tessellate(mesh, deflection=deflection)
+    elif deflection is not None:
+        raise InvalidInputError("deflection applies to solids only; the mesh is already tessellated")
     V, T = mesh_arrays(mesh)
     tri = V[T]
     normals = _facet_normals(tri)

@@ -10,7 +10,7 @@ splitting and Bézier decomposition (:mod:`.refine`); exact conics and quadrics 
 coons's topology, Booleans or I/O, and never a reference engine.
 """
 
-from coons.kernel import conics, construct, fitting, refine
+from coons.kernel import conics, construct, differential, fitting, projection, refine
 from coons.kernel.analytic import (
     Circle,
     ConicalSurface,
@@ -23,6 +23,7 @@ from coons.kernel.analytic import (
 )
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
+from coons.kernel.projection import ClosestPoints
 from coons.kernel.surface import NurbsSurface
 
 __all__ = [
@@ -38,8 +39,11 @@ __all__ = [
     "ToroidalSurface",
     "Line2D",
     "Trig2D",
+    "ClosestPoints",
     "conics",
     "construct",
+    "differential",
     "fitting",
+    "projection",
     "refine",
 ]

@@ -23,9 +23,14 @@ from coons.errors import (
 )
 from coons.tolerance import DEFAULT_TOLERANCE, Tolerance
 from coons.topology.check import check
+from coons.topology.from_mesh import from_mesh
 from coons.topology.primitives import Box, Cone, Cylinder, Sphere, Torus
 from coons.topology.shape import Solid
+from coons.topology.profile import Profile, Segment
+from coons.topology.sweep import extrude, loft, revolve
+from coons.topology.tessellate import tessellate
 from coons.topology.transform import Location, Pos, Rot
+from coons.io.stl import export_stl, import_stl
 
 __version__ = "0.1.0"
 
@@ -40,6 +45,15 @@ __all__ = [
     "Pos",
     "Rot",
     "check",
+    "Profile",
+    "Segment",
+    "extrude",
+    "revolve",
+    "loft",
+    "from_mesh",
+    "tessellate",
+    "export_stl",
+    "import_stl",
     "Tolerance",
     "DEFAULT_TOLERANCE",
     "CoonsError",

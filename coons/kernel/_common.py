@@ -92,6 +92,33 @@ def as_transform(matrix) -> np.ndarray:
     return T
 
 
+def similarity_parts(matrix, angular_tol: float) -> tuple[np.ndarray, float, bool]:
+    """Split a similarity ``T = [s Q | t]`` (``Q`` orthogonal): ``(T as 4×4, s, det Q < 0)``.
+
+    ``M^T M / s^2 - I`` is dimensionless (cosines between the images of orthogonal axes and
+    relative stretches); beyond ``angular_tol`` circles would map to ellipses.
+
+    Raises
+    ------
+    InvalidInputError
+        A malformed, non-finite, projective or singular matrix, or one that is not a similarity
+        (the message gives the deviation).
+    """
+    T = as_transform(matrix)
+    M = T[:3, :3]
+    det = float(np.linalg.det(M))
+    if det == 0.0:
+        raise InvalidInputError("transform is singular (determinant 0)")
+    s = abs(det) ** (1.0 / 3.0)
+    deviation = float(np.max(np.abs(M.T @ M / s**2 - np.eye(3))))
+    if deviation > angular_tol:
+        raise InvalidInputError(
+            "transform must be a similarity (rotation, reflection, uniform scale, translation): "
+            f"max |M^T M / s^2 - I| = {deviation:.3g}, expected <= angular tolerance {angular_tol:g}"
+        )
+    return T, s, det < 0.0
+
+
 def binomials(n: int) -> np.ndarray:
     """Pascal's triangle ``C[k, i] = k choose i`` for ``0 <= i <= k <= n``."""
     C = np.zeros((n + 1, n + 1))

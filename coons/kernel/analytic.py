@@ -53,7 +53,7 @@ import numpy as np
 
 from coons.errors import InvalidGeometryError, InvalidInputError
 from coons.kernel import conics
-from coons.kernel._common import as_transform
+from coons.kernel._common import as_transform, similarity_parts
 from coons.kernel.conics import angle_to_nurbs_parameter, nurbs_parameter_to_angle
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.surface import NurbsSurface
@@ -152,32 +152,6 @@ def _sin_d(c: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
     return (s, c, -s, -c)[k % 4]
 
 
-def _similarity(matrix, tol: Tolerance) -> tuple[np.ndarray, float, bool]:
-    """``(T, s, reflects)`` of a similarity ``T = [s Q | t]`` with ``Q`` orthogonal.
-
-    ``M^T M / s^2 - I`` is dimensionless (cosines between images of orthogonal axes, relative
-    stretches); beyond ``tol.angular`` the map would turn circles into ellipses.
-
-    Raises
-    ------
-    InvalidInputError
-        A malformed or singular matrix, or one that is not a similarity.
-    """
-    T = as_transform(matrix)
-    M = T[:3, :3]
-    det = float(np.linalg.det(M))
-    if det == 0.0:
-        raise InvalidInputError("transform is singular (determinant 0)")
-    s = abs(det) ** (1.0 / 3.0)
-    deviation = float(np.max(np.abs(M.T @ M / s**2 - np.eye(3))))
-    if deviation > tol.angular:
-        raise InvalidInputError(
-            "transform must be a similarity (rotation, uniform scale, translation): "
-            f"max |M^T M / s^2 - I| = {deviation:.3g} > angular tolerance {tol.angular:g}"
-        )
-    return T, s, det < 0.0
-
-
 def _is_close(a, b, tol: Tolerance | None) -> bool:
     """Same type and every defining field within tolerance (``linear``: points, lengths; ``angular``: the rest)."""
     t = resolve(tol)
@@ -229,7 +203,7 @@ class _Framed:
         With ``keep_handedness`` the new axis is ``M Z / s`` and reflections raise; otherwise
         the new axis is ``X' × Y'``, which keeps ``P(t) = C + a cos t X + b sin t Y`` exact.
         """
-        T, s, reflects = _similarity(matrix, resolve(tol))
+        T, s, reflects = similarity_parts(matrix, resolve(tol).angular)
         M = T[:3, :3]
         X, Y, Z = (M @ self._frame.T).T / s
         if reflects and keep_handedness:

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from coons.errors import InvalidInputError
-from coons.kernel._common import as_transform
+from coons.kernel._common import as_transform, similarity_parts
 from coons.kernel.analytic import (
     Circle,
     ConicalSurface,
@@ -188,29 +188,14 @@ def reflection(origin, normal) -> np.ndarray:
 def similarity_scale(matrix, tol: Tolerance | None = None) -> tuple[np.ndarray, float, bool]:
     """Split a similarity ``T = [s Q | t]`` (``Q`` orthogonal): ``(T as 4×4, s, det Q < 0)``.
 
-    ``M^T M / s² - I`` is dimensionless (cosines between the images of orthogonal axes and
-    relative stretches); beyond ``tol.angular`` circles would map to ellipses.
+    See :func:`coons.kernel._common.similarity_parts`.
 
     Raises
     ------
     InvalidInputError
-        A malformed, non-finite, projective or singular matrix, or one that is not a similarity
-        (the message gives the deviation).
+        A matrix that is not a similarity within ``tol.angular``.
     """
-    t = resolve(tol)
-    T = as_transform(matrix)
-    M = T[:3, :3]
-    det = float(np.linalg.det(M))
-    if det == 0.0:
-        raise InvalidInputError("transform is singular (determinant 0)")
-    s = abs(det) ** (1.0 / 3.0)
-    deviation = float(np.max(np.abs(M.T @ M / s**2 - np.eye(3))))
-    if deviation > t.angular:
-        raise InvalidInputError(
-            "transform must be a similarity (rotation, reflection, uniform scale, translation): "
-            f"max |M^T M / s^2 - I| = {deviation:.3g}, expected <= angular tolerance {t.angular:g}"
-        )
-    return T, s, det < 0.0
+    return similarity_parts(matrix, resolve(tol).angular)
 
 
 # ============================================================================ geometry images

@@ -1,0 +1,1 @@
+"""Tests of coons.booleans (mirrors the package)."""

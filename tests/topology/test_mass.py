@@ -11,11 +11,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coons.errors import InvalidInputError, TopologyError
+from coons.errors import ConvergenceError, InvalidInputError, TopologyError
 from coons.kernel import conics
 from coons.kernel.analytic import Circle, CylindricalSurface, Ellipse, PlanarSurface
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D
+from coons.kernel.surface import NurbsSurface
+from coons.tolerance import Tolerance
 from coons.topology import mass
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
@@ -698,3 +700,255 @@ def test_error_branches():
                 for k in ("vertex_point", "vertex_tol", "vertex_coedge")})
     with pytest.raises(TopologyError, match="has no vertices: its bounding box is undefined"):
         bounding_box(empty)
+
+
+# ============================================================================ NURBS areas (adaptive quadrature)
+XZ = ((0.0, 0.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))  # the xz plane: u = x, v = z
+#: Areas of NURBS faces against independent references: the adaptive quadrature asks for
+#: tol.solver = 1e-12 (its error estimate is G7's, so K15 lands near round-off, measured <= 5e-16).
+NURBS_AREA_RTOL = 1e-12
+
+
+def quad(fn, a: float, b: float, points=()) -> float:
+    """``∫_a^b fn`` by QUADPACK at 1e-13 relative (an independent reference)."""
+    from scipy import integrate
+
+    pts = [p for p in points if a < p < b]
+    value, _ = integrate.quad(fn, a, b, epsabs=0.0, epsrel=1e-13, limit=400, points=pts or None)
+    return value
+
+
+def tensor_gauss_area(S, u_range, v_range, n: int = 40) -> float:
+    """``∬ |Su × Sv|`` over a parameter rectangle: tensor Gauss–Legendre with ``n`` points per knot
+    span each way (the integrand is smooth inside a span), no Green's theorem involved."""
+    x, w = np.polynomial.legendre.leggauss(n)
+
+    def nodes(knots, lo, hi):
+        k = np.unique(np.concatenate([[lo, hi], knots]))
+        k = k[(k >= lo) & (k <= hi)]
+        a, c = k[:-1, None], k[1:, None]
+        return ((a + c) / 2 + (c - a) / 2 * x).ravel(), ((c - a) / 2 * w).ravel()
+
+    U, WU = nodes(S.knots_u, *u_range)
+    V, WV = nodes(S.knots_v, *v_range)
+    D = S.derivatives_grid(U, V, 1)
+    return float(WU @ np.linalg.norm(np.cross(D[:, :, 1, 0], D[:, :, 0, 1]), axis=-1) @ WV)
+
+
+def nurbs_face_areas(b: BRep) -> float:
+    return float(sum(a for a, f in zip(face_areas(b), b.faces()) if f.surface_type == "bspline"))
+
+
+def test_nurbs_face_areas_match_independent_references():
+    from coons.topology.profile import Profile, Segment
+    from coons.topology.sweep import extrude, loft, revolve
+
+    # Extruded cubic spline: area = arc length × height (arc length by QUADPACK).
+    spline = Segment.spline([(3, 0), (3.5, 1), (2.5, 2), (3, 3)])
+    p = Profile.from_wires([Segment.line((1, 0), (3, 0)), spline, Segment.line((3, 3), (1, 3)),
+                            Segment.arc_through((1, 3), (0.5, 1.5), (1, 0))], plane=XZ)
+    c = next(seg for seg in p.outer if seg.kind == "spline").curve  # as resolved in the profile's plane
+    length = quad(lambda t: float(np.linalg.norm(c.derivatives(np.array([t]), 1)[0, 1])), *c.domain, points=c.knots)
+    s = extrude(p, 2.0)
+    np.testing.assert_allclose(nurbs_face_areas(s.brep), 2.0 * length, rtol=NURBS_AREA_RTOL)
+    np.testing.assert_allclose(s.volume, 2.0 * p.area, rtol=1e-14)  # volumes stay at round-off
+
+    # Revolved spline touching the axis (NURBS faces with pole gaps): Pappus, 2π ∫ x |c'|, plus
+    # the bottom disk, which the revolution makes NURBS too.
+    spline = Segment.spline([(2, 0), (2.5, 1), (1.5, 2), (0, 3)])
+    p = Profile.from_wires([Segment.line((0, 0), (2, 0)), spline, Segment.line((0, 3), (0, 0))], plane=XZ)
+    c = next(seg for seg in p.outer if seg.kind == "spline").curve
+
+    def pappus(t):
+        D = c.derivatives(np.array([t]), 1)[0]
+        return 2 * PI * D[0, 0] * float(np.linalg.norm(D[1]))
+
+    s = revolve(p, (0, 0, 0), (0, 0, 1))
+    assert {f.surface_type for f in s.faces()} == {"bspline"}
+    np.testing.assert_allclose(nurbs_face_areas(s.brep), quad(pappus, *c.domain, points=c.knots) + 4 * PI,
+                               rtol=NURBS_AREA_RTOL)
+    V = quad(lambda t: PI * c.evaluate(np.array([t]))[0, 0] ** 2 * c.derivatives(np.array([t]), 1)[0, 1, 1],
+             *c.domain, points=c.knots)
+    np.testing.assert_allclose(s.volume, abs(V), rtol=1e-14)
+
+    # Quadratic skin through three circles: r(v) = 1 - 2v + 2v², z = 2v (test_sweep), area
+    # 2π ∫ r sqrt(r'² + z'²) dv.
+    sections = [Profile.circle(r, plane=((0, 0, z), (0, 0, 1))) for r, z in ((1.0, 0), (0.5, 1), (1.0, 2))]
+    s = loft(sections)
+    ref = quad(lambda v: 2 * PI * (1 - 2 * v + 2 * v * v) * math.hypot(4 * v - 2, 2.0), 0.0, 1.0)
+    np.testing.assert_allclose(nurbs_face_areas(s.brep), ref, rtol=NURBS_AREA_RTOL)
+
+    # Square to circle (rational, no symmetry to exploit): each face against a tensor Gauss rule
+    # over its parameter rectangle, converged (40 and 56 points per span agree to round-off).
+    circle = Profile.from_wires([Segment.arc((0, 0), 1.0, -135, 225)], plane=((0, 0, 3), (0, 0, 1)))
+    b = loft([Profile.rectangle(2, 2), circle]).brep
+    areas = face_areas(b)
+    for f in b.faces():
+        if f.surface_type != "bspline":
+            continue
+        uv = np.concatenate([co.pcurve.evaluate(np.array(co.edge.range)) for co in f.coedges()])
+        rng = (uv[:, 0].min(), uv[:, 0].max()), (uv[:, 1].min(), uv[:, 1].max())
+        ref = tensor_gauss_area(f.surface, *rng, n=56)
+        np.testing.assert_allclose(tensor_gauss_area(f.surface, *rng, n=40), ref, rtol=1e-14)
+        np.testing.assert_allclose(areas[f.index], ref, rtol=NURBS_AREA_RTOL)
+
+
+def test_trimmed_nurbs_face_area_with_a_hole():
+    """A wavy bicubic patch (two knot spans in u) under the top cap of a plate with a hole: the
+    face's outer loop crosses the knot line, its hole is a circle (Trig2D).  Reference: tensor
+    Gauss over the rectangle minus polar Gauss over the disk (inside one span, so smooth)."""
+    from coons.topology.profile import Profile
+    from coons.topology.sweep import extrude
+
+    b = extrude(Profile.rectangle(4, 2).with_hole(Profile.circle(0.5, center=(0.8, 0.0))), 3.0).brep
+    cap = next(f for f in b.faces() if f.surface_type == "plane" and len(f.loops()) == 2 and f.surface.origin[2] > 1)
+    P = cap.surface
+    uv = np.concatenate([co.pcurve.evaluate(np.linspace(*co.edge.range, 9)) for co in cap.coedges()])
+    (u0, v0), (u1, v1) = uv.min(axis=0), uv.max(axis=0)
+    # Bicubic B-spline over [u0, u1] x [v0, v1] reproducing the plane at its Greville points, lifted
+    # along the normal; the interior knot sits at u = u0 + 1 (outside the hole).
+    ku = np.array([u0] * 4 + [u0 + 1.0] + [u1] * 4)
+    kv = np.array([v0] * 4 + [v1] * 4)
+    gu = np.array([ku[i + 1:i + 4].mean() for i in range(5)])
+    gv = np.array([kv[i + 1:i + 4].mean() for i in range(4)])
+    rng = np.random.default_rng(3)
+    pts = P.evaluate(gu[:, None], gv[None, :]) + 0.3 * rng.standard_normal((5, 4))[..., None] * P.frame[2]
+    S = NurbsSurface(pts, ku, kv, 3, 3)
+    surfaces = b.surfaces + (S,)
+    fs = b.face_surface.copy()
+    fs[cap.index] = len(surfaces) - 1
+    wavy = dataclasses.replace(b, surfaces=surfaces, face_surface=fs)
+    area = face_areas(wavy)[cap.index]
+    hole_u, hole_v = P.closest_parameters(np.array([0.8, 0.0, 3.0]))
+    x, w = np.polynomial.legendre.leggauss(48)
+    rho, wr = 0.25 * (x + 1), 0.25 * w  # [0, 0.5]
+    phi, wp = PI * (x + 1), PI * w  # [0, 2π]
+    U = hole_u + rho[:, None] * np.cos(phi)
+    V = hole_v + rho[:, None] * np.sin(phi)
+    D = S.derivatives(U, V, 1)
+    J = np.linalg.norm(np.cross(D[..., 1, 0, :], D[..., 0, 1, :]), axis=-1) * rho[:, None]
+    disk = float(wr @ J @ wp)
+    ref = tensor_gauss_area(S, (u0, u1), (v0, v1), n=48) - disk
+    assert area < tensor_gauss_area(S, (u0, u1), (v0, v1)) and area > 8.0 - PI * 0.25  # sanity: a bulging face
+    np.testing.assert_allclose(area, ref, rtol=NURBS_AREA_RTOL)
+
+
+def test_gauss_kronrod_and_trigonometric_rules_are_exact():
+    # The embedded G7 rule is Gauss–Legendre; K15 integrates polynomials of degree 22 exactly.
+    xg, wg = np.polynomial.legendre.leggauss(7)
+    np.testing.assert_allclose(mass._XK[1::2], xg, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(mass._WG[1::2], wg, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(mass._WG[0::2], 0.0)
+    for k in range(23):
+        np.testing.assert_allclose(mass._WK @ mass._XK**k, (1 + (-1) ** k) / (k + 1), rtol=0, atol=2e-15)
+    # The 9-node rule integrates trigonometric polynomials of degree <= 4 over any interval.
+    rng = np.random.default_rng(5)
+    coef = rng.standard_normal(9)
+
+    def g(t):
+        return coef[0] + sum(coef[2 * k - 1] * np.cos(k * t) + coef[2 * k] * np.sin(k * t) for k in range(1, 5))
+
+    def G(t):  # antiderivative
+        terms = ((coef[2 * k - 1] * np.sin(k * t) - coef[2 * k] * np.cos(k * t)) / k for k in range(1, 5))
+        return coef[0] * t + sum(terms)
+
+    t0, t1, sign = np.array([0.3, -2.0, 1.0]), np.array([2.1, 4.5, 1.0 + 2 * PI]), np.array([1.0, -1.0, 1.0])
+    _, t, w = mass._block_nodes(mass._B_TRIG_P, t0, t1, sign, np.zeros((3, 8)))
+    np.testing.assert_allclose((w * g(t)).sum(axis=1), sign * (G(t1) - G(t0)), rtol=1e-14)
+
+
+@pytest.mark.parametrize("make", [lambda: Sphere(1.3), lambda: Torus(2.0, 0.5), lambda: Cylinder(1.5, 2.0)],
+                         ids=["sphere", "torus", "cylinder"])
+def test_trigonometric_rule_and_gauss_pieces_agree(monkeypatch, make):
+    """Meridians and arcs of at least ANGLE_STEP use the exact 9-node rule; forcing Gauss pieces
+    on them instead gives the same properties to round-off."""
+    b = make().brep
+    mp = mass_properties(b)
+    monkeypatch.setattr(mass, "_TRIG_RULE_MIN_SPAN", math.inf)
+    gauss = dataclasses.replace(b)  # a new B-rep: nothing cached
+    assert_mass(mass_properties(gauss), mp.volume, mp.area, mp.centroid, mp.inertia, rtol=1e-13)
+
+
+# ============================================================================ vectorisation, cache, tolerance
+def holed_plate(n: int):
+    """A 200 × 200 × 10 plate with an n × n grid of r = 3 holes (the benchmark's plate for n = 10)."""
+    from coons.topology.profile import Profile, Segment
+    from coons.topology.sweep import extrude
+
+    pitch = 200.0 / n
+    holes = [[Segment.arc((-100 + pitch * (i + 0.5), -100 + pitch * (j + 0.5)), 3.0, 0, 360)]
+             for i in range(n) for j in range(n)]
+    return extrude(Profile.from_wires(Profile.rectangle(200, 200).outer, holes), 10.0)
+
+
+def test_mass_properties_are_vectorised_over_faces(monkeypatch):
+    """No surface or p-curve object is evaluated on analytic faces, and the closed-form integrands
+    run once per quadrature block, whatever the number of faces: a plate with 100 holes (206 faces,
+    1224 coedges) costs as many integrand calls as one with 4 holes."""
+    from coons.kernel.analytic import PlanarSurface as Pl
+
+    calls: dict[str, int] = {}
+
+    def counting(owner, name):
+        fn = getattr(owner, name)
+
+        def wrapper(*a, **k):
+            key = f"{getattr(owner, '__name__', '?').rsplit('.', 1)[-1]}.{name}"
+            calls[key] = calls.get(key, 0) + 1
+            return fn(*a, **k)
+
+        monkeypatch.setattr(owner, name, wrapper)
+
+    for cls in (Pl, CylindricalSurface, Line2D, mass.Trig2D):
+        counting(cls, "evaluate")
+        counting(cls, "derivatives")
+    counting(mass, "_plane_F")
+    counting(mass, "_revolved_F")
+    counts = []
+    for n in (2, 10):
+        plate = holed_plate(n)
+        calls.clear()
+        mp = mass_properties(dataclasses.replace(plate.brep))  # a new B-rep: nothing cached
+        np.testing.assert_allclose(mp.volume, 10.0 * (200.0**2 - n * n * PI * 9.0), rtol=1e-14)
+        np.testing.assert_allclose(mp.area, 2 * (200.0**2 - n * n * PI * 9) + 10 * (800 + n * n * 2 * PI * 3),
+                                   rtol=1e-14)
+        counts.append(dict(calls))
+    assert counts[0] == counts[1] == {"mass._plane_F": 2, "mass._revolved_F": 1}
+
+
+def test_results_are_cached_per_brep_and_tolerance():
+    b = Torus(2.0, 0.5).brep
+    mp = mass_properties(b)
+    assert mass_properties(b) is mp
+    assert mass_properties(b, tol=Tolerance(solver=1e-8)) is not mp
+    a = face_areas(b)
+    a[0] = -1.0  # a copy: the cache is not exposed
+    np.testing.assert_allclose(face_areas(b), [PI**2 * 2.0 * 0.5] * 4, rtol=RTOL)
+    with pytest.raises(InvalidInputError, match="tol must be a coons.Tolerance or None, got str"):
+        mass_properties(b, tol="tight")
+
+
+def test_looser_tolerance_stops_earlier_within_it():
+    from coons.topology.profile import Profile, Segment
+    from coons.topology.sweep import revolve
+
+    spline = Segment.spline([(2, 0), (2.5, 1), (1.5, 2), (0, 3)])
+    b = revolve(Profile.from_wires([Segment.line((0, 0), (2, 0)), spline, Segment.line((0, 3), (0, 0))],
+                                   plane=XZ), (0, 0, 0), (0, 0, 1)).brep
+    tight = face_areas(b)
+    loose = face_areas(dataclasses.replace(b), tol=Tolerance(solver=1e-6))
+    np.testing.assert_allclose(loose, tight, rtol=1e-6)
+
+
+def test_adaptive_quadrature_error_branches(monkeypatch):
+    b = nurbs_sided(Sphere(1.0).brep)
+    # Asking for round-off (tol.solver below 64 ulps is raised to it) with no bisection allowed.
+    monkeypatch.setattr(mass, "MAX_BISECTIONS", 0)
+    eps64 = 64 * np.finfo(float).eps
+    with pytest.raises(ConvergenceError, match=r"did not reach relative accuracy 1\.4e-14 on face\(s\) \[\d") as exc:
+        mass_properties(b, tol=Tolerance(solver=1e-16))
+    assert exc.value.indices.size and np.all(exc.value.residuals > eps64)
+    monkeypatch.setattr(mass, "MAX_BISECTIONS", 40)
+    monkeypatch.setattr(mass, "_nurbs_integrand", lambda S, u, v, x0, ncols: np.full((u.size, ncols), np.nan))
+    with pytest.raises(ConvergenceError, match=r"non-finite integrand on face\(s\) \[\d"):
+        mass_properties(dataclasses.replace(b))

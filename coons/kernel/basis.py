@@ -125,7 +125,13 @@ def check_parameters(u, domain: tuple[float, float], tol: Tolerance, *, what: st
 
 
 def find_spans(knots: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
-    """Knot span index of each parameter (The NURBS Book A2.1, by binary search).
+    """Knot span index of each parameter (The NURBS Book A2.1).
+
+    The span is ``#{i : U[i] <= u} - 1`` kept inside ``[p, last]``, ``last`` being the
+    last non-empty span of the domain.  Small batches use a binary search
+    (``np.searchsorted``); large ones a bucket table over the domain followed by a few
+    branch-free forward steps, which gives the same spans several times faster on
+    random parameters (see :func:`span_table`).
 
     Parameters
     ----------
@@ -140,8 +146,158 @@ def find_spans(knots: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
     # The last non-empty span: with a floating knot vector U[n] may repeat above the
     # domain, so span n - 1 can be empty and u = U[n] belongs to the span before it.
     last = int(np.searchsorted(knots, knots[n], side="left")) - 1
+    u = np.asarray(u)
+    if u.size >= _TABLE_MIN_POINTS:
+        table = span_table(knots, degree, last)
+        if table is not None and not np.isnan(u).any():
+            return _table_spans(table, knots, u, last)
     spans = np.minimum(np.searchsorted(knots, u, side="right") - 1, last)
     return np.maximum(spans, degree).astype(np.int64, copy=False)
+
+
+#: Batches below this size use the binary search: the bucket table costs O(cells) to build.
+_TABLE_MIN_POINTS = 512
+#: Forward steps the bucket search may take per parameter before the binary search is cheaper.
+_TABLE_MAX_STEPS = 3
+
+
+def span_table(knots: np.ndarray, degree: int, last: int):
+    """Bucket table for :func:`find_spans`: ``(lo, scale, cells, table, steps, ext)`` or ``None``.
+
+    The domain ``[lo, hi]`` is cut into ``G`` equal cells (four per non-empty span).
+    ``table[c]`` is the span of the left edge of cell ``c - 1``: one whole cell below
+    any parameter the rounded cell index ``floor((u - lo) * G / (hi - lo))`` can put in
+    cell ``c``, so the entry never exceeds the true span (the span is non-decreasing in
+    ``u``).  ``steps`` bounds how many knots a parameter can lie above its entry (the
+    spans three cells on, beyond any rounding of the cell index), and each step moves
+    one span forward while ``U[span + 1] <= u``.  ``ext`` is ``U[:last + 2]`` followed
+    by NaN so steps stop at ``last + 1`` (``u = U[n]``), which the final minimum
+    maps back to ``last``.  ``None`` when clustered knots would need more than
+    :data:`_TABLE_MAX_STEPS` steps.
+    """
+    lo, hi = float(knots[degree]), float(knots[last + 1])
+    cells = 4 * max(1, int(np.count_nonzero(np.diff(knots[degree : last + 2]) > 0)))
+    edges = lo + (hi - lo) / cells * (np.arange(cells + 3) - 1.0)
+    f = np.clip(np.searchsorted(knots, edges, side="right") - 1, degree, last + 1)
+    table = f[:cells]
+    ahead = np.concatenate([f[3:cells], np.full(3, last + 1)])
+    steps = int(np.max(ahead - table))
+    if steps > _TABLE_MAX_STEPS:
+        return None
+    ext = np.append(knots[: last + 2], np.nan)  # NaN <= u is false, even for u = inf
+    return lo, cells / (hi - lo), cells, table.astype(np.intp), steps, ext
+
+
+def _table_spans(table, knots: np.ndarray, u: np.ndarray, last: int) -> np.ndarray:
+    """Spans of ``u`` by the bucket table of :func:`span_table` (same result as the binary search)."""
+    lo, scale, cells, tab, steps, ext = table
+    # fmax/fmin keep +-inf inside the table; NaN never reaches here.
+    x = np.fmin(np.fmax((u - lo) * scale, 0.0), cells - 1.0)
+    g = tab.take(x.astype(np.intp))
+    for _ in range(steps):
+        g += ext.take(g + 1) <= u
+    np.minimum(g, last, out=g)
+    return g.astype(np.int64, copy=False)
+
+
+def _knot_window(knots: np.ndarray, degree: int, spans: np.ndarray) -> np.ndarray:
+    """Knots ``U[span + 1 - p .. span + p]`` of every parameter, ``(2p, m)``, one gather.
+
+    Row ``p - j`` holds ``U[span + 1 - j]`` and row ``p - 1 + j`` holds ``U[span + j]``;
+    rows are contiguous so the recursions below read unit-stride 1-D arrays.
+    """
+    return knots[spans + np.arange(1 - degree, degree + 1)[:, None]]
+
+
+def basis_rows(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+    """Non-zero basis functions as ``p + 1`` contiguous rows (The NURBS Book A2.2).
+
+    The same recursion and the same floating-point operations as
+    :func:`basis_functions`, laid out for the evaluation loops of curves and surfaces:
+    ``rows[j]`` is ``N[span - p + j, p](u)``.
+
+    Returns
+    -------
+    list of p + 1 (m,) float64 arrays
+    """
+    p = degree
+    K = _knot_window(knots, p, spans)
+    left = [u - K[p - j] for j in range(p + 1)]  # left[j] = u - U[span + 1 - j] (left[0] unused)
+    right = [K[p - 1 + j] - u for j in range(p + 1)]  # right[j] = U[span + j] - u (right[0] unused)
+    N = [np.ones(u.shape[0])]
+    for j in range(1, p + 1):
+        saved = None
+        nxt = []
+        for r in range(j):
+            temp = N[r] / (right[r + 1] + left[j - r])
+            term = right[r + 1] * temp
+            nxt.append(term if saved is None else saved + term)
+            saved = left[j - r] * temp
+        nxt.append(saved)
+        N = nxt
+    return N
+
+
+def basis_derivative_rows(
+    knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray, order: int
+) -> list[list[np.ndarray]]:
+    """Basis functions and derivatives as contiguous rows (The NURBS Book A2.3).
+
+    The same recursion and floating-point operations as :func:`basis_derivatives`;
+    ``rows[k][j]`` is the k-th derivative of ``N[span - p + j, p]``.  Only orders
+    ``k <= min(order, p)`` are returned (higher derivatives vanish).
+
+    Returns
+    -------
+    list of min(order, p) + 1 lists of p + 1 (m,) float64 arrays
+    """
+    if order < 0:
+        raise InvalidInputError(f"derivative order must be >= 0, got {order}")
+    p = degree
+    n = min(order, p)
+    K = _knot_window(knots, p, spans)
+    left = [u - K[p - j] for j in range(p + 1)]
+    right = [K[p - 1 + j] - u for j in range(p + 1)]
+    # ndu[j][r]: basis functions of degree j on and above the diagonal, knot differences below.
+    ndu: list[list] = [[None] * (p + 1) for _ in range(p + 1)]
+    ndu[0][0] = np.ones(u.shape[0])
+    for j in range(1, p + 1):
+        saved = None
+        for r in range(j):
+            ndu[j][r] = right[r + 1] + left[j - r]
+            temp = ndu[r][j - 1] / ndu[j][r]
+            term = right[r + 1] * temp
+            ndu[r][j] = term if saved is None else saved + term
+            saved = left[j - r] * temp
+        ndu[j][j] = saved
+    ders = [[ndu[r][p] for r in range(p + 1)]] + [[None] * (p + 1) for _ in range(n)]
+    for r in range(p + 1):
+        s1, s2 = 0, 1
+        # Python floats until a coefficient becomes an array: a[s][j] is 0 unless written.
+        a = [[1.0] + [0.0] * p, [0.0] * (p + 1)]
+        for k in range(1, n + 1):
+            d = None
+            rk, pk = r - k, p - k
+            if r >= k:
+                a[s2][0] = a[s1][0] / ndu[pk + 1][rk]
+                d = a[s2][0] * ndu[rk][pk]
+            j1 = 1 if rk >= -1 else -rk
+            j2 = k - 1 if r - 1 <= pk else p - r
+            for j in range(j1, j2 + 1):
+                a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][rk + j]
+                term = a[s2][j] * ndu[rk + j][pk]
+                d = term if d is None else d + term
+            if r <= pk:
+                a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r]
+                term = a[s2][k] * ndu[r][pk]
+                d = term if d is None else d + term
+            ders[k][r] = np.zeros(u.shape[0]) if d is None else d
+            s1, s2 = s2, s1
+    factor = float(p)
+    for k in range(1, n + 1):
+        ders[k] = [row * factor for row in ders[k]]
+        factor *= p - k
+    return ders
 
 
 def basis_functions(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -151,22 +307,8 @@ def basis_functions(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.nda
     -------
     (m, p + 1) float64
     """
-    m = u.shape[0]
-    p = degree
-    N = np.zeros((m, p + 1))
-    N[:, 0] = 1.0
-    left = np.empty((m, p + 1))
-    right = np.empty((m, p + 1))
-    for j in range(1, p + 1):
-        left[:, j] = u - knots[spans + 1 - j]
-        right[:, j] = knots[spans + j] - u
-        saved = np.zeros(m)
-        for r in range(j):
-            temp = N[:, r] / (right[:, r + 1] + left[:, j - r])
-            N[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        N[:, j] = saved
-    return N
+    rows = basis_rows(knots, degree, spans, np.asarray(u, dtype=np.float64))
+    return np.stack(rows, axis=1)
 
 
 def basis_derivatives(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray, order: int) -> np.ndarray:
@@ -178,52 +320,11 @@ def basis_derivatives(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.n
         ``ders[:, k, j]`` is the k-th derivative of ``N[span - p + j, p]``; rows above
         ``p`` are zero.
     """
-    if order < 0:
-        raise InvalidInputError(f"derivative order must be >= 0, got {order}")
-    m = u.shape[0]
-    p = degree
-    n = min(order, p)
-    ndu = np.zeros((m, p + 1, p + 1))
-    ndu[:, 0, 0] = 1.0
-    left = np.empty((m, p + 1))
-    right = np.empty((m, p + 1))
-    for j in range(1, p + 1):
-        left[:, j] = u - knots[spans + 1 - j]
-        right[:, j] = knots[spans + j] - u
-        saved = np.zeros(m)
-        for r in range(j):
-            ndu[:, j, r] = right[:, r + 1] + left[:, j - r]
-            temp = ndu[:, r, j - 1] / ndu[:, j, r]
-            ndu[:, r, j] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        ndu[:, j, j] = saved
-    ders = np.zeros((m, order + 1, p + 1))
-    ders[:, 0, :] = ndu[:, :, p]
-    a = np.zeros((m, 2, p + 1))
-    for r in range(p + 1):
-        s1, s2 = 0, 1
-        a[:] = 0.0
-        a[:, 0, 0] = 1.0
-        for k in range(1, n + 1):
-            d = np.zeros(m)
-            rk, pk = r - k, p - k
-            if r >= k:
-                a[:, s2, 0] = a[:, s1, 0] / ndu[:, pk + 1, rk]
-                d = a[:, s2, 0] * ndu[:, rk, pk]
-            j1 = 1 if rk >= -1 else -rk
-            j2 = k - 1 if r - 1 <= pk else p - r
-            for j in range(j1, j2 + 1):
-                a[:, s2, j] = (a[:, s1, j] - a[:, s1, j - 1]) / ndu[:, pk + 1, rk + j]
-                d = d + a[:, s2, j] * ndu[:, rk + j, pk]
-            if r <= pk:
-                a[:, s2, k] = -a[:, s1, k - 1] / ndu[:, pk + 1, r]
-                d = d + a[:, s2, k] * ndu[:, r, pk]
-            ders[:, k, r] = d
-            s1, s2 = s2, s1
-    factor = float(p)
-    for k in range(1, n + 1):
-        ders[:, k, :] *= factor
-        factor *= p - k
+    rows = basis_derivative_rows(knots, degree, spans, np.asarray(u, dtype=np.float64), order)
+    m = np.shape(u)[0]
+    ders = np.zeros((m, order + 1, degree + 1))
+    for k, row in enumerate(rows):
+        ders[:, k, :] = np.stack(row, axis=1)
     return ders
 
 

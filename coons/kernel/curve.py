@@ -7,8 +7,11 @@ Clamped, floating and periodic knot vectors are all accepted: the domain is
 ``[U[p], U[n]]``.
 
 Evaluation and derivatives follow numpy broadcasting: ``evaluate(u)`` returns
-``np.shape(u) + (d,)``.  They work in homogeneous coordinates and divide at the end
-(The NURBS Book A4.1, A4.2), in chunks of points so temporaries stay small.
+``np.shape(u) + (d,)``.  Rational curves are evaluated in homogeneous coordinates and
+divided at the end (The NURBS Book A4.1, A4.2), polynomial ones directly, in chunks of
+points so temporaries stay small; batches of :data:`coons.kernel._accel.THRESHOLD`
+points or more go to the optional numba kernels of :mod:`coons.kernel._accel`, which
+do the same operations.
 
 This module holds the value and its evaluation; knot insertion, refinement, removal,
 degree elevation and splitting live in :mod:`coons.kernel.refine`, differential
@@ -25,14 +28,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from coons.errors import InvalidGeometryError, InvalidInputError
+from coons.kernel import _accel
 from coons.kernel import basis as _b
-from coons.kernel._common import CHUNK, as_degree, as_points, as_transform, as_weights, binomials
+from coons.kernel._common import as_degree, as_points, as_transform, as_weights, binomials
 from coons.tolerance import Tolerance, resolve
 
 if TYPE_CHECKING:  # pragma: no cover
     from coons.kernel.projection import ClosestPoints
 
 __all__ = ["NurbsCurve"]
+
+#: Points per batch of the numpy path: its temporaries are 1-D arrays of this length
+#: (128 KB), which stay in cache and are recycled by the allocator (measured, as in surface.py).
+_CHUNK = 16384
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,23 +138,103 @@ class NurbsCurve:
     def _params(self, u, tol: Tolerance | None) -> np.ndarray:
         return _b.check_parameters(u, self.domain, resolve(tol))
 
+    @cached_property
+    def _planes(self) -> tuple[np.ndarray, ...]:
+        """Coordinate columns of the net the evaluation contracts, each ``(n,)`` contiguous.
+
+        ``d`` columns of ``P`` for a polynomial curve (no weight channel, no divide),
+        ``d + 1`` columns of ``[w P, w]`` for a rational one.
+        """
+        net = self.homogeneous if self.is_rational else self.control_points
+        return tuple(np.ascontiguousarray(net[:, c]) for c in range(net.shape[1]))
+
+    @cached_property
+    def _homogeneous_planes(self) -> tuple[np.ndarray, ...]:
+        return tuple(np.ascontiguousarray(self.homogeneous[:, c]) for c in range(self.homogeneous.shape[1]))
+
+    def _contract_chunk(self, u: np.ndarray, order: int, planes) -> list:
+        """Derivatives of the net given by ``planes`` at one chunk of parameters (The NURBS Book A3.2).
+
+        Basis rows (A2.2 / A2.3) contracted with one gather per control point of the
+        local window and coordinate, on contiguous 1-D arrays.
+
+        Returns
+        -------
+        A : nested lists ``A[k][c]`` of (m,) float64, ``k <= order``
+        """
+        p = self.degree
+        spans = _b.find_spans(self.knots, p, u)
+        if order == 0:
+            N = [_b.basis_rows(self.knots, p, spans, u)]
+        else:
+            N = _b.basis_derivative_rows(self.knots, p, spans, u, order)
+        base = spans - p
+        A: list = [[None] * len(planes) for _ in N]
+        for j in range(p + 1):
+            idx = base + j if j else base
+            for c, P in enumerate(planes):
+                g = P.take(idx)
+                for k, Nk in enumerate(N):
+                    if j == 0:
+                        A[k][c] = Nk[0] * g
+                    else:
+                        A[k][c] += Nk[j] * g
+        zero = np.zeros(u.shape[0])  # derivatives above the degree vanish
+        return A + [[zero] * len(planes) for _ in range(order + 1 - len(N))]
+
     def _homogeneous_derivatives(self, u: np.ndarray, order: int) -> np.ndarray:
-        """Derivatives of the homogeneous curve, ``(m, order + 1, d + 1)``, for flat ``u``."""
-        p, Pw = self.degree, self.homogeneous
+        """Derivatives of the homogeneous curve, ``(m, order + 1, d + 1)``, for flat ``u``.
+
+        The numpy reference for :mod:`coons.kernel._accel` (no rational correction).
+        """
         m = u.shape[0]
-        out = np.empty((m, order + 1, Pw.shape[1]))
-        for s in range(0, m, CHUNK):
-            uu = u[s : s + CHUNK]
-            spans = _b.find_spans(self.knots, p, uu)
-            if order == 0:
-                N = _b.basis_functions(self.knots, p, spans, uu)[:, None, :]
-            else:
-                N = _b.basis_derivatives(self.knots, p, spans, uu, order)
-            acc = np.zeros((uu.shape[0], order + 1, Pw.shape[1]))
-            base = spans - p
-            for j in range(p + 1):
-                acc += N[:, :, j, None] * Pw[base + j][:, None, :]
-            out[s : s + CHUNK] = acc
+        planes = self._homogeneous_planes
+        out = np.empty((m, order + 1, len(planes)))
+        for s in range(0, m, _CHUNK):
+            A = self._contract_chunk(u[s : s + _CHUNK], order, planes)
+            for k in range(order + 1):
+                for c in range(len(planes)):
+                    out[s : s + _CHUNK, k, c] = A[k][c]
+        return out
+
+    def _derivatives_flat(self, u: np.ndarray, order: int) -> np.ndarray:
+        """Cartesian derivatives ``(m, order + 1, d)`` at flat ``u`` inside the domain.
+
+        Large batches go to the compiled kernel of :mod:`coons.kernel._accel` when it is
+        available; otherwise numpy, in chunks of :data:`_CHUNK` points, with the quotient
+        rule of The NURBS Book A4.2 for rational curves.
+        """
+        m = u.shape[0]
+        rational = self.is_rational
+        if m >= _accel.THRESHOLD and _accel.AVAILABLE:
+            net = self.homogeneous if rational else self.control_points
+            out = _accel.curve_derivatives(self.knots, self.degree, net, u, order, rational)
+            if out is not None:
+                return out
+        d = self.dimension
+        planes = self._planes
+        out = np.empty((m, order + 1, d))
+        binom = binomials(order)
+        for s in range(0, m, _CHUNK):
+            A = self._contract_chunk(u[s : s + _CHUNK], order, planes)
+            if rational:
+                # A4.2: C^(k) = (A^(k) - sum_i C(k, i) w^(i) C^(k-i)) / w, one reciprocal per
+                # point; coons.kernel._accel does the same operations in the same order.
+                w = [A[k][d] for k in range(order + 1)]
+                r = 1.0 / w[0]
+                for k in range(order + 1):
+                    for c in range(d):
+                        t = A[k][c]
+                        for i in range(1, k + 1):
+                            x = w[i] * A[k - i][c]  # A[k - i] already holds Cartesian derivatives
+                            if binom[k, i] != 1.0:
+                                x *= binom[k, i]
+                            t = t - x
+                        A[k][c] = t * r
+            blk = out[s : s + _CHUNK]
+            for k in range(order + 1):
+                for c in range(d):
+                    blk[:, k, c] = A[k][c]
         return out
 
     def evaluate(self, u, tol: Tolerance | None = None) -> np.ndarray:
@@ -167,8 +255,7 @@ class NurbsCurve:
         """
         u = self._params(u, tol)
         shape = u.shape
-        Cw = self._homogeneous_derivatives(u.ravel(), 0)[:, 0, :]
-        C = Cw[:, :-1] / Cw[:, -1:]
+        C = self._derivatives_flat(u.ravel(), 0)
         return C.reshape(shape + (self.dimension,))
 
     __call__ = evaluate
@@ -185,15 +272,7 @@ class NurbsCurve:
             raise InvalidInputError(f"order must be an integer >= 0, got {order!r}")
         u = self._params(u, tol)
         shape = u.shape
-        A = self._homogeneous_derivatives(u.ravel(), int(order))
-        Aw, w = A[:, :, :-1], A[:, :, -1]
-        C = np.empty_like(Aw)
-        binom = binomials(order)
-        for k in range(order + 1):
-            v = Aw[:, k, :].copy()
-            for i in range(1, k + 1):
-                v -= binom[k, i] * w[:, i, None] * C[:, k - i, :]
-            C[:, k, :] = v / w[:, 0, None]
+        C = self._derivatives_flat(u.ravel(), int(order))
         return C.reshape(shape + (order + 1, self.dimension))
 
     def tangent(self, u, tol: Tolerance | None = None) -> np.ndarray:

@@ -3,7 +3,7 @@
 The names most scripts need, build123d-style::
 
     import coons
-    part = coons.Box(10, 10, 10) - coons.Cylinder(3, 20)     # Booleans land with coons.booleans
+    part = coons.Box(10, 10, 10) - coons.Box(3, 3, 20)       # polyhedral Booleans (+, -, &)
     placed = coons.Pos(0, 0, 5) * coons.Rot(0, 45, 0) * coons.Torus(4, 1)
     print(placed.volume, placed.area, coons.check(placed).ok)
 
@@ -31,6 +31,7 @@ from coons.topology.sweep import extrude, loft, revolve
 from coons.topology.tessellate import tessellate
 from coons.topology.transform import Location, Pos, Rot
 from coons.io.stl import export_stl, import_stl
+from coons.booleans import difference, intersection, union  # also registers Solid's + - &
 
 __version__ = "0.1.0"
 
@@ -52,6 +53,9 @@ __all__ = [
     "loft",
     "from_mesh",
     "tessellate",
+    "union",
+    "difference",
+    "intersection",
     "export_stl",
     "import_stl",
     "Tolerance",

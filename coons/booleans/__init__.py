@@ -2,9 +2,12 @@
 
 The planar layer (:mod:`.planar`) computes exact union, intersection, difference and
 symmetric difference of polygon sets in 2-D and on a plane in 3-D, from an exact
-arrangement of the operands' edges; trim loops and planar faces share it.  Polyhedral and
-B-rep Booleans build on it.  This package imports the kernel and topology, never a
-reference engine.
+arrangement of the operands' edges; trim loops and planar faces share it.  The polyhedral
+layer (:mod:`.polyhedral`) computes exact ``union``, ``difference`` and ``intersection`` of
+solids whose faces are all planar, and is registered here as the ``+``, ``-`` and ``&``
+operators of :class:`~coons.topology.shape.Solid` (importing :mod:`coons` imports this
+package).  B-rep Booleans of curved solids build on both.  This package imports the kernel
+and topology, never a reference engine.
 """
 
 from coons.booleans.planar import (
@@ -19,8 +22,17 @@ from coons.booleans.planar import (
     polygon_symmetric_difference,
     polygon_union,
 )
+from coons.booleans.polyhedral import difference, intersection, union
+from coons.topology.shape import register_boolean
+
+register_boolean("union", union)
+register_boolean("difference", difference)
+register_boolean("intersection", intersection)
 
 __all__ = [
+    "union",
+    "difference",
+    "intersection",
     "OPERATIONS",
     "PlaneFrame",
     "Polygon3D",

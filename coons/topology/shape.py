@@ -6,6 +6,8 @@ return.  It may hold several lumps (disjoint solids) and voids.  Queries return 
 (``volume``, ``area``, ``centroid``, ``inertia``) are computed on the exact B-rep by
 :mod:`coons.topology.mass` and cached; placement returns new solids
 (``translate``, ``rotate``, ``scale``, ``mirror``, ``Pos(...) * solid``, ``Rot(...) * solid``).
+:meth:`Solid.empty` is the solid with no lumps (the result of an empty Boolean): valid, volume
+and area 0; it has no centroid, inertia or bounding box.
 
 The Boolean operators ``+``, ``-`` and ``&`` are implemented by :mod:`coons.booleans`,
 which registers itself here when imported (``import coons`` does); the topology layer
@@ -43,6 +45,18 @@ def _boolean(name: str, a: "Solid", b: Any) -> "Solid":
     return fn(a, b)
 
 
+def _empty_brep() -> BRep:
+    """A B-rep with zero rows in every table."""
+    from coons.topology.brep import _COLUMNS
+
+    shapes = {"vertex_point": (0, 3), "edge_vertex": (0, 2), "edge_loop": (0, 2), "edge_wing": (0, 4),
+              "edge_range": (0, 2), "edge_pcurve": (0, 2)}
+    cols = {name: np.zeros(shapes.get(name, (0,)), dtype=dt) for name, dt in _COLUMNS.items()}
+    for ptr in ("face_loop_ptr", "shell_face_ptr", "solid_shell_ptr"):
+        cols[ptr] = np.zeros(1, dtype=np.int64)
+    return BRep(**cols)
+
+
 class Solid:
     """A solid (one or more lumps) bounded by a valid winged-edge B-rep.
 
@@ -58,6 +72,21 @@ class Solid:
         if not isinstance(brep, BRep):
             raise InvalidInputError(f"Solid needs a BRep, got {type(brep).__name__}")
         self.brep = brep
+
+    @classmethod
+    def empty(cls) -> "Solid":
+        """The empty solid: a B-rep with no rows (no lumps, faces, edges or vertices).
+
+        It is valid (``check`` finds nothing to object to), its ``volume`` and ``area`` are 0.0, and
+        ``centroid``, ``inertia`` and ``bounding_box`` raise ``TopologyError`` (an empty set has
+        neither a centroid nor a box).
+        """
+        return cls(_empty_brep())
+
+    @property
+    def is_empty(self) -> bool:
+        """True for the solid with no lumps."""
+        return self.brep.n_faces == 0
 
     def __repr__(self) -> str:
         b = self.brep
@@ -103,11 +132,11 @@ class Solid:
 
     @property
     def volume(self) -> float:
-        return self._mass.volume
+        return 0.0 if self.is_empty else self._mass.volume
 
     @property
     def area(self) -> float:
-        return self._mass.area
+        return 0.0 if self.is_empty else self._mass.area
 
     @property
     def centroid(self) -> np.ndarray:

@@ -1,0 +1,1272 @@
+"""Exact intersection and imprinting of two closed triangle meshes (phases 3–5 of the polyhedral Boolean).
+
+Given two closed, oriented triangle meshes ``A`` and ``B`` with float64 vertices and the
+candidate triangle pairs of the broad phase, this module finds every point where the two
+surfaces meet, exactly, and splits every triangle of each mesh along the curves where the
+other surface crosses or touches it, so that both meshes are subdivided consistently: every
+intersection segment is an edge of both subdivided meshes, and the two triangles on each side
+of an edge are split at the same points.  It does not classify or select pieces, and it does
+not round anything except the 2-D coordinates handed to the triangulator (whose output is then
+verified exactly).  See :mod:`coons.booleans.polyhedral` for the pipeline around it.
+
+Notation
+--------
+``t``, ``u``
+    A triangle of A, a triangle of B; a *pair* ``(t, u)`` is a candidate of the broad phase.
+simplex ``σ``
+    A vertex, an edge or a triangle of one mesh, encoded as ``code = 4 index + dim``
+    (``dim`` 0, 1, 2).
+key ``(σ_A, σ_B)``
+    Every point common to both surfaces lies in the relative interior of exactly one simplex of
+    A and one of B; the pair of those simplices names the point *symbolically*.  Points are
+    identified by their keys, never by comparing coordinates: two tests that find the same
+    point (the crossing of edge ``e`` of A with triangle ``u`` of B, found from both triangles
+    of ``e``) produce the same key.  Which relative interior a point lies in is decided by
+    exact predicates on the input floats, so keys are canonical.
+global id
+    Vertex ``v`` of A is ``v``, vertex ``w`` of B is ``nA + w`` (or the A vertex it coincides
+    with), and new points (keys with no vertex in them) follow from ``nA + nB``.
+
+Exactness
+---------
+All decisions use exact predicates on the input floats (:func:`coons.kernel.predicates.orient3d`,
+``orient2d``, ``classify_segments``: Shewchuk's float filters with an exact fallback).  New
+points are edge–plane crossings ``p + dp / (dp − dq) (q − p)`` (``dp``, ``dq`` the exact
+orientation determinants of the edge ends against the plane) or crossings of two coplanar
+edges, stored as homogeneous integer coordinates ``(X, Y, Z, W)`` over the common power-of-two
+scale of all input coordinates (every float is ``m 2^e``), so they are exact rationals.
+Splitting a triangle projects its points onto the coordinate plane that drops the dominant
+axis of its normal (exact: a coordinate is dropped).  Triangles with few points (at most
+``_SMALL_SPLIT``, nearly all of them) are split by incremental insertion and edge flips whose
+every orientation test is exact (a float filter on the rounded coordinates with a
+rounding-aware error bound, integer determinants when it cannot decide); triangles with many
+points go to the constrained Delaunay triangulator of :mod:`coons.topology._cdt` on the nearest
+floats, whose output is verified exactly and, should rounding have made it invalid (features
+within an ulp of each other), replaced by the exact incremental split.  Every split is
+verified: each piece counter-clockwise for the *exact* points, piece counts, the boundary of
+each triangle's pieces equal to its subdivided boundary, every segment an edge, and the pieces
+of the whole mesh closed around the splits.  By the degree argument (a triangulated disc whose
+triangles are all positively oriented and whose boundary maps onto a simple polygon covers its
+inside exactly once) this proves the splits exact.
+
+Why the constraints inside one triangle never cross
+---------------------------------------------------
+The segments imprinted on ``t`` are pieces of ``t ∩ B``.  B is an embedded closed surface, so
+two of its triangles meet only along a shared edge or vertex and the pieces meet only at their
+end points: the constraint graph in ``t`` is a planar straight-line graph whose vertices are the
+keyed points.  This is why a constrained triangulation suffices and no planar arrangement has to
+be computed per triangle (the 2-D arrangement of :mod:`coons.booleans.planar` computes crossings
+of float segments; here the segment ends are exact rationals and their crossings are known).
+
+Limitations
+-----------
+* Self-intersecting inputs are not detected (their constraints may cross, which raises
+  ``BooleanError`` at stage ``"imprint"``).
+* The splits loop over the intersected triangles in Python (Python integers for the rare exact
+  decisions); the rest is vectorised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from coons.errors import BooleanError, InvalidInputError
+from coons.kernel.predicates import SegmentRelation, classify_segments, orient2d, orient3d
+from coons.topology._cdt import triangulate
+
+__all__ = ["Operand", "operand", "Exact", "Intersections", "intersect", "Imprint", "imprint"]
+
+_EPS = 2.0**-53
+#: Points per chunk of the vectorised predicate calls (bounds the temporaries).
+_CHUNK = 1 << 18
+
+
+# ====================================================================== operands
+@dataclass(frozen=True)
+class Operand:
+    """One operand as a closed triangle mesh with its edge tables.
+
+    Attributes
+    ----------
+    P : (n, 3) float64          vertices
+    T : (m, 3) int64            triangles, counter-clockwise seen from outside
+    face : (m,) int64           B-rep face of each triangle (for diagnostics)
+    edges : (E, 2) int64        undirected edges, smaller vertex first
+    tri_edge : (m, 3) int64     edge ``k`` of triangle ``t`` joins ``T[t, k]`` and ``T[t, (k + 1) % 3]``
+    edge_tris : (E, 2) int64    the two triangles of each edge
+    """
+
+    P: np.ndarray
+    T: np.ndarray
+    face: np.ndarray
+    edges: np.ndarray
+    tri_edge: np.ndarray
+    edge_tris: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.P.shape[0])
+
+    @property
+    def m(self) -> int:
+        return int(self.T.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        return int(self.edges.shape[0])
+
+
+def operand(P: np.ndarray, T: np.ndarray, face: np.ndarray, name: str) -> Operand:
+    """Edge tables of a closed triangle mesh.
+
+    Raises
+    ------
+    BooleanError
+        (stage ``"input"``) an edge not used by exactly two triangles.
+    """
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    T = np.ascontiguousarray(T, dtype=np.int64)
+    n, m = P.shape[0], T.shape[0]
+    a = T.ravel()
+    b = T[:, [1, 2, 0]].ravel()
+    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    uniq, inv, count = np.unique(key, return_inverse=True, return_counts=True)
+    if np.any(count != 2):
+        e = int(np.flatnonzero(count != 2)[0])
+        raise BooleanError(
+            f"operand {name}: the tessellation edge between vertices {int(uniq[e] // n)} and {int(uniq[e] % n)} "
+            f"is used by {int(count[e])} triangles; expected a closed manifold mesh (2)",
+            stage="input",
+            diagnostics={"operand": name, "edge": (int(uniq[e] // n), int(uniq[e] % n))},
+        )
+    edges = np.stack([uniq // n, uniq % n], axis=1)
+    inv = inv.reshape(-1)
+    order = np.argsort(inv, kind="stable")
+    edge_tris = (order // 3).reshape(-1, 2)
+    return Operand(P, T, np.asarray(face, dtype=np.int64), edges, inv.reshape(m, 3), edge_tris)
+
+
+# ====================================================================== exact numbers
+class Exact:
+    """Float coordinates as Python integers over one power-of-two scale shared by both operands.
+
+    Every finite float is ``M 2^E`` with an integer ``M``; with ``s`` the smallest ``E`` over all
+    input coordinates, ``x = X 2^s`` for the integer ``X = M 2^(E - s)``.  Homogeneous points
+    ``(X, Y, Z, W)`` then stand for ``(X / W, Y / W, Z / W) 2^s``.
+    """
+
+    def __init__(self, *coordinate_arrays: np.ndarray) -> None:
+        values = np.concatenate([np.asarray(c, dtype=np.float64).ravel() for c in coordinate_arrays])
+        mant, expo = np.frexp(values)
+        nz = mant != 0
+        self.s = int((expo[nz] - 53).min()) if np.any(nz) else 0
+        self.scale = 2.0**self.s
+
+    def ints(self, P: np.ndarray) -> np.ndarray:
+        """``(..., 3)`` floats as an object array of Python ints on the common scale."""
+        P = np.asarray(P, dtype=np.float64)
+        mant, expo = np.frexp(P)
+        M = (mant * 2.0**53).astype(np.int64)
+        shift = np.where(M == 0, 0, expo.astype(np.int64) - 53 - self.s)
+        return M.astype(object) << shift.astype(object)
+
+    def homogeneous(self, P: np.ndarray) -> np.ndarray:
+        """``(k, 3)`` floats as ``(k, 4)`` homogeneous integer points (``W = 1``)."""
+        X = self.ints(np.asarray(P, dtype=np.float64).reshape(-1, 3))
+        return np.concatenate([X, np.ones((X.shape[0], 1), dtype=object)], axis=1)
+
+    def rounded(self, H: np.ndarray) -> np.ndarray:
+        """Nearest floats ``(k, 3)`` of homogeneous points ``(k, 4)`` (correctly rounded division)."""
+        if H.shape[0] == 0:
+            return np.zeros((0, 3))
+        # Put the scale into the integers before the one division: int / int is correctly rounded in
+        # Python (no intermediate float that could overflow or lose bits).
+        W = H[:, 3] << max(-self.s, 0)
+        out = np.empty((H.shape[0], 3))
+        for k in range(3):
+            out[:, k] = ((H[:, k] << max(self.s, 0)) / W).astype(np.float64)
+        return out
+
+
+def _det3(ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Determinant of the rows ``a, b, c`` (works on object arrays of ints)."""
+    return ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+
+
+def _sign(x: np.ndarray) -> np.ndarray:
+    return ((x > 0).astype(np.int8) - (x < 0).astype(np.int8)).astype(np.int8)
+
+
+# ====================================================================== predicates on simplices
+def _projection(P: np.ndarray, T: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Dropped axis and orientation sign of each triangle's projection.
+
+    The dropped axis is the largest component of the float normal; the kept axes are the two
+    following it cyclically, so the projected orientation has the sign of that normal
+    component, computed exactly with ``orient2d``.
+
+    Returns
+    -------
+    axis : (k,) int64
+    sign : (k,) int8, +1 or -1
+
+    Raises
+    ------
+    BooleanError
+        (stage ``"intersect"``) a triangle whose projection is flat (a degenerate triangle).
+    """
+    C = P[T[tris]]
+    n = np.cross(C[:, 1] - C[:, 0], C[:, 2] - C[:, 0])
+    axis = np.argmax(np.abs(n), axis=1).astype(np.int64)
+    Q = _project(C, axis)
+    sign = orient2d(Q[:, 0], Q[:, 1], Q[:, 2]) if tris.size else np.zeros(0, np.int8)
+    if np.any(sign == 0):
+        k = int(np.flatnonzero(sign == 0)[0])
+        raise BooleanError(
+            f"triangle {int(tris[k])} is degenerate (its corners {C[k].tolist()} are collinear)",
+            stage="intersect",
+            diagnostics={"triangle": int(tris[k])},
+        )
+    return axis, sign
+
+
+def _project(X: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Points ``X (k, p, 3)`` projected to ``(k, p, 2)`` by dropping ``axis (k,)``, keeping the two
+    following axes in cyclic order (so projected orientations have the sign of the dropped normal
+    component)."""
+    r = np.arange(X.shape[0])[:, None]
+    c = np.arange(X.shape[1])[None, :]
+    i = ((axis + 1) % 3)[:, None]
+    j = ((axis + 2) % 3)[:, None]
+    return np.stack([X[r, c, i], X[r, c, j]], axis=-1)
+
+
+def _locate(o: np.ndarray) -> np.ndarray:
+    """Location code from three signs ``o (k, 3)`` measured against edges ``j = (c_j, c_{j+1})``
+    so that the inside is positive on every edge (or negative on every edge, for lines).
+
+    Returns ``(k,)`` int8: -1 outside, 0–2 at corner ``c_i``, 3–5 on edge ``j = code − 3``,
+    6 inside, 7 every sign zero (a degenerate configuration).
+    """
+    pos = np.all(o >= 0, axis=1)
+    neg = np.all(o <= 0, axis=1)
+    zero = o == 0
+    nz = zero.sum(axis=1)
+    code = np.full(o.shape[0], -1, dtype=np.int8)
+    inside = (pos | neg)
+    code[inside & (nz == 0)] = 6
+    one = inside & (nz == 1)
+    code[one] = 3 + np.argmax(zero[one], axis=1)
+    two = inside & (nz == 2)
+    # zeros on edges j and j+1 meet at corner j+1: the corner is the one after the nonzero edge's end,
+    # i.e. corner (nonzero + 2) % 3.
+    code[two] = (np.argmin(zero[two], axis=1) + 2) % 3
+    code[nz == 3] = 7
+    return code
+
+
+def _in_triangles(Pv: np.ndarray, C: np.ndarray, axis: np.ndarray, sgn: np.ndarray) -> np.ndarray:
+    """Location of coplanar points in closed triangles (see :func:`_locate`), in the triangles' projection.
+
+    Pv : (k, 3) points on the triangles' planes; C : (k, 3, 3) corners.
+    """
+    Q = _project(np.concatenate([C, Pv[:, None, :]], axis=1), axis)
+    c, p = Q[:, :3], Q[:, 3]
+    o = np.stack([orient2d(c[:, j], c[:, (j + 1) % 3], p) for j in range(3)], axis=1) * sgn[:, None]
+    return _locate(o)
+
+
+def _line_through_triangles(p: np.ndarray, q: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Location where lines ``p q`` (crossing the triangles' planes) meet triangles ``C``: signs of
+    ``orient3d(p, q, c_j, c_{j+1})`` (Plücker side products), see :func:`_locate`."""
+    o = np.stack([orient3d(p, q, C[:, j], C[:, (j + 1) % 3]) for j in range(3)], axis=1)
+    return _locate(o)
+
+
+# ====================================================================== intersections
+@dataclass
+class Intersections:
+    """Exact intersection of the two surfaces.
+
+    Attributes
+    ----------
+    n_points : int                   keyed points
+    code_a, code_b : (k,) int64      the simplex codes of each point's key
+    gid : (k,) int64                 global id of each point
+    new_h : (q, 4) object            homogeneous integer coordinates of the new points (gid ``nA + nB + i``)
+    new_float : (q, 3) float64       their nearest floats
+    alias_b : (nB,) int64            global id of each B vertex (itself, or the A vertex it coincides with)
+    seg_a : (s, 3) int64             segments imprinted on A: triangle of A, global ids of the two ends
+    seg_b : (s', 3) int64            segments imprinted on B: triangle of B, ends
+    coplanar : (c, 3) int64          coplanar pairs: triangle of A, triangle of B, +1 same / -1 opposite normals
+    """
+
+    code_a: np.ndarray
+    code_b: np.ndarray
+    gid: np.ndarray
+    new_h: np.ndarray
+    new_float: np.ndarray
+    alias_b: np.ndarray
+    seg_a: np.ndarray
+    seg_b: np.ndarray
+    coplanar: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return int(self.code_a.size)
+
+
+class _Records:
+    """Candidate points found by the tests: keys and constructions, deduplicated at the end."""
+
+    def __init__(self) -> None:
+        self.parts: list[tuple[np.ndarray, ...]] = []
+        self.count = 0
+
+    def add(self, code_a, code_b, kind, i0, i1, i2) -> np.ndarray:
+        """Append records; return their record ids."""
+        k = np.asarray(code_a).size
+        ids = np.arange(self.count, self.count + k, dtype=np.int64)
+        self.count += k
+        self.parts.append(tuple(np.asarray(x, dtype=np.int64).reshape(-1) * np.ones(k, dtype=np.int64)
+                                for x in (code_a, code_b, kind, i0, i1, i2)))
+        return ids
+
+    def columns(self) -> tuple[np.ndarray, ...]:
+        if not self.parts:
+            return tuple(np.zeros(0, dtype=np.int64) for _ in range(6))
+        return tuple(np.concatenate([p[c] for p in self.parts]) for c in range(6))
+
+
+# Kinds of construction of a point.
+_VERTEX_A, _VERTEX_B, _EDGE_A_PLANE_B, _EDGE_B_PLANE_A, _EDGE_EDGE = range(5)
+
+
+def _code(index: np.ndarray, dim) -> np.ndarray:
+    return 4 * np.asarray(index, dtype=np.int64) + dim
+
+
+def _loc_code(loc: np.ndarray, X: Operand, tris: np.ndarray) -> np.ndarray:
+    """Simplex codes of locations (from :func:`_locate`) in triangles ``tris`` of ``X``."""
+    out = np.full(loc.size, -1, dtype=np.int64)
+    corner = loc <= 2
+    out[corner] = _code(X.T[tris[corner], loc[corner].astype(np.int64)], 0)
+    edge = (loc >= 3) & (loc <= 5)
+    out[edge] = _code(X.tri_edge[tris[edge], loc[edge].astype(np.int64) - 3], 1)
+    inside = loc == 6
+    out[inside] = _code(tris[inside], 2)
+    return out
+
+
+def intersect(A: Operand, B: Operand, I: np.ndarray, J: np.ndarray, ex: Exact) -> Intersections:
+    """Exact intersection points and segments of the candidate pairs ``(I[p], J[p])`` (phase 3–4).
+
+    Each pair is classified by the six exact orientations of one triangle's corners against
+    the other's plane (separated, crossing/touching, coplanar).  Surviving pairs run the
+    point tests — a corner on the other triangle's plane against that triangle, an edge crossing
+    the other plane against the triangle (Plücker signs), an edge lying in the other plane
+    against that triangle's edges (exact segment relations) — each once per distinct
+    (simplex, triangle) combination.  The points found by a pair's tests are its intersection:
+    a non-coplanar pair meets in at most two distinct keyed points, joined by a segment
+    imprinted on both triangles; a coplanar pair imprints the part of each edge of one triangle
+    lying in the other.
+
+    Raises
+    ------
+    BooleanError
+        (stage ``"intersect"``) a non-coplanar pair meeting in more than two keyed points, or a
+        degenerate triangle; never expected for valid inputs.
+    """
+    nA, nB = A.n, B.n
+    tA, tB = A.T[I], B.T[J]
+    CA, CB = A.P[tA], B.P[tB]
+    k = I.size
+    sA = np.zeros((k, 3), dtype=np.int8)
+    sB = np.zeros((k, 3), dtype=np.int8)
+    for s in range(0, k, _CHUNK):
+        sl = slice(s, s + _CHUNK)
+        sA[sl] = orient3d(CB[sl, None, 0], CB[sl, None, 1], CB[sl, None, 2], CA[sl])
+        sB[sl] = orient3d(CA[sl, None, 0], CA[sl, None, 1], CA[sl, None, 2], CB[sl])
+    apart = (np.all(sA > 0, 1) | np.all(sA < 0, 1) | np.all(sB > 0, 1) | np.all(sB < 0, 1))
+    live = np.flatnonzero(~apart)
+    I, J, tA, tB, CA, CB, sA, sB = I[live], J[live], tA[live], tB[live], CA[live], CB[live], sA[live], sB[live]
+    k = I.size
+    copl = np.all(sA == 0, axis=1)
+    rec = _Records()
+    slots = np.full((k, 21), -1, dtype=np.int64)  # record id per test slot (see below)
+
+    # Projections of the triangles that take part in 2-D tests.
+    need_b = np.unique(J[np.any(sA == 0, axis=1)])
+    need_a = np.unique(I[np.any(sB == 0, axis=1)])
+    axis_b = np.zeros(B.m, dtype=np.int64)
+    sgn_b = np.zeros(B.m, dtype=np.int8)
+    axis_a = np.zeros(A.m, dtype=np.int64)
+    sgn_a = np.zeros(A.m, dtype=np.int8)
+    if need_b.size:
+        axis_b[need_b], sgn_b[need_b] = _projection(B.P, B.T, need_b)
+    if need_a.size:
+        axis_a[need_a], sgn_a[need_a] = _projection(A.P, A.T, need_a)
+
+    # --- slots 0-2 and 3-5: corners on the other plane, located in the other triangle.
+    for X, Y, s, tX, tris_x, tris_y, axis_y, sgn_y, base, side in (
+        (A, B, sA, tA, I, J, axis_b, sgn_b, 0, 0),
+        (B, A, sB, tB, J, I, axis_a, sgn_a, 3, 1),
+    ):
+        pp, kk = np.nonzero(s == 0)
+        if pp.size == 0:
+            continue
+        v = tX[pp, kk]
+        u = tris_y[pp]
+        key = v * np.int64(Y.m) + u
+        uk, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        vu, uu = v[first], u[first]
+        loc = _in_triangles(X.P[vu], Y.P[Y.T[uu]], axis_y[uu], sgn_y[uu])
+        hit = loc >= 0
+        if np.any(loc == 7):
+            raise BooleanError("a degenerate triangle in a point location test", stage="intersect",
+                               diagnostics={"operand": "AB"[1 - side], "triangle": int(uu[np.argmax(loc == 7)])})
+        rid = np.full(uk.size, -1, dtype=np.int64)
+        cy = _loc_code(loc[hit], Y, uu[hit])
+        cx = _code(vu[hit], 0)
+        if side == 0:
+            rid[hit] = rec.add(cx, cy, _VERTEX_A, vu[hit], 0, 0)
+        else:
+            rid[hit] = rec.add(cy, cx, _VERTEX_B, vu[hit], 0, 0)
+        slots[pp, base + kk] = rid[inv.reshape(-1)]
+
+    # --- slots 6-8 and 9-11: edges crossing the other plane (ends strictly on both sides).
+    for X, Y, s, tris_x, tris_y, base, side in ((A, B, sA, I, J, 6, 0), (B, A, sB, J, I, 9, 1)):
+        cross = s * s[:, [1, 2, 0]] < 0
+        pp, kk = np.nonzero(cross)
+        if pp.size == 0:
+            continue
+        e = X.tri_edge[tris_x[pp], kk]
+        u = tris_y[pp]
+        key = e * np.int64(Y.m) + u
+        uk, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        eu, uu = e[first], u[first]
+        p, q = X.P[X.edges[eu, 0]], X.P[X.edges[eu, 1]]
+        loc = _line_through_triangles(p, q, Y.P[Y.T[uu]])
+        if np.any(loc == 7):
+            raise BooleanError("an edge crossing a plane lies in it (inconsistent predicates)", stage="intersect",
+                               diagnostics={"operand": "AB"[side], "edge": int(eu[np.argmax(loc == 7)])})
+        hit = loc >= 0
+        rid = np.full(uk.size, -1, dtype=np.int64)
+        cy = _loc_code(loc[hit], Y, uu[hit])
+        cx = _code(eu[hit], 1)
+        if side == 0:
+            rid[hit] = rec.add(cx, cy, _EDGE_A_PLANE_B, eu[hit], uu[hit], 0)
+        else:
+            rid[hit] = rec.add(cy, cx, _EDGE_B_PLANE_A, eu[hit], uu[hit], 0)
+        slots[pp, base + kk] = rid[inv.reshape(-1)]
+
+    # --- slots 12-20: an edge of t lying in u's plane against the edges of u (proper crossings),
+    # or an edge of u lying in t's plane against the edges of t when t's edge does not lie in u's plane.
+    for X, Y, s, s_other, tris_x, tris_y, axis_y, side in (
+        (A, B, sA, sB, I, J, axis_b, 0),
+        (B, A, sB, sA, J, I, axis_a, 1),
+    ):
+        inplane = (s == 0) & (s[:, [1, 2, 0]] == 0)
+        pp, kk = np.nonzero(inplane)
+        if pp.size == 0:
+            continue
+        e = X.tri_edge[tris_x[pp], kk]
+        u = tris_y[pp]
+        key = e * np.int64(Y.m) + u
+        uk, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        eu, uu = e[first], u[first]
+        ends = np.stack([X.P[X.edges[eu, 0]], X.P[X.edges[eu, 1]]], axis=1)
+        C = Y.P[Y.T[uu]]
+        Q = _project(np.concatenate([ends, C], axis=1), axis_y[uu])
+        inv = inv.reshape(-1)
+        for j in range(3):
+            rel = classify_segments(Q[:, 0], Q[:, 1], Q[:, 2 + j], Q[:, 2 + (j + 1) % 3])
+            hit = rel == SegmentRelation.CROSSING
+            rid = np.full(uk.size, -1, dtype=np.int64)
+            f = Y.tri_edge[uu[hit], j]
+            if side == 0:
+                rid[hit] = rec.add(_code(eu[hit], 1), _code(f, 1), _EDGE_EDGE, eu[hit], f, axis_y[uu[hit]])
+                slots[pp, 12 + 3 * kk + j] = rid[inv]
+            else:
+                rid[hit] = rec.add(_code(f, 1), _code(eu[hit], 1), _EDGE_EDGE, f, eu[hit], axis_y[uu[hit]])
+                # slot of (edge j of t, edge kk of u); only where t's edge j is not itself in u's plane
+                # (then the A-side loop above found the same crossing).
+                other_in = (s_other[pp, j] == 0) & (s_other[pp, (j + 1) % 3] == 0)
+                ok = ~other_in
+                slots[pp[ok], 12 + 3 * j + kk[ok]] = rid[inv][ok]
+
+    # --- deduplicate the records into keyed points.
+    code_a, code_b, kind, i0, i1, i2 = rec.columns()
+    NB = np.int64(4 * max(B.n, B.n_edges, B.m) + 4)
+    key = code_a * NB + code_b
+    uk, first, rec_point = np.unique(key, return_index=True, return_inverse=True)
+    rec_point = rec_point.reshape(-1)
+    code_a, code_b, kind, i0, i1, i2 = (x[first] for x in (code_a, code_b, kind, i0, i1, i2))
+    npts = uk.size
+    dim_a, dim_b = code_a & 3, code_b & 3
+    gid = np.empty(npts, dtype=np.int64)
+    va = dim_a == 0
+    gid[va] = code_a[va] >> 2
+    vb = (~va) & (dim_b == 0)
+    gid[vb] = nA + (code_b[vb] >> 2)
+    new = ~(va | vb)
+    gid[new] = nA + nB + np.arange(int(new.sum()))
+    alias_b = nA + np.arange(nB, dtype=np.int64)
+    both = va & (dim_b == 0)
+    alias_b[code_b[both] >> 2] = code_a[both] >> 2
+    new_idx = np.flatnonzero(new)
+    new_h = _construct(A, B, ex, kind[new_idx], i0[new_idx], i1[new_idx], i2[new_idx])
+    new_float = ex.rounded(new_h)
+
+    # --- per pair: the distinct points of its tests.
+    pslot = np.where(slots >= 0, rec_point[np.maximum(slots, 0)], -1) if rec_point.size else np.full_like(slots, -1)
+    seg_a, seg_b = [], []
+    nc = ~copl
+    if np.any(nc):
+        ends, cnt = _two_distinct(pslot[nc])
+        if np.any(cnt > 2):
+            r = int(np.flatnonzero(cnt > 2)[0])
+            p = int(np.flatnonzero(nc)[r])
+            raise BooleanError(
+                f"triangle {int(I[p])} of A (face {int(A.face[I[p]])}) and triangle {int(J[p])} of B (face "
+                f"{int(B.face[J[p]])}) meet in {int(cnt[r])} distinct points; expected at most 2",
+                stage="intersect",
+                diagnostics={"triangle_a": int(I[p]), "triangle_b": int(J[p]), "points": int(cnt[r])},
+            )
+        two = cnt == 2
+        pa, pb = gid[ends[two, 0]], gid[ends[two, 1]]
+        seg_a.append(np.stack([I[nc][two], pa, pb], axis=1))
+        seg_b.append(np.stack([J[nc][two], pa, pb], axis=1))
+    coplanar = np.zeros((0, 3), dtype=np.int64)
+    if np.any(copl):
+        cp = np.flatnonzero(copl)
+        pc = pslot[cp]
+        ca = np.where(pc >= 0, code_a[np.maximum(pc, 0)], -1)
+        cb = np.where(pc >= 0, code_b[np.maximum(pc, 0)], -1)
+        for X, tris, own_codes, target, seg in ((B, J[cp], cb, I[cp], seg_a), (A, I[cp], ca, J[cp], seg_b)):
+            # Edge j of the X triangle, clipped to the other triangle: points whose X simplex lies on it.
+            for j in range(3):
+                e = _code(X.tri_edge[tris, j], 1)[:, None]
+                v0 = _code(X.T[tris, j], 0)[:, None]
+                v1 = _code(X.T[tris, (j + 1) % 3], 0)[:, None]
+                on = (own_codes == e) | (own_codes == v0) | (own_codes == v1)
+                ends, cnt = _two_distinct(np.where(on, pc, -1))
+                if np.any(cnt > 2):
+                    raise BooleanError("a clipped coplanar edge has more than two ends", stage="intersect",
+                                       diagnostics={"pair": int(cp[int(np.argmax(cnt > 2))])})
+                two = cnt == 2
+                seg.append(np.stack([target[two], gid[ends[two, 0]], gid[ends[two, 1]]], axis=1))
+        # Same or opposite orientation: t's corners projected along u's axis against u's sign.
+        ax = axis_b[J[cp]]
+        Q = _project(A.P[A.T[I[cp]]], ax)
+        st = orient2d(Q[:, 0], Q[:, 1], Q[:, 2])
+        coplanar = np.stack([I[cp], J[cp], (st * sgn_b[J[cp]]).astype(np.int64)], axis=1)
+    cat = lambda L: np.concatenate(L) if L else np.zeros((0, 3), dtype=np.int64)  # noqa: E731
+    # Canonical ids (B vertices coinciding with A vertices) in the segments.
+    seg_a, seg_b = cat(seg_a), cat(seg_b)
+    for S in (seg_a, seg_b):
+        for c in (1, 2):
+            b_ids = (S[:, c] >= nA) & (S[:, c] < nA + nB)
+            S[b_ids, c] = alias_b[S[b_ids, c] - nA]
+    gid_c = gid.copy()
+    bv = (gid_c >= nA) & (gid_c < nA + nB)
+    gid_c[bv] = alias_b[gid_c[bv] - nA]
+    return Intersections(code_a, code_b, gid_c, new_h, new_float, alias_b, seg_a, seg_b, coplanar)
+
+
+def _two_distinct(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of point ids (-1: none): the smallest and largest id and the number of distinct ids."""
+    if S.shape[0] == 0:
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    Ss = np.sort(S, axis=1)
+    valid = Ss >= 0
+    new = valid.copy()
+    new[:, 1:] &= Ss[:, 1:] != Ss[:, :-1]
+    cnt = new.sum(axis=1)
+    lo = np.where(valid, Ss, np.iinfo(np.int64).max).min(axis=1)
+    hi = Ss[:, -1]
+    return np.stack([lo, hi], axis=1), cnt
+
+
+def _construct(A: Operand, B: Operand, ex: Exact, kind, i0, i1, i2) -> np.ndarray:
+    """Homogeneous integer coordinates ``(k, 4)`` of new points from their constructions."""
+    out = np.empty((kind.size, 4), dtype=object)
+    for kd, X, Y in ((_EDGE_A_PLANE_B, A, B), (_EDGE_B_PLANE_A, B, A)):
+        sel = np.flatnonzero(kind == kd)
+        if sel.size == 0:
+            continue
+        e, u = i0[sel], i1[sel]
+        p = ex.ints(X.P[X.edges[e, 0]])
+        q = ex.ints(X.P[X.edges[e, 1]])
+        C = ex.ints(Y.P[Y.T[u]])
+        c0 = C[:, 0]
+        d1, d2 = C[:, 1] - c0, C[:, 2] - c0
+        dp = _det3(*d1.T, *d2.T, *(p - c0).T)
+        dq = _det3(*d1.T, *d2.T, *(q - c0).T)
+        W = dp - dq
+        H = p * W[:, None] + (q - p) * dp[:, None]
+        neg = W < 0
+        H[neg] = -H[neg]
+        W[neg] = -W[neg]
+        out[sel, :3] = H
+        out[sel, 3] = W
+    sel = np.flatnonzero(kind == _EDGE_EDGE)
+    if sel.size:
+        e, f, ax = i0[sel], i1[sel], i2[sel]
+        p = ex.ints(A.P[A.edges[e, 0]])
+        q = ex.ints(A.P[A.edges[e, 1]])
+        a = ex.ints(B.P[B.edges[f, 0]])
+        b = ex.ints(B.P[B.edges[f, 1]])
+        r = np.arange(sel.size)
+        i, j = (ax + 1) % 3, (ax + 2) % 3
+        d, g, ap = q - p, b - a, a - p
+        den = d[r, i] * g[r, j] - d[r, j] * g[r, i]
+        num = ap[r, i] * g[r, j] - ap[r, j] * g[r, i]
+        H = p * den[:, None] + d * num[:, None]
+        neg = den < 0
+        H[neg] = -H[neg]
+        den[neg] = -den[neg]
+        out[sel, :3] = H
+        out[sel, 3] = den
+    if np.any(out[:, 3] == None):  # noqa: E711  (object array: unset rows)
+        raise BooleanError("internal: a new point without construction", stage="intersect")
+    return out
+
+
+# ====================================================================== imprint
+@dataclass
+class Imprint:
+    """One operand split along the other surface.
+
+    Attributes
+    ----------
+    tris : (k, 3) int64        pieces as global point ids, counter-clockwise seen from outside
+    source : (k,) int64        triangle of the operand each piece comes from
+    on_edges : (s, 2) int64    undirected piece edges (smaller id first) lying on the other surface
+    """
+
+    tris: np.ndarray
+    source: np.ndarray
+    on_edges: np.ndarray
+
+
+class PointTable:
+    """Float and exact coordinates of every global id (A vertices, B vertices, new points)."""
+
+    def __init__(self, A: Operand, B: Operand, X: Intersections, ex: Exact) -> None:
+        self.nA, self.nB = A.n, B.n
+        self.float = np.concatenate([A.P, B.P, X.new_float]) if X.new_float.size else np.concatenate([A.P, B.P])
+        self.new_h = X.new_h
+        self.ex = ex
+
+    @property
+    def is_float(self) -> np.ndarray:
+        """``(N,)`` bool: the point is exactly its float coordinates (input vertices, and new points
+        whose rational coordinates happen to be floats)."""
+        cached = getattr(self, "_is_float", None)
+        if cached is not None:
+            return cached
+        out = np.ones(self.float.shape[0], dtype=bool)
+        H = self.new_h
+        if H.shape[0]:
+            F = self.float[self.nA + self.nB :]
+            mant, expo = np.frexp(F)
+            M = (mant * 2.0**53).astype(np.int64).astype(object)
+            E = expo.astype(np.int64) - 53 - self.ex.s  # F = M 2^(E + s); the point is X / W 2^s
+            up = np.maximum(E, 0).astype(object)
+            down = np.maximum(-E, 0).astype(object)
+            W = H[:, 3:4]
+            same = (H[:, :3] << down) == (M * W) << up
+            out[self.nA + self.nB :] = np.all(same, axis=1)
+        self._is_float = out
+        return out
+
+    def exact(self, ids: np.ndarray) -> np.ndarray:
+        """Homogeneous integer coordinates ``(k, 4)`` of global ids."""
+        ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+        out = np.empty((ids.size, 4), dtype=object)
+        old = ids < self.nA + self.nB
+        if np.any(old):
+            out[old] = self.ex.homogeneous(self.float[ids[old]])
+        if np.any(~old):
+            out[~old] = self.new_h[ids[~old] - self.nA - self.nB]
+        return out
+
+
+def _orient_projected_exact(H: np.ndarray, axis: int) -> np.ndarray:
+    """Exact orientation signs of triangles of homogeneous points ``H (k, 3, 4)`` projected along ``axis``."""
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    x, y, w = H[:, :, i], H[:, :, j], H[:, :, 3]
+    d = (x[:, 0] * (y[:, 1] * w[:, 2] - y[:, 2] * w[:, 1]) - y[:, 0] * (x[:, 1] * w[:, 2] - x[:, 2] * w[:, 1])
+         + w[:, 0] * (x[:, 1] * y[:, 2] - x[:, 2] * y[:, 1]))
+    return _sign(d)
+
+
+def _orient_projected(F: np.ndarray, ids: np.ndarray, table: PointTable, axis: int, flip: int) -> np.ndarray:
+    """Exact orientation signs ``(k,)`` of triangles ``ids (k, 3)`` projected along ``axis`` (times ``flip``).
+
+    Float filter on the rounded coordinates ``F (k, 3, 3)``: each coordinate is within a relative
+    2^-53 of the exact one, so the determinant moves by at most ``3 u M (sum of |differences|)``
+    plus second-order and evaluation terms (``M`` the largest coordinate magnitude); a
+    determinant beyond twice that bound has its float sign; the others are decided with integers.
+    """
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    acx, acy = a[:, i] - c[:, i], a[:, j] - c[:, j]
+    bcx, bcy = b[:, i] - c[:, i], b[:, j] - c[:, j]
+    left, right = acx * bcy, acy * bcx
+    det = left - right
+    M = np.max(np.abs(F[:, :, [i, j]]).reshape(F.shape[0], -1), axis=1)
+    u = _EPS
+    bound = 2.0 * (3 * u * M * (np.abs(acx) + np.abs(acy) + np.abs(bcx) + np.abs(bcy)) + 18 * u * u * M * M
+                   + 3 * u * (np.abs(left) + np.abs(right))) + 1e-300
+    sign = np.where(det > bound, 1, np.where(-det > bound, -1, 0)).astype(np.int8)
+    amb = np.flatnonzero(sign == 0)
+    if amb.size:
+        H = table.exact(ids[amb].ravel()).reshape(amb.size, 3, 4)
+        sign[amb] = _orient_projected_exact(H, axis)
+    return sign * flip
+
+
+def imprint(X: Operand, which: int, inter: Intersections, table: PointTable) -> Imprint:
+    """Split the triangles of one operand along its imprinted segments (phase 5).
+
+    Parameters
+    ----------
+    X : Operand
+    which : 0 for A, 1 for B
+    inter : Intersections
+    table : PointTable
+
+    Returns
+    -------
+    Imprint
+
+    Raises
+    ------
+    BooleanError
+        (stage ``"imprint"``) a triangle the float triangulation cannot split (features within an
+        ulp of each other), a split that fails the exact verification, a segment that is not an
+        edge of the pieces, or pieces that do not close up (each piece edge used twice).
+    """
+    nA, nB = table.nA, table.nB
+    off = 0 if which == 0 else nA
+    if which == 0:
+        vid = np.arange(X.n, dtype=np.int64)
+    else:
+        vid = inter.alias_b.copy()
+    T = vid[X.T]
+    codes = inter.code_a if which == 0 else inter.code_b
+    dim = codes & 3
+    idx = codes >> 2
+    seg = inter.seg_a if which == 0 else inter.seg_b
+    # Points on edges and inside triangles of X.
+    on_edge = np.flatnonzero(dim == 1)
+    inside = np.flatnonzero(dim == 2)
+    e_of = idx[on_edge]
+    ep_gid = inter.gid[on_edge]
+    t_of = idx[inside]
+    ip_gid = inter.gid[inside]
+    affected = np.zeros(X.m, dtype=bool)
+    if e_of.size:
+        affected[X.edge_tris[e_of].ravel()] = True
+    affected[t_of] = True
+    # Points of each edge sorted along it (float order of the dominant coordinate, exact on ties).
+    order = _sort_on_edges(X, e_of, ep_gid, table)
+    e_sorted, g_sorted = e_of[order], ep_gid[order]
+    e_ptr = np.searchsorted(e_sorted, np.arange(X.n_edges + 1))
+    i_order = np.argsort(t_of, kind="stable")
+    t_sorted, gi_sorted = t_of[i_order], ip_gid[i_order]
+    t_ptr = np.searchsorted(t_sorted, np.arange(X.m + 1))
+    # Segments per triangle.
+    s_order = np.argsort(seg[:, 0], kind="stable")
+    seg = seg[s_order]
+    s_ptr = np.searchsorted(seg[:, 0], np.arange(X.m + 1))
+    aff = np.flatnonzero(affected)
+    axis, sgn = _projection(X.P, X.T, aff) if aff.size else (np.zeros(0, np.int64), np.zeros(0, np.int8))
+    pieces, sources = [T[~affected]], [np.flatnonzero(~affected)]
+    small: list = []
+    is_float = table.is_float
+    for r, t in enumerate(aff.tolist()):
+        ax, sg = int(axis[r]), int(sgn[r])
+        loop = []
+        len_e = []
+        for kk in range(3):
+            v = int(T[t, kk])
+            loop.append(v)
+            e = int(X.tri_edge[t, kk])
+            pts = g_sorted[e_ptr[e] : e_ptr[e + 1]].tolist()
+            if X.edges[e, 0] != X.T[t, kk]:
+                pts = pts[::-1]
+            loop.extend(pts)
+            len_e.append(len(pts))
+        interior = gi_sorted[t_ptr[t] : t_ptr[t + 1]].tolist()
+        ids = loop + interior
+        local = {g: i for i, g in enumerate(ids)}
+        if len(local) != len(ids):
+            raise BooleanError(f"triangle {t} lists a point twice", stage="imprint",
+                               diagnostics={"operand": "AB"[which], "triangle": t})
+        tv = [int(T[t, 0]), int(T[t, 1]), int(T[t, 2])]
+        edges_of = {}  # global id -> set of local edge slots of t containing it
+        for kk in range(3):
+            edges_of.setdefault(tv[kk], set()).update({kk, (kk + 2) % 3})
+        for kk in range(3):
+            e = int(X.tri_edge[t, kk])
+            for g in g_sorted[e_ptr[e] : e_ptr[e + 1]].tolist():
+                edges_of.setdefault(g, set()).add(kk)
+        nb = len(loop)
+        cons = [(i, (i + 1) % nb) for i in range(nb)]
+        chords = []
+        for p, q in seg[s_ptr[t] : s_ptr[t + 1], 1:].tolist():
+            if edges_of.get(p, set()) & edges_of.get(q, set()):
+                continue  # along the boundary of t
+            if p not in local or q not in local:
+                raise BooleanError(f"segment end {p if p not in local else q} is not a point of triangle {t}",
+                                   stage="imprint", diagnostics={"operand": "AB"[which], "triangle": t})
+            chords.append((local[p], local[q]))
+        chords = sorted(set(tuple(sorted(c)) for c in chords))
+        for a, b in chords:
+            cons.append((a, b))
+            cons.append((b, a))
+        F3 = table.float[ids]
+        ids_arr = np.asarray(ids, dtype=np.int64)
+        i, j = (ax + 1) % 3, (ax + 2) % 3
+        P2 = F3[:, [i, j]] if sg > 0 else F3[:, [j, i]]
+        corners = [0, 1 + len_e[0], 2 + len_e[0] + len_e[1]]
+        exact_h = _LazyExact(table, ids_arr, i, j, sg)
+        if len(ids) <= _SMALL_SPLIT:
+            # Boxes of the exact points: the rounded coordinates widened by their possible rounding error.
+            slack = 2.0 * _EPS * np.abs(P2) + 1e-300
+            boxes = np.concatenate([P2 - slack, P2 + slack], axis=1)
+            sides = [0] * len(ids)
+            pos = 0
+            for kk in range(3):  # corner kk lies on edges kk and kk - 1, edge points on their edge
+                sides[pos] |= (1 << kk) | (1 << ((kk + 2) % 3))
+                for q in range(pos + 1, pos + 1 + len_e[kk]):
+                    sides[q] = 1 << kk
+                pos += 1 + len_e[kk]
+            tri = _split_incremental(len(ids), nb, corners, chords,
+                                     _filtered_orient(P2, exact_h, is_float[ids_arr].tolist(), sides),
+                                     _failer(which, t), boxes)
+            small.append((t, tri, ids_arr, nb, ax, sg, loop))
+        else:
+            try:
+                tri = triangulate(P2, np.asarray(cons, dtype=np.int64))
+                _verify_split(tri, nb, len(ids), chords, F3, ids_arr, table, ax, sg, which, t)
+            except (InvalidInputError, BooleanError):
+                # Features within an ulp of each other: split with exact arithmetic instead.
+                tri = _split_incremental(len(ids), nb, corners, chords, _exact_orient(exact_h()), _failer(which, t))
+                _verify_split(tri, nb, len(ids), chords, F3, ids_arr, table, ax, sg, which, t)
+        G = ids_arr[tri]
+        pieces.append(G)
+        sources.append(np.full(G.shape[0], t, dtype=np.int64))
+    if small:
+        _verify_small(small, table, which)
+    tris = np.concatenate(pieces)
+    source = np.concatenate(sources)
+    on = np.sort(seg[:, 1:], axis=1) if seg.size else np.zeros((0, 2), dtype=np.int64)
+    on = np.unique(on, axis=0) if on.size else on
+    # Closedness can only fail around split triangles: check their pieces, their neighbours and
+    # the triangles carrying segments.
+    near = affected.copy()
+    if aff.size:
+        near[X.edge_tris[X.tri_edge[aff]].ravel()] = True
+    if seg.size:
+        near[seg[:, 0]] = True
+    local = near[source]
+    _verify_closed(tris[local], on, which, boundary_ok=near[X.edge_tris].sum(axis=1) == 1, X=X, vid=vid)
+    return Imprint(tris, source, on)
+
+
+def _verify_split(tri, nb, n_ids, chords, F3, ids, table, ax, sg, which, t) -> None:
+    """Exact checks of a triangle's split (module docstring): orientation, boundary, constraints."""
+    fail = None
+    if tri.shape[0] != nb + 2 * (n_ids - nb) - 2:
+        fail = f"{tri.shape[0]} pieces for {nb} boundary and {n_ids - nb} interior points"
+    else:
+        s = _orient_projected(F3[tri], ids[tri], table, ax, sg)
+        if np.any(s <= 0):
+            fail = f"piece {tri[int(np.argmax(s <= 0))].tolist()} is not counter-clockwise for the exact points"
+        else:
+            d = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+            dk = set(map(tuple, d.tolist()))
+            boundary = {(a, b) for a, b in dk if (b, a) not in dk}
+            want = {(i, (i + 1) % nb) for i in range(nb)}
+            if boundary != want:
+                fail = "the pieces' boundary is not the subdivided triangle boundary"
+            elif any((a, b) not in dk and (b, a) not in dk for a, b in chords):
+                fail = "a constraint segment is not an edge of the pieces"
+    if fail:
+        raise BooleanError(f"split of triangle {t} of {'AB'[which]} fails exact verification: {fail}",
+                           stage="imprint", diagnostics={"operand": "AB"[which], "triangle": t})
+
+
+def _verify_closed(tris: np.ndarray, on: np.ndarray, which: int, boundary_ok: np.ndarray, X: Operand,
+                   vid: np.ndarray) -> None:
+    """Every piece edge of a closed neighbourhood is used once each way, and every on-edge is a piece edge.
+
+    ``tris`` are the pieces of the triangles near the splits; directed edges without a reverse are
+    allowed only on original edges leaving the neighbourhood (``boundary_ok`` per edge of ``X``).
+    """
+    if tris.shape[0] == 0:
+        return
+    a = tris.ravel()
+    b = tris[:, [1, 2, 0]].ravel()
+    n = np.int64(max(int(tris.max()) + 1, int(vid.max(initial=0)) + 1, 1))
+    d = a * n + b
+    ds = np.sort(d)
+    dupl = ds[1:] == ds[:-1]
+    missing = ~np.isin(b * n + a, ds)
+    if np.any(missing):
+        ev = vid[X.edges[boundary_ok]]
+        ok_keys = np.concatenate([ev[:, 0] * n + ev[:, 1], ev[:, 1] * n + ev[:, 0]])
+        missing &= ~np.isin(d, ok_keys)
+    if np.any(dupl) or np.any(missing):
+        g = int(ds[1:][dupl][0]) if np.any(dupl) else int(d[np.argmax(missing)])
+        raise BooleanError(
+            f"the pieces of {'AB'[which]} do not close up at the edge between points {g // n} and {g % n}",
+            stage="imprint", diagnostics={"operand": "AB"[which], "edge": (int(g // n), int(g % n))},
+        )
+    if on.size:
+        k = on[:, 0] * n + on[:, 1]
+        und = np.minimum(a, b) * n + np.maximum(a, b)
+        miss = ~np.isin(k, und)
+        if np.any(miss):
+            p, q = on[int(np.argmax(miss))]
+            raise BooleanError(
+                f"the intersection segment between points {int(p)} and {int(q)} is not an edge of the pieces of "
+                f"{'AB'[which]}", stage="imprint", diagnostics={"operand": "AB"[which], "segment": (int(p), int(q))},
+            )
+
+
+def _sort_on_edges(X: Operand, e_of: np.ndarray, gids: np.ndarray, table: PointTable) -> np.ndarray:
+    """Order of points (on edges ``e_of``) by edge, then by position from the edge's start."""
+    if e_of.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    p = X.P[X.edges[e_of, 0]]
+    q = X.P[X.edges[e_of, 1]]
+    d = q - p
+    ax = np.argmax(np.abs(d), axis=1)
+    r = np.arange(e_of.size)
+    sgn = np.sign(d[r, ax])
+    coord = table.float[gids, ax] * sgn
+    order = np.lexsort((coord, e_of))
+    # Exact tie-break where two distinct points of an edge round to the same coordinate.
+    es, cs = e_of[order], coord[order]
+    tie = np.flatnonzero((es[1:] == es[:-1]) & (cs[1:] == cs[:-1]))
+    if tie.size:
+        order = order.copy()
+        for start in _runs(tie):
+            lo, hi = start
+            block = order[lo : hi + 1]
+            H = table.exact(gids[block])
+            axb = int(ax[block[0]])
+            sb = int(sgn[block[0]])
+            keys = [Fraction(int(h[axb]), int(h[3])) * sb for h in H]
+            order[lo : hi + 1] = block[np.argsort(np.array(keys, dtype=object), kind="stable")]
+    return order
+
+
+def _runs(tie: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs ``[lo, hi]`` of positions joined by ties ``tie`` (position i ties with i + 1)."""
+    out = []
+    start = prev = int(tie[0])
+    for x in tie[1:].tolist():
+        if x != prev + 1:
+            out.append((start, prev + 1))
+            start = x
+        prev = x
+    out.append((start, prev + 1))
+    return out
+
+
+# ====================================================================== exact fallback split
+#: Triangles with at most this many points are split by :func:`_split_incremental` (filtered exact
+#: predicates, Python); larger ones by the constrained Delaunay triangulator on floats.
+_SMALL_SPLIT = 24
+
+
+class _LazyExact:
+    """The exact projected homogeneous points of one triangle's split, computed on first use."""
+
+    def __init__(self, table: "PointTable", ids: np.ndarray, i: int, j: int, sg: int) -> None:
+        self.table, self.ids, self.i, self.j, self.sg = table, ids, i, j, sg
+        self.H: list | None = None
+
+    def __call__(self) -> list:
+        if self.H is None:
+            H = self.table.exact(self.ids)
+            H2 = H[:, [self.i, self.j, 3]] if self.sg > 0 else H[:, [self.j, self.i, 3]]
+            self.H = [tuple(int(v) for v in row) for row in H2.tolist()]
+        return self.H
+
+
+def _orient_h(H: list, a: int, b: int, c: int) -> int:
+    """Exact orientation of 2-D homogeneous integer points ``H[a], H[b], H[c]`` (``w > 0``)."""
+    xa, ya, wa = H[a]
+    xb, yb, wb = H[b]
+    xc, yc, wc = H[c]
+    d = xa * (yb * wc - yc * wb) - ya * (xb * wc - xc * wb) + wa * (xb * yc - xc * yb)
+    return (d > 0) - (d < 0)
+
+
+def _exact_orient(H: list):
+    return lambda a, b, c: _orient_h(H, a, b, c)
+
+
+def _filtered_orient(P2: np.ndarray, exact: _LazyExact, is_float: list, sides: list | None = None):
+    """Orientation of rounded points with the rounding-aware float filter of :func:`_orient_projected`,
+    exact integers when it cannot decide.  Between points that are exactly their floats
+    (``is_float``) a float difference is zero only for equal coordinates, so a determinant whose
+    products each have a zero factor is certified zero without integers (collinear points along
+    an axis, the usual case on the boundary of a split).  ``sides[i]`` (a bit mask of the triangle
+    edges point ``i`` lies on) answers collinear triples on one edge combinatorially."""
+    F = [tuple(r) for r in P2.tolist()]
+    u = _EPS
+
+    def orient(a: int, b: int, c: int) -> int:
+        if sides is not None and sides[a] & sides[b] & sides[c]:
+            return 0  # three points of one edge of the triangle
+        ax, ay = F[a]
+        bx, by = F[b]
+        cx, cy = F[c]
+        acx, acy, bcx, bcy = ax - cx, ay - cy, bx - cx, by - cy
+        left, right = acx * bcy, acy * bcx
+        d = left - right
+        M = max(abs(ax), abs(ay), abs(bx), abs(by), abs(cx), abs(cy))
+        bound = 2.0 * (3 * u * M * (abs(acx) + abs(acy) + abs(bcx) + abs(bcy)) + 18 * u * u * M * M
+                       + 3 * u * (abs(left) + abs(right))) + 1e-300
+        if d > bound:
+            return 1
+        if -d > bound:
+            return -1
+        if (is_float[a] and is_float[b] and is_float[c] and (acx == 0 or bcy == 0) and (acy == 0 or bcx == 0)):
+            return 0
+        return _orient_h(exact(), a, b, c)
+
+    return orient
+
+
+def _failer(which: int, t: int):
+    def fail(msg: str):
+        raise BooleanError(f"split of triangle {t} of {'AB'[which]}: {msg}", stage="imprint",
+                           diagnostics={"operand": "AB"[which], "triangle": t})
+
+    return fail
+
+
+def _split_incremental(n: int, nb: int, corners: list, chords: list, orient, fail,
+                       boxes: np.ndarray | None = None) -> np.ndarray:
+    """Triangulate a triangle's points with exact orientation tests (incremental insertion and flips).
+
+    Points ``0 .. nb-1`` are the counter-clockwise boundary loop (the triangle's ``corners`` and
+    the points of its edges), ``nb .. n-1`` interior points; ``chords`` are the constraint
+    segments between them.  Boundary points split the triangle on its edges, interior points
+    split the triangle (or the two triangles) containing them, and each chord is recovered by
+    flipping the edges crossing it (Sloan, "A fast algorithm for generating constrained Delaunay
+    triangulations", 1993), every decision by ``orient(a, b, c)`` (exact).  Valid input
+    (non-crossing chords through no other point) always succeeds; otherwise ``fail`` raises.
+
+    ``boxes (n, 4)``, optional: a box ``(xmin, ymin, xmax, ymax)`` around each exact point; two
+    segments whose boxes are disjoint are not tested for crossing (a conservative prefilter).
+
+    Returns
+    -------
+    (k, 3) int64 local indices, counter-clockwise.
+    """
+    tris: dict[int, tuple[int, int, int]] = {}
+    owner: dict[tuple[int, int], int] = {}
+    counter = 0
+
+    def add(a: int, b: int, c: int) -> None:
+        nonlocal counter
+        tris[counter] = (a, b, c)
+        owner[(a, b)] = owner[(b, c)] = owner[(c, a)] = counter
+        counter += 1
+
+    def remove(k: int) -> tuple[int, int, int]:
+        a, b, c = tris.pop(k)
+        for e in ((a, b), (b, c), (c, a)):
+            if owner.get(e) == k:
+                del owner[e]
+        return a, b, c
+
+    c0, c1, c2 = corners
+    add(c0, c1, c2)
+    for ca, cb in ((c0, c1), (c1, c2), (c2, nb)):
+        prev, end = ca, cb % nb
+        for p in range(ca + 1, cb):
+            k = owner.get((prev, end))
+            if k is None:
+                fail(f"boundary edge ({prev}, {end}) missing")
+            a, b, c = remove(k)
+            while a != prev:
+                a, b, c = b, c, a
+            add(prev, p, c)
+            add(p, end, c)
+            prev = p
+    for p in range(nb, n):
+        for k, (a, b, c) in list(tris.items()):
+            o0 = orient(a, b, p)
+            if o0 < 0:
+                continue
+            o1 = orient(b, c, p)
+            if o1 < 0:
+                continue
+            o2 = orient(c, a, p)
+            if o2 < 0:
+                continue
+            zeros = [z for z, o in enumerate((o0, o1, o2)) if o == 0]
+            if not zeros:
+                remove(k)
+                add(a, b, p)
+                add(b, c, p)
+                add(c, a, p)
+            elif len(zeros) == 1:
+                u, v, w = ((a, b, c), (b, c, a), (c, a, b))[zeros[0]]
+                k2 = owner.get((v, u))
+                if k2 is None:
+                    fail(f"interior point {p} lies on the boundary")
+                x = [q for q in tris[k2] if q != u and q != v][0]
+                remove(k)
+                remove(k2)
+                add(u, p, w)
+                add(p, v, w)
+                add(v, p, x)
+                add(p, u, x)
+            else:
+                fail(f"interior point {p} coincides with a vertex")
+            break
+        else:
+            fail(f"interior point {p} lies outside the triangle")
+    fixed = {(min(a, b), max(a, b)) for a, b in chords}
+
+    if boxes is not None:
+        B = boxes.tolist()
+
+        def apart(a: int, b: int, p: int, q: int) -> bool:
+            ba, bb, bp, bq = B[a], B[b], B[p], B[q]
+            return (max(ba[2], bb[2]) < min(bp[0], bq[0]) or max(bp[2], bq[2]) < min(ba[0], bb[0])
+                    or max(ba[3], bb[3]) < min(bp[1], bq[1]) or max(bp[3], bq[3]) < min(ba[1], bb[1]))
+    else:
+        def apart(a: int, b: int, p: int, q: int) -> bool:
+            return False
+
+    def crosses(a: int, b: int, p: int, q: int) -> bool:
+        if apart(a, b, p, q):
+            return False
+        return orient(p, q, a) * orient(p, q, b) < 0 and orient(a, b, p) * orient(a, b, q) < 0
+
+    def crossed_edges(p: int, q: int) -> list[tuple[int, int]]:
+        """Edges crossed by the segment p q, by walking from p (one orientation per step)."""
+        start = None
+        for a, b, c in tris.values():
+            if p not in (a, b, c):
+                continue
+            while a != p:
+                a, b, c = b, c, a
+            if orient(p, b, q) > 0 and orient(p, c, q) < 0:
+                start = (b, c)
+                break
+        if start is None:
+            fail(f"chord ({p}, {q}) leaves no triangle around {p}")
+        x, y = start  # x right of p -> q, y left of it
+        out = [start]
+        for _ in range(len(tris) + 1):
+            k = owner.get((y, x))
+            if k is None:
+                fail(f"chord ({p}, {q}) leaves the triangle")
+            z = [v for v in tris[k] if v != x and v != y][0]
+            if z == q:
+                return out
+            side = orient(p, q, z)
+            if side == 0:
+                fail(f"chord ({p}, {q}) passes through point {z}")
+            if side > 0:
+                y = z
+            else:
+                x = z
+            out.append((x, y))
+        fail(f"chord ({p}, {q}) walk does not end")
+        return out
+
+    for p, q in chords:
+        if (p, q) in owner or (q, p) in owner:
+            continue
+        queue = [(min(a, b), max(a, b)) for a, b in crossed_edges(p, q)]
+        if any(e in fixed for e in queue):
+            fail(f"chord ({p}, {q}) crosses another constraint")
+        steps = 0
+        limit = 4 * (len(queue) + 1) ** 2 + 16
+        while queue:
+            steps += 1
+            if steps > limit:
+                fail(f"chord ({p}, {q}) not recovered after {limit} flips")
+            a, b = queue.pop(0)
+            k1, k2 = owner.get((a, b)), owner.get((b, a))
+            if k1 is None or k2 is None:
+                continue
+            c = [x for x in tris[k1] if x != a and x != b][0]
+            d = [x for x in tris[k2] if x != a and x != b][0]
+            if orient(c, d, a) * orient(c, d, b) < 0:
+                remove(k1)
+                remove(k2)
+                add(a, d, c)
+                add(d, b, c)
+                if crosses(c, d, p, q):
+                    queue.append((min(c, d), max(c, d)))
+            else:
+                queue.append((a, b))
+        if (p, q) not in owner and (q, p) not in owner:
+            fail(f"chord ({p}, {q}) could not be recovered")
+    return np.asarray(list(tris.values()), dtype=np.int64).reshape(-1, 3)
+
+
+def _verify_small(small: list, table: "PointTable", which: int) -> None:
+    """The checks of :func:`_verify_split` for many splits at once (vectorised): exact orientation of
+    every piece, piece counts, and the boundary of each triangle's pieces."""
+    src = np.concatenate([np.full(tri.shape[0], r, dtype=np.int64) for r, (_, tri, *_rest) in enumerate(small)])
+    G = np.concatenate([ids[tri] for (_, tri, ids, *_rest) in small])
+    n_ids = np.array([ids.size for (_, _, ids, *_rest) in small])
+    nb = np.array([s[3] for s in small])
+    got = np.bincount(src, minlength=len(small))
+    bad = np.flatnonzero(got != 2 * n_ids - nb - 2)
+    if bad.size:
+        t = small[int(bad[0])][0]
+        raise BooleanError(f"split of triangle {t} of {'AB'[which]}: {int(got[bad[0]])} pieces, expected "
+                           f"{int(2 * n_ids[bad[0]] - nb[bad[0]] - 2)}", stage="imprint",
+                           diagnostics={"operand": "AB"[which], "triangle": t})
+    axes = np.array([s[4] for s in small])[src]
+    sgns = np.array([s[5] for s in small])[src]
+    F = table.float[G]
+    for ax in range(3):
+        for sg in (-1, 1):
+            sel = np.flatnonzero((axes == ax) & (sgns == sg))
+            if sel.size == 0:
+                continue
+            o = _orient_projected(F[sel], G[sel], table, ax, sg)
+            if np.any(o <= 0):
+                r = int(src[sel[int(np.argmax(o <= 0))]])
+                t = small[r][0]
+                raise BooleanError(f"split of triangle {t} of {'AB'[which]}: a piece is not counter-clockwise for "
+                                   "the exact points", stage="imprint", diagnostics={"operand": "AB"[which], "triangle": t})
+    # Boundary of each split: directed piece edges whose reverse (same split) is absent, against the loop.
+    a = G.ravel()
+    b = G[:, [1, 2, 0]].ravel()
+    s3 = np.repeat(src, 3)
+    N = np.int64(max(int(G.max()) + 1, 1))
+    if len(small) * int(N) * int(N) >= 2**62:  # pragma: no cover - beyond a billion points
+        raise BooleanError("too many points to verify the splits", stage="imprint")
+    key = (s3 * N + a) * N + b
+    rev = (s3 * N + b) * N + a
+    boundary = np.sort(key[~np.isin(rev, key)])
+    loops = np.concatenate([np.asarray(x[6], dtype=np.int64) for x in small])
+    nxt = np.concatenate([np.roll(np.asarray(x[6], dtype=np.int64), -1) for x in small])
+    owner = np.repeat(np.arange(len(small), dtype=np.int64), [len(x[6]) for x in small])
+    want = np.sort((owner * N + loops) * N + nxt)
+    if boundary.shape != want.shape or not np.array_equal(boundary, want):
+        raise BooleanError(f"the splits of {'AB'[which]} do not have the subdivided triangle boundaries",
+                           stage="imprint", diagnostics={"operand": "AB"[which]})

@@ -1119,7 +1119,28 @@ def _check_nesting(wires: list[tuple[Segment, ...]], t: Tolerance) -> None:
         q = wires[h][0].start
         if not _inside(q, wires[0], t):
             raise InvalidInputError(f"hole {h - 1} is not inside the outer wire (its start point {q.tolist()} is outside)")
-    for h in range(1, len(wires)):
-        for g in range(1, len(wires)):
-            if g != h and _inside(wires[h][0].start, wires[g], t):
-                raise InvalidInputError(f"hole {h - 1} lies inside hole {g - 1}; holes must not overlap")
+    if len(wires) < 3:
+        return
+    # A hole's start point can only lie inside another hole if it lies inside that hole's
+    # bounding box, and the box test is one array operation for all pairs: only the pairs it
+    # keeps need the exact inside test (a grid of holes keeps none).
+    lo, hi = _wire_boxes(wires[1:], t)
+    q = np.array([w[0].start for w in wires[1:]])
+    maybe = np.all((q[:, None, :] >= lo[None, :, :]) & (q[:, None, :] <= hi[None, :, :]), axis=2)
+    np.fill_diagonal(maybe, False)
+    for h, g in zip(*np.nonzero(maybe)):
+        if _inside(q[h], wires[g + 1], t):
+            raise InvalidInputError(f"hole {h} lies inside hole {g}; holes must not overlap")
+
+
+def _wire_boxes(wires: Sequence[Sequence[Segment]], t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes ``(lo, hi)``, each ``(k, 2)``, that contain each wire: its chords widened by their error bound."""
+    lo, hi = [], []
+    for w in wires:
+        P = _pieces([w])
+        A, B, E = P.chords(P.seg, P.ta, P.tb)
+        pts = np.concatenate([A, B])
+        margin = float(E.max(initial=0.0)) + t.linear
+        lo.append(pts.min(axis=0) - margin)
+        hi.append(pts.max(axis=0) + margin)
+    return np.array(lo), np.array(hi)

@@ -48,6 +48,8 @@ __all__ = [
     "orient2d",
     "orient3d",
     "incircle",
+    "orient2d_one",
+    "incircle_one",
     "cross_sign",
     "SegmentRelation",
     "classify_segments",
@@ -602,3 +604,56 @@ def segment_intersection_points(p0, p1, q0, q1) -> IntersectionPoints:
         y[touch] = [Fraction(v) for v in point[:, 1].tolist()]
     rounded = np.array([[float(a), float(b)] for a, b in zip(x.tolist(), y.tolist())], dtype=np.float64).reshape(k, 2)
     return IntersectionPoints(x, y, rounded)
+
+
+def orient2d_one(a, b, c) -> int:
+    """:func:`orient2d` of one triangle, as a Python int (no array overhead: for loops that test one at a time).
+
+    Parameters
+    ----------
+    a, b, c : (2,) sequences of float
+    """
+    ax, ay = float(a[0]), float(a[1])
+    bx, by = float(b[0]), float(b[1])
+    cx, cy = float(c[0]), float(c[1])
+    left = (ax - cx) * (by - cy)
+    right = (ay - cy) * (bx - cx)
+    det = left - right
+    bound = _ORIENT2D_BOUND * (abs(left) + abs(right))
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    A = [Fraction(x) for x in (ax, ay, bx, by, cx, cy)]
+    d = (A[0] - A[4]) * (A[3] - A[5]) - (A[1] - A[5]) * (A[2] - A[4])
+    return (d > 0) - (d < 0)
+
+
+def incircle_one(a, b, c, d) -> int:
+    """:func:`incircle` of one configuration, as a Python int (no array overhead: for loops that test one at a time)."""
+    adx, ady = float(a[0]) - float(d[0]), float(a[1]) - float(d[1])
+    bdx, bdy = float(b[0]) - float(d[0]), float(b[1]) - float(d[1])
+    cdx, cdy = float(c[0]) - float(d[0]), float(c[1]) - float(d[1])
+    alift = adx * adx + ady * ady
+    blift = bdx * bdx + bdy * bdy
+    clift = cdx * cdx + cdy * cdy
+    bc, cb = bdx * cdy, cdx * bdy
+    ca, ac = cdx * ady, adx * cdy
+    ab, ba = adx * bdy, bdx * ady
+    det = alift * (bc - cb) + blift * (ca - ac) + clift * (ab - ba)
+    perm = (abs(bc) + abs(cb)) * alift + (abs(ca) + abs(ac)) * blift + (abs(ab) + abs(ba)) * clift
+    bound = _INCIRCLE_BOUND * perm
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    F = [Fraction(float(x)) for x in (a[0], a[1], b[0], b[1], c[0], c[1], d[0], d[1])]
+    adx, ady = F[0] - F[6], F[1] - F[7]
+    bdx, bdy = F[2] - F[6], F[3] - F[7]
+    cdx, cdy = F[4] - F[6], F[5] - F[7]
+    det = (
+        (adx * adx + ady * ady) * (bdx * cdy - cdx * bdy)
+        + (bdx * bdx + bdy * bdy) * (cdx * ady - adx * cdy)
+        + (cdx * cdx + cdy * cdy) * (adx * bdy - bdx * ady)
+    )
+    return (det > 0) - (det < 0)

@@ -27,16 +27,14 @@ Algorithm
    component is kept when it lies on the left of the constraints bounding it (vectorised;
    contradicting sides raise).
 
-The flip phase uses exact orientation and in-circle predicates: a floating-point filter
-with Shewchuk's error bounds ("Adaptive precision floating-point arithmetic and fast
-robust geometric predicates", 1997) and exact rational arithmetic (:class:`fractions.Fraction`)
-when the filter cannot decide.
+The flip phase uses the exact orientation and in-circle predicates of
+:mod:`coons.kernel.predicates` (Shewchuk's filtered float evaluation with an exact fallback):
+the vectorised ones for batches, the scalar ``*_one`` forms inside the flip loops.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from fractions import Fraction
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -44,80 +42,17 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, QhullError
 
 from coons.errors import ConvergenceError, InvalidInputError
+from coons.kernel import predicates
+from coons.kernel.predicates import incircle_one as incircle
+from coons.kernel.predicates import orient2d_one as orient2d
 
 __all__ = ["triangulate", "ConstrainedDelaunay", "orient2d", "incircle"]
 
-# Shewchuk's static error bounds for the floating-point filters (eps = 2^-53).
-_EPS = 2.0**-53
-_CCW_BOUND = (3.0 + 16.0 * _EPS) * _EPS
-_ICC_BOUND = (10.0 + 96.0 * _EPS) * _EPS
-
-
-# ---------------------------------------------------------------------- predicates
-def orient2d(a, b, c) -> int:
-    """Sign of the orientation of ``(a, b, c)``: +1 counter-clockwise, -1 clockwise, 0 collinear (exact).
-
-    Parameters
-    ----------
-    a, b, c : (2,) sequences of float
-    """
-    ax, ay = float(a[0]), float(a[1])
-    bx, by = float(b[0]), float(b[1])
-    cx, cy = float(c[0]), float(c[1])
-    left = (ax - cx) * (by - cy)
-    right = (ay - cy) * (bx - cx)
-    det = left - right
-    bound = _CCW_BOUND * (abs(left) + abs(right))
-    if det > bound:
-        return 1
-    if -det > bound:
-        return -1
-    A = [Fraction(x) for x in (ax, ay, bx, by, cx, cy)]
-    d = (A[0] - A[4]) * (A[3] - A[5]) - (A[1] - A[5]) * (A[2] - A[4])
-    return (d > 0) - (d < 0)
-
-
-def incircle(a, b, c, d) -> int:
-    """+1 when ``d`` lies inside the circle through the counter-clockwise ``a, b, c``, -1 outside, 0 on it (exact)."""
-    adx, ady = float(a[0]) - float(d[0]), float(a[1]) - float(d[1])
-    bdx, bdy = float(b[0]) - float(d[0]), float(b[1]) - float(d[1])
-    cdx, cdy = float(c[0]) - float(d[0]), float(c[1]) - float(d[1])
-    alift = adx * adx + ady * ady
-    blift = bdx * bdx + bdy * bdy
-    clift = cdx * cdx + cdy * cdy
-    bc, cb = bdx * cdy, cdx * bdy
-    ca, ac = cdx * ady, adx * cdy
-    ab, ba = adx * bdy, bdx * ady
-    det = alift * (bc - cb) + blift * (ca - ac) + clift * (ab - ba)
-    perm = (abs(bc) + abs(cb)) * alift + (abs(ca) + abs(ac)) * blift + (abs(ab) + abs(ba)) * clift
-    bound = _ICC_BOUND * perm
-    if det > bound:
-        return 1
-    if -det > bound:
-        return -1
-    F = [Fraction(float(x)) for x in (a[0], a[1], b[0], b[1], c[0], c[1], d[0], d[1])]
-    adx, ady = F[0] - F[6], F[1] - F[7]
-    bdx, bdy = F[2] - F[6], F[3] - F[7]
-    cdx, cdy = F[4] - F[6], F[5] - F[7]
-    det = (
-        (adx * adx + ady * ady) * (bdx * cdy - cdx * bdy)
-        + (bdx * bdx + bdy * bdy) * (cdx * ady - adx * cdy)
-        + (cdx * cdx + cdy * cdy) * (adx * bdy - bdx * ady)
-    )
-    return (det > 0) - (det < 0)
 
 
 def _orient_signs(P: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Exact orientation signs of triangles ``T`` over points ``P`` (vectorised filter, exact fallback)."""
-    a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
-    left = (a[:, 0] - c[:, 0]) * (b[:, 1] - c[:, 1])
-    right = (a[:, 1] - c[:, 1]) * (b[:, 0] - c[:, 0])
-    det = left - right
-    bound = _CCW_BOUND * (np.abs(left) + np.abs(right))
-    sign = np.where(det > bound, 1, np.where(-det > bound, -1, 0))
-    for i in np.flatnonzero(sign == 0):
-        sign[i] = orient2d(a[i], b[i], c[i])
-    return sign
+    """Exact orientation signs of triangles ``T`` over points ``P`` (:func:`coons.kernel.predicates.orient2d`)."""
+    return predicates.orient2d(P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]).astype(np.int64)
 
 
 # ---------------------------------------------------------------------- input

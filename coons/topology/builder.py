@@ -678,6 +678,40 @@ class BRepBuilder:
             for fi in np.flatnonzero(labels == k):
                 self.fshell[face_ids[int(fi)]] = shell
 
+    def assemble_polygons(self, points: np.ndarray, face_vertex_loops: Sequence, **kwargs: Any) -> None:
+        """:meth:`assemble` with faces given as vertex loops instead of signed edge references.
+
+        Parameters
+        ----------
+        points : (V, 3) vertex positions
+        face_vertex_loops : per face, a loop of vertex indices (outward, counter-clockwise), or a
+            list of such loops (outer first, holes clockwise)
+        **kwargs : ``face_surfaces``, ``face_senses`` as for :meth:`assemble`
+
+        Each undirected vertex pair becomes one edge, oriented as it is first met; the faces
+        then refer to it forwards or backwards.  Suited to hand-written fixtures and small
+        polyhedra; :func:`coons.topology.from_mesh.from_mesh` does the same for meshes in numpy.
+        """
+        edge_of: dict[tuple[int, int], int] = {}
+        edges: list[tuple[int, int]] = []
+        faces = []
+        for face in face_vertex_loops:
+            loops = face if isinstance(face[0], (list, tuple, np.ndarray)) else [face]
+            refs_f = []
+            for loop in loops:
+                loop = [int(v) for v in loop]
+                refs = []
+                for a, b in zip(loop, loop[1:] + loop[:1]):
+                    key = (min(a, b), max(a, b))
+                    if key not in edge_of:
+                        edge_of[key] = len(edges)
+                        edges.append((a, b))
+                    e = edge_of[key]
+                    refs.append(e + 1 if edges[e] == (a, b) else -(e + 1))
+                refs_f.append(refs)
+            faces.append(refs_f)
+        self.assemble(points, np.asarray(edges, dtype=np.int64).reshape(-1, 2), faces, **kwargs)
+
     def nest_shells(self, outer_shell: int, void_shell: int) -> None:
         """Make ``void_shell`` (oriented inward) a void of the solid of ``outer_shell``."""
         solid_void = self.ssolid[void_shell]

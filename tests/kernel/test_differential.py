@@ -14,9 +14,9 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance
 
+from .exact_shapes import circle, cylinder, sphere
 from .strategies import curves, params_in, surfaces
 
-SQ2 = np.sqrt(0.5)
 TOL = Tolerance()
 #: Closed forms evaluated from exact rational NURBS: round-off only.
 EXACT = 1e-12
@@ -25,34 +25,10 @@ H = 1e-5
 FD = 1e-6
 
 
-def circle(radius: float = 2.0, dim: int = 2) -> NurbsCurve:
-    """Full rational quadratic circle, counter-clockwise in the xy plane, domain [0, 1]."""
-    square = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float)
-    P = np.pad(radius * square, ((0, 0), (0, dim - 2)))
-    knots = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    return NurbsCurve(P, knots, 2, [1, SQ2, 1, SQ2, 1, SQ2, 1, SQ2, 1])
 
 
-def sphere(radius: float = 2.0) -> NurbsSurface:
-    """Rational biquadratic sphere: u the longitude circle, v from the south to the north pole."""
-    square = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float)
-    w_u = np.array([1, SQ2, 1, SQ2, 1, SQ2, 1, SQ2, 1])
-    meridian = np.array([[0, -1], [1, -1], [1, 0], [1, 1], [0, 1]], float)
-    w_v = np.array([1, SQ2, 1, SQ2, 1])
-    P = np.empty((9, 5, 3))
-    P[..., 0] = radius * square[:, None, 0] * meridian[None, :, 0]
-    P[..., 1] = radius * square[:, None, 1] * meridian[None, :, 0]
-    P[..., 2] = radius * meridian[None, :, 1]
-    knots_u = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    return NurbsSurface(P, knots_u, [0, 0, 0, 0.5, 0.5, 1, 1, 1], 2, 2, w_u[:, None] * w_v[None, :])
 
 
-def cylinder(radius: float = 1.5, height: float = 3.0) -> NurbsSurface:
-    c = circle(radius)
-    P = np.empty((9, 2, 3))
-    P[:, :, :2] = c.control_points[:, None, :]
-    P[:, 0, 2], P[:, 1, 2] = 0.0, height
-    return NurbsSurface(P, c.knots, [0, 0, 1, 1], 2, 1, np.repeat(c.weights[:, None], 2, axis=1))
 
 
 def helix_like(turns: float = 1.5, radius: float = 1.0, pitch: float = 0.8) -> NurbsCurve:

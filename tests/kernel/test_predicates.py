@@ -279,3 +279,22 @@ def test_errors_name_the_problem():
         segment_intersection_points([[0, 0]], [[1, 0]], [[0, 1]], [[1, 1]])
     with pytest.raises(InvalidInputError, match=r"expected \(k, 2\) arrays of segment endpoints"):
         segment_intersection_points([0, 0], [1, 1], [0, 1], [1, 0])
+
+
+def test_scalar_forms_equal_the_vectorised_predicates_near_degeneracy():
+    """orient2d_one / incircle_one (used one at a time in the CDT's flip loops) give the same exact signs."""
+    from coons.kernel.predicates import incircle, incircle_one, orient2d, orient2d_one
+
+    e = 2.0**-53
+    k = np.arange(-16, 17)
+    A = np.stack(np.meshgrid(0.5 + k * e, 0.5 + k * e, indexing="ij"), axis=-1).reshape(-1, 2)
+    B, C = np.array([12.0, 12.0]), np.array([24.0, 24.0])
+    vec = orient2d(A, B, C)
+    assert set(vec.tolist()) == {-1, 0, 1}
+    assert [orient2d_one(a, B, C) for a in A] == vec.tolist()
+    # Points on and next to the unit circle through three exact points.
+    a, b, c = np.array([1.0, 0.0]), np.array([0.0, 1.0]), np.array([-1.0, 0.0])
+    D = np.stack([np.zeros_like(k, dtype=float), -1.0 + k * e], axis=1)
+    vec = incircle(a, b, c, D)
+    assert set(vec.tolist()) == {-1, 0, 1}
+    assert [incircle_one(a, b, c, d) for d in D] == vec.tolist()

@@ -14,9 +14,9 @@ from coons.kernel.projection import ClosestPoints
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance
 
+from .exact_shapes import circle, cylinder, sphere
 from .strategies import curves, params_in, surfaces
 
-SQ2 = np.sqrt(0.5)
 TOL = Tolerance()
 #: Points returned by inversion agree with the points inverted far below tol.linear
 #: (the iteration stops at tol.solver relative to the geometry's size, about 1e-11 here).
@@ -28,34 +28,10 @@ ALONG = 10 * TOL.angular
 BRUTE = 10_000
 
 
-def circle(radius: float = 2.0, centre=(0.0, 0.0)) -> NurbsCurve:
-    """Full rational quadratic circle, counter-clockwise from (R, 0), domain [0, 1]."""
-    square = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float)
-    knots = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    return NurbsCurve(radius * square + centre, knots, 2, [1, SQ2, 1, SQ2, 1, SQ2, 1, SQ2, 1])
 
 
-def sphere(radius: float = 2.0) -> NurbsSurface:
-    """Rational biquadratic sphere: u the full circle of longitude, v from the south to the north pole."""
-    square = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float)
-    w_u = np.array([1, SQ2, 1, SQ2, 1, SQ2, 1, SQ2, 1])
-    meridian = np.array([[0, -1], [1, -1], [1, 0], [1, 1], [0, 1]], float)
-    w_v = np.array([1, SQ2, 1, SQ2, 1])
-    P = np.empty((9, 5, 3))
-    P[..., 0] = radius * square[:, None, 0] * meridian[None, :, 0]
-    P[..., 1] = radius * square[:, None, 1] * meridian[None, :, 0]
-    P[..., 2] = radius * meridian[None, :, 1]
-    knots_u = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    return NurbsSurface(P, knots_u, [0, 0, 0, 0.5, 0.5, 1, 1, 1], 2, 2, w_u[:, None] * w_v[None, :])
 
 
-def cylinder(radius: float = 1.5, height: float = 3.0) -> NurbsSurface:
-    """Rational cylinder: u around the z axis, v along it from 0 to ``height``."""
-    c = circle(radius)
-    P = np.empty((9, 2, 3))
-    P[:, :, :2] = c.control_points[:, None, :]
-    P[:, 0, 2], P[:, 1, 2] = 0.0, height
-    return NurbsSurface(P, c.knots, [0, 0, 1, 1], 2, 1, np.repeat(c.weights[:, None], 2, axis=1))
 
 
 def brute_force_curve(c: NurbsCurve, P: np.ndarray) -> np.ndarray:

@@ -155,3 +155,9 @@ def test_assemble_tetrahedron_and_check_catches_inward_orientation():
     brep = b.build(check=False)
     assert check(brep).ok
     assert brep.n_faces == 4 and brep.n_edges == 6 and brep.n_vertices == 4
+    # The same faces with every loop reversed enclose negative volume: an inward shell.
+    inward = [[[-ref for ref in reversed(loop)] for loop in face] for face in faces]
+    b = BRepBuilder()
+    b.assemble(P, E, inward)
+    report = check(b.build(check=False))
+    assert report.codes() == {"inward-shell"}, report.summary()

@@ -126,23 +126,7 @@ def polyhedron(points, face_vertex_loops, *, planes: bool = False, flip=()) -> B
     of implicit planes; faces listed in ``flip`` get the reversed plane and ``sense = False``.
     """
     points = np.asarray(points, dtype=float)
-    edge_of: dict[tuple[int, int], int] = {}
-    edges: list[tuple[int, int]] = []
     faces = [f if isinstance(f[0], list) else [f] for f in face_vertex_loops]
-    loops = []
-    for face in faces:
-        face_refs = []
-        for loop in face:
-            refs = []
-            for a, b in zip(loop, loop[1:] + loop[:1]):
-                key = (min(a, b), max(a, b))
-                if key not in edge_of:
-                    edge_of[key] = len(edges)
-                    edges.append((a, b))
-                e = edge_of[key]
-                refs.append(e + 1 if edges[e] == (a, b) else -(e + 1))
-            face_refs.append(refs)
-        loops.append(face_refs)
     bld = BRepBuilder()
     surfaces, senses = None, None
     if planes:
@@ -154,9 +138,10 @@ def polyhedron(points, face_vertex_loops, *, planes: bool = False, flip=()) -> B
             s = k not in flip
             surfaces.append(PlanarSurface(P[0], n if s else -n, d))
             senses.append(s)
-    bld.assemble(points, edges, loops, face_surfaces=surfaces, face_senses=senses)
+    bld.assemble_polygons(points, faces, face_surfaces=surfaces, face_senses=senses)
     if planes:
-        for e, (a, b) in enumerate(edges):
+        # A fresh builder: its vertex ids are the indices into ``points``.
+        for e, (a, b) in enumerate(bld.ev):
             for side in (0, 1):
                 c = 2 * e + side
                 S = surfaces[bld.lface[bld.cloop[c]]]

@@ -80,26 +80,8 @@ def block_with_hole(a: float = 1.0, r: float = 0.4, h: float = 1.0, *, check_it:
 
 def polyhedron(points, faces) -> BRep:
     """Implicit-plane polyhedron from outward vertex loops (a face: a loop or [outer, holes...])."""
-    points = np.asarray(points, dtype=float)
-    edge_of: dict[tuple[int, int], int] = {}
-    edges: list[tuple[int, int]] = []
-    loops = []
-    for face in faces:
-        face = face if isinstance(face[0], list) else [face]
-        refs_f = []
-        for loop in face:
-            refs = []
-            for a, b in zip(loop, loop[1:] + loop[:1]):
-                key = (min(a, b), max(a, b))
-                if key not in edge_of:
-                    edge_of[key] = len(edges)
-                    edges.append((a, b))
-                e = edge_of[key]
-                refs.append(e + 1 if edges[e] == (a, b) else -(e + 1))
-            refs_f.append(refs)
-        loops.append(refs_f)
     bld = BRepBuilder()
-    bld.assemble(points, edges, loops)
+    bld.assemble_polygons(np.asarray(points, dtype=float), faces)
     return bld.build()
 
 

@@ -1,0 +1,1060 @@
+"""Surface–surface intersection: the result types, the dispatcher, and exact forms for analytic pairs.
+
+:func:`intersect_surfaces` returns the intersection curves (each with its two p-curves on the
+same parameter) and the isolated contact points of two surfaces inside two parameter boxes.
+Pairs of analytic surfaces whose intersection is a set of conics are solved in closed form
+here: plane–plane (line); plane–cylinder (circle, 0/1/2 rulings, ellipse); plane–cone
+(circle, rulings through the apex, ellipse, and parabola/hyperbola as exact rational
+quadratic arcs within the boxes); every pair of surfaces of revolution about a common axis,
+planes perpendicular to that axis and spheres (symmetric about any line through their
+centre) included, by intersecting their meridians in a half-plane (circles at the heights
+where the meridians meet: plane–sphere, sphere–sphere, plane–torus perpendicular to its axis,
+sphere–cylinder/cone/torus centred on the axis, coaxial cylinders, cones and tori); a plane
+containing a torus' axis (two meridian circles); and cylinders with parallel axes.  Every
+other pair (crossing cylinders, oblique plane–torus, non-coaxial quadrics, NURBS surfaces)
+goes to the general marching method of :mod:`coons.kernel.ssi`.  This module deliberately
+does not march, does not resolve overlaps of coincident surfaces (it reports
+``coincident=True``; the caller handles the overlap), and does not trim to faces: it clips
+to the parameter boxes it is given.
+
+Conventions
+-----------
+*Boxes.*  ``box = ((u0, u1), (v0, v1))``; the default is the surface's ``domain`` (infinite in
+the linear directions of planes, cylinders and cones, so straight and parabolic/hyperbolic
+branches need finite boxes).  Every returned branch lies in both boxes; a branch leaving a box
+is cut where its p-curve crosses the box boundary.  Periodic coordinates of a p-curve are
+shifted by whole periods into the box.  A box spanning a whole period or more of a periodic
+coordinate has a seam at its lower bound: a branch is cut where it crosses the seam (the
+p-curve must not leave the box), so a closed curve is one closed branch only where it crosses
+no seam except at its start; e.g. a circle around a cylinder with box ``u ∈ [0, 2π]`` is one
+closed branch from ``u = 0`` to ``u = 2π``.
+
+*P-curves.*  A coordinate of a p-curve is detected to be exactly ``o + d t + α cos t + β sin t``
+(a least-squares fit on samples whose residual is at round-off, ``tol.solver`` relative);
+when both coordinates are affine in ``t`` the p-curve is a :class:`~coons.kernel.pcurve.Line2D`,
+when both are trigonometric a :class:`~coons.kernel.pcurve.Trig2D`.  Otherwise (an ellipse on
+a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a cubic 2-D
+:class:`~coons.kernel.curve.NurbsCurve` interpolating the exact parameters (The NURBS Book
+A9.1) on the branch's own parameter, refined until its image is within ``tol.linear / 2`` of
+the curve; the plane's p-curve of a rational conic arc is exact (same weights).
+
+*Direction.*  A transversal branch runs along ``n_a × n_b``, the cross product of the
+surfaces' normals ``Su × Sv`` normalised (``a`` first).  Where ``n_a × n_b`` vanishes along a whole
+branch (``tangent=True``) the rule says nothing and the direction is unspecified (deterministic
+for given inputs): a caller that needs one orients the branch itself.
+
+*Singular points.*  A circle through a pole of a sphere is cut at the pole (the longitude
+jumps there): a great circle through both poles gives two meridian branches.  A ruling
+through a cone's apex is cut at the apex (the cone's ``Su × Sv`` flips there, and with it the
+direction rule).
+
+*Tolerances.*  ``tol.linear`` decides tangency, coincidence and whether a curve passes
+through a pole or apex; ``tol.angular`` decides parallel directions.  Each branch records the
+largest deviation measured between its curve and its two p-curve images (round-off for exact
+forms, below ``tol.linear`` for fitted p-curves).
+
+Sources: the closed forms are classical plane sections of the natural quadrics and coaxial
+pairs (Miller & Goldman, "Geometric algorithms for detecting and calculating all conic
+sections in the intersection of any two natural quadric surfaces", Graphical Models and
+Image Processing 57(1), 1995; the reduction of coaxial pairs to meridian intersections is
+also how OCCT's ``IntAna_QuadQuadGeo`` treats them); conic arcs: The NURBS Book A7.3.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from coons.errors import ConvergenceError, InvalidGeometryError, InvalidInputError
+from coons.kernel.analytic import (
+    Circle,
+    ConicalSurface,
+    CylindricalSurface,
+    Ellipse,
+    Line,
+    PlanarSurface,
+    SphericalSurface,
+    ToroidalSurface,
+)
+from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.fitting import interpolate_curve
+from coons.kernel.pcurve import Line2D, Trig2D
+from coons.tolerance import Tolerance, resolve
+
+__all__ = ["IntersectionCurve", "SurfaceIntersection", "intersect_surfaces"]
+
+TWO_PI = 2.0 * math.pi
+_REVOLVED = (CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface)
+_ANALYTIC = (PlanarSurface,) + _REVOLVED
+
+#: Samples of the least-squares detection of exact p-curve coordinates (4 unknowns; the rest
+#: over-determine the fit so that a non-trigonometric coordinate cannot pass).
+_FORM_SAMPLES = 24
+#: Grid of the bracketing search for box crossings of coordinates that have no closed form:
+#: a coordinate of a conic section changes monotonically between at most a few extrema per
+#: turn, so 512 samples bracket every crossing that is not a tangency.
+_SEARCH_SAMPLES = 512
+#: Bisection steps: 2^-64 of a bracket of at most 2π is below the spacing of doubles.
+_BISECTIONS = 64
+#: Largest number of interpolated samples for a NURBS p-curve before giving up.
+_MAX_FIT_SAMPLES = 4097
+#: Relative inset from a sphere pole where a p-curve's longitude is taken (sqrt of double eps).
+_POLE_INSET = 1.5e-8
+#: Offset (1/π, irrational) of sample positions within their spacing, so that samples miss the
+#: round parameters where apexes, poles and seams tend to sit.
+_OFFSET = 1.0 / math.pi
+#: Samples on which a branch's achieved tolerance is measured.
+_CHECK_SAMPLES = 65
+
+
+# ---------------------------------------------------------------------------- result types
+@dataclass(frozen=True, eq=False)
+class IntersectionCurve:
+    """One branch ``curve([t0, t1])`` of the intersection of surfaces ``a`` and ``b``.
+
+    Attributes
+    ----------
+    curve : Line, Circle, Ellipse or NurbsCurve
+        The 3-D curve: ``evaluate(t) -> shape + (3,)``, ``derivatives(t, order)``.
+    t0, t1 : float
+        The branch's parameter range, ``t0 < t1``.
+    pcurve_a, pcurve_b : Line2D, Trig2D or 2-D NurbsCurve
+        The p-curves on ``a`` and ``b`` with the SAME parameter:
+        ``a.evaluate(*pcurve_a(t).T) ≈ curve(t)``.
+    closed : bool
+        ``curve(t0) == curve(t1)``: a closed loop inside both boxes.
+    tol : float
+        The largest measured 3-D distance between ``curve(t)``, ``a(pcurve_a(t))`` and ``b(pcurve_b(t))``.
+    tangent : bool
+        The surfaces are tangent along this branch.
+
+    Raises
+    ------
+    InvalidInputError
+        ``t0 < t1`` does not hold or either is not finite.
+    """
+
+    curve: Any
+    t0: float
+    t1: float
+    pcurve_a: Any
+    pcurve_b: Any
+    closed: bool
+    tol: float
+    tangent: bool = False
+
+    def __post_init__(self) -> None:
+        t0, t1 = float(self.t0), float(self.t1)
+        if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
+            raise InvalidInputError(f"IntersectionCurve: need finite t0 < t1, got t0={t0!r}, t1={t1!r}")
+        object.__setattr__(self, "t0", t0)
+        object.__setattr__(self, "t1", t1)
+        object.__setattr__(self, "tol", float(self.tol))
+        object.__setattr__(self, "closed", bool(self.closed))
+        object.__setattr__(self, "tangent", bool(self.tangent))
+
+
+def _rows(a, width: int, what: str) -> np.ndarray:
+    arr = np.array(a, dtype=np.float64)
+    if arr.size == 0:
+        arr = np.zeros((0, width))
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise InvalidInputError(f"SurfaceIntersection.{what}: expected shape (k, {width}), got {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceIntersection:
+    """The intersection of two surfaces inside the parameter boxes asked for.
+
+    Attributes
+    ----------
+    curves : tuple of IntersectionCurve
+    points : (k, 3) float64
+        Isolated contact points (tangent touching, e.g. a sphere on a plane).
+    uv_a, uv_b : (k, 2) float64
+        Their parameters on ``a`` and ``b``.
+    coincident : bool
+        The two surfaces are the same point set; no curves are returned, the caller handles the overlap.
+
+    Raises
+    ------
+    InvalidInputError
+        Arrays of the wrong shapes or of different lengths.
+    """
+
+    curves: tuple
+    points: np.ndarray
+    uv_a: np.ndarray
+    uv_b: np.ndarray
+    coincident: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "curves", tuple(self.curves))
+        object.__setattr__(self, "points", _rows(self.points, 3, "points"))
+        object.__setattr__(self, "uv_a", _rows(self.uv_a, 2, "uv_a"))
+        object.__setattr__(self, "uv_b", _rows(self.uv_b, 2, "uv_b"))
+        k = len(self.points)
+        if len(self.uv_a) != k or len(self.uv_b) != k:
+            raise InvalidInputError(
+                "SurfaceIntersection: points, uv_a and uv_b need equal lengths, "
+                f"got {k}, {len(self.uv_a)}, {len(self.uv_b)}"
+            )
+
+    @staticmethod
+    def empty(coincident: bool = False) -> "SurfaceIntersection":
+        """No curves, no points."""
+        return SurfaceIntersection((), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2)), coincident)
+
+
+# ---------------------------------------------------------------------------- exact cases
+@dataclass(frozen=True)
+class _Candidate:
+    """An unclipped exact branch: the whole line, circle or ellipse (``tangent``: the surfaces touch along it)."""
+
+    curve: Any
+    tangent: bool = False
+
+
+@dataclass(frozen=True)
+class _Exact:
+    """What a closed-form case found: whole curves, contact points, or coincidence."""
+
+    candidates: tuple = ()
+    points: tuple = ()
+    coincident: bool = False
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _sine(d1: np.ndarray, d2: np.ndarray) -> float:
+    """|sin| of the angle between two unit directions."""
+    return float(np.linalg.norm(np.cross(d1, d2)))
+
+
+def _off_axis(point: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> float:
+    """Distance from ``point`` to the line ``origin + s axis`` (``axis`` unit)."""
+    w = point - origin
+    return float(np.linalg.norm(w - (w @ axis) * axis))
+
+
+def _plane_plane(a: PlanarSurface, b: PlanarSurface, tol: Tolerance) -> _Exact:
+    d = np.cross(a.axis, b.axis)
+    h = float((b.origin - a.origin) @ a.axis)
+    if np.linalg.norm(d) <= tol.angular:
+        return _Exact(coincident=abs(h) <= tol.linear)
+    # The line point closest to a's origin: n_a·x = n_a·O_a, n_b·x = n_b·O_b, d·x = d·O_a.
+    M = np.stack([a.axis, b.axis, d])
+    rhs = np.array([a.axis @ a.origin, b.axis @ b.origin, d @ a.origin])
+    return _Exact((_Candidate(Line(np.linalg.solve(M, rhs), d)),))
+
+
+def _plane_cylinder(p: PlanarSurface, c: CylindricalSurface, tol: Tolerance) -> _Exact | None:
+    n, Z, O, R = p.axis, c.axis, c.origin, c.radius
+    cos = float(n @ Z)
+    if abs(cos) <= tol.angular:  # axis parallel to the plane: rulings
+        delta = float((O - p.origin) @ n)  # signed height of the axis over the plane
+        if abs(delta) > R + tol.linear:
+            return _Exact()
+        foot = O - delta * n
+        if abs(abs(delta) - R) <= tol.linear:
+            return _Exact((_Candidate(Line(foot, Z), tangent=True),))
+        w = _unit(np.cross(Z, n))
+        half = math.sqrt(R * R - delta * delta)
+        return _Exact((_Candidate(Line(foot + half * w, Z)), _Candidate(Line(foot - half * w, Z))))
+    if _sine(n, Z) > tol.angular:
+        # Oblique: the ellipse centred where the axis meets the plane, minor radius R across
+        # the axis, major radius R / |cos| along the plane's steepest direction.
+        C = O + (float((p.origin - O) @ n) / cos) * Z
+        w = _unit(np.cross(Z, n))
+        m = np.cross(n, w)
+        return _Exact((_Candidate(Ellipse(C, n, m, R / abs(cos), R)),))
+    return None  # perpendicular: the coaxial (meridian) case gives the circle
+
+
+def _plane_cone(p: PlanarSurface, k: ConicalSurface, tol: Tolerance) -> _Exact | None:
+    n, Z, A = p.axis, k.axis, k.apex
+    alpha = abs(k.semi_angle)
+    if _sine(n, Z) <= tol.angular:
+        return None  # perpendicular to the axis: the coaxial case gives the circle
+    D = float((p.origin - A) @ n)  # signed distance of the plane from the apex
+    X, Y = k.frame[0], k.frame[1]
+    # A generator direction is g(u) = sin α e(u) + cos α s Z (s = sign of the cone's semi-angle
+    # as seen from Z: its radius grows along s Z); n·g(u) = sin α ρ_n cos(u - φ) + cos α s n_z.
+    s = 1.0 if k.semi_angle > 0.0 else -1.0
+    nx, ny, nz = float(n @ X), float(n @ Y), float(n @ Z)
+    rho_n = math.hypot(nx, ny)
+    phi = math.atan2(ny, nx)
+
+    def g(u: float) -> np.ndarray:
+        return math.sin(alpha) * (math.cos(u) * X + math.sin(u) * Y) + math.cos(alpha) * s * Z
+
+    # c = cos(u - φ) of the generators parallel to the plane.
+    c = -math.cos(alpha) * s * nz / (math.sin(alpha) * rho_n)
+    if abs(D) <= tol.linear:  # through the apex: rulings
+        if abs(c) > 1.0 + tol.angular:
+            return _Exact(points=(A,))
+        if abs(abs(c) - 1.0) <= tol.angular:
+            u = phi if c > 0 else phi + math.pi
+            return _Exact((_Candidate(Line(A, g(u)), tangent=True),))
+        half = math.acos(c)
+        return _Exact((_Candidate(Line(A, g(phi + half))), _Candidate(Line(A, g(phi - half)))))
+    if abs(c) <= 1.0 + tol.angular:
+        # Generators parallel to the plane: a parabola (|c| = 1) or hyperbola, unbounded; the
+        # boxes bound it (see _ConeSection).
+        section = _ConeSection(A, X, Y, s * Z, alpha, n, D, phi, math.sin(alpha) * rho_n, math.cos(alpha) * s * nz,
+                               max(-1.0, min(1.0, c)), k)
+        return _Exact((_Candidate(section),))
+    # Ellipse: its major axis lies in the principal plane (spanned by Z and n), between the
+    # points where the generators u = φ and u = φ + π meet the plane (s = D / n·g).
+    P1 = A + (D / float(n @ g(phi))) * g(phi)
+    P2 = A + (D / float(n @ g(phi + math.pi))) * g(phi + math.pi)
+    C = 0.5 * (P1 + P2)
+    major = 0.5 * float(np.linalg.norm(P2 - P1))
+    m = _unit(P2 - P1)
+    # C + y w (w ⟂ principal plane, so ⟂ Z) is on the cone where ρ² = (h tan α)².
+    h = float((C - A) @ Z)
+    radial = float(np.linalg.norm(C - A - h * Z))
+    minor = math.sqrt(max((h * math.tan(alpha)) ** 2 - radial**2, 0.0))
+    if minor > major:  # round-off of a nearly circular section
+        m, major, minor = np.cross(n, m), minor, major
+    return _Exact((_Candidate(Ellipse(C, n, m, major, minor)),))
+
+
+class _ConeSection:
+    """A parabola or hyperbola cut from a cone by a plane, parametrised by the generator angle ``u``.
+
+    ``P(u) = A + λ(u) g(u)`` with ``g(u) = sin α e(u) + cos α Z`` (the generator through the
+    apex ``A``) and ``λ(u) = D / (k cos(u - φ) + m)``, ``D`` the plane's distance from the apex.
+    Only used to locate the in-box pieces; each piece becomes an exact rational quadratic arc
+    (The NURBS Book A7.3) through its ends and middle.
+    """
+
+    def __init__(self, A, X, Y, Z, alpha, n, D, phi, k, m, c, cone):
+        self.A, self.X, self.Y, self.Z, self.alpha = A, X, Y, Z, alpha
+        self.n, self.D, self.phi, self.k, self.m, self.c, self.cone = n, D, phi, k, m, c, cone
+
+    def _g(self, u: np.ndarray, order: int) -> np.ndarray:
+        c, s = np.cos(u)[..., None], np.sin(u)[..., None]
+        e = (c * self.X + s * self.Y, -s * self.X + c * self.Y)[order]
+        return math.sin(self.alpha) * e + (math.cos(self.alpha) * self.Z if order == 0 else 0.0)
+
+    def evaluate(self, u) -> np.ndarray:
+        u = np.asarray(u, dtype=np.float64)
+        lam = self.D / (self.k * np.cos(u - self.phi) + self.m)
+        return self.A + lam[..., None] * self._g(u, 0)
+
+    def tangent(self, u: float) -> np.ndarray:
+        den = self.k * math.cos(u - self.phi) + self.m
+        lam = self.D / den
+        dlam = self.D * self.k * math.sin(u - self.phi) / (den * den)
+        return dlam * self._g(np.array(u), 0) + lam * self._g(np.array(u), 1)
+
+    def windows(self, v_box: tuple[float, float]) -> list[tuple[float, float]]:
+        """Angle intervals of the branches, limited to twice the box's reach along the generators.
+
+        Raises
+        ------
+        InvalidInputError
+            An infinite ``v`` box on the cone (the section is unbounded).
+        """
+        v0, v1 = v_box
+        if not (math.isfinite(v0) and math.isfinite(v1)):
+            raise InvalidInputError(
+                f"intersect_surfaces: the cone's box v {v_box!r} must be finite for a parabolic or hyperbolic section"
+            )
+        cone = self.cone
+        v_apex = -cone.radius / math.sin(cone.semi_angle)
+        reach = 2.0 * max(abs(v0 - v_apex), abs(v1 - v_apex))  # twice: the in-box part lies strictly inside
+        gap = abs(self.D) / (self.k * reach)
+        out = []
+        c1 = self.c + gap  # one branch: cos(u - φ) >= c1
+        if c1 < 1.0:
+            h = math.acos(max(c1, -1.0))
+            out.append((self.phi - h, self.phi + h))
+        c2 = self.c - gap  # the other: cos(u - φ) <= c2
+        if c2 > -1.0:
+            h = math.acos(min(c2, 1.0))
+            out.append((self.phi + h, self.phi + TWO_PI - h))
+        return out
+
+
+def _plane_torus_meridians(p: PlanarSurface, t: ToroidalSurface, tol: Tolerance) -> _Exact | None:
+    """A plane containing the torus' axis: the two meridian circles."""
+    n, Z, C = p.axis, t.axis, t.center
+    if abs(float(n @ Z)) > tol.angular or abs(float((C - p.origin) @ n)) > tol.linear:
+        return None
+    m = _unit(np.cross(Z, n))
+    R, r = t.major_radius, t.minor_radius
+    return _Exact(tuple(_Candidate(Circle(C + sgn * R * m, n, m, r)) for sgn in (1.0, -1.0)))
+
+
+def _parallel_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Tolerance) -> _Exact | None:
+    Z = a.axis
+    if _sine(Z, b.axis) > tol.angular:
+        return None  # crossing axes: the general method
+    w = b.origin - a.origin
+    w = w - (w @ Z) * Z
+    d = float(np.linalg.norm(w))
+    if d <= tol.linear:
+        return None  # coaxial: the meridian case
+    R1, R2 = a.radius, b.radius
+    if d > R1 + R2 + tol.linear or d < abs(R1 - R2) - tol.linear:
+        return _Exact()
+    e = w / d
+    x = (d * d + R1 * R1 - R2 * R2) / (2.0 * d)  # along e from a's axis (radical line)
+    if abs(d - (R1 + R2)) <= tol.linear or abs(d - abs(R1 - R2)) <= tol.linear:
+        x = R1 if abs(d - (R1 + R2)) <= tol.linear or R1 > R2 else -R1
+        return _Exact((_Candidate(Line(a.origin + x * e, Z), tangent=True),))
+    y = math.sqrt(max(R1 * R1 - x * x, 0.0))
+    f = np.cross(Z, e)
+    return _Exact(tuple(_Candidate(Line(a.origin + x * e + sgn * y * f, Z)) for sgn in (1.0, -1.0)))
+
+
+# Meridians in the half-plane (ρ >= 0, z) about a common axis: ("line", point, direction) and
+# ("circle", centre, radius), all 2-D.
+def _axis_of(s) -> tuple[np.ndarray, np.ndarray] | None:
+    """The symmetry axis ``(point, unit direction)`` of a surface of revolution; ``None`` for a sphere (any line
+    through its centre)."""
+    if isinstance(s, SphericalSurface):
+        return None
+    return s._origin, s.axis
+
+
+def _meridian(s, A: np.ndarray, Z: np.ndarray) -> list[tuple]:
+    """The meridian of ``s`` about the axis ``A + z Z`` (``s`` known to be symmetric about it)."""
+    if isinstance(s, PlanarSurface):
+        return [("line", np.array([0.0, float((s.origin - A) @ Z)]), np.array([1.0, 0.0]))]
+    z0 = float((s._origin - A) @ Z)
+    if isinstance(s, SphericalSurface):
+        return [("circle", np.array([0.0, z0]), s.radius)]
+    if isinstance(s, ToroidalSurface):
+        return [("circle", np.array([s.major_radius, z0]), s.minor_radius)]
+    sgn = 1.0 if float(s.axis @ Z) > 0.0 else -1.0
+    if isinstance(s, CylindricalSurface):
+        return [("line", np.array([s.radius, z0]), np.array([0.0, 1.0]))]
+    # Cone: ρ = R + v sin a, z = z0 + sgn v cos a, and its mirror image (the far nappe).
+    sa, ca = math.sin(s.semi_angle), math.cos(s.semi_angle)
+    return [
+        ("line", np.array([s.radius, z0]), np.array([sa, sgn * ca])),
+        ("line", np.array([-s.radius, z0]), np.array([-sa, sgn * ca])),
+    ]
+
+
+def _meet(p, q, tol: Tolerance) -> tuple[list[tuple[np.ndarray, bool]], bool]:
+    """Intersections ``[(point (2,), tangent)]`` of two meridian pieces, and whether they coincide."""
+    if p[0] == "circle" and q[0] == "line":
+        p, q = q, p
+    if p[0] == "line" and q[0] == "line":
+        (_, P, U), (_, Q, V) = p, q
+        U, V = _unit(U), _unit(V)
+        cross = U[0] * V[1] - U[1] * V[0]
+        w = Q - P
+        if abs(cross) <= tol.angular:
+            return [], abs(U[0] * w[1] - U[1] * w[0]) <= tol.linear
+        s = (w[0] * V[1] - w[1] * V[0]) / cross
+        return [(P + s * U, False)], False
+    if p[0] == "line":
+        (_, P, U), (_, c, r) = p, q
+        U = _unit(U)
+        foot = P + float((c - P) @ U) * U
+        dist = float(np.linalg.norm(c - foot))
+        if dist > r + tol.linear:
+            return [], False
+        if abs(dist - r) <= tol.linear:
+            return [(foot, True)], False
+        half = math.sqrt(r * r - dist * dist)
+        return [(foot + half * U, False), (foot - half * U, False)], False
+    (_, c1, r1), (_, c2, r2) = p, q
+    w = c2 - c1
+    d = float(np.linalg.norm(w))
+    if d <= tol.linear:
+        return [], abs(r1 - r2) <= tol.linear
+    if d > r1 + r2 + tol.linear or d < abs(r1 - r2) - tol.linear:
+        return [], False
+    e = w / d
+    x = (d * d + r1 * r1 - r2 * r2) / (2.0 * d)
+    if abs(d - (r1 + r2)) <= tol.linear or abs(d - abs(r1 - r2)) <= tol.linear:
+        return [(c1 + x * e, True)], False
+    y = math.sqrt(max(r1 * r1 - x * x, 0.0))
+    f = np.array([-e[1], e[0]])
+    return [(c1 + x * e + y * f, False), (c1 + x * e - y * f, False)], False
+
+
+def _common_axis(a, b, tol: Tolerance) -> tuple[np.ndarray, np.ndarray] | None:
+    """An axis about which both surfaces are symmetric, or ``None``."""
+    if isinstance(a, PlanarSurface) and isinstance(b, PlanarSurface):
+        return None
+    if isinstance(b, PlanarSurface):
+        a, b = b, a
+    if isinstance(a, PlanarSurface):
+        ax = _axis_of(b)
+        if ax is None:
+            return b.center, a.axis
+        return (ax[0], ax[1]) if _sine(a.axis, ax[1]) <= tol.angular else None
+    ax_a, ax_b = _axis_of(a), _axis_of(b)
+    if ax_a is None and ax_b is None:
+        w = b.center - a.center
+        d = float(np.linalg.norm(w))
+        return (a.center, w / d) if d > tol.linear else (a.center, a.axis)
+    if ax_a is None:
+        ax_a, ax_b, a, b = ax_b, ax_a, b, a
+    if ax_b is None:
+        return ax_a if _off_axis(b.center, *ax_a) <= tol.linear else None
+    if _sine(ax_a[1], ax_b[1]) > tol.angular or _off_axis(ax_b[0], *ax_a) > tol.linear:
+        return None
+    return ax_a
+
+
+def _coaxial(a, b, tol: Tolerance) -> _Exact | None:
+    """Surfaces of revolution (or planes, spheres) about one axis: circles where the meridians meet."""
+    axis = _common_axis(a, b, tol)
+    if axis is None:
+        return None
+    A, Z = axis
+    X = perpendicular_direction(Z)
+    found: list[tuple[np.ndarray, bool]] = []
+    for p in _meridian(a, A, Z):
+        for q in _meridian(b, A, Z):
+            pts, same = _meet(p, q, tol)
+            if same:
+                return _Exact(coincident=True)
+            found += pts
+    candidates, points, seen = [], [], []
+    for (rho, z), tangent in found:
+        if rho < -tol.linear or any(abs(z - z2) <= tol.linear and abs(rho - r2) <= tol.linear for z2, r2 in seen):
+            continue  # the mirror half-plane, or the same circle met twice (a cone's nappes at the apex)
+        seen.append((z, rho))
+        if rho <= tol.linear:
+            points.append(A + z * Z)
+        else:
+            candidates.append(_Candidate(Circle(A + z * Z, Z, X, rho), tangent))
+    return _Exact(tuple(candidates), tuple(points))
+
+
+def _exact(a, b, tol: Tolerance) -> _Exact | None:
+    """The closed-form case for the pair, or ``None`` when it has none."""
+    if not (isinstance(a, _ANALYTIC) and isinstance(b, _ANALYTIC)):
+        return None
+    if isinstance(b, PlanarSurface) and not isinstance(a, PlanarSurface):
+        a, b = b, a  # the cases below take the plane first; the branches do not depend on the order
+    if isinstance(a, PlanarSurface):
+        if isinstance(b, PlanarSurface):
+            return _plane_plane(a, b, tol)
+        if isinstance(b, CylindricalSurface) and (found := _plane_cylinder(a, b, tol)) is not None:
+            return found
+        if isinstance(b, ConicalSurface) and (found := _plane_cone(a, b, tol)) is not None:
+            return found
+        if isinstance(b, ToroidalSurface) and (found := _plane_torus_meridians(a, b, tol)) is not None:
+            return found
+    if isinstance(a, CylindricalSurface) and isinstance(b, CylindricalSurface):
+        if (found := _parallel_cylinders(a, b, tol)) is not None:
+            return found
+    return _coaxial(a, b, tol)
+
+
+# ---------------------------------------------------------------------------- p-curves and clipping
+def _reversed(curve):
+    """The same point set run the other way (``t -> -t``)."""
+    if isinstance(curve, Line):
+        return Line(curve.origin, -curve.direction)
+    if isinstance(curve, Circle):
+        return Circle(curve.center, -curve.axis, curve.x_dir, curve.radius)
+    return Ellipse(curve.center, -curve.axis, curve.x_dir, curve.major_radius, curve.minor_radius)
+
+
+def _sample_parameters(curve) -> np.ndarray:
+    """Parameters spread over a curve (irrational offsets keep off apexes and poles placed at round values)."""
+    k = np.arange(_FORM_SAMPLES)
+    if isinstance(curve, Line):
+        # Any spread does: n_a × n_b keeps its side along a line (apexes are handled per piece).
+        return (k - (_FORM_SAMPLES - 1) / 2.0 + _OFFSET) * 0.25
+    return (k + _OFFSET) * (TWO_PI / _FORM_SAMPLES)
+
+
+def _oriented(cand: _Candidate, a, b) -> Any:
+    """The candidate's curve, reversed if needed so that it runs along ``n_a × n_b`` (transversal branches)."""
+    if cand.tangent:
+        return cand.curve
+    t = _sample_parameters(cand.curve)
+    D = cand.curve.derivatives(t, 1)
+    P, T = D[:, 0], D[:, 1]
+    na = a.normal(*a.closest_parameters(P).T)
+    nb = b.normal(*b.closest_parameters(P).T)
+    cross = np.cross(na, nb)
+    strength = np.linalg.norm(cross, axis=-1)
+    i = int(np.argmax(strength))  # the most transversal sample decides (poles and apexes give bad normals)
+    return cand.curve if float(cross[i] @ T[i]) >= 0.0 else _reversed(cand.curve)
+
+
+def _pole_parameters(curve, s, tol: Tolerance) -> list[float]:
+    """Parameters of ``curve`` (a circle) at the poles of the sphere ``s``."""
+    if not (isinstance(s, SphericalSurface) and isinstance(curve, Circle)):
+        return []
+    out = []
+    for sgn in (1.0, -1.0):
+        P = s.center + sgn * s.radius * s.axis
+        w = P - curve.center
+        if abs(float(w @ curve.axis)) <= tol.linear and abs(float(np.linalg.norm(w)) - curve.radius) <= tol.linear:
+            out.append(float(curve.closest_parameters(P)) % TWO_PI)
+    return out
+
+
+class _Coord:
+    """One coordinate of a p-curve as a function of the branch parameter.
+
+    Exact: ``f(t) = o + d t + α cos t + β sin t``.  Otherwise numeric: the surface's
+    ``closest_parameters`` of the curve point, unwrapped (periodic coordinates) along a
+    reference grid over ``window`` (extended by whole turns for a closed curve).
+    """
+
+    def __init__(self, surface, curve, index: int, window: tuple[float, float], full: bool, tol: Tolerance):
+        self.surface, self.curve, self.index, self.window, self.full = surface, curve, index, window, full
+        self.periodic = bool(surface.periodic_u if index == 0 else surface.periodic_v)
+        is_line = isinstance(curve, Line)
+        w0, w1 = window
+        t = w0 + (w1 - w0) * (np.arange(_FORM_SAMPLES) + _OFFSET) / _FORM_SAMPLES
+        g = self._raw(t)
+        if self.periodic:
+            g = np.unwrap(g, period=TWO_PI)
+        basis = np.stack([np.ones_like(t), t] + ([] if is_line else [np.cos(t), np.sin(t)]), axis=-1)
+        coef, *_ = np.linalg.lstsq(basis, g, rcond=None)
+        # Parameters of exact points come back with round-off ~1e-15 relative; tol.solver (the
+        # relative accuracy asked of solvers and parametric checks) separates that from a
+        # coordinate of another form.
+        scale = max(1.0, float(np.max(np.abs(g))), abs(w0), abs(w1))
+        small = tol.solver * scale
+        self.exact = float(np.max(np.abs(basis @ coef - g))) <= small
+        coef = np.where(np.abs(coef) <= small, 0.0, coef)
+        if self.exact and full and abs(coef[1] - round(coef[1])) <= small:
+            coef[1] = round(coef[1])  # a closed curve winds a whole number of times
+        self.coef = np.concatenate([coef, np.zeros(4 - len(coef))])
+        if not self.exact:
+            n = _SEARCH_SAMPLES
+            self.grid = np.linspace(w0, w1, n + 1)
+            ref = self._raw(self.grid)
+            self.ref = np.unwrap(ref, period=TWO_PI) if self.periodic else ref
+            self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if (self.periodic and full) else 0
+
+    def _raw(self, t: np.ndarray) -> np.ndarray:
+        if self.periodic and not self.full:
+            # The ends of a window cut at sphere poles, where the longitude is undefined: take it
+            # a relative sqrt(eps) inside (the limit to ~1e-8; the 3-D point does not depend on it
+            # there, and the local coordinates near the pole keep ~8 significant digits).
+            w0, w1 = self.window
+            inset = _POLE_INSET * (w1 - w0)
+            t = np.clip(t, w0 + inset, w1 - inset)
+        return self.surface.closest_parameters(self.curve.evaluate(t))[..., self.index]
+
+    @property
+    def affine(self) -> bool:
+        return self.exact and self.coef[2] == 0.0 and self.coef[3] == 0.0
+
+    @property
+    def trigonometric(self) -> bool:
+        return self.exact and self.coef[1] == 0.0
+
+    def __call__(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=np.float64)
+        if self.exact:
+            o, d, al, be = self.coef
+            return o + d * t + al * np.cos(t) + be * np.sin(t)
+        raw = self._raw(t)
+        if not self.periodic:
+            return raw
+        w0 = self.window[0]
+        turn = np.floor((t - w0) / TWO_PI) if self.full else np.zeros_like(t)
+        ref = np.interp(t - turn * TWO_PI, self.grid, self.ref) + turn * TWO_PI * self.turns
+        return raw + TWO_PI * np.round((ref - raw) / TWO_PI)
+
+    def crossings(self, bound: float, t0: float, t1: float) -> np.ndarray:
+        """Parameters in ``(t0, t1)`` where the coordinate equals ``bound`` (modulo 2π if periodic)."""
+        if not math.isfinite(bound):
+            return np.zeros(0)
+        o, d, al, be = self.coef
+        if self.exact and al == 0.0 and be == 0.0:
+            if d == 0.0:
+                return np.zeros(0)
+            f0, f1 = sorted((o + d * t0, o + d * t1))
+            targets = self._targets(bound, f0, f1)
+            return (targets - o) / d
+        if self.exact and d == 0.0:
+            r, phi = math.hypot(al, be), math.atan2(be, al)
+            targets = self._targets(bound, o - r, o + r)
+            c = np.clip((targets - o) / r, -1.0, 1.0)
+            base = np.concatenate([phi + np.arccos(c), phi - np.arccos(c)])
+            k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
+            out = (base[:, None] + TWO_PI * np.arange(k0, k1 + 1)[None, :]).ravel()
+            return np.unique(out[(out > t0) & (out < t1)])
+        # No closed form: bracket sign changes on a grid, then bisect all brackets at once.
+        grid = np.linspace(t0, t1, _SEARCH_SAMPLES + 1)
+        f = self(grid)
+        targets = self._targets(bound, float(f.min()), float(f.max()))
+        if targets.size == 0:
+            return np.zeros(0)
+        g = f[None, :] - targets[:, None]
+        i, j = np.nonzero(np.signbit(g[:, :-1]) != np.signbit(g[:, 1:]))
+        lo, hi, tgt = grid[j], grid[j + 1], targets[i]
+        glo = g[i, j]  # the grid's own sign: re-evaluating at one point may round the other way
+        for _ in range(_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            gm = self(mid) - tgt
+            left = np.signbit(gm) != np.signbit(glo)
+            hi = np.where(left, mid, hi)
+            lo, glo = np.where(left, lo, mid), np.where(left, glo, gm)
+        return 0.5 * (lo + hi)
+
+    def _targets(self, bound: float, f0: float, f1: float) -> np.ndarray:
+        """``bound + 2πk`` within ``[f0, f1]`` (only ``bound`` if not periodic)."""
+        if not self.periodic:
+            return np.array([bound]) if f0 <= bound <= f1 else np.zeros(0)
+        k = np.arange(math.ceil((f0 - bound) / TWO_PI), math.floor((f1 - bound) / TWO_PI) + 1)
+        return bound + TWO_PI * k
+
+
+def _inside(values: np.ndarray, lo: float, hi: float, periodic: bool, slack: float) -> np.ndarray:
+    """Whether coordinate values lie in ``[lo, hi]`` (modulo 2π for a periodic coordinate)."""
+    if periodic:
+        if hi - lo >= TWO_PI:
+            return np.ones(np.shape(values), dtype=bool)
+        values = lo + np.mod(values - lo + slack, TWO_PI) - slack
+    return (values >= lo - slack) & (values <= hi + slack)
+
+
+def _shift(coord: _Coord, t_mid: float, lo: float, hi: float, slack: float) -> float:
+    """The multiple of 2π that moves a periodic coordinate's branch into ``[lo, hi]``."""
+    if not coord.periodic or not math.isfinite(lo):
+        return 0.0
+    return TWO_PI * math.ceil((lo - slack - float(coord(t_mid))) / TWO_PI)
+
+
+def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: float, surface, curve,
+                   tol: Tolerance):
+    """``(p-curve, deviation)`` over ``[s0, s1]`` with periodic shifts ``du, dv``: Line2D or Trig2D (deviation 0:
+    measured later with the branch), or a fitted 2-D NURBS and its measured deviation."""
+    if cu.affine and cv.affine:
+        return Line2D([cu.coef[0] + du, cv.coef[0] + dv], [cu.coef[1], cv.coef[1]]), 0.0
+    if cu.trigonometric and cv.trigonometric:
+        A, B = np.array([cu.coef[2], cv.coef[2]]), np.array([cu.coef[3], cv.coef[3]])
+        if A[0] * B[1] - A[1] * B[0] != 0.0:
+            return Trig2D([cu.coef[0] + du, cv.coef[0] + dv], A, B), 0.0
+    return _fitted_pcurve(lambda t: np.stack([cu(t) + du, cv(t) + dv], axis=-1), s0, s1, surface, curve, tol)
+
+
+def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance):
+    """``(p-curve, deviation)``: cubic interpolation of the exact parameters ``f(t)`` (The NURBS Book A9.1),
+    refined adaptively: every interval whose image on ``surface`` misses ``curve`` by more than
+    ``tol.linear / 2`` at its quarter points gets its midpoint as a new sample, until none does.
+
+    Raises
+    ------
+    ConvergenceError
+        Still off after growing to :data:`_MAX_FIT_SAMPLES` samples.
+    """
+    t = np.linspace(s0, s1, 17)
+    worst = math.inf
+    quarters = np.array([0.25, 0.5, 0.75])
+    while len(t) <= _MAX_FIT_SAMPLES:
+        fit = interpolate_curve(f(t), 3, params=t)
+        tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
+        gap = np.linalg.norm(surface.evaluate(*fit.evaluate(tm).T) - curve.evaluate(tm), axis=-1).reshape(-1, 3)
+        worst = float(gap.max())
+        bad = np.max(gap, axis=1) > 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
+        if not np.any(bad):
+            return fit, worst
+        t = np.sort(np.concatenate([t, 0.5 * (t[:-1][bad] + t[1:][bad])]))
+    raise ConvergenceError(
+        f"p-curve fit: deviation {worst:.3g} above {0.5 * tol.linear:.3g} with {_MAX_FIT_SAMPLES} samples",
+        residuals=np.array([worst]),
+    )
+
+
+def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[IntersectionCurve]:
+    """Clip one exact curve to both boxes and return its in-box pieces with their p-curves."""
+    section = isinstance(cand.curve, _ConeSection)
+    curve = cand.curve if section else _oriented(cand, a, b)
+    surfaces, boxes = (a, b), (box_a, box_b)
+    # Slack of the parametric box tests: the relative round-off allowed by tol.solver.
+    slack = tol.solver * max(1.0, *(abs(x) for box in boxes for r in box for x in r if math.isfinite(x)))
+    if isinstance(curve, Line):
+        windows, full = [(-1.0, 1.0)], False
+    elif section:
+        windows, full = curve.windows(box_a[1] if a is curve.cone else box_b[1]), False
+    else:
+        cuts = sorted(set(_pole_parameters(curve, a, tol) + _pole_parameters(curve, b, tol)))
+        if cuts:
+            ends = cuts + [cuts[0] + TWO_PI]
+            windows, full = list(zip(ends[:-1], ends[1:])), False
+        else:
+            windows, full = [(0.0, TWO_PI)], True
+    out = []
+    for window in windows:
+        coords = [[_Coord(s, curve, i, window, full, tol) for i in (0, 1)] for s in surfaces]
+        pairs = [(c, box[i]) for cs, box in zip(coords, boxes) for i, c in enumerate(cs)]
+        if isinstance(curve, Line):
+            t0, t1 = -math.inf, math.inf
+            for c, (lo, hi) in pairs:
+                o, d = c.coef[0], c.coef[1]
+                if d == 0.0:
+                    if not _inside(np.array(o), lo, hi, c.periodic, slack):
+                        t0, t1 = math.inf, -math.inf
+                    continue
+                r0, r1 = sorted(((lo - o) / d, (hi - o) / d))
+                t0, t1 = max(t0, r0), min(t1, r1)
+            if not (math.isfinite(t0) and math.isfinite(t1)) and t0 < t1:
+                raise InvalidInputError(
+                    f"intersect_surfaces: the line through {curve.origin.tolist()} along {curve.direction.tolist()} "
+                    "is not bounded by the boxes; give finite boxes for planes, cylinders and cones"
+                )
+            pieces = [(t0, t1)] if t1 - t0 > slack else []
+            # Su × Sv of a cone flips at its apex: a ruling through it is two branches, each
+            # oriented on its own.
+            apexes = [
+                float((k.apex - curve.origin) @ curve.direction)
+                for k in surfaces
+                if isinstance(k, ConicalSurface) and _off_axis(k.apex, curve.origin, curve.direction) <= tol.linear
+            ]
+            for ta in apexes:
+                pieces = [q for s0, s1 in pieces for q in (((s0, ta), (ta, s1)) if s0 < ta < s1 else ((s0, s1),))]
+            if not cand.tangent:
+                flipped = [p for p in pieces if _against(curve, 0.5 * (p[0] + p[1]), a, b)]
+                if flipped:
+                    rev = _reversed(curve)
+                    rev_coords = [[_Coord(s, rev, i, window, full, tol) for i in (0, 1)] for s in surfaces]
+                    for s0, s1 in flipped:
+                        out.append(_piece(rev, rev_coords, -s1, -s0, a, b, boxes, slack, False, cand.tangent, tol))
+                    pieces = [p for p in pieces if p not in flipped]
+        else:
+            w0, w1 = window
+            if full:
+                w0 = _start(pairs, slack)
+                w1 = w0 + TWO_PI
+            # A coordinate with a box of a whole period or more must not cross the box's lower
+            # bound inside a branch (the p-curve would leave the box): its crossings are seams.
+            breaks, seams = [np.array([w0, w1])], [np.zeros(0)]
+            seam_at_start = False
+            for c, (lo, hi) in pairs:
+                if c.periodic and hi - lo >= TWO_PI:
+                    seams.append(c.crossings(lo, w0, w1))
+                    seam_at_start |= bool(_inside(c(np.array([w0])), lo, lo, True, slack)[0])
+                else:
+                    breaks += [c.crossings(lo, w0, w1), c.crossings(hi, w0, w1)]
+            seam = np.concatenate(seams)
+            br = np.unique(np.concatenate(breaks + [seam]))
+            # One crossing found twice (from both sides of a grid point, or a seam that is also a
+            # box bound) differs by round-off: keep the first of breakpoints closer than the slack.
+            br = br[np.concatenate([[True], np.diff(br) > slack])]
+            br[-1] = w1
+            hard = np.min(np.abs(seam[:, None] - br[None, :]), axis=0, initial=np.inf) <= slack
+            mid = 0.5 * (br[:-1] + br[1:])
+            ok = np.ones(mid.shape, dtype=bool)
+            for c, (lo, hi) in pairs:
+                ok &= _inside(c(mid), lo, hi, c.periodic, slack)
+            pieces = _runs(br, ok, hard, full and not seam_at_start)
+        for s0, s1 in pieces:
+            if s1 - s0 > slack and section:
+                out.append(_conic_piece(curve, s0, s1, a, b, boxes, tol))
+            elif s1 - s0 > slack:
+                closed = full and s1 - s0 >= TWO_PI - slack
+                out.append(_piece(curve, coords, s0, s1, a, b, boxes, slack, closed, cand.tangent, tol))
+    return out
+
+
+def _against(curve, t: float, a, b) -> bool:
+    """Whether the curve runs against ``n_a × n_b`` at ``t``."""
+    D = curve.derivatives(np.array([t]), 1)[0]
+    P = D[0][None]
+    na = a.normal(*a.closest_parameters(P).T)[0]
+    nb = b.normal(*b.closest_parameters(P).T)[0]
+    return float(np.cross(na, nb) @ D[1]) < 0.0
+
+
+def _piece(curve, coords, s0, s1, a, b, boxes, slack, closed: bool, tangent: bool, tol: Tolerance):
+    """The branch ``curve([s0, s1])`` with its p-curves shifted into the boxes."""
+    tm = 0.5 * (s0 + s1)
+    pcurves = []
+    for s, box, (cu, cv) in zip((a, b), boxes, coords):
+        du = _shift(cu, tm, *box[0], slack)
+        dv = _shift(cv, tm, *box[1], slack)
+        pcurves.append(_public_pcurve(cu, cv, s0, s1, du, dv, s, curve, tol))
+    fit_dev = max(dev for _, dev in pcurves)
+    return _finished(curve, s0, s1, [pc for pc, _ in pcurves], fit_dev, a, b, closed, tangent)
+
+
+def _conic_piece(section: _ConeSection, s0: float, s1: float, a, b, boxes, tol: Tolerance) -> IntersectionCurve:
+    """The piece ``u ∈ [s0, s1]`` of a parabola or hyperbola as one rational quadratic arc (The NURBS Book A7.3:
+    a branch turns by less than π, so its end tangents meet), running along ``n_a × n_b``, with the plane's
+    p-curve exact (the plane's parameters are affine: the control points' parameters, same weights) and the
+    cone's fitted."""
+    P0, P2 = section.evaluate(np.array([s0, s1]))
+    arc = nurbs_conic_arc(P0, section.tangent(s0), P2, section.tangent(s1), section.evaluate(0.5 * (s0 + s1)), tol)
+    if _against(arc, 0.5, a, b):
+        arc = arc.reversed()
+    pcurves, fit_dev = [], 0.0
+    for s, box in zip((a, b), boxes):
+        if isinstance(s, PlanarSurface):
+            uv = s.closest_parameters(arc.control_points)
+            pcurves.append(NurbsCurve(uv, arc.knots, arc.degree, arc.weights))
+            continue
+
+        def f(t, s=s, box=box):
+            uv = np.array(s.closest_parameters(arc.evaluate(t)), dtype=np.float64)
+            uv[:, 0] = np.unwrap(uv[:, 0], period=TWO_PI)
+            mid = uv[len(uv) // 2, 0]
+            lo = box[0][0]
+            uv[:, 0] += TWO_PI * math.ceil((lo - mid) / TWO_PI) if math.isfinite(lo) else 0.0
+            return uv
+
+        fitted, dev = _fitted_pcurve(f, 0.0, 1.0, s, arc, tol)
+        pcurves.append(fitted)
+        fit_dev = max(fit_dev, dev)
+    return _finished(arc, 0.0, 1.0, pcurves, fit_dev, a, b, False, False)
+
+
+def _start(pairs, slack: float) -> float:
+    """Start of the turn of a closed curve: where a winding periodic coordinate is at its box's lower bound
+    (a seam first: a loop that starts on the seam it crosses can stay one closed branch)."""
+    for c, (lo, hi) in sorted(pairs, key=lambda pair: pair[1][1] - pair[1][0] < TWO_PI):
+        if not c.periodic or not math.isfinite(lo):
+            continue
+        if c.exact and c.coef[1] != 0.0:
+            return float((lo - c.coef[0]) / c.coef[1] if c.coef[1] > 0 else (lo + TWO_PI - c.coef[0]) / c.coef[1])
+        if not c.exact and c.turns != 0:
+            roots = c.crossings(lo, 0.0, TWO_PI)
+            if roots.size:
+                return float(roots[0])
+    return 0.0
+
+
+def _runs(br: np.ndarray, ok: np.ndarray, hard: np.ndarray, wrap: bool) -> list[tuple[float, float]]:
+    """Maximal runs of in-box intervals between breakpoints ``br``, split at ``hard`` breakpoints (seams), and
+    joined across the window's ends when ``wrap`` (a closed curve whose window start is no seam)."""
+    runs, start = [], None
+    for i, inside in enumerate(ok):
+        if start is not None and (not inside or hard[i]):
+            runs.append([float(start), float(br[i])])
+            start = None
+        if inside and start is None:
+            start = br[i]
+    if start is not None:
+        runs.append([float(start), float(br[-1])])
+    if wrap and len(runs) > 1 and runs[0][0] == br[0] and runs[-1][1] == br[-1]:
+        first = runs.pop(0)
+        runs[-1][1] = first[1] + TWO_PI
+    return [tuple(r) for r in runs]
+
+
+def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool) -> IntersectionCurve:
+    """The branch with its measured deviation (the fits' own, and on samples between their nodes)."""
+    # An irrational offset keeps the samples off the interpolation nodes of fitted p-curves.
+    t = s0 + (s1 - s0) * np.concatenate([[0.0], (np.arange(_CHECK_SAMPLES) + _OFFSET) / _CHECK_SAMPLES, [1.0]])
+    P = curve.evaluate(t)
+    Pa = a.evaluate(*pcurves[0].evaluate(t).T)
+    Pb = b.evaluate(*pcurves[1].evaluate(t).T)
+    dev = max(float(np.max(np.linalg.norm(Pa - P, axis=-1))), float(np.max(np.linalg.norm(Pb - P, axis=-1))),
+              float(np.max(np.linalg.norm(Pa - Pb, axis=-1))), fit_dev)
+    return IntersectionCurve(curve, s0, s1, pcurves[0], pcurves[1], closed, dev, tangent)
+
+
+# ---------------------------------------------------------------------------- dispatcher
+def _box(surface, box, what: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    if box is None:
+        box = surface.domain
+    try:
+        (u0, u1), (v0, v1) = box
+        u0, u1, v0, v1 = float(u0), float(u1), float(v0), float(v1)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{what}: expected ((u0, u1), (v0, v1)), got {box!r}") from None
+    if any(math.isnan(x) for x in (u0, u1, v0, v1)) or not (u0 < u1 and v0 < v1):
+        raise InvalidInputError(f"{what}: need u0 < u1 and v0 < v1, got (({u0}, {u1}), ({v0}, {v1}))")
+    return (u0, u1), (v0, v1)
+
+
+def _contact_points(points, a, b, box_a, box_b, tol: Tolerance):
+    """Parameters of isolated contact points on both surfaces, shifted into the boxes; those outside dropped as
+    lying outside the region asked for."""
+    if not points:
+        return np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2))
+    P = np.array(points, dtype=np.float64)
+    uvs, keep = [], np.ones(len(P), dtype=bool)
+    slack = tol.solver * max(1.0, *(abs(x) for box in (box_a, box_b) for r in box for x in r if math.isfinite(x)))
+    for s, box in ((a, box_a), (b, box_b)):
+        uv = np.array(s.closest_parameters(P), dtype=np.float64).reshape(-1, 2)
+        for i, periodic in enumerate((s.periodic_u, s.periodic_v)):
+            lo, hi = box[i]
+            if periodic and math.isfinite(lo):
+                uv[:, i] += TWO_PI * np.ceil((lo - slack - uv[:, i]) / TWO_PI)
+            keep &= (uv[:, i] >= lo - slack) & (uv[:, i] <= hi + slack)
+        uvs.append(uv)
+    return P[keep], uvs[0][keep], uvs[1][keep]
+
+
+def intersect_surfaces(a, b, box_a=None, box_b=None, tol: Tolerance | None = None) -> SurfaceIntersection:
+    """The intersection curves and isolated contact points of surfaces ``a`` and ``b`` within two parameter boxes.
+
+    Analytic pairs whose intersection is a set of conics are solved in closed form
+    (see the module docstring for the list and the conventions on boxes, p-curves and
+    direction); every other pair goes to :func:`coons.kernel.ssi.march_intersection`.
+
+    Parameters
+    ----------
+    a, b : PlanarSurface, CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface or NurbsSurface
+    box_a, box_b : ((u0, u1), (v0, v1)), optional
+        The parameter boxes the caller cares about (default: the surface's domain; planes,
+        cylinders and cones need finite boxes where a straight branch runs).
+    tol : Tolerance, optional
+        ``linear`` decides tangency and coincidence of positions, ``angular`` of directions.
+
+    Returns
+    -------
+    SurfaceIntersection
+        Branches inside both boxes, each running along ``n_a × n_b`` unless tangent; contact
+        points ``(k, 3)`` with ``uv_a, uv_b (k, 2)``; ``coincident=True`` (and nothing else)
+        when the surfaces are the same point set.
+
+    Raises
+    ------
+    InvalidInputError
+        Malformed boxes, or a straight, parabolic or hyperbolic branch not bounded by the boxes.
+    InvalidGeometryError
+        The pair needs the general method and :mod:`coons.kernel.ssi` is not available.
+    ConvergenceError
+        A fitted p-curve does not reach ``tol.linear / 2`` with 4097 samples.
+
+    Examples
+    --------
+    >>> from coons.kernel.analytic import PlanarSurface, SphericalSurface
+    >>> plane = PlanarSurface([0, 0, 0.6], [0, 0, 1], [1, 0, 0])
+    >>> sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    >>> cut = intersect_surfaces(plane, sphere, box_a=((-2, 2), (-2, 2)))
+    >>> c = cut.curves[0]
+    >>> bool(c.closed and abs(c.curve.radius - 0.8) < 1e-15)
+    True
+    """
+    t = resolve(tol)
+    box_a = _box(a, box_a, "box_a")
+    box_b = _box(b, box_b, "box_b")
+    found = _exact(a, b, t)
+    if found is None:
+        try:
+            from coons.kernel.ssi import march_intersection
+        except ModuleNotFoundError as exc:
+            if exc.name != "coons.kernel.ssi":
+                raise  # a broken general method must not pass for a missing one
+            raise InvalidGeometryError(
+                f"no intersection method for {type(a).__name__} and {type(b).__name__} yet "
+                "(the general method coons.kernel.ssi is not available)"
+            ) from None
+        return march_intersection(a, b, box_a, box_b, t)
+    if found.coincident:
+        return SurfaceIntersection.empty(coincident=True)
+    curves = [br for cand in found.candidates for br in _branches(cand, a, b, box_a, box_b, t)]
+    P, uv_a, uv_b = _contact_points(found.points, a, b, box_a, box_b, t)
+    return SurfaceIntersection(tuple(curves), P, uv_a, uv_b)

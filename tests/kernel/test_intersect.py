@@ -1,0 +1,652 @@
+"""Exact surface–surface intersection of analytic pairs (coons.kernel.intersect).
+
+Every case is checked against its closed form (radius, centre, axis, semi-axes), every
+branch by :func:`check_result`: points on both surfaces (implicit equations) and on both
+p-curve images to 1e-12, p-curves inside the boxes, open ends on a box boundary (or a
+sphere pole), closed loops closed, recorded ``tol`` honest, and the direction rule
+(transversal branches run along ``n_a × n_b``).  Rigid motions applied to both surfaces
+move the answer; a few cases agree with OCCT's ``GeomAPI_IntSS``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from OCP.GCPnts import GCPnts_AbscissaPoint
+from OCP.Geom import (
+    Geom_ConicalSurface,
+    Geom_CylindricalSurface,
+    Geom_Plane,
+    Geom_SphericalSurface,
+    Geom_ToroidalSurface,
+)
+from OCP.GeomAdaptor import GeomAdaptor_Curve
+from OCP.GeomAPI import GeomAPI_IntSS, GeomAPI_ProjectPointOnCurve
+from OCP.gp import gp_Ax3, gp_Dir, gp_Pnt
+
+from coons.errors import InvalidGeometryError, InvalidInputError
+from coons.kernel.analytic import (
+    Circle,
+    ConicalSurface,
+    CylindricalSurface,
+    Ellipse,
+    Line,
+    PlanarSurface,
+    SphericalSurface,
+    ToroidalSurface,
+)
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.intersect import IntersectionCurve, SurfaceIntersection, intersect_surfaces
+from coons.kernel.pcurve import Line2D, Trig2D
+
+TWO_PI = 2.0 * math.pi
+#: Exact forms: points on the surfaces to round-off of unit-sized models.
+EXACT = 1e-12
+#: Fitted NURBS p-curves: within the default linear tolerance.
+LINEAR = 1e-7
+#: Parametric slack of box tests (round-off of parameters of unit-sized models).
+PARAM = 1e-9
+
+Z = np.array([0.0, 0.0, 1.0])
+X = np.array([1.0, 0.0, 0.0])
+Y = np.array([0.0, 1.0, 0.0])
+PLANE_BOX = ((-5.0, 5.0), (-5.0, 5.0))
+AXIAL_BOX = ((0.0, TWO_PI), (-5.0, 5.0))
+
+
+def _box_of(s, box):
+    return s.domain if box is None else box
+
+
+def _on_box_edge(uv, box, periodic) -> bool:
+    for x, (lo, hi), per in zip(uv, box, periodic):
+        if per and hi - lo >= TWO_PI:
+            # A box of a whole period: its lower bound is a seam that branches end on.
+            if abs((x - lo + math.pi) % TWO_PI - math.pi) <= PARAM:
+                return True
+            continue
+        if abs(x - lo) <= PARAM * max(1.0, abs(lo)) or abs(x - hi) <= PARAM * max(1.0, abs(hi)):
+            return True
+    return False
+
+
+def _is_pole(s, P) -> bool:
+    """A sphere's pole or a cone's apex: where p-curves are cut."""
+    if isinstance(s, ConicalSurface):
+        return np.linalg.norm(P - s.apex) <= EXACT
+    if not isinstance(s, SphericalSurface):
+        return False
+    return min(np.linalg.norm(P - (s.center + sg * s.radius * s.axis)) for sg in (1, -1)) <= EXACT
+
+
+def check_result(r: SurfaceIntersection, a, b, box_a=None, box_b=None):
+    """The invariants every answer must satisfy."""
+    box_a, box_b = _box_of(a, box_a), _box_of(b, box_b)
+    assert r.points.shape[1:] == (3,) and r.uv_a.shape == r.uv_b.shape == (len(r.points), 2)
+    if len(r.points):
+        np.testing.assert_allclose(a.evaluate(*r.uv_a.T), r.points, rtol=0, atol=EXACT)
+        np.testing.assert_allclose(b.evaluate(*r.uv_b.T), r.points, rtol=0, atol=EXACT)
+    for c in r.curves:
+        assert c.t0 < c.t1
+        t = np.linspace(c.t0, c.t1, 101)
+        P = c.curve.evaluate(t)
+        np.testing.assert_allclose(a.implicit(P), 0.0, rtol=0, atol=EXACT)
+        np.testing.assert_allclose(b.implicit(P), 0.0, rtol=0, atol=EXACT)
+        worst = 0.0
+        for s, pc, box in ((a, c.pcurve_a, box_a), (b, c.pcurve_b, box_b)):
+            assert isinstance(pc, (Line2D, Trig2D, NurbsCurve))
+            uv = pc.evaluate(t)
+            limit = LINEAR if isinstance(pc, NurbsCurve) else EXACT
+            gap = np.linalg.norm(s.evaluate(*uv.T) - P, axis=-1)
+            assert gap.max() <= limit, gap.max()
+            worst = max(worst, gap.max())
+            for i in (0, 1):
+                lo, hi = box[i]
+                assert uv[:, i].min() >= lo - PARAM * max(1.0, abs(lo))
+                assert uv[:, i].max() <= hi + PARAM * max(1.0, abs(hi))
+        assert c.tol <= (LINEAR if max(isinstance(p, NurbsCurve) for p in (c.pcurve_a, c.pcurve_b)) else EXACT)
+        assert worst <= max(2 * c.tol, EXACT)
+        ends = c.curve.evaluate(np.array([c.t0, c.t1]))
+        if c.closed:
+            np.testing.assert_allclose(ends[0], ends[1], rtol=0, atol=EXACT)
+        else:
+            for k, tk in enumerate((c.t0, c.t1)):
+                on_edge = any(
+                    _on_box_edge(pc.evaluate(tk), box, (s.periodic_u, s.periodic_v))
+                    for s, pc, box in ((a, c.pcurve_a, box_a), (b, c.pcurve_b, box_b))
+                )
+                assert on_edge or _is_pole(a, ends[k]) or _is_pole(b, ends[k]), (k, tk)
+        if not c.tangent:
+            # Normals from the closest parameters (robust at poles, where p-curves may overshoot by round-off).
+            D = c.curve.derivatives(t, 1)
+            na = a.normal(*a.closest_parameters(P).T)
+            nb = b.normal(*b.closest_parameters(P).T)
+            cross = np.cross(na, nb)
+            strong = np.linalg.norm(cross, axis=-1) > 1e-3
+            strong &= ~np.array([_is_pole(a, p) or _is_pole(b, p) for p in P])  # normals undefined there
+            assert np.all(np.einsum("ij,ij->i", cross[strong], D[strong, 1]) > 0.0)
+    return r
+
+
+def run(a, b, box_a=None, box_b=None):
+    return check_result(intersect_surfaces(a, b, box_a, box_b), a, b, box_a, box_b)
+
+
+def plane(origin, normal, x_dir=None):
+    normal = np.asarray(normal, float)
+    if x_dir is None:
+        x_dir = Y if abs(normal @ Y) < 0.9 else X
+    return PlanarSurface(origin, normal, x_dir)
+
+
+# ---------------------------------------------------------------------------- plane–plane
+def test_plane_plane_line_along_normals_cross():
+    a, b = plane([0, 0, 0.5], Z), plane([0.3, 0, 0], X, x_dir=Y)
+    r = run(a, b, PLANE_BOX, PLANE_BOX)
+    (c,) = r.curves
+    assert isinstance(c.curve, Line) and isinstance(c.pcurve_a, Line2D) and isinstance(c.pcurve_b, Line2D)
+    np.testing.assert_allclose(c.curve.direction, np.cross(Z, X), rtol=0, atol=EXACT)
+    np.testing.assert_allclose(c.curve.evaluate(0.0)[[0, 2]], [0.3, 0.5], rtol=0, atol=EXACT)
+    # Clipped where the line leaves the plane boxes: y from -5 to 5.
+    ys = c.curve.evaluate(np.array([c.t0, c.t1]))[:, 1]
+    np.testing.assert_allclose(sorted(ys), [-5.0, 5.0], rtol=0, atol=EXACT)
+
+
+def test_plane_plane_parallel_and_coincident():
+    a = plane([0, 0, 0], Z)
+    r = run(a, plane([0, 0, 1], -Z), PLANE_BOX, PLANE_BOX)
+    assert not r.curves and not len(r.points) and not r.coincident
+    r = run(a, PlanarSurface([1, 2, 0], -Z, [0, 1, 0]), PLANE_BOX, PLANE_BOX)
+    assert r.coincident and not r.curves
+
+
+# ---------------------------------------------------------------------------- plane–cylinder
+CYL = CylindricalSurface([0, 0, -1], Z, X, 1.5)
+
+
+def test_plane_cylinder_perpendicular_circle():
+    p = plane([0, 0, 0.25], Z)
+    (c,) = run(p, CYL, PLANE_BOX, AXIAL_BOX).curves
+    assert isinstance(c.curve, Circle) and c.closed
+    assert c.curve.radius == pytest.approx(1.5, abs=EXACT)
+    np.testing.assert_allclose(c.curve.center, [0, 0, 0.25], rtol=0, atol=EXACT)
+    assert isinstance(c.pcurve_a, Trig2D) and isinstance(c.pcurve_b, Line2D)
+    assert c.t1 - c.t0 == pytest.approx(TWO_PI)
+    assert c.tol <= EXACT
+
+
+def test_plane_cylinder_parallel_two_lines_one_tangent_none():
+    for h, count in ((0.5, 2), (1.5, 1), (1.5 + 1e-3, 0)):
+        p = plane([h, 0, 0], X, x_dir=Y)
+        r = run(p, CYL, PLANE_BOX, AXIAL_BOX)
+        assert len(r.curves) == count
+        for c in r.curves:
+            assert isinstance(c.curve, Line)
+            np.testing.assert_allclose(abs(c.curve.direction @ Z), 1.0, rtol=0, atol=EXACT)
+            P = c.curve.evaluate(0.0)
+            assert P[0] == pytest.approx(h, abs=EXACT)
+            assert abs(P[1]) == pytest.approx(math.sqrt(max(1.5**2 - h**2, 0.0)), abs=1e-7)
+            assert c.tangent == (count == 1)
+            # Along the axis, the lines are cut by the cylinder's v box: v in [-5, 5] -> z in [-6, 4].
+            np.testing.assert_allclose(sorted(c.curve.evaluate(np.array([c.t0, c.t1]))[:, 2]), [-5.0, 4.0],
+                                       rtol=0, atol=EXACT)
+
+
+def test_plane_cylinder_oblique_ellipse():
+    tilt = 0.6
+    n = np.array([math.sin(tilt), 0, math.cos(tilt)])
+    p = plane([0, 0, 0.5], n)
+    (c,) = run(p, CYL, PLANE_BOX, AXIAL_BOX).curves
+    assert isinstance(c.curve, Ellipse) and c.closed
+    assert c.curve.major_radius == pytest.approx(1.5 / math.cos(tilt), abs=EXACT)
+    assert c.curve.minor_radius == pytest.approx(1.5, abs=EXACT)
+    np.testing.assert_allclose(c.curve.center, [0, 0, 0.5], rtol=0, atol=EXACT)
+    assert isinstance(c.pcurve_a, Trig2D)
+
+
+# ---------------------------------------------------------------------------- plane–sphere
+SPH = SphericalSurface([0.1, -0.2, 0.3], Z, X, 1.25)
+
+
+def test_plane_sphere_circle_tangent_point_nothing():
+    h = 0.75
+    p = plane(SPH.center + h * Z, Z)
+    (c,) = run(p, SPH, PLANE_BOX).curves
+    assert isinstance(c.curve, Circle) and c.closed
+    assert c.curve.radius == pytest.approx(1.0, abs=EXACT)
+    np.testing.assert_allclose(c.curve.center, SPH.center + h * Z, rtol=0, atol=EXACT)
+    assert isinstance(c.pcurve_b, Line2D)  # a latitude circle: v constant
+    r = run(plane(SPH.center - 1.25 * Z, -Z), SPH, PLANE_BOX)
+    assert not r.curves and len(r.points) == 1
+    np.testing.assert_allclose(r.points[0], SPH.center - 1.25 * Z, rtol=0, atol=EXACT)
+    assert r.uv_b[0, 1] == pytest.approx(-math.pi / 2, abs=EXACT)
+    r = run(plane(SPH.center + 1.3 * Z, Z), SPH, PLANE_BOX)
+    assert not r.curves and not len(r.points)
+
+
+def test_plane_sphere_oblique_circle_has_fitted_pcurve():
+    n = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+    p = plane(SPH.center + 0.4 * n, n)
+    (c,) = run(p, SPH, PLANE_BOX).curves
+    assert c.curve.radius == pytest.approx(math.sqrt(1.25**2 - 0.4**2), abs=EXACT)
+    np.testing.assert_allclose(abs(c.curve.axis @ n), 1.0, rtol=0, atol=EXACT)
+    assert isinstance(c.pcurve_b, NurbsCurve) and c.closed
+
+
+def test_plane_through_sphere_axis_gives_two_meridians():
+    p = plane(SPH.center, Y, x_dir=X)
+    r = run(p, SPH, PLANE_BOX)
+    assert len(r.curves) == 2
+    for c in r.curves:
+        assert not c.closed and c.t1 - c.t0 == pytest.approx(math.pi)
+        assert isinstance(c.pcurve_b, Line2D) and c.pcurve_b.direction[0] == 0.0  # u constant
+        ends = c.curve.evaluate(np.array([c.t0, c.t1]))
+        np.testing.assert_allclose(sorted(ends[:, 2] - SPH.center[2]), [-1.25, 1.25], rtol=0, atol=EXACT)
+
+
+def test_tilted_circle_through_a_pole_is_cut_there():
+    n = np.array([0.3, 0.4, 0.5]) / np.linalg.norm([0.3, 0.4, 0.5])
+    pole = SPH.center + 1.25 * Z
+    r = run(plane(pole, n), SPH, PLANE_BOX)
+    ends = np.concatenate([c.curve.evaluate(np.array([c.t0, c.t1])) for c in r.curves])
+    assert np.sum(np.linalg.norm(ends - pole, axis=-1) <= EXACT) == 2
+    assert sum(c.t1 - c.t0 for c in r.curves) == pytest.approx(TWO_PI, abs=EXACT)
+    assert all(isinstance(c.pcurve_b, NurbsCurve) for c in r.curves)
+
+
+# ---------------------------------------------------------------------------- plane–cone
+CONE = ConicalSurface([0, 0, 0], Z, X, 1.0, 0.4)
+
+
+def test_plane_cone_perpendicular_circle():
+    (c,) = run(plane([0, 0, 1.0], Z), CONE, PLANE_BOX, AXIAL_BOX).curves
+    assert c.curve.radius == pytest.approx(1.0 + math.tan(0.4), abs=EXACT)
+
+
+def test_plane_cone_through_apex():
+    A = CONE.apex
+    # Containing the axis: two rulings at ±semi-angle from the axis, each cut at the apex
+    # (where the cone's Su × Sv flips, and with it the direction n_a × n_b).
+    r = run(plane(A, X, x_dir=Y), CONE, PLANE_BOX, AXIAL_BOX)
+    assert len(r.curves) == 4
+    ends = np.concatenate([c.curve.evaluate(np.array([c.t0, c.t1])) for c in r.curves])
+    assert np.sum(np.linalg.norm(ends - A, axis=-1) <= EXACT) == 4
+    for c in r.curves:
+        assert isinstance(c.curve, Line)
+        assert abs(c.curve.direction @ Z) == pytest.approx(math.cos(0.4), abs=EXACT)
+        assert isinstance(c.pcurve_b, Line2D) and c.pcurve_b.direction[0] == 0.0
+    # Steeper than the generators: only the apex.
+    r = run(plane(A, [1, 0, 0.5], x_dir=Y), CONE, PLANE_BOX, AXIAL_BOX)
+    assert not r.curves and len(r.points) == 1
+    np.testing.assert_allclose(r.points[0], A, rtol=0, atol=EXACT)
+    # Tangent to the cone along a ruling (cut at the apex like the others).
+    n = np.array([math.cos(0.4), 0, -math.sin(0.4)])
+    r = run(plane(A, n, x_dir=Y), CONE, PLANE_BOX, AXIAL_BOX)
+    assert len(r.curves) == 2
+    for c in r.curves:
+        assert c.tangent and isinstance(c.curve, Line)
+        np.testing.assert_allclose(abs(c.curve.direction @ n), 0.0, rtol=0, atol=EXACT)
+        assert abs(c.curve.direction @ Z) == pytest.approx(math.cos(0.4), abs=EXACT)
+
+
+def test_plane_cone_ellipse_semi_axes():
+    # Dandelin: the section of a cone (half-angle α) by a plane at angle β to the axis
+    # (β > α), at distance d of the apex along the axis, has e = cos β / cos α.
+    alpha, beta = 0.4, 1.2
+    n = np.array([math.cos(beta), 0, -math.sin(beta)])  # plane at angle β to the axis
+    p = plane([0, 0, 1.0], n)
+    (c,) = run(p, CONE, PLANE_BOX, AXIAL_BOX).curves
+    assert isinstance(c.curve, Ellipse) and c.closed
+    e = math.sqrt(1 - (c.curve.minor_radius / c.curve.major_radius) ** 2)
+    assert e == pytest.approx(math.cos(beta) / math.cos(alpha), abs=1e-12)
+    assert isinstance(c.pcurve_a, Trig2D) and isinstance(c.pcurve_b, NurbsCurve)
+
+
+@pytest.mark.parametrize("semi_angle", [0.4, -0.4])
+def test_plane_cone_parabola_and_hyperbola_are_exact_conic_arcs(semi_angle):
+    cone = ConicalSurface([0, 0, 0], Z, X, 1.0, semi_angle)
+    box = ((0.0, TWO_PI), (-3.0, 3.0))
+    # Parallel to a generator, off the apex: a parabola (rational quadratic weight exactly 1).
+    n = np.array([math.cos(0.4), 0, -math.sin(0.4) * np.sign(semi_angle)])
+    r = run(plane([0, 0, 1.0], n), cone, PLANE_BOX, box)
+    assert r.curves
+    for c in r.curves:
+        assert isinstance(c.curve, NurbsCurve) and c.curve.degree == 2 and len(c.curve.control_points) == 3
+        assert c.curve.weights[1] == pytest.approx(1.0, abs=1e-9)
+        assert isinstance(c.pcurve_a, NurbsCurve) and c.pcurve_a.weights[1] == c.curve.weights[1]  # exact on the plane
+    # Steeper than the generators: a hyperbola (weight > 1), on both nappes where the box reaches.
+    r = run(plane([0.5, 0, 0], [1, 0.2, 0]), cone, PLANE_BOX, box)
+    assert r.curves
+    for c in r.curves:
+        assert c.curve.weights[1] > 1.0
+    # The cut ends are on the box edges (checked by run), and the cut pieces cover the whole
+    # in-box part: the plane's section reaches v = ±3 on the cone.
+    vs = np.concatenate([c.pcurve_b.evaluate(np.array([c.t0, c.t1]))[:, 1] for c in r.curves])
+    assert np.sum(np.abs(np.abs(vs) - 3.0) <= 1e-9) >= 2
+
+
+def test_unbounded_cone_section_needs_a_finite_box():
+    n = np.array([math.cos(0.4), 0, -math.sin(0.4)])
+    with pytest.raises(InvalidInputError, match=r"the cone's box v \(-inf, inf\) must be finite"):
+        intersect_surfaces(plane([0, 0, 1.0], n), CONE, PLANE_BOX, None)
+
+
+# ---------------------------------------------------------------------------- plane–torus
+TOR = ToroidalSurface([0, 0, 0], Z, X, 2.0, 0.5)
+
+
+def test_plane_torus_perpendicular():
+    r = run(plane([0, 0, 0.3], Z), TOR, PLANE_BOX)
+    radii = sorted(c.curve.radius for c in r.curves)
+    np.testing.assert_allclose(radii, [2 - 0.4, 2 + 0.4], rtol=0, atol=EXACT)
+    (c,) = run(plane([0, 0, 0.5], Z), TOR, PLANE_BOX).curves
+    assert c.tangent and c.curve.radius == pytest.approx(2.0, abs=EXACT)
+    assert not run(plane([0, 0, 0.6], Z), TOR, PLANE_BOX).curves
+
+
+def test_plane_torus_containing_axis_two_meridian_circles():
+    r = run(plane([0, 0, 0], Y, x_dir=X), TOR, PLANE_BOX)
+    assert len(r.curves) == 2
+    centres = sorted(c.curve.center[0] for c in r.curves)
+    np.testing.assert_allclose(centres, [-2.0, 2.0], rtol=0, atol=EXACT)
+    for c in r.curves:
+        assert c.closed and c.curve.radius == pytest.approx(0.5, abs=EXACT)
+        assert isinstance(c.pcurve_b, Line2D) and c.pcurve_b.direction[0] == 0.0
+
+
+# ---------------------------------------------------------------------------- quadric pairs
+def test_sphere_sphere_circle_tangent_coincident_none():
+    s1 = SphericalSurface([0, 0, 0], Z, X, 1.0)
+    d, R2 = 1.2, 0.8
+    w = np.array([0.6, 0.0, 0.8])
+    s2 = SphericalSurface(d * w, Y, X, R2)
+    (c,) = run(s1, s2).curves
+    x = (d * d + 1 - R2 * R2) / (2 * d)
+    assert c.curve.radius == pytest.approx(math.sqrt(1 - x * x), abs=EXACT)
+    np.testing.assert_allclose(c.curve.center, x * w, rtol=0, atol=EXACT)
+    np.testing.assert_allclose(abs(c.curve.axis @ w), 1.0, rtol=0, atol=EXACT)
+    for s_other in (SphericalSurface(1.8 * w, Y, X, 0.8), SphericalSurface(0.2 * w, Y, X, 0.8)):
+        r = run(s1, s_other)
+        assert not r.curves and len(r.points) == 1
+        np.testing.assert_allclose(r.points[0], w, rtol=0, atol=EXACT)
+    assert run(s1, SphericalSurface([0, 0, 0], X, Y, 1.0)).coincident
+    assert not run(s1, SphericalSurface(3 * w, Y, X, 1.0)).curves
+    assert not run(s1, SphericalSurface([0, 0, 0], X, Y, 0.5)).curves
+
+
+def test_coaxial_pairs_circles_at_meridian_crossings():
+    sph = SphericalSurface([0, 0, 0.3], Z, X, 1.5)
+    cyl = CylindricalSurface([0, 0, -1], -Z, X, 1.0)
+    r = run(sph, cyl, None, AXIAL_BOX)
+    heights = sorted(c.curve.center[2] for c in r.curves)
+    h = math.sqrt(1.5**2 - 1.0)
+    np.testing.assert_allclose(heights, [0.3 - h, 0.3 + h], rtol=0, atol=EXACT)
+    assert all(isinstance(c.pcurve_a, Line2D) and isinstance(c.pcurve_b, Line2D) for c in r.curves)
+    # Cylinder and cone: one circle where R = 1 + z tan a.
+    cyl2 = CylindricalSurface([0, 0, 0], Z, X, 1.3)
+    (c,) = run(cyl2, CONE, AXIAL_BOX, AXIAL_BOX).curves
+    assert c.curve.center[2] == pytest.approx(0.3 / math.tan(0.4), abs=EXACT)
+    # Torus and coaxial cylinder through its tube: two circles, each cut at both seams (u = 0
+    # of the torus at x_dir X, of the cylinder at x_dir Y) since both boxes are one period wide.
+    r = run(TOR, CylindricalSurface([0, 0, 0], Z, Y, 2.3), None, AXIAL_BOX)
+    assert len(r.curves) == 4
+    np.testing.assert_allclose(np.unique(np.round([c.curve.center[2] for c in r.curves], 12)), [-0.4, 0.4])
+    assert sum(c.t1 - c.t0 for c in r.curves) == pytest.approx(2 * TWO_PI, abs=EXACT)
+    # Sphere centred on a cone's axis.
+    r = run(SphericalSurface(CONE.apex, X, Y, 2.0), CONE, None, AXIAL_BOX)
+    assert len(r.curves) == 2  # one circle on each nappe
+    np.testing.assert_allclose([c.curve.radius for c in r.curves], [2 * math.sin(0.4)] * 2, rtol=0, atol=EXACT)
+    # Same cylinder, other parametrisation: coincident.
+    assert run(CYL, CylindricalSurface([0, 0, 7], -Z, Y, 1.5), AXIAL_BOX, AXIAL_BOX).coincident
+
+
+def test_parallel_cylinders():
+    a = CylindricalSurface([0, 0, 0], Z, X, 1.0)
+    r = run(a, CylindricalSurface([1.5, 0, 2], -Z, Y, 0.8), AXIAL_BOX, AXIAL_BOX)
+    assert len(r.curves) == 2
+    x = (1.5**2 + 1 - 0.64) / 3.0
+    for c in r.curves:
+        P = c.curve.evaluate(0.0)
+        np.testing.assert_allclose([P[0], abs(P[1])], [x, math.sqrt(1 - x * x)], rtol=0, atol=EXACT)
+    (c,) = run(a, CylindricalSurface([1.8, 0, 0], Z, Y, 0.8), AXIAL_BOX, AXIAL_BOX).curves
+    assert c.tangent
+    np.testing.assert_allclose(c.curve.evaluate(0.0)[:2], [1.0, 0.0], rtol=0, atol=EXACT)
+    (c,) = run(a, CylindricalSurface([0.2, 0, 0], Z, Y, 0.8), AXIAL_BOX, AXIAL_BOX).curves
+    assert c.tangent  # inside, touching
+    assert not run(a, CylindricalSurface([3, 0, 0], Z, Y, 0.8), AXIAL_BOX, AXIAL_BOX).curves
+
+
+def test_crossing_cylinders_need_general_method(monkeypatch):
+    monkeypatch.setitem(sys.modules, "coons.kernel.ssi", None)
+    with pytest.raises(InvalidGeometryError, match="CylindricalSurface and CylindricalSurface"):
+        intersect_surfaces(CYL, CylindricalSurface([0, 0, 0], X, Y, 1.0), AXIAL_BOX, AXIAL_BOX)
+
+
+# ---------------------------------------------------------------------------- boxes
+def test_box_clipping_and_periodic_shift():
+    p = plane([0, 0, 0.25], Z)
+    # Cylinder face spanning u in [π, 2π]: the arc with u in [π, 2π], ends on the box edges.
+    (c,) = run(p, CYL, PLANE_BOX, ((math.pi, TWO_PI), (-5, 5))).curves
+    assert not c.closed
+    us = c.pcurve_b.evaluate(np.array([c.t0, c.t1]))[:, 0]
+    np.testing.assert_allclose(sorted(us), [math.pi, TWO_PI], rtol=0, atol=EXACT)
+    assert c.t1 - c.t0 == pytest.approx(math.pi, abs=EXACT)
+    # A box straddling the seam: u in [-1, 1] -> one arc with u from -1 to 1 (not two pieces).
+    (c,) = run(p, CYL, PLANE_BOX, ((-1.0, 1.0), (-5, 5))).curves
+    us = c.pcurve_b.evaluate(np.linspace(c.t0, c.t1, 9))[:, 0]
+    assert us.min() == pytest.approx(-1.0, abs=EXACT) and us.max() == pytest.approx(1.0, abs=EXACT)
+    # The same, shifted by two turns.
+    (c,) = run(p, CYL, PLANE_BOX, ((4 * math.pi - 1.0, 4 * math.pi + 1.0), (-5, 5))).curves
+    assert c.pcurve_b.evaluate(0.5 * (c.t0 + c.t1))[0] == pytest.approx(4 * math.pi, abs=1e-9)
+    # The plane's frame: u along Y, v along Z × Y = -X.  A plane box v >= -1 (x <= 1) cuts the
+    # circle of radius 1.5 once: one arc whose ends have x = 1.
+    (c,) = run(p, CYL, ((-5.0, 5.0), (-1.0, 5.0)), AXIAL_BOX).curves
+    ends = c.curve.evaluate(np.array([c.t0, c.t1]))
+    np.testing.assert_allclose(ends[:, 0], [1.0, 1.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(sorted(ends[:, 1]), [-math.sqrt(1.5**2 - 1), math.sqrt(1.5**2 - 1)], rtol=0, atol=EXACT)
+    # A cylinder box narrower than a turn: one arc between its u bounds.
+    (c,) = run(p, CYL, PLANE_BOX, ((0.5, 2.0), (-5, 5))).curves
+    us = c.pcurve_b.evaluate(np.array([c.t0, c.t1]))[:, 0]
+    np.testing.assert_allclose(sorted(us), [0.5, 2.0], rtol=0, atol=EXACT)
+    # A plane box |x| <= 0.5 cuts the circle twice: two arcs.
+    r = run(p, CYL, ((-5, 5), (-0.5, 0.5)), AXIAL_BOX)
+    assert len(r.curves) == 2 and not any(c.closed for c in r.curves)
+
+
+def test_contact_points_outside_the_box_are_not_reported():
+    r = run(plane(SPH.center - 1.25 * Z, -Z), SPH, PLANE_BOX, ((0, TWO_PI), (0.0, math.pi / 2)))
+    assert not len(r.points)
+
+
+# ---------------------------------------------------------------------------- errors
+def test_errors():
+    p = plane([0, 0, 0], Z)
+    with pytest.raises(InvalidInputError, match=r"box_a: expected \(\(u0, u1\), \(v0, v1\)\)"):
+        intersect_surfaces(p, SPH, box_a=(0, 1))
+    with pytest.raises(InvalidInputError, match=r"box_b: need u0 < u1 and v0 < v1, got \(\(1.0, 0.0\)"):
+        intersect_surfaces(p, SPH, PLANE_BOX, ((1.0, 0.0), (0, 1)))
+    with pytest.raises(InvalidInputError, match="is not bounded by the boxes"):
+        intersect_surfaces(plane([0.5, 0, 0], X), CYL)
+    with pytest.raises(InvalidInputError, match="need finite t0 < t1, got t0=1.0, t1=1.0"):
+        IntersectionCurve(Line([0, 0, 0], X), 1.0, 1.0, None, None, False, 0.0)
+    with pytest.raises(InvalidInputError, match="need equal lengths, got 1, 0, 0"):
+        SurfaceIntersection((), [[0, 0, 0]], np.zeros((0, 2)), np.zeros((0, 2)))
+    with pytest.raises(InvalidInputError, match=r"uv_a: expected shape \(k, 2\), got \(1, 3\)"):
+        SurfaceIntersection((), [[0, 0, 0]], [[0, 0, 0]], [[0, 0]])
+
+
+def test_nurbs_surfaces_go_to_the_general_method(monkeypatch):
+    monkeypatch.setitem(sys.modules, "coons.kernel.ssi", None)
+    patch = SPH.to_nurbs()
+    with pytest.raises(InvalidGeometryError, match="no intersection method for NurbsSurface and PlanarSurface"):
+        intersect_surfaces(patch, plane([0, 0, 0], Z))
+
+
+# ---------------------------------------------------------------------------- rigid motions
+def _rotation(q):
+    q = np.asarray(q, float) / np.linalg.norm(q)
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+PAIRS = [
+    (plane([0, 0, 0.25], [0.3, 0, 1]), CYL, PLANE_BOX, AXIAL_BOX),
+    (plane([0, 0, 0.2], Z), TOR, PLANE_BOX, None),
+    (SphericalSurface([0, 0, 0], Z, X, 1.0), SphericalSurface([0.7, 0.3, 0.2], Y, X, 0.9), None, None),
+    (plane([0.5, 0, 0], X, x_dir=Y), CYL, PLANE_BOX, AXIAL_BOX),
+    (plane([0, 0, 1.0], [0.3, 0.1, -1.0]), CONE, PLANE_BOX, AXIAL_BOX),
+    (plane([0, 0, 0.5], Z), plane([0, 0, 0], [1, 1, 0.2]), PLANE_BOX, PLANE_BOX),
+    (plane([0.5, 0, 0], [1, 0.2, 0]), CONE, PLANE_BOX, ((0.0, TWO_PI), (-3.0, 3.0))),
+    (CylindricalSurface([0, 0, 0], Z, X, 1.0), CylindricalSurface([1.5, 0, 2], -Z, Y, 0.8), AXIAL_BOX, AXIAL_BOX),
+]
+
+
+@settings(max_examples=16)
+@given(
+    pair=st.sampled_from(range(len(PAIRS))),
+    q=st.tuples(*[st.floats(-1, 1) for _ in range(4)]).filter(lambda q: np.linalg.norm(q) > 0.2),
+    shift=st.tuples(*[st.floats(-3, 3) for _ in range(3)]),
+)
+def test_rigid_motion_moves_the_answer(pair, q, shift):
+    a, b, box_a, box_b = PAIRS[pair]
+    T = np.eye(4)
+    T[:3, :3] = _rotation(q)
+    T[:3, 3] = shift
+    r0 = intersect_surfaces(a, b, box_a, box_b)
+    a1, b1 = a.transformed(T), b.transformed(T)
+    r1 = run(a1, b1, box_a, box_b)
+    assert len(r1.curves) == len(r0.curves) and len(r1.points) == len(r0.points)
+    moved = (T[:3, :3] @ np.concatenate([c.curve.evaluate(np.linspace(c.t0, c.t1, 33)) for c in r0.curves]).T).T
+    moved = moved + T[:3, 3] if len(moved) else moved
+    if len(moved):
+        # Every moved point is on one of the new branches: its closest parameter on the new
+        # curve lies in the branch (modulo 2π for conics) and the distance is round-off.
+        def on_new(P):
+            for c in r1.curves:
+                t = float(c.curve.closest_parameters(P))
+                if not isinstance(c.curve, Line):
+                    t = c.t0 + (t - c.t0) % TWO_PI
+                if c.t0 - 1e-9 <= t <= c.t1 + 1e-9 and np.linalg.norm(c.curve.evaluate(t) - P) <= 1e-9:
+                    return True
+            return False
+
+        assert all(on_new(P) for P in moved)
+        assert sum(_length(c) for c in r1.curves) == pytest.approx(sum(_length(c) for c in r0.curves), rel=1e-9)
+
+
+def _length(c) -> float:
+    t = np.linspace(c.t0, c.t1, 4001)
+    return float(np.sum(np.linalg.norm(np.diff(c.curve.evaluate(t), axis=0), axis=1)))
+
+
+# ---------------------------------------------------------------------------- OCCT
+def _occt_surface(s):
+    origin = s.origin if hasattr(s, "origin") else s.center
+    ax = gp_Ax3(gp_Pnt(*origin), gp_Dir(*s.axis), gp_Dir(*s.x_dir))
+    if isinstance(s, PlanarSurface):
+        return Geom_Plane(ax)
+    if isinstance(s, CylindricalSurface):
+        return Geom_CylindricalSurface(ax, s.radius)
+    if isinstance(s, ConicalSurface):
+        return Geom_ConicalSurface(ax, s.semi_angle, s.radius)
+    if isinstance(s, SphericalSurface):
+        return Geom_SphericalSurface(ax, s.radius)
+    return Geom_ToroidalSurface(ax, s.major_radius, s.minor_radius)
+
+
+OCCT_PAIRS = [
+    (SphericalSurface([0, 0, 0], Z, X, 1.0), plane([0, 0, 0.5], [0.2, 0, 1])),
+    (SphericalSurface([0, 0, 0], Z, X, 1.0), SphericalSurface([0.7, 0.3, 0.2], Y, X, 0.9)),
+    (plane([0, 0, 0.5], [math.sin(0.6), 0, math.cos(0.6)]), CYL),
+    (SphericalSurface([0, 0, 0.3], Z, X, 1.5), CylindricalSurface([0, 0, -1], -Z, X, 1.0)),
+    (plane([0, 0, 0.3], Z), TOR),
+    (plane([0, 0, 1.0], [math.cos(1.2), 0, -math.sin(1.2)]), CONE),
+]
+
+
+@pytest.mark.occt
+@pytest.mark.parametrize("k", range(len(OCCT_PAIRS)))
+def test_agrees_with_occt_intss(k):
+    a, b = OCCT_PAIRS[k]
+    box = lambda s: AXIAL_BOX if isinstance(s, (CylindricalSurface, ConicalSurface)) else (  # noqa: E731
+        PLANE_BOX if isinstance(s, PlanarSurface) else None)
+    r = run(a, b, box(a), box(b))
+    occt = GeomAPI_IntSS(_occt_surface(a), _occt_surface(b), LINEAR)
+    assert occt.IsDone()
+    lines = [occt.Line(i) for i in range(1, occt.NbLines() + 1)]
+    # Both cut closed curves at seams (their own): the branches cover the same total length,
+    # and the number of geometric curves (ours share a curve object across seams) agrees
+    # where OCCT returns whole curves.
+    occt_length = sum(GCPnts_AbscissaPoint.Length_s(GeomAdaptor_Curve(ln), 1e-10) for ln in lines)
+    assert sum(_length(c) for c in r.curves) == pytest.approx(occt_length, rel=1e-6)
+    if all(ln.LastParameter() - ln.FirstParameter() == pytest.approx(TWO_PI) for ln in lines):
+        assert len({id(c.curve) for c in r.curves}) == len(lines)
+    # Every point of ours is on an OCCT line, every OCCT point on one of our branches.
+    for c in r.curves:
+        for P in c.curve.evaluate(np.linspace(c.t0, c.t1, 9)):
+            gaps = []
+            for ln in lines:
+                proj = GeomAPI_ProjectPointOnCurve(gp_Pnt(*P), ln)
+                if proj.NbPoints():
+                    gaps.append(proj.LowerDistance())
+            assert min(gaps) <= LINEAR
+    for ln in lines:
+        for s in np.linspace(ln.FirstParameter(), ln.LastParameter(), 9):
+            p = ln.Value(float(s))
+            P = np.array([p.X(), p.Y(), p.Z()])
+            gaps = [np.linalg.norm(c.curve.evaluate(c.curve.closest_parameters(P)) - P) for c in r.curves]
+            assert min(gaps) <= LINEAR
+
+
+def test_crossing_cylinders_go_to_the_general_method():
+    a = CylindricalSurface([0, 0, 0], Z, X, 1.0)
+    b = CylindricalSurface([0, 0, 0], X, Y, 0.7)
+    r = intersect_surfaces(a, b, ((0, TWO_PI), (-2, 2)), ((0, TWO_PI), (-2, 2)))
+    assert len(r.curves) >= 2  # two loops around b, cut at the seams
+    for c in r.curves:
+        P = c.curve.evaluate(np.linspace(c.t0, c.t1, 33))
+        np.testing.assert_allclose(a.implicit(P), 0.0, rtol=0, atol=LINEAR)
+        np.testing.assert_allclose(b.implicit(P), 0.0, rtol=0, atol=LINEAR)
+
+
+def _unit_vector(xyz):
+    v = np.asarray(xyz, float)
+    return v / np.linalg.norm(v)
+
+
+@settings(max_examples=40)
+@given(
+    kind=st.sampled_from(["cylinder", "sphere", "cone"]),
+    normal=st.tuples(*[st.floats(-1, 1) for _ in range(3)]).filter(lambda v: np.linalg.norm(v) > 0.3),
+    offset=st.floats(-1.2, 1.2),
+    u_box=st.tuples(st.floats(-7, 7), st.floats(0.3, 7.0)),
+    v_box=st.tuples(st.floats(-1.5, 1.0), st.floats(0.2, 3.0)),
+    plane_box=st.floats(0.5, 3.0),
+)
+def test_random_plane_sections_satisfy_the_invariants(kind, normal, offset, u_box, v_box, plane_box):
+    n = _unit_vector(normal)
+    p = plane(offset * n, n)
+    u0 = u_box[0]
+    box_b = ((u0, u0 + u_box[1]), (v_box[0], v_box[0] + v_box[1]))
+    if kind == "cylinder":
+        s = CylindricalSurface([0, 0, 0], Z, X, 1.0)
+    elif kind == "cone":
+        s = ConicalSurface([0, 0, 0], Z, X, 0.5, 0.5)
+    else:
+        s = SphericalSurface([0, 0, 0], Z, X, 1.0)
+        box_b = ((u0, u0 + u_box[1]), (max(-math.pi / 2, v_box[0]), min(math.pi / 2, v_box[0] + v_box[1])))
+    box_a = ((-plane_box, plane_box), (-plane_box, plane_box))
+    r = run(p, s, box_a, box_b)
+    # Swapping the operands gives the same branches run the other way (n_b × n_a = -(n_a × n_b)).
+    q = run(s, p, box_b, box_a)
+    assert len(q.curves) == len(r.curves)
+    assert sum(_length(c) for c in q.curves) == pytest.approx(sum(_length(c) for c in r.curves), rel=1e-9, abs=1e-12)

@@ -1,0 +1,295 @@
+"""Tests of coons.kernel.onsurface: p-curves of curves lying on surfaces."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from coons.errors import ConvergenceError, InvalidGeometryError, InvalidInputError
+from coons.kernel.analytic import (
+    Circle,
+    ConicalSurface,
+    CylindricalSurface,
+    Ellipse,
+    Line,
+    PlanarSurface,
+    SphericalSurface,
+    ToroidalSurface,
+)
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.fitting import interpolate_curve, interpolate_surface
+from coons.kernel.onsurface import pcurve_on
+from coons.kernel.pcurve import Line2D, Trig2D
+from coons.tolerance import Tolerance
+
+PI = math.pi
+TOL = Tolerance()
+#: Exact forms reproduce the curve to round-off of coordinates of size ~10.
+EXACT = 1e-13
+
+
+def _on(surface, pcurve, t):
+    uv = pcurve.evaluate(t)
+    return surface.evaluate(uv[..., 0], uv[..., 1])
+
+
+def _check(surface, curve, t0, t1, pcurve, dev, bound):
+    """The p-curve reproduces the curve within ``bound`` on dense samples, and ``dev`` says so."""
+    t = np.linspace(t0, t1, 401)
+    err = np.linalg.norm(_on(surface, pcurve, t) - curve.evaluate(t), axis=-1)
+    assert err.max() <= bound
+    assert 0.0 <= dev <= bound
+
+
+# ---------------------------------------------------------------------------- exact forms
+PLANE = PlanarSurface([1, 2, 3], [1, 1, 1], [1, 0, 0])
+
+
+@pytest.mark.parametrize(
+    "curve, t0, t1, kind",
+    [
+        (Line([1, 2, 3], [1, -1, 0]), -2.0, 5.0, Line2D),
+        (Line([3, 2, 1], [0, 1, -1]), 10.0, 11.0, Line2D),
+        (Circle([1, 2, 3], [1, 1, 1], [0, 1, -1], 2.0), 0.0, 2 * PI, Trig2D),
+        (Circle([2, 2, 2], [-1, -1, -1], [0, 1, -1], 0.5), 1.0, 3.0, Trig2D),
+        (Ellipse([1, 2, 3], [-1, -1, -1], [0, 1, -1], 2.0, 1.0), 1.0, 4.0, Trig2D),
+    ],
+)
+def test_plane_lines_and_conics_are_exact(curve, t0, t1, kind):
+    pc, dev = pcurve_on(PLANE, curve, t0, t1)
+    assert isinstance(pc, kind)
+    _check(PLANE, curve, t0, t1, pc, dev, EXACT)
+
+
+def test_plane_circle_pcurve_is_a_circle_of_the_same_radius():
+    # The plane's parameters are an isometry: the Trig2D axes are orthogonal, of length R.
+    pc, _ = pcurve_on(PLANE, Circle([1, 2, 3], [1, 1, 1], [0, 1, -1], 2.0), 0.0, 2 * PI)
+    np.testing.assert_allclose(np.linalg.norm(pc.a), 2.0, rtol=0, atol=EXACT)
+    np.testing.assert_allclose(np.linalg.norm(pc.b), 2.0, rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.a @ pc.b, 0.0, rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.center, [0.0, 0.0], rtol=0, atol=EXACT)
+
+
+CYL = CylindricalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 2.0)
+
+
+def test_cylinder_ruling_is_a_v_line():
+    pc, dev = pcurve_on(CYL, Line([0, 2, 0], [0, 0, -1]), -1.0, 3.0)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.direction, [0.0, -1.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.origin, [PI / 2, 0.0], rtol=0, atol=EXACT)
+    _check(CYL, Line([0, 2, 0], [0, 0, -1]), -1.0, 3.0, pc, dev, EXACT)
+
+
+def test_cylinder_coaxial_circle_reversed_sense():
+    # The circle's axis is -Z: u decreases with t.
+    circle = Circle([0, 0, 1], [0, 0, -1], [0, 1, 0], 2.0)
+    pc, dev = pcurve_on(CYL, circle, 0.0, 2 * PI)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.direction, [-1.0, 0.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.origin[1], 1.0, rtol=0, atol=EXACT)
+    _check(CYL, circle, 0.0, 2 * PI, pc, dev, EXACT)
+
+
+def test_cone_ruling_and_parallel():
+    cone = ConicalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0, 0.3)
+    v = 2.0
+    circle = Circle([0, 0, v * math.cos(0.3)], [0, 0, 1], [1, 0, 0], 1 + v * math.sin(0.3))
+    pc, dev = pcurve_on(cone, circle, 0.0, 2 * PI)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.direction, [1.0, 0.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.origin, [0.0, v], rtol=0, atol=EXACT)
+    _check(cone, circle, 0.0, 2 * PI, pc, dev, EXACT)
+    p0, p1 = cone.evaluate(0.7, -1.0), cone.evaluate(0.7, 2.0)
+    ruling = Line(p0, p1 - p0)
+    pc, dev = pcurve_on(cone, ruling, 0.0, 3.0)
+    assert isinstance(pc, Line2D)
+    # The cone's v is arc length along the ruling, as is the line's t.
+    np.testing.assert_allclose(pc.direction, [0.0, 1.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.origin, [0.7, -1.0], rtol=0, atol=EXACT)
+    _check(cone, ruling, 0.0, 3.0, pc, dev, EXACT)
+
+
+SPHERE = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 2.0)
+
+
+def test_sphere_parallel():
+    circle = Circle([0, 0, 1], [0, 0, 1], [1, 0, 0], math.sqrt(3))
+    pc, dev = pcurve_on(SPHERE, circle, 0.0, 2 * PI)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.origin, [0.0, PI / 6], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.direction, [1.0, 0.0], rtol=0, atol=EXACT)
+    _check(SPHERE, circle, 0.0, 2 * PI, pc, dev, EXACT)
+
+
+@pytest.mark.parametrize("t0, t1", [(0.0, PI / 2), (-PI / 2, PI / 2), (-PI / 2, 0.0)])
+def test_sphere_meridian_to_the_poles_is_a_v_line(t0, t1):
+    # At the pole u is undetermined: it must follow the meridian (u = 0), not the projection's choice.
+    meridian = Circle([0, 0, 0], [0, -1, 0], [1, 0, 0], 2.0)
+    pc, dev = pcurve_on(SPHERE, meridian, t0, t1)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.origin, [0.0, 0.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.direction, [0.0, 1.0], rtol=0, atol=EXACT)
+    _check(SPHERE, meridian, t0, t1, pc, dev, EXACT)
+
+
+def test_sphere_meridian_on_the_far_side_has_u_pi():
+    meridian = Circle([0, 0, 0], [0, 1, 0], [-1, 0, 0], 2.0)  # x = -2 cos t, z = 2 sin t
+    pc, dev = pcurve_on(SPHERE, meridian, 0.0, PI / 2)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.origin, [PI, 0.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.direction, [0.0, 1.0], rtol=0, atol=EXACT)
+
+
+def test_torus_parallel_and_meridian():
+    torus = ToroidalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 3.0, 1.0)
+    top = Circle([0, 0, 1], [0, 0, 1], [1, 0, 0], 3.0)
+    pc, dev = pcurve_on(torus, top, 0.0, 2 * PI)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.origin, [0.0, PI / 2], rtol=0, atol=EXACT)
+    _check(torus, top, 0.0, 2 * PI, pc, dev, EXACT)
+    meridian = Circle([3, 0, 0], [0, -1, 0], [1, 0, 0], 1.0)
+    pc, dev = pcurve_on(torus, meridian, 0.0, 2 * PI)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.direction, [0.0, 1.0], rtol=0, atol=EXACT)
+    _check(torus, meridian, 0.0, 2 * PI, pc, dev, EXACT)
+
+
+# ---------------------------------------------------------------------------- periodic parameters
+def test_seam_crossing_is_unwrapped():
+    # A ruling-free arc crossing u = 0: u must run continuously through 0 (not jump by 2π).
+    circle = Circle([0, 0, 0.5], [0, 0, 1], [1, 0, 0], 2.0)
+    pc, dev = pcurve_on(CYL, circle, -1.0, 1.0)
+    u = pc.evaluate(np.linspace(-1.0, 1.0, 50))[:, 0]
+    assert np.all(np.diff(u) > 0)
+    assert u[-1] - u[0] == pytest.approx(2.0, abs=EXACT)
+
+
+@pytest.mark.parametrize("box_u, expected_start", [((PI, 2 * PI), PI), ((3 * PI, 4 * PI), 3 * PI), ((-PI, 0), -PI)])
+def test_box_shifts_by_whole_periods(box_u, expected_start):
+    circle = Circle([0, 0, 0.5], [0, 0, 1], [1, 0, 0], 2.0)
+    pc, _ = pcurve_on(CYL, circle, PI, 2 * PI, box=(box_u, (-1.0, 1.0)))
+    np.testing.assert_allclose(pc.evaluate([PI, 2 * PI])[:, 0], [expected_start, expected_start + PI], atol=EXACT)
+
+
+def test_box_shift_of_a_fitted_pcurve():
+    n = np.array([1.0, 1.0, 1.0]) / math.sqrt(3)
+    circle = Circle(n, n, [1, -1, 0], math.sqrt(3))  # an oblique small circle: no exact form
+    pc0, _ = pcurve_on(SPHERE, circle, 0.0, 2 * PI)
+    pc1, _ = pcurve_on(SPHERE, circle, 0.0, 2 * PI, box=((2 * PI, 4 * PI), (-PI / 2, PI / 2)))
+    t = np.linspace(0.0, 2 * PI, 33)
+    d = pc1.evaluate(t) - pc0.evaluate(t)
+    # The same p-curve up to a whole number of periods in u.
+    k = np.round(d[:, 0] / (2 * PI))
+    np.testing.assert_allclose(d[:, 0], k * 2 * PI, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(d[:, 1], 0.0, rtol=0, atol=1e-9)
+    u = pc1.evaluate(t)[:, 0]
+    assert 2 * PI <= 0.5 * (u.min() + u.max()) <= 4 * PI
+
+
+# ---------------------------------------------------------------------------- fitted p-curves
+@settings(max_examples=12)
+@given(
+    tilt=st.floats(0.2, 1.2),
+    linear=st.sampled_from([1e-7, 1e-5]),
+)
+def test_oblique_plane_cylinder_ellipse_within_tolerance(tilt, linear):
+    # The section of the cylinder x² + y² = 4 by the plane z = tan(tilt) x: u = t, v = 2 tan(tilt) cos t.
+    tol = Tolerance(linear=linear)
+    a = 2.0 / math.cos(tilt)
+    normal = np.array([-math.sin(tilt), 0.0, math.cos(tilt)])
+    ellipse = Ellipse([0, 0, 0], normal, [math.cos(tilt), 0, math.sin(tilt)], a, 2.0)
+    pc, dev = pcurve_on(CYL, ellipse, 0.0, 2 * PI, tol=tol)
+    assert isinstance(pc, NurbsCurve)
+    assert pc.domain == pytest.approx((0.0, 2 * PI), abs=0)
+    t = np.linspace(0.0, 2 * PI, 997)
+    err = np.linalg.norm(_on(CYL, pc, t) - ellipse.evaluate(t), axis=-1)
+    # Check samples are midpoints; the dense error may exceed them by the interpolant's wiggle.
+    assert err.max() <= 2 * linear
+    assert dev <= linear
+    # A 3-D error e moves u by e / R = e / 2 and v by e.
+    np.testing.assert_allclose(pc.evaluate(t)[:, 0], t, rtol=0, atol=linear)
+    np.testing.assert_allclose(pc.evaluate(t)[:, 1], 2 * math.tan(tilt) * np.cos(t), rtol=0, atol=2 * linear)
+
+
+def _bump():
+    g = np.linspace(0.0, 1.0, 6)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    return interpolate_surface(np.stack([X, Y, 0.3 * np.sin(3 * X) * np.cos(2 * Y)], axis=-1), 3, 3)
+
+
+def test_nurbs_surface_curve_recovers_the_parameter_path():
+    surface = _bump()
+    t = np.linspace(0.0, 1.0, 200)
+    uv = np.stack([0.1 + 0.8 * t, 0.2 + 0.5 * t**2], axis=1)
+    curve = interpolate_curve(surface.evaluate(uv[:, 0], uv[:, 1]), 3, params=t)
+    pc, dev = pcurve_on(surface, curve, 0.0, 1.0)
+    assert dev <= TOL.linear
+    _check(surface, curve, 0.0, 1.0, pc, dev, 2 * TOL.linear)
+    np.testing.assert_allclose(pc.evaluate(t), uv, rtol=0, atol=1e-6)
+
+
+def test_nurbs_iso_curve_is_exact():
+    surface = _bump()
+    iso = surface.iso_curve("u", 0.4)
+    pc, dev = pcurve_on(surface, iso, *iso.domain)
+    assert isinstance(pc, Line2D)
+    np.testing.assert_allclose(pc.origin, [0.4, 0.0], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(pc.direction, [0.0, 1.0], rtol=0, atol=EXACT)
+
+
+def test_closed_nurbs_sphere_seam_and_pole():
+    # The exact NURBS sphere: the meridian u = 0 is its seam (points project to u = 0 or u = 2π)
+    # and reaches the degenerate pole edge.
+    nurbs = SPHERE.to_nurbs()
+    meridian = Circle([0, 0, 0], [0, -1, 0], [1, 0, 0], 2.0)
+    pc, dev = pcurve_on(nurbs, meridian, 0.1, PI / 2)
+    assert dev <= TOL.linear
+    u = pc.evaluate(np.linspace(0.1, PI / 2, 50))[:, 0]
+    assert np.ptp(u) <= 1e-9
+    _check(nurbs, meridian, 0.1, PI / 2, pc, dev, 2 * TOL.linear)
+
+
+# ---------------------------------------------------------------------------- errors
+def test_curve_off_the_surface_raises_with_distance():
+    with pytest.raises(InvalidGeometryError, match=r"not on the SphericalSurface: distance 0\.1"):
+        pcurve_on(SPHERE, Circle([0, 0, 0], [0, -1, 0], [1, 0, 0], 2.1), 0.0, 1.0)
+
+
+def test_discontinuous_pcurve_raises():
+    # A meridian across the north pole: u jumps by π there.
+    with pytest.raises(ConvergenceError, match="is the p-curve continuous") as info:
+        pcurve_on(SPHERE, Circle([0, 0, 0], [0, -1, 0], [1, 0, 0], 2.0), 0.0, PI)
+    assert info.value.residuals[0] > TOL.linear
+
+
+@pytest.mark.parametrize("t0, t1", [(1.0, 1.0), (2.0, 1.0), (0.0, math.inf), (math.nan, 1.0)])
+def test_bad_range_raises(t0, t1):
+    with pytest.raises(InvalidInputError, match="need finite t0 < t1"):
+        pcurve_on(CYL, Line([0, 2, 0], [0, 0, 1]), t0, t1)
+
+
+def test_non_numeric_range_raises():
+    with pytest.raises(InvalidInputError, match="must be numbers"):
+        pcurve_on(CYL, Line([0, 2, 0], [0, 0, 1]), "a", 1.0)
+
+
+@pytest.mark.parametrize("box", [((0, 1),), ((1, 0), (0, 1)), "x", ((0, math.nan), (0, 1))])
+def test_bad_box_raises(box):
+    with pytest.raises(InvalidInputError, match=r"box must be \(\(u0, u1\), \(v0, v1\)\)"):
+        pcurve_on(CYL, Line([0, 2, 0], [0, 0, 1]), 0.0, 1.0, box=box)
+
+
+def test_two_dimensional_curve_raises():
+    curve2d = NurbsCurve([[0.0, 0.0], [1.0, 1.0]], [0, 0, 1, 1], 1)
+    with pytest.raises(InvalidInputError, match="curve must be 3-D, got points of dimension 2"):
+        pcurve_on(CYL, curve2d, 0.0, 1.0)
+
+
+def test_object_without_evaluate_raises():
+    with pytest.raises(InvalidInputError, match="need evaluate"):
+        pcurve_on(object(), Line([0, 2, 0], [0, 0, 1]), 0.0, 1.0)

@@ -1,0 +1,513 @@
+"""Tests of coons.kernel.ssi: general surface–surface intersection and curve–surface intersection."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+
+from coons.errors import InvalidInputError
+from coons.kernel.analytic import (
+    Circle,
+    ConicalSurface,
+    CylindricalSurface,
+    Line,
+    PlanarSurface,
+    SphericalSurface,
+    ToroidalSurface,
+)
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.fitting import interpolate_curve, interpolate_surface
+from coons.kernel.intersect import IntersectionCurve, SurfaceIntersection
+from coons.kernel.ssi import intersect_curve_surface, march_intersection
+from coons.kernel.surface import NurbsSurface
+from coons.tolerance import Tolerance
+
+PI = math.pi
+TOL = Tolerance()
+#: Points of a fitted branch, between its samples, may exceed the measured tol slightly.
+ON = 2 * TOL.linear
+
+
+def _distance(surface, points):
+    if isinstance(surface, NurbsSurface):
+        return surface.closest_points(points).distances
+    return np.abs(surface.implicit(points))
+
+
+def _samples(c: IntersectionCurve, n: int = 301) -> np.ndarray:
+    return c.curve.evaluate(np.linspace(c.t0, c.t1, n))
+
+
+def _check_branches(result, a, b, box_a=None, box_b=None):
+    """Every branch lies on both surfaces, its p-curves reproduce it and stay in the boxes."""
+    assert isinstance(result, SurfaceIntersection)
+    for c in result.curves:
+        assert isinstance(c, IntersectionCurve)
+        t = np.linspace(c.t0, c.t1, 301)
+        P = c.curve.evaluate(t)
+        assert _distance(a, P).max() <= ON
+        assert _distance(b, P).max() <= ON
+        pa, pb = c.pcurve_a.evaluate(t), c.pcurve_b.evaluate(t)
+        assert np.linalg.norm(a.evaluate(pa[:, 0], pa[:, 1]) - P, axis=1).max() <= ON
+        assert np.linalg.norm(b.evaluate(pb[:, 0], pb[:, 1]) - P, axis=1).max() <= ON
+        assert 0.0 <= c.tol <= TOL.linear
+        for box, pc in ((box_a, pa), (box_b, pb)):
+            if box is not None:
+                lo, hi = np.array(box)[:, 0], np.array(box)[:, 1]
+                slack = 1e-9 * np.maximum(1.0, hi - lo)
+                assert np.all(pc >= lo - slack) and np.all(pc <= hi + slack)
+
+
+# ---------------------------------------------------------------------------- quadric pairs
+CYL_Z = CylindricalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+
+
+def test_crossing_cylinders_of_different_radii():
+    # A thin cylinder (axis x, r = 0.6) through a thick one (axis z, R = 1): one loop per side.  The
+    # loops wind once around the thin cylinder, so its periodic box cuts each at its seam: one closed
+    # branch per side, from the seam back to it.
+    thin = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 0.6)
+    box_a, box_b = ((PI / 2, 5 * PI / 2), (-2, 2)), ((0.5, 0.5 + 2 * PI), (-2, 2))
+    r = march_intersection(CYL_Z, thin, box_a, box_b)
+    assert len(r.curves) == 2
+    _check_branches(r, CYL_Z, thin, box_a, box_b)
+    sides = sorted(np.sign(_samples(c)[:, 0].mean()) for c in r.curves)
+    assert sides == [-1.0, 1.0]
+    for c in r.curves:
+        P = _samples(c)
+        np.testing.assert_allclose(P[0], P[-1], rtol=0, atol=TOL.linear)
+        assert c.closed
+        ub = c.pcurve_b.evaluate([c.t0, c.t1])[:, 0]
+        np.testing.assert_allclose(sorted(ub), [0.5, 0.5 + 2 * PI], rtol=0, atol=1e-9)
+        # Each loop is x = ±sqrt(1 - y²) with y² + z² = 0.36.
+        np.testing.assert_allclose(np.abs(P[:, 0]), np.sqrt(1 - P[:, 1] ** 2), rtol=0, atol=ON)
+
+
+def test_seams_of_both_boxes_cut_the_loops():
+    thin = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 0.6)
+    box_a, box_b = ((0, 2 * PI), (-2, 2)), ((0.5, 0.5 + 2 * PI), (-2, 2))
+    r = march_intersection(CYL_Z, thin, box_a, box_b)
+    _check_branches(r, CYL_Z, thin, box_a, box_b)
+    # The x > 0 loop crosses the seam u_a = 0 twice and u_b = 0.5 once: 3 pieces; the x < 0 loop 1.
+    assert len(r.curves) == 4
+    ends = np.concatenate([c.pcurve_a.evaluate([c.t0, c.t1]) for c in r.curves])
+    on_seam = np.isclose(ends[:, 0], 0.0, atol=1e-9) | np.isclose(ends[:, 0], 2 * PI, atol=1e-9)
+    assert int(on_seam.sum()) == 4
+    total = sum(c.curve.length() for c in r.curves)
+    r2 = march_intersection(CYL_Z, thin, ((PI / 2, 5 * PI / 2), (-2, 2)), box_b)
+    assert total == pytest.approx(sum(c.curve.length() for c in r2.curves), rel=1e-7)
+
+
+def test_steinmetz_branches_meet_at_the_singular_points():
+    # Equal radii: the intersection is two ellipses in the planes x = z and x = -z, crossing at
+    # (0, ±1, 0) where the normals are parallel.  Both seams pass through (0, 1, 0), so the result
+    # is exactly the 4 arcs between the two singular points.
+    other = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 1.0)
+    box_a, box_b = ((PI / 2, 5 * PI / 2), (-2, 2)), ((0, 2 * PI), (-2, 2))
+    r = march_intersection(CYL_Z, other, box_a, box_b)
+    assert len(r.curves) == 4
+    _check_branches(r, CYL_Z, other, box_a, box_b)
+    singular = np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
+    planes = []
+    for c in r.curves:
+        assert not c.closed
+        P = _samples(c)
+        ends = P[[0, -1]]
+        d = np.linalg.norm(ends[:, None, :] - singular[None], axis=2)
+        assert sorted(np.argmin(d, axis=1)) == [0, 1]
+        assert d.min(axis=1).max() <= TOL.linear
+        # Each arc lies in one of the planes x = z, x = -z.
+        s = np.sign(np.median(P[:, 0] * P[:, 2]))
+        np.testing.assert_allclose(P[:, 0], s * P[:, 2], rtol=0, atol=ON)
+        planes.append(s)
+    assert sorted(planes) == [-1.0, -1.0, 1.0, 1.0]
+
+
+def test_steinmetz_with_a_seam_away_from_the_singular_points():
+    other = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 1.0)
+    box_a, box_b = ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2))
+    r = march_intersection(CYL_Z, other, box_a, box_b)
+    _check_branches(r, CYL_Z, other, box_a, box_b)
+    # The seam u_a = 0 (x = 1) cuts the two arcs on the x > 0 side.
+    assert len(r.curves) == 6
+    lengths = sorted(c.curve.length() for c in r.curves)
+    # Quarter and half perimeters of the ellipse with semi-axes sqrt(2) and 1.
+    quarter = lengths[0]
+    np.testing.assert_allclose(lengths, [quarter] * 4 + [2 * quarter] * 2, rtol=1e-6)
+
+
+@pytest.mark.parametrize("swap", [False, True])
+def test_viviani_curve(swap):
+    # Sphere of radius R and a cylinder of radius R/2 touching the axis: Viviani's figure-eight,
+    # through both poles and with a double point at (R, 0, 0).
+    R = 2.0
+    sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], R)
+    cyl = CylindricalSurface([R / 2, 0, 0], [0, 0, 1], [1, 0, 0], R / 2)
+    box_c = ((0, 2 * PI), (-3, 3))
+    a, b, box_a, box_b = (cyl, sphere, box_c, None) if swap else (sphere, cyl, None, box_c)
+    r = march_intersection(a, b, box_a, box_b)
+    assert len(r.curves) == 4
+    _check_branches(r, a, b)
+    ends = np.concatenate([_samples(c)[[0, -1]] for c in r.curves])
+    special = np.array([[0, 0, R], [0, 0, -R], [R, 0, 0]])
+    d = np.linalg.norm(ends[:, None, :] - special[None], axis=2)
+    assert d.min(axis=1).max() <= TOL.linear
+    np.testing.assert_array_equal(np.bincount(np.argmin(d, axis=1), minlength=3), [2, 2, 4])
+    # Viviani's curve: x = R cos²θ, y = R cosθ sinθ, z = R sinθ, so x = R - z²/R.
+    for c in r.curves:
+        P = _samples(c)
+        np.testing.assert_allclose(P[:, 0], R - P[:, 2] ** 2 / R, rtol=0, atol=ON)
+
+
+def test_sphere_and_off_axis_cylinder():
+    sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 2.0)
+    cyl = CylindricalSurface([0.7, 0, 0], [0, 0, 1], [1, 0, 0], 0.8)
+    r = march_intersection(sphere, cyl, None, ((0, 2 * PI), (-3, 3)))
+    _check_branches(r, sphere, cyl)
+    # Two loops (z > 0 and z < 0), each cut once by the sphere's seam (x > 0, y = 0).
+    assert len(r.curves) == 2
+    for c in r.curves:
+        P = _samples(c)
+        np.testing.assert_allclose(P[0], P[-1], rtol=0, atol=TOL.linear)
+        assert c.closed
+        assert abs(np.sign(P[:, 2]).sum()) == P.shape[0]
+
+
+def test_torus_and_oblique_plane():
+    torus = ToroidalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 3.0, 1.0)
+    plane = PlanarSurface([0, 0, 0.3], [0.3, 0.2, 1], [1, 0, 0])
+    r = march_intersection(torus, plane, None, ((-6, 6), (-6, 6)))
+    _check_branches(r, torus, plane, None, ((-6, 6), (-6, 6)))
+    assert len(r.curves) >= 2
+
+
+def test_cone_and_cylinder():
+    cone = ConicalSurface([0, 0, -1], [0, 0, 1], [1, 0, 0], 0.5, 0.4)
+    cyl = CylindricalSurface([0, 0, 0], [1, 0, 0.2], [0, 1, 0], 0.4)
+    box_a, box_b = ((0, 2 * PI), (-1, 4)), ((0, 2 * PI), (-3, 3))
+    r = march_intersection(cone, cyl, box_a, box_b)
+    assert len(r.curves) >= 2
+    _check_branches(r, cone, cyl, box_a, box_b)
+
+
+def test_disjoint_surfaces_give_nothing():
+    far = CylindricalSurface([0, 5, 0], [1, 0, 0], [0, 1, 0], 0.5)
+    r = march_intersection(CYL_Z, far, ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2)))
+    assert r.curves == () and r.points.shape == (0, 3)
+
+
+def test_box_cuts_a_branch_at_its_boundary():
+    # Only the parts of the x < 0 loop with x = v_b in [-0.9, -0.85] are asked for (b's seam, at
+    # x = -0.8, is not among them): four arcs, each from one v boundary to the other.
+    thin = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 0.6)
+    box_b = ((0, 2 * PI), (-0.9, -0.85))
+    r = march_intersection(CYL_Z, thin, ((PI / 2, 5 * PI / 2), (-2, 2)), box_b)
+    assert len(r.curves) == 4
+    _check_branches(r, CYL_Z, thin, None, box_b)
+    for c in r.curves:
+        vb = sorted(c.pcurve_b.evaluate([c.t0, c.t1])[:, 1])
+        np.testing.assert_allclose(vb, [-0.9, -0.85], rtol=0, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------- NURBS
+def _bump_patch(height: float = 0.3) -> NurbsSurface:
+    g = np.linspace(0.0, 1.0, 6)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    return interpolate_surface(np.stack([X, Y, height * np.sin(3 * X) * np.cos(2 * Y)], axis=-1), 3, 3)
+
+
+@pytest.mark.parametrize("swap", [False, True])
+def test_nurbs_patch_and_plane_match_sampled_truth(swap):
+    patch = _bump_patch()
+    plane = PlanarSurface([0, 0, 0.1], [0, 0, 1], [1, 0, 0])
+    box = ((-1, 2), (-1, 2))
+    a, b, box_a, box_b = (plane, patch, box, None) if swap else (patch, plane, None, box)
+    r = march_intersection(a, b, box_a, box_b)
+    assert len(r.curves) == 1
+    _check_branches(r, a, b, box_a, box_b)
+    # Truth: on each line v = const of the patch, the root of z(u, v) = 0.1 by bisection.
+    vs = np.linspace(0.0, 1.0, 41)
+    lo, hi = np.full(vs.shape, 0.01), np.full(vs.shape, 0.5)
+    z = lambda u: patch.evaluate(u, vs)[:, 2] - 0.1  # noqa: E731
+    has_root = np.sign(z(lo)) != np.sign(z(hi))
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        left = np.sign(z(mid)) == np.sign(z(lo))
+        lo, hi = np.where(left, mid, lo), np.where(left, hi, mid)
+    truth = patch.evaluate(0.5 * (lo + hi), vs)[has_root]
+    assert truth.shape[0] > 10
+    ours = _samples(r.curves[0], 20001)
+    d, _ = cKDTree(ours).query(truth)
+    # Dense samples of our curve are 1e-4 apart: the nearest one is within that of the truth.
+    assert d.max() <= 1e-4
+
+
+def test_small_closed_loop_between_two_bumps():
+    g = np.linspace(-1, 1, 7)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    bump = np.exp(-3 * (X**2 + Y**2))
+    up = interpolate_surface(np.stack([X, Y, 0.5 * bump], axis=-1), 3, 3)
+    # The dip of the upper patch reaches 0.03 below the apex of the lower one: a loop of radius ~0.1.
+    down = interpolate_surface(np.stack([X, Y, 0.97 - 0.5 * bump], axis=-1), 3, 3)
+    r = march_intersection(up, down)
+    assert len(r.curves) == 1
+    c = r.curves[0]
+    assert c.closed
+    _check_branches(r, up, down)
+    P = _samples(c)
+    np.testing.assert_allclose(P[0], P[-1], rtol=0, atol=TOL.linear)
+    # A loop around the apex, far smaller than the patches.
+    assert 0.05 < np.linalg.norm(P[:, :2], axis=1).max() < 0.15
+
+
+# ---------------------------------------------------------------------------- OCCT
+def _occt_branches(surface_a, surface_b) -> tuple[list, float]:
+    from OCP.GCPnts import GCPnts_AbscissaPoint
+    from OCP.GeomAdaptor import GeomAdaptor_Curve
+    from OCP.GeomAPI import GeomAPI_IntSS
+
+    inter = GeomAPI_IntSS(surface_a, surface_b, 1e-7)
+    assert inter.IsDone()
+    curves = [inter.Line(k) for k in range(1, inter.NbLines() + 1)]
+    return curves, sum(GCPnts_AbscissaPoint.Length_s(GeomAdaptor_Curve(c)) for c in curves)
+
+
+def _distance_to_occt(points: np.ndarray, curves) -> np.ndarray:
+    from OCP.gp import gp_Pnt
+    from OCP.GeomAPI import GeomAPI_ProjectPointOnCurve
+
+    out = np.full(points.shape[0], np.inf)
+    for i, p in enumerate(points):
+        for c in curves:
+            proj = GeomAPI_ProjectPointOnCurve(gp_Pnt(*map(float, p)), c)
+            if proj.NbPoints():
+                out[i] = min(out[i], proj.LowerDistance())
+    return out
+
+
+def _ax3(origin, axis, x_dir):
+    from OCP.gp import gp_Ax3, gp_Dir, gp_Pnt
+
+    return gp_Ax3(gp_Pnt(*map(float, origin)), gp_Dir(*map(float, axis)), gp_Dir(*map(float, x_dir)))
+
+
+@pytest.mark.occt
+@pytest.mark.parametrize("case", ["cylinders", "torus_plane", "sphere_cylinder"])
+def test_agreement_with_occt(case):
+    from OCP.Geom import Geom_CylindricalSurface, Geom_Plane, Geom_SphericalSurface, Geom_ToroidalSurface
+
+    if case == "cylinders":
+        a = CYL_Z
+        b = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 0.6)
+        occ_a = Geom_CylindricalSurface(_ax3(a.origin, a.axis, a.x_dir), a.radius)
+        occ_b = Geom_CylindricalSurface(_ax3(b.origin, b.axis, b.x_dir), b.radius)
+        box_a, box_b = ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2))
+    elif case == "torus_plane":
+        a = ToroidalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 3.0, 1.0)
+        b = PlanarSurface([0, 0, 0.3], [0.3, 0.2, 1], [1, 0, 0])
+        occ_a = Geom_ToroidalSurface(_ax3(a.center, a.axis, a.x_dir), a.major_radius, a.minor_radius)
+        occ_b = Geom_Plane(_ax3(b.origin, b.axis, b.x_dir))
+        box_a, box_b = None, ((-6, 6), (-6, 6))
+    else:
+        a = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 2.0)
+        b = CylindricalSurface([0.7, 0, 0], [0, 0, 1], [1, 0, 0], 0.8)
+        occ_a = Geom_SphericalSurface(_ax3(a.center, a.axis, a.x_dir), a.radius)
+        occ_b = Geom_CylindricalSurface(_ax3(b.origin, b.axis, b.x_dir), b.radius)
+        box_a, box_b = None, ((0, 2 * PI), (-3, 3))
+    r = march_intersection(a, b, box_a, box_b)
+    theirs, their_length = _occt_branches(occ_a, occ_b)
+    # The same point set: samples of each curve set lie on the other (exact projections both ways).
+    ours = np.concatenate([_samples(c, 41) for c in r.curves])
+    assert _distance_to_occt(ours, theirs).max() <= 1e-6
+    for c in theirs:
+        ts = np.linspace(c.FirstParameter(), c.LastParameter(), 41)
+        Q = np.array([[p.X(), p.Y(), p.Z()] for p in map(c.Value, ts)])
+        d = np.min([c_ours.curve.closest_points(Q).distances for c_ours in r.curves], axis=0)
+        assert d.max() <= 1e-6
+    assert sum(c.curve.length() for c in r.curves) == pytest.approx(their_length, rel=1e-7)
+
+
+# ---------------------------------------------------------------------------- curve–surface
+def test_line_through_sphere():
+    sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    t, uv, P = intersect_curve_surface(Line([-2, 0.6, 0], [1, 0, 0]), 0.0, 4.0, sphere)
+    np.testing.assert_allclose(t, [1.2, 2.8], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(P, [[-0.8, 0.6, 0], [0.8, 0.6, 0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sphere.evaluate(uv[:, 0], uv[:, 1]), P, rtol=0, atol=1e-12)
+
+
+def test_touching_circle_and_range_limits():
+    plane = PlanarSurface([0, 0, 1], [0, 0, 1], [1, 0, 0])
+    circle = Circle([0, 0, 0], [0, 1, 0], [1, 0, 0], 1.0)  # touches z = 1 at t = -π/2 (y axis is -Z x X)
+    t_top = float(np.arctan2(1.0, 0.0)) if circle.evaluate(PI / 2)[2] > 0 else -PI / 2
+    box = ((-5, 5), (-5, 5))
+    t, uv, P = intersect_curve_surface(circle, t_top - 1.0, t_top + 1.0, plane, box)
+    np.testing.assert_allclose(P, [[0, 0, 1]], rtol=0, atol=1e-7)
+    assert t.shape == (1,)
+    # The range excludes the contact: nothing.
+    t, uv, P = intersect_curve_surface(circle, t_top + 0.5, t_top + 1.0, plane, box)
+    assert t.shape == (0,) and uv.shape == (0, 2) and P.shape == (0, 3)
+
+
+def test_nurbs_curve_and_cylinder_in_a_box():
+    cyl = CylindricalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    s = np.linspace(0, 1, 12)
+    curve = interpolate_curve(np.stack([3 * np.cos(5 * s) * s, 3 * np.sin(5 * s) * s, s], 1), 3)
+    t, uv, P = intersect_curve_surface(curve, 0.0, 1.0, cyl, ((0, 2 * PI), (-1, 2)))
+    assert t.size >= 1 and np.all(np.diff(t) > 0)
+    np.testing.assert_allclose(np.hypot(P[:, 0], P[:, 1]), 1.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(curve.evaluate(t), P, rtol=0, atol=0)
+    np.testing.assert_allclose(cyl.evaluate(uv[:, 0], uv[:, 1]), P, rtol=0, atol=1e-9)
+    # A box that keeps only u in [0, π/2] keeps the subset there.
+    t2, uv2, _ = intersect_curve_surface(curve, 0.0, 1.0, cyl, ((0, PI / 2), (-1, 2)))
+    assert np.all(uv2[:, 0] <= PI / 2 + 1e-12)
+    assert t2.size == int(np.sum(uv[:, 0] <= PI / 2))
+
+
+def test_curve_surface_periodic_box_shift():
+    cyl = CylindricalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    t, uv, P = intersect_curve_surface(Line([-2, -0.5, 0.3], [1, 0, 0]), 0.0, 4.0, cyl, ((2 * PI, 4 * PI), (-1, 1)))
+    assert t.size == 2
+    assert np.all((uv[:, 0] >= 2 * PI) & (uv[:, 0] < 4 * PI))
+    np.testing.assert_allclose(cyl.evaluate(uv[:, 0], uv[:, 1]), P, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("gap, count", [(0.0, 1), (0.5 * TOL.linear, 1), (1e-6, 0), (-1e-6, 2)])
+def test_line_tangent_to_a_cylinder(gap, count):
+    # At distance 1 + gap from the axis: touching (within tol.linear), missing, or crossing twice.
+    cyl = CylindricalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    t, uv, P = intersect_curve_surface(Line([1 + gap, -2, 0.3], [0, 1, 0]), 0.0, 4.0, cyl, ((0, 2 * PI), (-1, 1)))
+    assert t.size == count
+    if count:
+        np.testing.assert_allclose(np.hypot(P[:, 0], P[:, 1]), 1.0, rtol=0, atol=TOL.linear)
+        np.testing.assert_allclose(t, 2.0, rtol=0, atol=2e-3)
+
+
+def test_curve_lying_in_the_surface_gives_the_ends_of_the_overlap():
+    sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    equator = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    t, uv, P = intersect_curve_surface(equator, 0.0, 1.0, sphere)
+    np.testing.assert_allclose(t, [0.0, 1.0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(uv, [[0.0, 0.0], [1.0, 0.0]], rtol=0, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------- errors
+def test_unbounded_surface_needs_a_box():
+    with pytest.raises(InvalidInputError, match="CylindricalSurface is unbounded, a box"):
+        march_intersection(CYL_Z, CYL_Z)
+    with pytest.raises(InvalidInputError, match="PlanarSurface is unbounded, a box"):
+        intersect_curve_surface(Line([0, 0, 0], [1, 0, 0]), 0, 1, PlanarSurface([0, 0, 0], [0, 0, 1], [1, 0, 0]))
+
+
+@pytest.mark.parametrize("box", [((0, 1),), ((1, 0), (0, 1)), ((0, math.inf), (0, 1)), "x"])
+def test_malformed_box(box):
+    with pytest.raises(InvalidInputError, match=r"box must be finite \(\(u0, u1\), \(v0, v1\)\)"):
+        march_intersection(CYL_Z, CYL_Z, box, ((0, 1), (0, 1)))
+
+
+@pytest.mark.parametrize("t0, t1", [(1.0, 1.0), (1.0, 0.0), (0.0, math.nan)])
+def test_curve_surface_bad_range(t0, t1):
+    with pytest.raises(InvalidInputError, match="need finite t0 < t1"):
+        intersect_curve_surface(Line([0, 0, 0], [1, 0, 0]), t0, t1, CYL_Z, ((0, 1), (0, 1)))
+
+
+# ---------------------------------------------------------------------------- properties
+@settings(max_examples=6)
+@given(
+    axis=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(0.2, 1)),
+    offset=st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3)),
+    radius=st.floats(0.3, 0.9),
+)
+def test_swapping_the_surfaces_gives_the_same_curves(axis, offset, radius):
+    # Random crossing cylinders: a(b) and b(a) find the same branches, on both surfaces.
+    z = np.array(axis) / np.linalg.norm(axis)
+    x = np.cross(z, [0.3, 1.0, 0.1])
+    other = CylindricalSurface([offset[0], offset[1], 0.0], z, x, radius)
+    box_a, box_b = ((0, 2 * PI), (-3, 3)), ((0, 2 * PI), (-3, 3))
+    r1 = march_intersection(CYL_Z, other, box_a, box_b)
+    r2 = march_intersection(other, CYL_Z, box_b, box_a)
+    _check_branches(r1, CYL_Z, other, box_a, box_b)
+    _check_branches(r2, other, CYL_Z, box_b, box_a)
+    assert len(r1.curves) == len(r2.curves)
+    l1 = sum(c.curve.length() for c in r1.curves)
+    l2 = sum(c.curve.length() for c in r2.curves)
+    assert l1 == pytest.approx(l2, rel=1e-7, abs=1e-9)
+
+
+def test_closed_nurbs_surfaces_match_their_analytic_forms():
+    # The exact NURBS forms of a cylinder and a sphere (closed, with seams and poles) give the
+    # same intersection as the analytic surfaces.
+    cyl = CylindricalSurface([0.1, 0, 0], [0, 0.3, 1], [1, 0, 0], 0.9)
+    sphere = SphericalSurface([0, 0, 0.2], [0, 0, 1], [1, 0, 0], 1.2)
+    exact = march_intersection(cyl, sphere, ((0, 2 * PI), (-3, 3)), None)
+    nurbs_cyl, nurbs_sphere = cyl.to_nurbs((-3, 3)), sphere.to_nurbs()
+    r = march_intersection(nurbs_cyl, nurbs_sphere)
+    _check_branches(r, nurbs_cyl, nurbs_sphere)
+    assert sum(c.curve.length() for c in r.curves) == pytest.approx(
+        sum(c.curve.length() for c in exact.curves), rel=1e-7
+    )
+
+
+def test_boxes_longer_than_a_period_do_not_repeat_branches():
+    thin = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 0.6)
+    eps = 1e-3
+    exact = march_intersection(CYL_Z, thin, ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2)))
+    wide = march_intersection(CYL_Z, thin, ((-eps, 2 * PI + eps), (-2, 2)), ((-eps, 2 * PI + eps), (-2, 2)))
+    assert len(wide.curves) == len(exact.curves)
+    _check_branches(wide, CYL_Z, thin, ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2)))
+    assert sum(c.curve.length() for c in wide.curves) == pytest.approx(
+        sum(c.curve.length() for c in exact.curves), rel=1e-7
+    )
+
+
+def test_nurbs_box_enlarged_past_the_domain_and_disjoint_box():
+    patch = _bump_patch()
+    plane = PlanarSurface([0, 0, 0.1], [0, 0, 1], [1, 0, 0])
+    box = ((-1, 2), (-1, 2))
+    exact = march_intersection(patch, plane, None, box)
+    wide = march_intersection(patch, plane, ((-0.01, 1.01), (-0.01, 1.01)), box)
+    assert len(wide.curves) == len(exact.curves) == 1
+    assert wide.curves[0].curve.length() == pytest.approx(exact.curves[0].curve.length(), rel=1e-7)
+    with pytest.raises(InvalidInputError, match=r"does not meet the NURBS domain"):
+        march_intersection(patch, plane, ((2, 3), (0, 1)), box)
+
+
+# ---------------------------------------------------------------------------- contacts
+@pytest.mark.parametrize("swap", [False, True])
+def test_sphere_touching_a_plane_is_an_isolated_point(swap):
+    sphere = SphericalSurface([0.3, 0.2, 1.0], [0, 0, 1], [1, 0, 0], 1.0)
+    plane = PlanarSurface([0, 0, 0], [0, 0, 1], [1, 0, 0])
+    box = ((-3, 3), (-3, 3))
+    a, b, box_a, box_b = (plane, sphere, box, None) if swap else (sphere, plane, None, box)
+    r = march_intersection(a, b, box_a, box_b)
+    assert r.curves == ()
+    np.testing.assert_allclose(r.points, [[0.3, 0.2, 0.0]], rtol=0, atol=1e-9)
+    uv_plane, uv_sphere = (r.uv_a, r.uv_b) if swap else (r.uv_b, r.uv_a)
+    np.testing.assert_allclose(uv_plane, [[0.3, 0.2]], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(uv_sphere[:, 1], [-PI / 2], rtol=0, atol=1e-6)
+
+
+def test_nurbs_bump_touching_a_plane_at_its_apex():
+    g = np.linspace(-1, 1, 7)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    up = interpolate_surface(np.stack([X, Y, 0.5 * np.exp(-3 * (X**2 + Y**2))], axis=-1), 3, 3)
+    apex = up.evaluate(0.5, 0.5)
+    plane = PlanarSurface(apex, [0, 0, 1], [1, 0, 0])
+    r = march_intersection(up, plane, None, ((-3, 3), (-3, 3)))
+    assert r.curves == ()
+    np.testing.assert_allclose(r.points, [apex], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(r.uv_a, [[0.5, 0.5]], rtol=0, atol=1e-6)
+
+
+def test_tangency_along_a_curve_is_logged_not_reported(caplog):
+    cyl = CylindricalSurface([0, 0, 1], [1, 0, 0], [0, 0, 1], 1.0)
+    plane = PlanarSurface([0, 0, 0], [0, 0, 1], [1, 0, 0])
+    with caplog.at_level("WARNING", logger="coons"):
+        r = march_intersection(cyl, plane, ((0, 2 * PI), (-1, 1)), ((-3, 3), (-3, 3)))
+    assert r.curves == () and r.points.shape == (0, 3)
+    assert "touch along a curve" in caplog.text

@@ -8,14 +8,30 @@ Subcommands:
     ``DIR/kernel.png`` (a plot of the curves and surfaces), ``DIR/torus.stl`` and, from the
     B-rep layer, ``DIR/plate.stl``: an extruded plate with holes, checked and measured exactly.
 
-Later issues add ``validate``, ``convert`` and ``info``.  Reference engines and
-matplotlib are imported lazily, only by the subcommands that need them.
+``coons validate [CASES...] [--report DIR] [--jobs N] [--scheduler ADDR] [--list] [--timeout S] [--json FILE]``
+    Runs reference cases (:mod:`coons.validation`) through coons, OCCT (build123d) and
+    manifold3d, prints a table, optionally writes an HTML report with pictures.  Case names may be
+    glob patterns; none means the whole catalogue.  Exit status 1 when coons is wrong or invalid
+    on some case (or raised an untyped exception, or hung or crashed while running).
+
+``coons convert IN OUT``
+    STEP or STL in, STEP or STL out (by file suffix).  An STL is read as a closed triangle mesh
+    (coplanar neighbours merged into polygon faces).
+
+``coons info FILE``
+    Volume, area, bounding box, counts and validity of each solid of a STEP or STL file.
+
+Usage errors (a bad argument, an unknown case, a file that cannot be read) print one line
+``coons: error: ...`` on stderr and exit with status 2.  Reference engines, matplotlib and
+Dask are imported lazily, only by the subcommands that need them.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import time
 from pathlib import Path
 
 from coons.errors import CoonsError
@@ -136,17 +152,172 @@ def _demo(out: Path) -> int:
     return 0
 
 
+# ============================================================================ validate
+def _validate(args) -> int:
+    from coons.validation.cases import recipe_text, select_cases
+    from coons.validation.report import exit_status, format_table, write_html
+    from coons.validation.runner import RunOptions, options_dict, run_cases
+
+    cases = select_cases(args.cases)
+    if args.list:
+        for c in cases:
+            print(f"{c.name:34s} {','.join(c.tags):34s} {recipe_text(c.recipe)}")
+        return 0
+    options = RunOptions(render=args.report is not None)
+    t0 = time.perf_counter()
+    results = run_cases(cases, options=options, jobs=args.jobs, timeout=args.timeout, scheduler=args.scheduler)
+    seconds = time.perf_counter() - t0
+    print(format_table(results, seconds))
+    if args.report is not None:
+        where = "Dask " + args.scheduler if args.scheduler else f"{args.jobs or os.cpu_count()} local processes"
+        index = write_html(results, args.report, seconds=seconds,
+                           options={**options_dict(options), "timeout": args.timeout, "run on": where})
+        print(f"wrote {index}")
+    if args.json is not None:
+        import json
+
+        plain = [{k: v for k, v in r.items() if k != "images"} for r in results]
+        args.json.write_text(json.dumps(plain, indent=1, default=str))
+        print(f"wrote {args.json}")
+    return exit_status(results)
+
+
+# ============================================================================ convert / info
+_STEP = (".step", ".stp")
+
+
+def _read_solids(path: Path) -> list:
+    """The solids of a STEP or STL file (by suffix)."""
+    from coons.errors import InvalidInputError
+
+    if not path.is_file():
+        raise InvalidInputError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix in _STEP:
+        from coons.io.step.reader import import_step
+
+        got = import_step(path)
+        return list(got) if isinstance(got, (list, tuple)) else [got]
+    if suffix == ".stl":
+        from coons.io.stl import import_stl
+        from coons.topology.from_mesh import from_mesh
+
+        V, T = import_stl(path)
+        return [from_mesh(V, T, merge_coplanar=True)]
+    raise InvalidInputError(f"{path}: unknown file type {suffix!r}, expected .step, .stp or .stl")
+
+
+def _convert(src: Path, dst: Path) -> int:
+    from coons.errors import InvalidInputError
+
+    suffix = dst.suffix.lower()
+    if suffix not in _STEP + (".stl",):
+        raise InvalidInputError(f"{dst}: unknown output type {suffix!r}, expected .step, .stp or .stl")
+    solids = _read_solids(src)
+    if suffix == ".stl":
+        import numpy as np
+
+        from coons.io.stl import export_stl
+        from coons.topology.tessellate import tessellate
+
+        meshes = [tessellate(s) for s in solids if not s.is_empty]
+        if not meshes:
+            raise InvalidInputError(f"{src}: no solid to write")
+        offsets = np.cumsum([0] + [m.n_vertices for m in meshes[:-1]])
+        V = np.concatenate([m.vertices for m in meshes])
+        T = np.concatenate([m.triangles + o for m, o in zip(meshes, offsets)])
+        out = export_stl((V, T), dst)
+    else:
+        from coons.io.step.writer import export_step
+
+        if len(solids) != 1:
+            raise InvalidInputError(f"{src}: holds {len(solids)} solids; STEP output takes exactly 1")
+        out = export_step(solids[0], dst)
+    print(f"wrote {out} ({len(solids)} solid{'s' if len(solids) != 1 else ''})")
+    return 0
+
+
+def _info(path: Path) -> int:
+    solids = _read_solids(path)
+    print(f"{path}: {len(solids)} solid{'s' if len(solids) != 1 else ''}")
+    for i, s in enumerate(solids):
+        b = s.brep
+        report = s.check()
+        print(f"solid {i}: volume {s.volume:.12g}, area {s.area:.12g}")
+        if not s.is_empty:
+            lo, hi = s.bounding_box()
+            print(f"  bbox [{', '.join(f'{x:.9g}' for x in lo)}] .. [{', '.join(f'{x:.9g}' for x in hi)}]")
+        print(f"  lumps {b.n_solids}, shells {b.n_shells}, faces {b.n_faces}, edges {b.n_edges}, "
+              f"vertices {b.n_vertices}; surfaces {sorted(set(s.surface_types()))}")
+        print(f"  valid: {report.ok}" + ("" if report.ok else f" ({report.summary(limit=5)})"))
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {n}")
+    return n
+
+
+def _positive_float(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}") from None
+    if not (x > 0 and x != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}")
+    return x
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the one-line error of the other subcommands (``coons: error: ...``, exit status 2)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"coons: error: {message} (see `{self.prog} --help`)\n")
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="coons", description="coons solid modeling kernel")
+    parser = _Parser(prog="coons", description="coons solid modeling kernel")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="build exact NURBS geometry and write a PNG plot and an STL")
     demo.add_argument("--out", type=Path, default=Path("demo-output"), help="output folder (default: demo-output)")
+    val = sub.add_parser("validate", help="compare coons with OCCT and manifold3d on the reference cases")
+    val.add_argument("cases", nargs="*", help="case names or glob patterns (default: the whole catalogue)")
+    val.add_argument("--report", type=Path, metavar="DIR", help="write DIR/index.html with pictures")
+    val.add_argument("--jobs", type=_positive_int, metavar="N", help="case processes at a time (default: cores)")
+    val.add_argument("--scheduler", metavar="ADDR", help="run on a Dask cluster (tcp://host:port)")
+    val.add_argument("--list", action="store_true", help="list the selected cases and exit")
+    val.add_argument("--timeout", type=_positive_float, default=120.0, metavar="S",
+                     help="seconds per case (default 120)")
+    val.add_argument("--json", type=Path, metavar="FILE", help="also write the results as JSON")
+    conv = sub.add_parser("convert", help="convert between STEP and STL (by file suffix)")
+    conv.add_argument("input", type=Path)
+    conv.add_argument("output", type=Path)
+    info = sub.add_parser("info", help="volume, area, bounding box, counts and validity of a STEP/STL file")
+    info.add_argument("file", type=Path)
     args = parser.parse_args(argv)
     try:
         if args.command == "demo":
             return _demo(args.out)
-    except CoonsError as exc:
-        print(f"coons: error: {exc}", file=sys.stderr)
+        if args.command == "validate":
+            return _validate(args)
+        if args.command == "convert":
+            return _convert(args.input, args.output)
+        if args.command == "info":
+            return _info(args.file)
+    except BrokenPipeError:  # the reader of stdout went away (``coons validate --list | head``)
+        sys.stderr.close()
+        return 0
+    except (CoonsError, OSError) as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"coons: error: {msg}", file=sys.stderr)
+        return 2
+    except ImportError as exc:
+        print(f"coons: error: a module this command needs is missing: {exc}", file=sys.stderr)
         return 2
     return 1  # pragma: no cover - argparse rejects unknown commands
 

@@ -4,7 +4,8 @@
 first): pointer consistency of the winged-edge tables, closed loops, manifold edges with two
 different faces and opposite senses, manifold vertices, Euler–Poincaré per shell, vertices
 on their edges, p-curves agreeing with 3-D curves, loops closed in parameter space, planar
-polyhedral faces, self-intersecting trim loops, and outward orientation of shells (outer
+polyhedral faces, self-intersecting trim loops, faces lying on the left of their loops
+(the sign of their parameter-plane area agrees with ``face_sense``), and outward orientation of shells (outer
 shells enclose positive volume, voids negative).  It does not repair anything.
 
 Geometric checks sample each edge at a fixed number of parameters (``samples``); a sampled
@@ -325,9 +326,16 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> Non
     if np.any(vec_faces):
         parts.append(_implicit_segments(b, vec_faces, t))
     for f in np.flatnonzero(~simple & ~vec_faces):
-        seg = _face_segments(b, int(f), samples, t)
+        found = _face_rings(b, int(f), samples) if b.face_surface[f] >= 0 else None
+        if found is not None:
+            _check_face_sense(b, int(f), found[0], t, out)
+        seg = _face_segments(b, int(f), samples, t, found)
         if seg is not None:
             parts.append(seg)
+    for f in np.flatnonzero(simple & (b.face_surface >= 0)):
+        found = _face_rings(b, int(f), samples)
+        if found is not None:
+            _check_face_sense(b, int(f), found[0], t, out)
     if not parts:
         return
     offsets = np.cumsum([0] + [p[0].shape[0] for p in parts[:-1]])
@@ -375,6 +383,31 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> Non
             break
 
 
+def _check_face_sense(b: BRep, f: int, rings: list[np.ndarray], t: Tolerance, out: list[Problem]) -> None:
+    """The face lies on the left of its loops: their signed area in the parameter plane has the sign of the sense.
+
+    With ``face_sense`` True (outward normal ``Su × Sv``) the outer loop runs counter-clockwise in
+    the parameter plane and holes clockwise, so the loops' total signed area (shoelace over the
+    sampled rings, a pole's parameter-space jump closing its ring) is positive; with False it is
+    negative.  A face whose loops run the other way has its material on the wrong side: the
+    shell's volume can still come out right when another face compensates, so the sign is
+    checked per face.  Areas within the sampling's resolution of zero are not judged.
+    """
+    area = 0.0
+    scale = 0.0
+    for r in rings:
+        x, y = r[:, 0] - r[0, 0], r[:, 1] - r[0, 1]
+        area += 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+        scale = max(scale, float(np.ptp(r[:, 0])) * float(np.ptp(r[:, 1])))
+    # Relative to the loops' parameter box: chords of curved edges change the area by a fraction of it.
+    if abs(area) <= 1e-9 * scale:
+        return
+    if (area > 0) != bool(b.face_sense[f]):
+        out.append(Problem("face-orientation", "face", f,
+                           f"its loops enclose signed area {area:.6g} in the parameter plane but face_sense is "
+                           f"{bool(b.face_sense[f])} (the face lies on the wrong side of its boundary)"))
+
+
 def _implicit_segments(b: BRep, faces: np.ndarray, t: Tolerance) -> tuple[np.ndarray, ...]:
     """One segment per coedge of implicit planar faces with straight edges, projected on each face's Newell plane."""
     from coons.topology.polyhedral import newell_normals
@@ -400,10 +433,11 @@ def _implicit_segments(b: BRep, faces: np.ndarray, t: Tolerance) -> tuple[np.nda
     return A, B, f, pos[b.coedge_next[c]], c, np.full(c.size, t.linear)
 
 
-def _face_segments(b: BRep, f: int, samples: int, t: Tolerance) -> tuple[np.ndarray, ...] | None:
-    """Boundary polylines of one face in its parameter plane (or Newell plane), as segments.
+def _face_rings(b: BRep, f: int, samples: int) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
+    """Each loop of a face as a closed polyline (its p-curves sampled; 3-D points on implicit planes).
 
-    Returns None when a coedge of a face on a surface has no p-curve (nothing to sample).
+    Returns ``(rings, owners)``: per loop a ``(m, 2)`` (or ``(m, 3)``) ring and the coedge of each
+    point; None when a coedge of a face on a surface has no p-curve (nothing to sample).
     """
     si = int(b.face_surface[f])
     s = np.linspace(0.0, 1.0, samples)
@@ -433,6 +467,21 @@ def _face_segments(b: BRep, f: int, samples: int, t: Tolerance) -> tuple[np.ndar
             owners.append(np.concatenate(own))
     if not rings:
         return None
+    return rings, owners
+
+
+def _face_segments(b: BRep, f: int, samples: int, t: Tolerance,
+                   found: tuple[list[np.ndarray], list[np.ndarray]] | None = None) -> tuple[np.ndarray, ...] | None:
+    """Boundary polylines of one face in its parameter plane (or Newell plane), as segments.
+
+    ``found`` passes rings already sampled by :func:`_face_rings`.  Returns None when a coedge of a
+    face on a surface has no p-curve (nothing to sample).
+    """
+    si = int(b.face_surface[f])
+    found = found if found is not None else _face_rings(b, f, samples)
+    if found is None:
+        return None
+    rings, owners = found
     if si < 0:  # project the 3-D rings on the Newell plane of the face
         allp = np.concatenate(rings)
         nxtp = np.concatenate([np.roll(r, -1, axis=0) for r in rings])

@@ -279,6 +279,18 @@ def case_inward_shell():
     return bad, "shell", 0
 
 
+def case_face_orientation():
+    """One half-cylinder face's sense flipped: its loops now run clockwise about its outward normal."""
+    b = Cylinder(1, 2).brep
+    f = next(i for i in range(b.n_faces) if b.surfaces[int(b.face_surface[i])].surface_type == "cylinder")
+
+    def change(c):
+        c["face_sense"] = c["face_sense"].copy()
+        c["face_sense"][f] = not c["face_sense"][f]
+
+    return corrupted(b, change), "face", f
+
+
 def case_outward_void():
     outer, inner = cube_points([0, 0, 0], [4, 4, 4]), cube_points([1, 1, 1], [3, 3, 3])
     return assemble_triangles([(outer, CUBE_T), (inner, CUBE_T)], nest=(0, 1)), "shell", 1
@@ -326,6 +338,7 @@ CASES = {
     "self-intersecting-trim": case_self_intersecting_trim,
     "inward-shell": case_inward_shell,
     "outward-void": case_outward_void,
+    "face-orientation": case_face_orientation,
     "orientation-unchecked": case_orientation_unchecked,
 }
 

@@ -1,0 +1,607 @@
+"""Intersections of two parametric curves over given parameter ranges, in 2-D or 3-D.
+
+:func:`intersect_curves` finds the isolated crossings and touchings of two curve pieces and the
+parameter ranges where they coincide (overlaps).  It accepts the curves of coons —
+:class:`~coons.kernel.pcurve.Line2D`, :class:`~coons.kernel.pcurve.Trig2D`, 2-D and 3-D
+:class:`~coons.kernel.curve.NurbsCurve`, :class:`~coons.kernel.analytic.Line`,
+:class:`~coons.kernel.analytic.Circle`, :class:`~coons.kernel.analytic.Ellipse` — and any object
+with ``derivatives(t, order) -> shape + (order + 1, d)``.
+
+0. **Closed forms** first: crossing lines (2-D or 3-D, least squares) and a 2-D line against a
+   ``Trig2D`` (``A cos t + B sin t = R`` along the line's normal), plus the range ends lying
+   within ``tol.linear`` of the other curve.  Parallel lines and all other pairs go on with the
+   classic bounding-box subdivision and Newton (Sederberg & Nishita 1990; The NURBS Book §6.5):
+1. **Pieces with proven boxes.**  Each curve is cut into pieces whose axis-aligned boxes
+   contain the curve: for a NURBS the local control points of each (refined) knot span
+   (convex hull property, The NURBS Book P4.9, positive weights); for a line the segment; for
+   a conic or ``Trig2D`` the chord's box enlarged by ``h² M / 8``, where ``M`` bounds ``|C''|``
+   (the linear-interpolation error bound ``|C(t) - L(t)| <= (t - a)(b - t) M / 2``).  Other
+   curve types get a sampled bound (``M`` estimated on samples and doubled; not proven).
+2. **Candidate pairs**: pieces whose boxes, enlarged by ``tol.linear``, overlap (one array
+   comparison over all pairs).
+3. **Newton** on the squared distance (full Hessian where positive definite, else damped
+   Gauss–Newton; parameters kept in their ranges) from the centre of each candidate pair and
+   from every end point against the nearest sample of the other curve, all seeds at once; a
+   solution whose points are within ``tol.linear`` is an intersection.  Transverse crossings
+   converge quadratically, tangential touchings too (the distance's Hessian is definite
+   there).  Range ends within ``tol.linear`` of the other curve are added (projected Newton
+   can stall at a range end when the extended curves cross just outside it).
+4. **Overlaps**: the parameter axis of the first curve is cut at its range ends and at the
+   projections of the second curve's ends; an interval whose interior samples all lie within
+   ``tol.linear`` of the second curve is an overlap.  Overlaps therefore end where one of the
+   curves ends (the case of edges sharing a stretch between vertices); two curves that
+   coincide over a stretch and then part inside both ranges give no overlap but one point.
+   Solutions inside an overlap are dropped; solutions closer than ``tol.linear`` (or joined by
+   a stretch within ``tol.linear`` of both curves, as around a tangential touching) are one.
+
+The module does not intersect a curve with itself, does not compute intersection
+multiplicities, and does not find two distinct intersections closer together than the pieces
+resolve (both are reported as one).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from coons.errors import InvalidInputError
+from coons.kernel.analytic import Circle, Ellipse, Line
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.pcurve import Line2D, Trig2D
+from coons.tolerance import Tolerance, resolve
+
+__all__ = ["CurveIntersections", "curve_box", "intersect_curves", "refine_intersections"]
+
+#: Pieces per full turn of a conic: the chord box margin h² M / 8 is then below 2 % of the radius.
+_CONIC_PIECES_PER_TURN = 32
+#: Target number of pieces of a general curve (NURBS spans are refined up to about this many).
+_TARGET_PIECES = 64
+#: Samples along a curve used to seed projections.
+_SEED_SAMPLES = 129
+#: Interior fractions of an interval sampled to decide whether it is an overlap.
+_OVERLAP_PROBES = np.array([0.1, 0.3, 0.5, 0.7, 0.9])
+#: Newton iterations (linear convergence at tangential touchings needs a few dozen).
+_NEWTON_ITERATIONS = 60
+#: Newton steps without getting closer after which a seed is abandoned (not an intersection).
+_STALL = 4
+
+
+@dataclass(frozen=True, eq=False)
+class CurveIntersections:
+    """Result of :func:`intersect_curves`.
+
+    Attributes
+    ----------
+    t1, t2 : (k,) float64
+        Parameters of the isolated intersections on the first and second curve, sorted by ``t1``;
+        one entry per point (a point at both ends of a closed curve's range is reported once).
+    points : (k, d) float64
+        The intersection points (midpoint of the two curve points).
+    overlaps : tuple of ((s0, s1), (u0, u1))
+        Ranges where the curves coincide: ``c1([s0, s1])`` (``s0 < s1``) is ``c2([u0, u1])`` with
+        ``c1(s0) = c2(u0)`` and ``c1(s1) = c2(u1)`` (``u0 > u1`` when the curves run opposite ways).
+    """
+
+    t1: np.ndarray
+    t2: np.ndarray
+    points: np.ndarray
+    overlaps: tuple[tuple[tuple[float, float], tuple[float, float]], ...]
+
+    def __len__(self) -> int:
+        return int(self.t1.size)
+
+
+# ====================================================================== curve access
+def _dimension(curve: Any, what: str) -> int:
+    if not callable(getattr(curve, "derivatives", None)):
+        raise InvalidInputError(f"{what} must have a derivatives(t, order) method, got {type(curve).__name__}")
+    if isinstance(curve, (Line2D, Trig2D)):
+        return 2
+    if isinstance(curve, (Line, Circle, Ellipse)):
+        return 3
+    if isinstance(curve, NurbsCurve):
+        return curve.dimension
+    return int(np.asarray(curve.derivatives(np.zeros(1), 0)).shape[-1])
+
+
+def _range(r, curve: Any, what: str, t_: Tolerance) -> tuple[float, float]:
+    try:
+        a, b = (float(x) for x in r)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{what} must be a pair of numbers (t0, t1), got {r!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b)) or a == b:
+        raise InvalidInputError(f"{what} must be two finite, different numbers, got {r!r}")
+    lo, hi = min(a, b), max(a, b)
+    if isinstance(curve, NurbsCurve):
+        d0, d1 = curve.domain
+        slack = t_.solver * max(1.0, d1 - d0)  # round-off of the caller's parameter arithmetic (tolerance.py)
+        if lo < d0 - slack or hi > d1 + slack:
+            raise InvalidInputError(f"{what} = {r!r} leaves the curve's domain [{d0!r}, {d1!r}]")
+        lo, hi = max(lo, d0), min(hi, d1)
+    return lo, hi
+
+
+def _derivs(curve: Any, t: np.ndarray, order: int) -> np.ndarray:
+    """``(k, order + 1, d)`` derivatives at the parameters ``t`` (k,)."""
+    return np.asarray(curve.derivatives(t, order), dtype=np.float64)
+
+
+# ====================================================================== pieces and boxes
+def _pieces(curve: Any, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pieces of ``curve([lo, hi])`` with boxes containing them.
+
+    Returns
+    -------
+    a, b : (m,) float64, piece parameter ranges (``a < b``)
+    box_lo, box_hi : (m, d) float64
+    """
+    if isinstance(curve, (Line, Line2D)):
+        P = _derivs(curve, np.array([lo, hi]), 0)[:, 0]
+        return np.array([lo]), np.array([hi]), P.min(axis=0)[None], P.max(axis=0)[None]
+    if isinstance(curve, NurbsCurve):
+        return _nurbs_pieces(curve, lo, hi)
+    if isinstance(curve, Trig2D):
+        bound = float(np.linalg.norm(np.stack([curve.a, curve.b], axis=1), 2))  # max |a cos t + b sin t|
+        m = max(1, math.ceil((hi - lo) * _CONIC_PIECES_PER_TURN / (2.0 * math.pi)))
+    elif isinstance(curve, Circle):
+        bound = float(curve.radius)
+        m = max(1, math.ceil((hi - lo) * _CONIC_PIECES_PER_TURN / (2.0 * math.pi)))
+    elif isinstance(curve, Ellipse):
+        bound = float(curve.major_radius)
+        m = max(1, math.ceil((hi - lo) * _CONIC_PIECES_PER_TURN / (2.0 * math.pi)))
+    else:
+        # Unknown type: the second derivative is bounded on samples only (doubled for safety).
+        m = _TARGET_PIECES
+        ts = np.linspace(lo, hi, 4 * m + 1)
+        bound = 2.0 * float(np.linalg.norm(_derivs(curve, ts, 2)[:, 2], axis=1).max())
+    t = np.linspace(lo, hi, m + 1)
+    P = _derivs(curve, t, 0)[:, 0]
+    h = t[1:] - t[:-1]
+    margin = (h * h * bound / 8.0)[:, None]
+    return t[:-1], t[1:], np.minimum(P[:-1], P[1:]) - margin, np.maximum(P[:-1], P[1:]) + margin
+
+
+def _nurbs_pieces(curve: NurbsCurve, lo: float, hi: float):
+    """Knot spans of a refined copy of ``curve`` over ``[lo, hi]``, boxed by their control points."""
+    U, p = curve.knots, curve.degree
+    vals = np.unique(U[p : U.size - p])
+    spans = np.stack([vals[:-1], vals[1:]], axis=1)
+    spans = spans[(spans[:, 1] > lo) & (spans[:, 0] < hi)]
+    per = max(1, math.ceil(_TARGET_PIECES / max(1, spans.shape[0])))
+    if per > 1:
+        f = np.arange(1, per) / per
+        new = (spans[:, :1] + f[None] * (spans[:, 1:] - spans[:, :1])).ravel()
+        curve = curve.refine_knots(new)
+        U = curve.knots
+    P = curve.control_points
+    starts = np.flatnonzero(U[:-1] < U[1:])
+    starts = starts[(starts >= p) & (starts < P.shape[0])]
+    a, b = U[starts], U[starts + 1]
+    keep = (b > lo) & (a < hi)
+    starts, a, b = starts[keep], a[keep], b[keep]
+    idx = starts[:, None] - p + np.arange(p + 1)[None]  # control points acting on each span
+    local = P[idx]
+    return np.maximum(a, lo), np.minimum(b, hi), local.min(axis=1), local.max(axis=1)
+
+
+def curve_box(curve: Any, t_range, tol: Tolerance | None = None) -> np.ndarray:
+    """An axis-aligned box containing ``curve(t_range)``, ``(2, d)`` rows ``lo, hi``.
+
+    The union of the piece boxes of step 1 of the module docstring (proven for NURBS with
+    positive weights, lines, conics and ``Trig2D``).  A broad phase for callers that
+    intersect many curve pairs.
+
+    Raises
+    ------
+    InvalidInputError
+        As :func:`intersect_curves` for one curve and range.
+    """
+    t_ = resolve(tol)
+    _dimension(curve, "curve")
+    r = _range(t_range, curve, "t_range", t_)
+    _, _, lo, hi = _pieces(curve, *r)
+    return np.stack([lo.min(axis=0), hi.max(axis=0)])
+
+
+def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Tolerance | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Newton-polish approximate intersections ``(t1, t2)`` of two curves within their ranges.
+
+    Used to re-solve in space crossings found between p-curves in a parameter plane: the
+    3-D curves are often exact (lines, circles, ellipses) where the p-curves are fits, and a
+    crossing at a small angle turns a p-curve error ``e`` into ``e / sin(angle)`` along the
+    curves.  Same Newton as :func:`intersect_curves` (step 3).
+
+    Parameters
+    ----------
+    c1, c2 : curves with ``derivatives``; range1, range2 : (float, float)
+    t1, t2 : (k,) array_like, the starting parameters
+
+    Returns
+    -------
+    t1, t2 : (k,) float64, refined parameters (inside the ranges)
+    dist : (k,) float64, ``|c1(t1) - c2(t2)|`` reached (the caller decides what it accepts)
+
+    Raises
+    ------
+    InvalidInputError
+        As :func:`intersect_curves`, or ``t1`` and ``t2`` of different sizes.
+    """
+    t_ = resolve(tol)
+    d1, d2 = _dimension(c1, "c1"), _dimension(c2, "c2")
+    if d1 != d2:
+        raise InvalidInputError(f"refine_intersections needs curves of one dimension, got {d1}-D and {d2}-D")
+    r1, r2 = _range(range1, c1, "range1", t_), _range(range2, c2, "range2", t_)
+    s = np.asarray(t1, dtype=np.float64).ravel()
+    t = np.asarray(t2, dtype=np.float64).ravel()
+    if s.shape != t.shape:
+        raise InvalidInputError(f"t1 and t2 must have the same size, got {s.size} and {t.size}")
+    if s.size == 0:
+        return s, t, np.zeros(0)
+    return _newton_pairs(c1, r1, c2, r2, np.clip(s, *r1), np.clip(t, *r2), t_)
+
+
+# ====================================================================== Newton
+def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
+    """Newton on ``f(s, t) = |c1(s) - c2(t)|² / 2``, clipped to the ranges.
+
+    The full Hessian ``JᵀJ + diag(r·c1'', -r·c2'')`` is used where it is positive definite —
+    quadratic convergence at crossings and at tangential touchings alike (where ``JᵀJ`` alone
+    is singular) — and Gauss–Newton with Levenberg damping elsewhere (The NURBS Book §6.1,
+    generalised to two curves).
+
+    Returns
+    -------
+    s, t : (k,) parameters reached; dist : (k,) ``|c1(s) - c2(t)|``
+    """
+    s, t = s.astype(np.float64).copy(), t.astype(np.float64).copy()
+    best = np.full(s.size, np.inf)
+    stalled = np.zeros(s.size, dtype=np.int64)
+    act = np.arange(s.size)
+    for _ in range(_NEWTON_ITERATIONS):
+        if act.size == 0:
+            break
+        sa, ta = s[act], t[act]
+        A, B = _derivs(c1, sa, 2), _derivs(c2, ta, 2)
+        r = A[:, 0] - B[:, 0]
+        dist = np.linalg.norm(r, axis=1)
+        # A seed that has not come closer for a few steps sits at a positive local minimum of
+        # the distance (often on a range end): it is no intersection, stop iterating it.
+        better = dist < best[act]
+        best[act] = np.minimum(best[act], dist)
+        stalled[act] = np.where(better, 0, stalled[act] + 1)
+        J = np.stack([A[:, 1], -B[:, 1]], axis=2)  # (k, d, 2)
+        JtJ = np.einsum("kdi,kdj->kij", J, J)
+        g = np.einsum("kdi,kd->ki", J, r)
+        H = JtJ.copy()
+        H[:, 0, 0] += (r * A[:, 2]).sum(axis=1)
+        H[:, 1, 1] -= (r * B[:, 2]).sum(axis=1)
+        det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] * H[:, 1, 0]
+        # Definite and not singular to round-off (coincident curves give a singular Hessian).
+        scale = np.abs(H[:, 0, 0] * H[:, 1, 1]) + H[:, 0, 1] ** 2
+        pd = (det > t_.solver * scale) & (H[:, 0, 0] > 0)
+        # Damping proportional to the scale of JᵀJ keeps parallel tangents solvable.
+        lam = t_.solver * (JtJ[:, 0, 0] + JtJ[:, 1, 1]) + np.finfo(float).tiny
+        M = np.where(pd[:, None, None], H, JtJ + lam[:, None, None] * np.eye(2))
+        # Explicit 2x2 solve: a singular system (a stationary point of a curve) takes no step.
+        dm = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+        ok = np.abs(dm) > 0
+        dm = np.where(ok, dm, 1.0)
+        step = np.stack([(M[:, 1, 1] * -g[:, 0] - M[:, 0, 1] * -g[:, 1]) / dm,
+                         (M[:, 0, 0] * -g[:, 1] - M[:, 1, 0] * -g[:, 0]) / dm], axis=1)
+        step = np.where(ok[:, None] & np.all(np.isfinite(step), axis=1)[:, None], step, 0.0)
+        s_new = np.clip(sa + step[:, 0], *r1)
+        t_new = np.clip(ta + step[:, 1], *r2)
+        moved = np.abs(s_new - sa) + np.abs(t_new - ta)
+        s[act], t[act] = s_new, t_new
+        done = (moved <= t_.solver * (1.0 + np.abs(s_new) + np.abs(t_new))) | (stalled[act] >= _STALL)
+        act = act[~done]
+    d = np.linalg.norm(_derivs(c1, s, 0)[:, 0] - _derivs(c2, t, 0)[:, 0], axis=1)
+    return s, t, d
+
+
+def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Closest parameters on ``curve(r)`` of the points ``X`` (k, d) and the distances (k,).
+
+    Seeded at the nearest of :data:`_SEED_SAMPLES` samples, then Newton on ``(C - X)·C' = 0``
+    clipped to the range (The NURBS Book §6.1).
+    """
+    ts = np.linspace(r[0], r[1], _SEED_SAMPLES)
+    S = _derivs(curve, ts, 0)[:, 0]
+    d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
+    t = ts[np.argmin(d2, axis=1)]
+    for _ in range(_NEWTON_ITERATIONS):
+        D = _derivs(curve, t, 2)
+        diff = D[:, 0] - X
+        f = (diff * D[:, 1]).sum(axis=1)
+        df = (D[:, 1] * D[:, 1]).sum(axis=1) + (diff * D[:, 2]).sum(axis=1)
+        ok = df > 0
+        step = np.where(ok, -f / np.where(ok, df, 1.0), 0.0)
+        t_new = np.clip(t + step, *r)
+        done = np.abs(t_new - t) <= t_.solver * (1.0 + np.abs(t))
+        t = t_new
+        if np.all(done):
+            break
+    dist = np.linalg.norm(_derivs(curve, t, 0)[:, 0] - X, axis=1)
+    return t, dist
+
+
+# ====================================================================== public
+def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = None) -> CurveIntersections:
+    """Isolated intersections and overlaps of ``c1(range1)`` and ``c2(range2)`` (see the module docstring).
+
+    Parameters
+    ----------
+    c1, c2 : curves of the same dimension (2 or 3) with ``derivatives(t, order)``
+    range1, range2 : (float, float)
+        Parameter ranges, either order; NURBS ranges must lie in the domain.
+    tol : Tolerance, optional
+        Points closer than ``tol.linear`` (in the curves' space) are one point.
+
+    Returns
+    -------
+    CurveIntersections
+
+    Raises
+    ------
+    InvalidInputError
+        A curve without ``derivatives``, curves of different dimensions, a malformed range
+        or a NURBS range outside the domain.
+
+    Examples
+    --------
+    >>> x = intersect_curves(Line2D([0, 0], [1, 1]), (0, 2), Line2D([0, 1], [1, -1]), (0, 2))
+    >>> x.points.round(12).tolist(), x.t1.round(12).tolist(), x.overlaps
+    ([[0.5, 0.5]], [0.5], ())
+    """
+    t_ = resolve(tol)
+    d1, d2 = _dimension(c1, "c1"), _dimension(c2, "c2")
+    if d1 != d2:
+        raise InvalidInputError(f"intersect_curves needs curves of one dimension, got {d1}-D and {d2}-D")
+    r1, r2 = _range(range1, c1, "range1", t_), _range(range2, c2, "range2", t_)
+    eps = t_.linear
+    exact = _exact(c1, r1, c2, r2, t_)
+    if exact is not None:
+        return _with_end_contacts(exact, c1, r1, c2, r2, t_)
+
+    # 1-2. Pieces, boxes and candidate pairs.
+    a1, b1, lo1, hi1 = _pieces(c1, *r1)
+    a2, b2, lo2, hi2 = _pieces(c2, *r2)
+    hit = np.all((lo1[:, None] <= hi2[None] + eps) & (lo2[None] <= hi1[:, None] + eps), axis=2)
+    i, j = np.nonzero(hit)
+    seeds_s = [0.5 * (a1[i] + b1[i])]
+    seeds_t = [0.5 * (a2[j] + b2[j])]
+    # End points against the other curve: cuts ending on an edge converge from here.
+    ends1, ends2 = np.array(r1), np.array(r2)
+    t_of_1, _ = _project(c2, r2, _derivs(c1, ends1, 0)[:, 0], t_)
+    s_of_2, _ = _project(c1, r1, _derivs(c2, ends2, 0)[:, 0], t_)
+    seeds_s += [ends1, s_of_2]
+    seeds_t += [t_of_1, ends2]
+
+    # 3. Newton on every seed.
+    s, t, dist = _newton_pairs(c1, r1, c2, r2, np.concatenate(seeds_s), np.concatenate(seeds_t), t_)
+    good = dist <= eps
+    s, t, dist = s[good], t[good], dist[good]
+
+    # 4. Overlaps, then de-duplication of the isolated solutions.
+    overlaps = _overlaps(c1, r1, c2, r2, t_, eps)
+    if overlaps and s.size:
+        keep = np.ones(s.size, dtype=bool)
+        speed = np.linalg.norm(_derivs(c1, s, 1)[:, 1], axis=1)
+        slack = eps / np.maximum(speed, np.finfo(float).tiny)
+        for (s0, s1), _ in overlaps:
+            keep &= ~((s >= s0 - slack) & (s <= s1 + slack))
+        s, t, dist = s[keep], t[keep], dist[keep]
+    s, t = _deduplicate(c1, r1, c2, r2, s, t, dist, eps, t_)
+    # Projected Newton can stall at a range end whose point is within eps of the other curve
+    # while the unconstrained solution lies outside the range: add those contacts directly.
+    return _with_end_contacts(_result(c1, c2, s, t), c1, r1, c2, r2, t_, tuple(overlaps))
+
+
+# ====================================================================== closed forms
+def _linear(c: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(origin, direction)`` of a straight curve ``O + t D``, else None."""
+    if isinstance(c, Line2D):
+        return c.origin, c.direction
+    if isinstance(c, Line):
+        return c.origin, c.direction
+    return None
+
+
+def _result(c1, c2, s: np.ndarray, t: np.ndarray) -> CurveIntersections:
+    order = np.argsort(s, kind="stable")
+    s, t = s[order], t[order]
+    d = _dimension(c1, "c1")
+    P = 0.5 * (_derivs(c1, s, 0)[:, 0] + _derivs(c2, t, 0)[:, 0]) if s.size else np.zeros((0, d))
+    return CurveIntersections(s, t, P.reshape(-1, d), ())
+
+
+def _in_range(x: np.ndarray, r: tuple[float, float], slack: np.ndarray | float) -> np.ndarray:
+    return (x >= r[0] - slack) & (x <= r[1] + slack)
+
+
+def _exact(c1, r1, c2, r2, t_: Tolerance) -> CurveIntersections | None:
+    """Closed forms: crossing lines (Cramer / least squares) and a 2-D line against a ``Trig2D``.
+
+    Returns None when no closed form applies (parallel lines go to the general path, which
+    reports their overlaps).  Parameters within ``tol.linear`` of a range end (in length) are
+    snapped to it; points farther than ``tol.linear`` apart are no intersection.
+    """
+    eps = t_.linear
+    L1, L2 = _linear(c1), _linear(c2)
+    if L1 is not None and L2 is not None:
+        (o1, d1), (o2, d2) = L1, L2
+        n1, n2 = float(np.linalg.norm(d1)), float(np.linalg.norm(d2))
+        # |d1 × d2| is accurate to round-off where a determinant of dot products is not.
+        cr = d1[0] * d2[1] - d1[1] * d2[0] if d1.size == 2 else np.cross(d1, d2)
+        sin2 = float(np.sum(np.square(cr)))
+        if sin2 <= (t_.angular * n1 * n2) ** 2:
+            return None  # parallel to the angular tolerance
+        # Closest points of the two lines (least squares; Cramer with det = |d1 × d2|²).
+        w = o2 - o1
+        a12 = float(d1 @ d2)
+        s = (float(w @ d1) * n2 * n2 - float(w @ d2) * a12) / sin2
+        t = (float(w @ d1) * a12 - float(w @ d2) * n1 * n1) / sin2
+        ok = _in_range(np.array([s]), r1, eps / n1)[0] and _in_range(np.array([t]), r2, eps / n2)[0]
+        s, t = float(np.clip(s, *r1)), float(np.clip(t, *r2))
+        if not ok or np.linalg.norm(o1 + s * d1 - o2 - t * d2) > eps:
+            return _result(c1, c2, np.zeros(0), np.zeros(0))
+        return _result(c1, c2, np.array([s]), np.array([t]))
+    if L1 is not None and isinstance(c2, Trig2D) and isinstance(c1, Line2D):
+        return _line_trig(c1, r1, c2, r2, t_, swap=False)
+    if L2 is not None and isinstance(c1, Trig2D) and isinstance(c2, Line2D):
+        return _line_trig(c2, r2, c1, r1, t_, swap=True)
+    return None
+
+
+def _line_trig(line: Line2D, rl, trig: Trig2D, rt, t_: Tolerance, swap: bool) -> CurveIntersections:
+    """A 2-D line against ``C + a cos t + b sin t``: ``A cos t + B sin t = R`` along the normal."""
+    eps = t_.linear
+    o, d = line.origin, line.direction
+    nd = float(np.linalg.norm(d))
+    n = np.array([-d[1], d[0]]) / nd
+    A, B, R = float(n @ trig.a), float(n @ trig.b), float(n @ (o - trig.center))
+    rho = math.hypot(A, B)
+    if abs(R) > rho + eps:
+        t = np.zeros(0)
+    else:
+        phi = math.atan2(B, A)
+        if abs(R) >= rho - eps:
+            # Within eps of the line over the whole stretch between the two roots: a touching,
+            # at the extremum of the distance (acos near ±1 would split it by sqrt(eps)).
+            base = np.array([phi if R >= 0 else phi + math.pi])
+        else:
+            half = math.acos(R / rho)
+            base = np.array([phi - half, phi + half])
+        # Every representative of each root inside the range (a range may exceed one period).
+        k0 = np.floor((rt[0] - base) / (2 * math.pi))
+        t = np.concatenate([b + 2 * math.pi * np.arange(k, k + 3) for b, k in zip(base, k0)])
+        speed = np.linalg.norm(trig.derivatives(t, 1)[:, 1], axis=1)
+        slack = eps / np.maximum(speed, np.finfo(float).tiny)
+        t = np.clip(t[_in_range(t, rt, slack)], *rt)
+    P = trig.evaluate(t)
+    s = (P - o) @ d / (nd * nd)
+    keep = _in_range(s, rl, eps / nd)
+    s, t = np.clip(s[keep], *rl), t[keep]
+    close = np.linalg.norm(line.evaluate(s) - trig.evaluate(t), axis=1) <= eps
+    s, t = s[close], t[close]
+    if t.size > 1:  # a double root (tangency) or range ends one period apart: one point
+        order = np.argsort(t)
+        s, t = s[order], t[order]
+        P = trig.evaluate(t)
+        far = np.linalg.norm(P[:, None] - P[None], axis=2) > eps
+        first = np.array([k == 0 or bool(np.all(far[k, :k])) for k in range(t.size)])
+        s, t = s[first], t[first]
+    return _result(trig, line, t, s) if swap else _result(line, trig, s, t)
+
+
+def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, overlaps=()) -> CurveIntersections:
+    """Add the range ends lying within ``tol.linear`` of the other curve, merged with nearby solutions.
+
+    A slanted segment ending just short of (or past) another curve meets it, within the
+    tolerance, at its end point, while the exact crossing of the extended curves lies outside
+    the range.  Candidates (ends of ``c1``, ends of ``c2``, crossings) joined by stretches of
+    both curves within ``tol.linear`` of each other are one intersection: curves accurate to
+    ``eps`` crossing at a small angle place the crossing up to ``eps / sin(angle)`` from where
+    an edge ends.  A merged intersection takes each curve's range end when one of its members
+    is that end (so that edges ending at one vertex are split exactly at their ends).
+    """
+    eps = t_.linear
+    e1, e2 = np.array(r1), np.array(r2)
+    t_of_1, d1 = _project(c2, r2, _derivs(c1, e1, 0)[:, 0], t_)
+    s_of_2, d2 = _project(c1, r1, _derivs(c2, e2, 0)[:, 0], t_)
+    s = np.concatenate([e1[d1 <= eps], s_of_2[d2 <= eps]])
+    t = np.concatenate([t_of_1[d1 <= eps], e2[d2 <= eps]])
+    kind = np.concatenate([np.full(int(np.sum(d1 <= eps)), 1), np.full(int(np.sum(d2 <= eps)), 2)])
+    if overlaps and s.size:  # ends of an overlap are not isolated points
+        slack = eps / np.maximum(np.linalg.norm(_derivs(c1, s, 1)[:, 1], axis=1), np.finfo(float).tiny)
+        keep = np.ones(s.size, dtype=bool)
+        for (s0, s1), _ in overlaps:
+            keep &= (s < s0 - slack) | (s > s1 + slack)
+        s, t, kind = s[keep], t[keep], kind[keep]
+    if s.size == 0:
+        return x if not overlaps else CurveIntersections(x.t1, x.t2, x.points, tuple(overlaps))
+    s, t = np.concatenate([s, x.t1]), np.concatenate([t, x.t2])
+    kind = np.concatenate([kind, np.zeros(x.t1.size, dtype=np.int64)])
+    n = s.size
+    I, J = np.triu_indices(n, 1)
+    near = np.linalg.norm(_derivs(c1, s[I], 0)[:, 0] - _derivs(c1, s[J], 0)[:, 0], axis=1) <= eps
+    _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I] + s[J]), 0)[:, 0], t_)
+    _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I] + t[J]), 0)[:, 0], t_)
+    same = near | ((m1 <= eps) & (m2 <= eps))
+    label = np.arange(n)
+    for i, j in zip(I[same], J[same]):  # union-find over a handful of candidates
+        a, b = label[i], label[j]
+        label[label == max(a, b)] = min(a, b)
+    out_s, out_t = [], []
+    for g in np.unique(label):
+        m = np.flatnonzero(label == g)
+        k1, k2 = m[kind[m] == 1], m[kind[m] == 2]
+        out_s.append(s[k1[0]] if k1.size else s[m[0]])
+        out_t.append(t[k2[0]] if k2.size else t[m[0]])
+    out = _result(c1, c2, np.array(out_s), np.array(out_t))
+    return CurveIntersections(out.t1, out.t2, out.points, tuple(overlaps))
+
+
+def _deduplicate(c1, r1, c2, r2, s, t, dist, eps, t_):
+    """One solution per intersection: cluster by point distance or by a coincident stretch between."""
+    if s.size == 0:
+        return s, t
+    order = np.argsort(s, kind="stable")
+    s, t, dist = s[order], t[order], dist[order]
+    P = _derivs(c1, s, 0)[:, 0]
+    # Neighbours in s join when their points are within eps or the midpoint between them on c1
+    # is within eps of c2 (a tangential touching spreads Newton's solutions along a band).
+    near = np.linalg.norm(P[1:] - P[:-1], axis=1) <= eps
+    if s.size > 1:
+        mid = 0.5 * (s[1:] + s[:-1])
+        _, dm = _project(c2, r2, _derivs(c1, mid, 0)[:, 0], t_)
+        near |= dm <= eps
+    group = np.concatenate([[0], np.cumsum(~near)])
+    # Representative: the member with the smallest distance.
+    rank = np.lexsort((dist, group))
+    first = np.concatenate([[True], group[rank][1:] != group[rank][:-1]])
+    best = np.sort(rank[first])
+    # Groups at one point but not adjacent in s (both ends of a closed range): keep the first.
+    Q = P[best]
+    far = np.linalg.norm(Q[:, None] - Q[None], axis=2) > eps
+    keep = np.array([k == 0 or bool(np.all(far[k, :k])) for k in range(best.size)])
+    best = best[keep]
+    return s[best], t[best]
+
+
+def _overlaps(c1, r1, c2, r2, t_: Tolerance, eps: float):
+    """Maximal ranges of ``c1`` within ``eps`` of ``c2`` (see the module docstring, step 4)."""
+    ends2 = _derivs(c2, np.array(r2), 0)[:, 0]
+    s_e, d_e = _project(c1, r1, ends2, t_)
+    cuts = np.unique(np.concatenate([np.array(r1), s_e[d_e <= eps]]))
+    if cuts.size < 2:
+        return []
+    a, b = cuts[:-1], cuts[1:]
+    probe = a[:, None] + _OVERLAP_PROBES[None] * (b - a)[:, None]
+    _, dp = _project(c2, r2, _derivs(c1, probe.ravel(), 0)[:, 0], t_)
+    on = np.all(dp.reshape(probe.shape) <= eps, axis=1)
+    # An interval shorter than eps (between solutions clustered around a touching) is a point.
+    path = np.concatenate([a[:, None], probe, b[:, None]], axis=1)
+    Q = _derivs(c1, path.ravel(), 0)[:, 0].reshape(path.shape + (-1,))
+    on &= np.linalg.norm(Q[:, 1:] - Q[:, :-1], axis=2).sum(axis=1) > eps
+    out = []
+    k = 0
+    while k < on.size:
+        if not on[k]:
+            k += 1
+            continue
+        m = k
+        while m + 1 < on.size and on[m + 1]:
+            m += 1
+        out.append((float(a[k]), float(b[m])))
+        k = m + 1
+    if not out:
+        return []
+    ends = np.array(out)
+    u, _ = _project(c2, r2, _derivs(c1, ends.ravel(), 0)[:, 0], t_)
+    u = u.reshape(-1, 2)
+    return [((s0, s1), (float(u0), float(u1))) for (s0, s1), (u0, u1) in zip(out, u)]

@@ -1,0 +1,373 @@
+"""intersect_curves: isolated crossings, tangential touchings and overlaps of two curves.
+
+Closed forms: line/line (Cramer, hypothesis), line/circle and line/ellipse
+(``A cos t + B sin t = C``, hypothesis), circle/circle (radical line), a cubic Bezier against
+a line (polynomial roots), random rational cubics against lines (brentq on the signed
+distance, hypothesis), 3-D circles and lines; the rational-quadratic NURBS of a circle gives
+the same answers as the circle.  Invariants: every returned pair of parameters maps to the
+returned point on both curves; swapping the curves swaps the parameters; overlaps report
+matching parameter ranges on both curves (with the direction); a touching is one point; range
+ends within tol.linear of the other curve are contacts.  ``curve_box`` contains dense samples
+and is tight; ``refine_intersections`` polishes to round-off.  OCCT's
+``Geom2dAPI_InterCurveCurve`` agrees on a B-spline against an ellipse.  Every error branch is
+checked.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from coons.errors import InvalidInputError
+from coons.kernel.analytic import Circle, Ellipse, Line
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.curve_intersect import CurveIntersections, curve_box, intersect_curves, refine_intersections
+from coons.kernel.pcurve import Line2D, Trig2D
+from coons.tolerance import Tolerance
+
+#: Transverse crossings are found by Newton to round-off.
+ATOL = 1e-12
+#: A tangential touching is ill-conditioned: its position is known to about sqrt(tol.linear).
+ATOL_TOUCH = 1e-6
+TWO_PI = 2 * math.pi
+
+
+def _assert_consistent(x: CurveIntersections, c1, c2, atol: float = 1e-9) -> None:
+    """Both curves pass through every reported point at the reported parameters."""
+    if len(x):
+        np.testing.assert_allclose(c1.evaluate(x.t1), x.points, rtol=0, atol=atol)
+        np.testing.assert_allclose(c2.evaluate(x.t2), x.points, rtol=0, atol=atol)
+    for (s0, s1), (u0, u1) in x.overlaps:
+        assert s0 < s1
+        np.testing.assert_allclose(c1.evaluate(np.array([s0, s1])), c2.evaluate(np.array([u0, u1])), rtol=0, atol=atol)
+
+
+# ====================================================================== lines
+finite = st.floats(-10, 10, allow_nan=False)
+
+
+@settings(max_examples=40)
+@given(finite, finite, finite, finite, finite, finite, finite, finite)
+def test_line_line_matches_cramer(ox, oy, dx, dy, px, py, ex, ey):
+    d, e = np.array([dx, dy]), np.array([ex, ey])
+    det = dx * ey - dy * ex
+    if np.linalg.norm(d) < 0.1 or np.linalg.norm(e) < 0.1 or abs(det) < 0.05 * np.linalg.norm(d) * np.linalg.norm(e):
+        return  # near-parallel lines: covered by the overlap tests
+    l1, l2 = Line2D([ox, oy], d), Line2D([px, py], e)
+    s, t = np.linalg.solve(np.stack([d, -e], axis=1), np.array([px - ox, py - oy]))
+    x = intersect_curves(l1, (s - 1, s + 2), l2, (t - 3, t + 1))
+    assert len(x) == 1 and not x.overlaps
+    np.testing.assert_allclose([x.t1[0], x.t2[0]], [s, t], rtol=1e-10, atol=1e-10)
+    # Outside either range: nothing.
+    assert len(intersect_curves(l1, (s + 0.5, s + 2), l2, (t - 3, t + 1))) == 0
+
+
+def test_parallel_and_skew_lines_do_not_meet():
+    assert len(intersect_curves(Line2D([0, 0], [1, 0]), (0, 1), Line2D([0, 1], [1, 0]), (0, 1))) == 0
+    x = intersect_curves(Line([0, 0, 0], [1, 0, 0]), (-1, 1), Line([0, 0, 1], [0, 1, 0]), (-1, 1))
+    assert len(x) == 0 and not x.overlaps
+
+
+def test_lines_crossing_in_3d():
+    x = intersect_curves(Line([0, 0, 0], [1, 0, 0]), (-1, 1), Line([0.25, -1, 0], [0, 1, 0]), (0, 2))
+    np.testing.assert_allclose(x.points, [[0.25, 0, 0]], atol=ATOL)
+    np.testing.assert_allclose([x.t1[0], x.t2[0]], [0.25, 1.0], atol=ATOL)
+
+
+def test_collinear_segments_overlap_both_directions():
+    x = intersect_curves(Line2D([0, 0], [1, 0]), (0, 4), Line2D([2, 0], [-1, 0]), (-1, 3))
+    assert len(x) == 0 and len(x.overlaps) == 1
+    (s0, s1), (u0, u1) = x.overlaps[0]
+    np.testing.assert_allclose([s0, s1, u0, u1], [0, 3, 2, -1], atol=ATOL)
+    # A degree-1 NURBS on the same line, running the same way as c1.
+    nl = NurbsCurve([[1, 0], [5, 0]], [0, 0, 1, 1], 1)
+    x = intersect_curves(Line2D([0, 0], [1, 0]), (0, 4), nl, (0, 1))
+    (s0, s1), (u0, u1) = x.overlaps[0]
+    np.testing.assert_allclose([s0, s1, u0, u1], [1, 4, 0, 0.75], atol=ATOL)
+    _assert_consistent(x, Line2D([0, 0], [1, 0]), nl)
+
+
+def test_segments_touching_end_to_end():
+    x = intersect_curves(Line2D([0, 0], [1, 0]), (0, 1), Line2D([1, 0], [0, 1]), (0, 1))
+    np.testing.assert_allclose(x.points, [[1, 0]], atol=ATOL)
+    np.testing.assert_allclose([x.t1[0], x.t2[0]], [1, 0], atol=ATOL)
+    # Collinear, touching at one end point only: a point, not an overlap.
+    x = intersect_curves(Line2D([0, 0], [1, 0]), (0, 1), Line2D([1, 0], [1, 0]), (0, 1))
+    assert not x.overlaps and len(x) == 1
+    np.testing.assert_allclose(x.points, [[1, 0]], atol=ATOL)
+
+
+# ====================================================================== conics
+@pytest.mark.parametrize("c", [0.0, 0.5, -0.9])
+def test_line_circle_closed_form(c):
+    circle = Trig2D([0, 0], [1, 0], [0, 1])
+    x = intersect_curves(Line2D([-2, c], [1, 0]), (0, 4), circle, (0, TWO_PI))
+    xs = math.sqrt(1 - c * c)
+    np.testing.assert_allclose(x.points, [[-xs, c], [xs, c]], atol=ATOL)
+    np.testing.assert_allclose(x.t2, np.mod([math.pi - math.asin(c), math.asin(c)], TWO_PI), atol=ATOL)
+    _assert_consistent(x, Line2D([-2, c], [1, 0]), circle)
+
+
+@settings(max_examples=30)
+@given(st.floats(0.2, 3), st.floats(0.2, 3), st.floats(0, math.pi), st.floats(-1.0, 1.0))
+def test_line_ellipse_closed_form(ra, rb, phi, offset):
+    a = ra * np.array([math.cos(phi), math.sin(phi)])
+    b = rb * np.array([-math.sin(phi), math.cos(phi)])
+    ell = Trig2D([0.3, -0.2], a, b)
+    line = Line2D([-5, 0.1], [1, offset])
+    # n·(C + a cos t + b sin t) = n·O with n normal to the line: A cos t + B sin t = R.
+    n = np.array([-offset, 1.0])
+    A, B, R = n @ a, n @ b, n @ (np.array([-5, 0.1]) - np.array([0.3, -0.2]))
+    rho = math.hypot(A, B)
+    x = intersect_curves(line, (0, 10), ell, (0, TWO_PI))
+    if abs(R) > rho * (1 + 1e-6):
+        assert len(x) == 0
+        return
+    if abs(R) > rho * (1 - 1e-3):
+        return  # near tangency: see the touching tests
+    base = math.atan2(B, A)
+    expected = np.sort(np.mod([base + math.acos(R / rho), base - math.acos(R / rho)], TWO_PI))
+    assert len(x) == 2
+    np.testing.assert_allclose(np.sort(x.t2), expected, atol=1e-10)
+    _assert_consistent(x, line, ell)
+
+
+@pytest.mark.parametrize("dx", [0.5, 1.0, 1.5])
+def test_circle_circle_radical_line(dx):
+    c1, c2 = Trig2D([0, 0], [1, 0], [0, 1]), Trig2D([dx, 0], [1, 0], [0, 1])
+    x = intersect_curves(c1, (0, TWO_PI), c2, (0, TWO_PI))
+    px, py = dx / 2, math.sqrt(1 - dx * dx / 4)
+    np.testing.assert_allclose(x.points[np.argsort(x.points[:, 1])], [[px, -py], [px, py]], atol=ATOL)
+    _assert_consistent(x, c1, c2)
+
+
+def test_tangential_touchings_are_reported_once():
+    circle = Trig2D([0, 0], [1, 0], [0, 1])
+    x = intersect_curves(Line2D([-2, 1], [1, 0]), (0, 4), circle, (0, TWO_PI))
+    assert len(x) == 1 and not x.overlaps
+    np.testing.assert_allclose(x.points, [[0, 1]], atol=ATOL_TOUCH)
+    # A line 1e-14 inside the circle's top: two roots 2.8e-7 apart within tol.linear of each
+    # other are one touching, at the top (not two points sqrt(1e-14) off it).
+    for y in (1 - 1e-14, 1 + 1e-14, 1 - 5e-8):
+        x = intersect_curves(Line2D([-2, y], [1, 0]), (0, 4), circle, (0, TWO_PI))
+        assert len(x) == 1
+        np.testing.assert_allclose(x.t2, [math.pi / 2], atol=1e-12)
+    x = intersect_curves(circle, (-1, 5), Trig2D([2, 0], [1, 0], [0, 1]), (0, TWO_PI))
+    assert len(x) == 1
+    np.testing.assert_allclose(x.points, [[1, 0]], atol=ATOL_TOUCH)
+    # Over a full period the touching point is at both ends of the range: reported once.
+    x = intersect_curves(circle, (0, TWO_PI), Trig2D([2, 0], [1, 0], [0, 1]), (0, TWO_PI))
+    assert len(x) == 1
+    np.testing.assert_allclose(x.points, [[1, 0]], atol=ATOL_TOUCH)
+    # Internally tangent circles of radii 1 and 0.5.
+    x = intersect_curves(circle, (-1, 5), Trig2D([0.5, 0], [0.5, 0], [0, 0.5]), (-1, 5))
+    assert len(x) == 1
+    np.testing.assert_allclose(x.points, [[1, 0]], atol=ATOL_TOUCH)
+
+
+def test_concentric_arcs_overlap_with_directions():
+    circle = Trig2D([0, 0], [1, 0], [0, 1])
+    x = intersect_curves(circle, (0, 4), circle, (1, 6))
+    assert len(x) == 0
+    np.testing.assert_allclose(np.ravel(x.overlaps), [1, 4, 1, 4], atol=ATOL)
+    # The same circle clockwise: t' = -t.
+    cw = Trig2D([0, 0], [1, 0], [0, -1])
+    x = intersect_curves(circle, (0, 2), cw, (-3, -0.5))
+    (s0, s1), (u0, u1) = x.overlaps[0]
+    np.testing.assert_allclose([s0, s1, u0, u1], [0.5, 2, -0.5, -2], atol=ATOL)
+    _assert_consistent(x, circle, cw)
+
+
+def test_3d_circles_and_line():
+    c1 = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    c2 = Circle([2, 0, 0], [0, 1, 0], [1, 0, 0], 1.0)  # in the plane y = 0, through (1, 0, 0)
+    x = intersect_curves(c1, (-1, 5), c2, (0, TWO_PI))
+    np.testing.assert_allclose(x.points, [[1, 0, 0]], atol=ATOL)
+    np.testing.assert_allclose(x.t2, [math.pi], atol=ATOL)
+    e = Ellipse([0, 0, 0], [0, 0, 1], [1, 0, 0], 2.0, 1.0)
+    x = intersect_curves(Line([0, -3, 0], [0, 1, 0]), (0, 6), e, (0, TWO_PI))
+    np.testing.assert_allclose(x.points[np.argsort(x.points[:, 1])], [[0, -1, 0], [0, 1, 0]], atol=ATOL)
+    # A line passing above the circle's plane misses it.
+    assert len(intersect_curves(Line([0, -3, 0.1], [0, 1, 0]), (0, 6), c1, (0, TWO_PI))) == 0
+
+
+def test_swapping_curves_swaps_parameters():
+    c1, c2 = Trig2D([0, 0], [1, 0], [0, 1]), Line2D([-2, 0.3], [1, 0.1])
+    x, y = intersect_curves(c1, (0, TWO_PI), c2, (0, 4)), intersect_curves(c2, (0, 4), c1, (0, TWO_PI))
+    order = np.argsort(y.t2)
+    np.testing.assert_allclose(y.t1[order], x.t2, atol=ATOL)
+    np.testing.assert_allclose(y.t2[order], x.t1, atol=ATOL)
+
+
+# ====================================================================== NURBS
+def test_cubic_bezier_against_line_polynomial_roots():
+    P = np.array([[0, 0], [1, 2], [2, -2], [3, 0.5]])
+    bez = NurbsCurve(P, [0, 0, 0, 0, 1, 1, 1, 1], 3)
+    h = 0.1
+    # y(t) = sum B_i(t) y_i: cubic coefficients in the power basis.
+    y = P[:, 1]
+    coef = [-y[0] + 3 * y[1] - 3 * y[2] + y[3], 3 * y[0] - 6 * y[1] + 3 * y[2], -3 * y[0] + 3 * y[1], y[0] - h]
+    roots = np.sort([r.real for r in np.roots(coef) if abs(r.imag) < 1e-12 and 0 <= r.real <= 1])
+    x = intersect_curves(bez, (0, 1), Line2D([-1, h], [1, 0]), (0, 5))
+    np.testing.assert_allclose(x.t1, roots, atol=ATOL)
+    _assert_consistent(x, bez, Line2D([-1, h], [1, 0]))
+    # A sub-range keeps only the roots inside it.
+    x = intersect_curves(bez, (0.2, 1), Line2D([-1, h], [1, 0]), (0, 5))
+    np.testing.assert_allclose(x.t1, roots[roots >= 0.2], atol=ATOL)
+
+
+@settings(max_examples=30)
+@given(st.lists(st.floats(-2, 2), min_size=10, max_size=10), st.lists(st.floats(0.5, 2.0), min_size=5, max_size=5),
+       st.floats(0, math.pi), st.floats(-1, 1))
+def test_random_rational_cubic_against_line_matches_brentq(ys, ws, phi, offset):
+    """Roots of the signed distance to the line, bracketed on 4001 samples and solved by brentq."""
+    from scipy.optimize import brentq
+
+    P = np.stack([np.linspace(-2, 2, 5), np.asarray(ys[:5])], axis=1) + 0.3 * np.asarray(ys[5:])[:, None]
+    c = NurbsCurve(P, [0, 0, 0, 0, 0.5, 1, 1, 1, 1], 3, ws)
+    n = np.array([-math.sin(phi), math.cos(phi)])
+    O = offset * n
+    line = Line2D(O - 20 * np.array([math.cos(phi), math.sin(phi)]), [math.cos(phi), math.sin(phi)])
+    f = lambda t: (c.evaluate(t) - O) @ n  # noqa: E731
+    ts = np.linspace(0, 1, 4001)
+    F = f(ts)
+    # Near-tangencies and roots at the ends are the other tests' business.
+    if np.min(np.abs(F)) < 1e-3 and not np.any(F[:-1] * F[1:] < 0) or abs(F[0]) < 1e-6 or abs(F[-1]) < 1e-6:
+        return
+    k = np.flatnonzero(F[:-1] * F[1:] < 0)
+    mins = np.flatnonzero((np.abs(F[1:-1]) <= np.abs(F[:-2])) & (np.abs(F[1:-1]) <= np.abs(F[2:]))) + 1
+    if np.any(np.abs(F[mins]) < 1e-2) and mins.size > k.size:
+        return  # a local extremum of the distance close to the line: nearly tangent
+    roots = np.array([brentq(f, ts[i], ts[i + 1], xtol=1e-15) for i in k])
+    x = intersect_curves(c, (0, 1), line, (0, 40))
+    np.testing.assert_allclose(x.t1, roots, atol=1e-10)
+    _assert_consistent(x, c, line)
+
+
+def test_rational_circle_matches_analytic_circle():
+    c3 = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    nc = c3.to_nurbs((0, TWO_PI))
+    nc2 = NurbsCurve(nc.control_points[:, :2], nc.knots, nc.degree, nc.weights)
+    line = Line2D([-2, 0.4], [1, 0])
+    x = intersect_curves(nc2, nc2.domain, line, (0, 4))
+    y = intersect_curves(Trig2D([0, 0], [1, 0], [0, 1]), (0, TWO_PI), line, (0, 4))
+    np.testing.assert_allclose(np.sort(x.points[:, 0]), np.sort(y.points[:, 0]), atol=ATOL)
+    # NURBS against NURBS: the circle against a shifted copy.
+    shifted = NurbsCurve(nc2.control_points + [1.0, 0.0], nc2.knots, nc2.degree, nc2.weights)
+    x = intersect_curves(nc2, nc2.domain, shifted, shifted.domain)
+    np.testing.assert_allclose(np.sort(x.points[:, 1]), [-math.sqrt(3) / 2, math.sqrt(3) / 2], atol=ATOL)
+    _assert_consistent(x, nc2, shifted)
+
+
+def test_nurbs_overlapping_itself_on_a_sub_range():
+    P = np.array([[0, 0], [1, 2], [2, -2], [3, 0.5], [4, 1]])
+    c = NurbsCurve(P, [0, 0, 0, 0, 0.5, 1, 1, 1, 1], 3)
+    x = intersect_curves(c, (0, 0.7), c, (0.3, 1))
+    assert len(x) == 0 and len(x.overlaps) == 1
+    np.testing.assert_allclose(np.ravel(x.overlaps), [0.3, 0.7, 0.3, 0.7], atol=1e-9)
+
+
+def test_end_point_within_tolerance_of_the_other_curve():
+    # A shallow segment starting 3e-8 above a line: the extended crossing lies 3e-6 before its
+    # range, its start point is within tol.linear of the line: one contact at s = 0.
+    l1, l2 = Line2D([0, 3e-8], [1, 0.01]), Line2D([-1, 0], [1, 0])
+    x = intersect_curves(l1, (0, 1), l2, (0, 2))
+    np.testing.assert_allclose([x.t1[0], x.t2[0]], [0.0, 1.0], atol=1e-12)
+    nl = NurbsCurve([[0, 3e-8], [0.5, 0.005], [1, 0.01 + 3e-8]], [0, 0, 0, 1, 1, 1], 2)
+    y = intersect_curves(nl, (0, 1), l2, (0, 2))
+    np.testing.assert_allclose([y.t1[0], y.t2[0]], [0.0, 1.0], atol=1e-12)
+    c = Trig2D([0, 1 + 3e-8], [1, 0], [0, 1])  # a circle 3e-8 above the line, range away from the bottom
+    assert len(intersect_curves(c, (0, 4), l2, (0, 2))) == 0
+    z = intersect_curves(c, (0, 1.5 * math.pi), l2, (0, 2))
+    np.testing.assert_allclose([z.t1[0], z.t2[0]], [1.5 * math.pi, 1.0], atol=1e-12)
+
+
+def test_tolerance_controls_near_misses():
+    l1, l2 = Line2D([0, 0], [1, 0]), Line2D([0.5, 1e-5], [0, 1])
+    assert len(intersect_curves(l1, (0, 1), l2, (0, 1))) == 0  # misses by 1e-5
+    x = intersect_curves(l1, (0, 1), l2, (0, 1), tol=Tolerance(linear=1e-4))
+    assert len(x) == 1
+
+
+# ====================================================================== boxes
+@pytest.mark.parametrize("curve, rng", [
+    (Trig2D([0.3, -0.2], [2.0, 0.5], [-0.3, 1.0]), (0.2, 5.0)),
+    (Circle([1, 2, 3], [1, 1, 1], [1, 0, 0], 2.0), (0.0, TWO_PI)),
+    (Ellipse([0, 0, 0], [0, 1, 1], [1, 0, 0], 3.0, 1.0), (-1.0, 2.0)),
+    (NurbsCurve([[0, 0], [1, 3], [2, -3], [3, 1], [4, 0]], [0, 0, 0, 0, 0.4, 1, 1, 1, 1], 3, [1, 2, 0.5, 1, 1]), (0.1, 0.9)),
+    (Line([0, 0, 0], [1, 2, 3]), (-1.0, 2.0)),
+])
+def test_curve_box_contains_the_curve(curve, rng):
+    box = curve_box(curve, rng)
+    P = curve.evaluate(np.linspace(*rng, 2001))
+    assert np.all(P >= box[0] - 1e-12) and np.all(P <= box[1] + 1e-12)
+    # Not grossly loose: within 5 % of the sampled extent.
+    np.testing.assert_allclose(box, [P.min(axis=0), P.max(axis=0)], atol=0.05 * float(np.ptp(P, axis=0).max()))
+
+
+def test_refine_intersections_polishes_and_reports_distances():
+    c1 = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    line = Line([-2, 0.3, 0], [1, 0, 0])
+    x0 = math.sqrt(1 - 0.09)
+    s, t, d = refine_intersections(c1, (0, math.pi), line, (0, 4), [0.3, 2.8], [2.9, 1.1])
+    np.testing.assert_allclose(s, [math.asin(0.3), math.pi - math.asin(0.3)], atol=1e-12)
+    np.testing.assert_allclose(t, [2 + x0, 2 - x0], atol=1e-12)
+    np.testing.assert_allclose(d, 0, atol=1e-12)
+    # A line missing the circle: the closest approach and its distance.
+    s, t, d = refine_intersections(c1, (0, math.pi), Line([-2, 1.5, 0], [1, 0, 0]), (0, 4), [1.5], [2.0])
+    np.testing.assert_allclose([s[0], t[0], d[0]], [math.pi / 2, 2.0, 0.5], atol=1e-9)
+    with pytest.raises(InvalidInputError, match="same size, got 2 and 1"):
+        refine_intersections(c1, (0, 1), line, (0, 1), [0, 1], [0])
+    with pytest.raises(InvalidInputError, match="one dimension"):
+        refine_intersections(c1, (0, 1), Line2D([0, 0], [1, 0]), (0, 1), [0], [0])
+
+
+# ====================================================================== errors
+def test_errors():
+    line = Line2D([0, 0], [1, 0])
+    with pytest.raises(InvalidInputError, match="one dimension, got 2-D and 3-D"):
+        intersect_curves(line, (0, 1), Line([0, 0, 0], [1, 0, 0]), (0, 1))
+    with pytest.raises(InvalidInputError, match="range1 must be two finite, different numbers"):
+        intersect_curves(line, (1, 1), line, (0, 1))
+    with pytest.raises(InvalidInputError, match="range2 must be a pair of numbers"):
+        intersect_curves(line, (0, 1), line, 3.0)
+    with pytest.raises(InvalidInputError, match="c1 must have a derivatives"):
+        intersect_curves(object(), (0, 1), line, (0, 1))
+    bez = NurbsCurve([[0, 0], [1, 1]], [0, 0, 1, 1], 1)
+    with pytest.raises(InvalidInputError, match=r"leaves the curve's domain \[0.0, 1.0\]"):
+        intersect_curves(bez, (0, 2), line, (0, 1))
+
+
+# ====================================================================== OCCT
+@pytest.mark.occt
+def test_bspline_against_ellipse_agrees_with_occt():
+    from OCP.Geom2d import Geom2d_BSplineCurve, Geom2d_Ellipse
+    from OCP.Geom2dAPI import Geom2dAPI_InterCurveCurve
+    from OCP.gp import gp_Ax2d, gp_Dir2d, gp_Pnt2d
+    from OCP.collections import Array1_double, Array1_gp_Pnt2d, Array1_int
+
+    P = np.array([[-3, -1], [-1, 3], [1, -3], [3, 1], [4, -1]], dtype=float)
+    U = [0, 0, 0, 0, 0.5, 1, 1, 1, 1]
+    c = NurbsCurve(P, U, 3)
+    ell = Trig2D([0.2, 0.1], [2.0, 0.0], [0.0, 1.0])
+    x = intersect_curves(c, (0, 1), ell, (0, TWO_PI))
+
+    poles = Array1_gp_Pnt2d(1, len(P))
+    for i, p in enumerate(P):
+        poles.SetValue(i + 1, gp_Pnt2d(*p))
+    vals, mults = np.unique(U, return_counts=True)
+    kn, mu = Array1_double(1, len(vals)), Array1_int(1, len(vals))
+    for i, (k, m) in enumerate(zip(vals, mults)):
+        kn.SetValue(i + 1, float(k))
+        mu.SetValue(i + 1, int(m))
+    occ_c = Geom2d_BSplineCurve(poles, kn, mu, 3)
+    occ_e = Geom2d_Ellipse(gp_Ax2d(gp_Pnt2d(0.2, 0.1), gp_Dir2d(1, 0)), 2.0, 1.0)
+    inter = Geom2dAPI_InterCurveCurve(occ_c, occ_e, 1e-9)
+    occ = np.array([[inter.Point(i).X(), inter.Point(i).Y()] for i in range(1, inter.NbPoints() + 1)])
+    assert len(x) == occ.shape[0] >= 2
+    key = lambda a: a[np.lexsort((a[:, 1], a[:, 0]))]
+    np.testing.assert_allclose(key(x.points), key(occ), atol=1e-7)

@@ -30,6 +30,7 @@ from coons.topology.profile import Profile, Segment
 from coons.topology.sweep import extrude, loft, revolve
 from coons.topology.tessellate import tessellate
 from coons.topology.transform import Location, Pos, Rot
+from coons.io.step import export_step, import_step
 from coons.io.stl import export_stl, import_stl
 from coons.booleans import difference, intersection, union  # also registers Solid's + - &
 
@@ -57,6 +58,8 @@ __all__ = [
     "difference",
     "intersection",
     "export_stl",
+    "export_step",
+    "import_step",
     "import_stl",
     "Tolerance",
     "DEFAULT_TOLERANCE",

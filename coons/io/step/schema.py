@@ -1,0 +1,676 @@
+"""STEP entities -> coons geometry and neutral topology records (AP203 / AP214 / AP242 B-rep subset).
+
+:class:`StepModel` interprets a parsed :class:`~coons.io.step.p21.P21File`: it finds the solids
+(``MANIFOLD_SOLID_BREP``, ``BREP_WITH_VOIDS``, the closed shells of a ``SHELL_BASED_SURFACE_MODEL``)
+through the shape representations that hold them, reads their units (``LENGTH_UNIT`` as an
+``SI_UNIT`` with prefix or a ``CONVERSION_BASED_UNIT`` such as the inch; ``PLANE_ANGLE_UNIT``
+radian or degree) and converts geometry to coons values in millimetres and radians:
+
+=====================================  ==============================================================
+STEP                                    coons
+=====================================  ==============================================================
+CARTESIAN_POINT, DIRECTION, VECTOR      ``(3,)`` arrays
+AXIS2_PLACEMENT_3D                      origin, axis, x direction (ISO 10303-42 ``build_axes`` defaults)
+LINE, CIRCLE, ELLIPSE                   :class:`~coons.kernel.analytic.Line`, ``Circle``, ``Ellipse``
+B_SPLINE_CURVE_WITH_KNOTS (+ rational)  :class:`~coons.kernel.curve.NurbsCurve`
+BEZIER_CURVE, POLYLINE                  ``NurbsCurve``
+TRIMMED_CURVE, SURFACE_CURVE,           their basis / 3-D curve (edges are bounded by their vertices)
+SEAM_CURVE, INTERSECTION_CURVE
+PLANE, CYLINDRICAL_, CONICAL_,          ``PlanarSurface``, ``CylindricalSurface``, ``ConicalSurface``,
+SPHERICAL_, TOROIDAL_SURFACE            ``SphericalSurface``, ``ToroidalSurface``
+B_SPLINE_SURFACE_WITH_KNOTS (+ rat.)    :class:`~coons.kernel.surface.NurbsSurface`
+SURFACE_OF_REVOLUTION                   exact ``NurbsSurface`` (:func:`coons.kernel.conics.nurbs_revolution`)
+TOROIDAL_SURFACE with r >= R (spindle)  exact ``NurbsSurface`` per face, seams outside the face
+=====================================  ==============================================================
+
+Topology (``ADVANCED_FACE``/``FACE_SURFACE``, ``FACE_(OUTER_)BOUND``, ``EDGE_LOOP``,
+``VERTEX_LOOP``, ``ORIENTED_EDGE``, ``EDGE_CURVE``, ``VERTEX_POINT``, the shells) becomes the
+neutral records of :mod:`coons.io._faces` (:class:`~coons.io._faces.RawFace`), which turn into a
+coons solid there.  Edge parameters are found by projecting the vertex points on the edge curve
+(closed form for analytic curves, :func:`coons.kernel.projection.curve_closest_parameters` for
+NURBS), so the file's curve parametrisation (e.g. a ``VECTOR`` magnitude) never matters.
+
+Deliberately not done: the file's ``PCURVE``\\ s are not read (p-curves are recomputed from the
+3-D geometry by :func:`coons.kernel.onsurface.pcurve_on`, which is exact for iso-curves);
+``SURFACE_OF_LINEAR_EXTRUSION``, offset curves and surfaces, ``RECTANGULAR_TRIMMED_SURFACE`` and
+other less common entities raise a :class:`~coons.errors.StepError` naming the entity when a solid
+needs them.  Assembly placements (``REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION`` with an
+``ITEM_DEFINED_TRANSFORMATION``) are applied: a solid appears once per path from its
+representation to a root representation.  Unknown entity types elsewhere in the file are ignored.
+
+Reference: ISO 10303-42 (geometric and topological representation), ISO 10303-41 (units).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from coons.errors import CoonsError, StepError
+from coons.io._faces import RawCoedge, RawEdge, RawFace
+from coons.io.step.p21 import Entity, Enum, P21File, Ref, Typed
+from coons.kernel import analytic as an
+from coons.kernel.curve import NurbsCurve
+from coons.kernel.surface import NurbsSurface
+from coons.tolerance import Tolerance, resolve
+
+__all__ = ["StepModel", "SolidRecord"]
+
+_SI_PREFIX = {
+    "EXA": 1e18, "PETA": 1e15, "TERA": 1e12, "GIGA": 1e9, "MEGA": 1e6, "KILO": 1e3, "HECTO": 1e2, "DECA": 1e1,
+    "DECI": 1e-1, "CENTI": 1e-2, "MILLI": 1e-3, "MICRO": 1e-6, "NANO": 1e-9, "PICO": 1e-12, "FEMTO": 1e-15,
+    "ATTO": 1e-18,
+}
+
+
+@dataclass(frozen=True)
+class _SpindleTorus:
+    """A torus with ``minor_radius >= major_radius``, made an exact NURBS per face."""
+
+    o: np.ndarray
+    z: np.ndarray
+    x: np.ndarray
+    R: float
+    r: float
+
+
+@dataclass
+class SolidRecord:
+    """One solid of the file: its entity and the neutral faces of each shell (outer shell first).
+
+    ``shells[k]`` is ``(faces, flipped)``: a shell used with orientation ``.F.`` (a void of a
+    ``BREP_WITH_VOIDS``) has its faces already reversed in ``faces``.
+    """
+
+    entity: Entity
+    faces: list[RawFace]
+    length_unit: float  # millimetres per file length unit
+    uncertainty: float | None  # the representation's length uncertainty, in mm
+
+
+class StepModel:
+    """Interpretation of a parsed STEP file (see the module docstring).
+
+    Parameters
+    ----------
+    file : P21File
+    tol : Tolerance, optional
+
+    Raises
+    ------
+    StepError
+        From the methods, naming the entity (id, type, line) that cannot be read.
+    """
+
+    def __init__(self, file: P21File, tol: Tolerance | None = None) -> None:
+        self.file = file
+        self.tol = resolve(tol)
+        self._memo: dict[tuple, Any] = {}
+        self._busy: set[tuple] = set()
+        self._parents: dict | None = None  # entities being converted: a reference back to one is a cycle
+        self.L = 1.0  # mm per file length unit (set per representation)
+        self.A = 1.0  # radians per file angle unit
+        self.M = np.eye(3)  # rotation of the current assembly placement ...
+        self.b = np.zeros(3)  # ... and its translation (mm)
+        self._xf = 0  # key of the current placement in the memo
+        self._xf_count = 0
+
+    # ------------------------------------------------------------------ helpers
+    def ent(self, ref: Any, referrer: Entity, *types: str) -> Entity:
+        """Resolve ``ref`` and check its type is one of ``types`` (any when empty)."""
+        e = self.file.get(ref, referrer)
+        if types and not any(e.has_type(t) for t in types):
+            raise StepError(f"expected {' or '.join(types)} but #{e.id} is {e.name} (line {e.line})",
+                            entity_id=referrer.id, line=referrer.line)
+        return e
+
+    @staticmethod
+    def fail(e: Entity, message: str) -> StepError:
+        return StepError(f"{e.name}: {message}", entity_id=e.id, line=e.line)
+
+    def params(self, e: Entity, n: int, part: str | None = None) -> tuple:
+        """The parameters of ``e`` (or of its partial type ``part``), at least ``n`` of them."""
+        if part is not None and e.parts is not None:
+            p = e.parts.get(part)
+            if p is None:
+                raise self.fail(e, f"complex instance lacks the partial type {part}")
+        else:
+            p = e.params
+        if len(p) < n:
+            raise self.fail(e, f"expected at least {n} parameters, got {len(p)}")
+        return p
+
+    def number(self, x: Any, e: Entity, what: str) -> float:
+        if isinstance(x, Typed) and len(x.params) == 1:
+            x = x.params[0]
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(float(x)):
+            raise self.fail(e, f"{what} must be a finite number, got {x!r}")
+        return float(x)
+
+    def integer(self, x: Any, e: Entity, what: str, low: int = 0, high: int = 10**6) -> int:
+        if isinstance(x, bool) or not isinstance(x, int) or not low <= x <= high:
+            raise self.fail(e, f"{what} must be an integer in [{low}, {high}], got {x!r}")
+        return int(x)
+
+    def logical(self, x: Any, e: Entity, what: str) -> bool:
+        if not isinstance(x, bool):
+            raise self.fail(e, f"{what} must be .T. or .F., got {x!r}")
+        return x
+
+    def seq(self, x: Any, e: Entity, what: str, min_len: int = 1) -> tuple:
+        if not isinstance(x, tuple) or len(x) < min_len:
+            raise self.fail(e, f"{what} must be a list of at least {min_len} items, got {x!r}"[:300])
+        return x
+
+    def _memoised(self, kind: str, ref: Any, referrer: Entity, build) -> Any:
+        key = (kind, ref.id if isinstance(ref, Ref) else None, self.L, self.A, self._xf)
+        if key[1] is not None and key in self._memo:
+            return self._memo[key]
+        e = self.file.get(ref, referrer)
+        if key in self._busy:
+            raise self.fail(e, f"cyclic reference: #{e.id} refers back to itself through #{referrer.id}")
+        self._busy.add(key)
+        try:
+            value = build(e)
+        except StepError:
+            raise
+        except (CoonsError, ValueError, TypeError, ArithmeticError, IndexError) as exc:
+            raise self.fail(e, f"cannot be converted: {exc}") from None
+        finally:
+            self._busy.discard(key)
+        self._memo[key] = value
+        return value
+
+    # ------------------------------------------------------------------ points and placements
+    def point(self, ref: Any, referrer: Entity, dim: int = 3) -> np.ndarray:
+        def build(e: Entity) -> np.ndarray:
+            if e.name == "VERTEX_POINT":
+                return self.point(self.params(e, 2)[1], e, dim)
+            if not e.has_type("CARTESIAN_POINT"):
+                raise self.fail(e, "expected CARTESIAN_POINT")
+            c = self.seq(self.params(e, 2)[1], e, "coordinates")
+            if len(c) != dim:
+                raise self.fail(e, f"expected {dim} coordinates, got {len(c)}")
+            with np.errstate(over="ignore", invalid="ignore"):
+                P = np.array([self.number(x, e, "coordinate") for x in c]) * self.L
+                if dim == 3 and self._xf:
+                    P = self.M @ P + self.b
+            if not np.all(np.isfinite(P)):
+                raise self.fail(e, f"coordinates overflow in millimetres ({self.L:g} mm per unit)")
+            return P
+        return self._memoised(f"point{dim}", ref, referrer, build)
+
+    def direction(self, ref: Any, referrer: Entity, dim: int = 3) -> np.ndarray:
+        def build(e: Entity) -> np.ndarray:
+            if not e.has_type("DIRECTION"):
+                raise self.fail(e, "expected DIRECTION")
+            c = self.seq(self.params(e, 2)[1], e, "direction ratios")
+            if len(c) != dim:
+                raise self.fail(e, f"expected {dim} direction ratios, got {len(c)}")
+            d = np.array([self.number(x, e, "direction ratio") for x in c])
+            d = d / np.max(np.abs(d)) if np.any(d) else d  # scaled first: huge ratios must not overflow the norm
+            n = float(np.linalg.norm(d))
+            if not n > 0.0:
+                raise self.fail(e, "zero direction")
+            return self.M @ (d / n) if dim == 3 and self._xf else d / n
+        return self._memoised(f"dir{dim}", ref, referrer, build)
+
+    def vector(self, ref: Any, referrer: Entity) -> np.ndarray:
+        e = self.ent(ref, referrer, "VECTOR")
+        p = self.params(e, 3)
+        mag = self.number(p[2], e, "magnitude")
+        if not (mag > 0.0 and math.isfinite(mag * self.L)):
+            raise self.fail(e, f"magnitude must be > 0 and finite in millimetres, got {mag!r}")
+        return self.direction(p[1], e) * mag * self.L
+
+    def placement(self, ref: Any, referrer: Entity) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(origin, z, x)`` of an AXIS2_PLACEMENT_3D with the ISO 10303-42 defaults."""
+        e = self.ent(ref, referrer, "AXIS2_PLACEMENT_3D")
+        p = self.params(e, 2)
+        o = self.point(p[1], e)
+        z = np.array([0.0, 0.0, 1.0]) if len(p) < 3 or p[2] is None else self.direction(p[2], e)
+        if len(p) < 4 or p[3] is None:
+            ref_dir = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 1.0 - 1e-12 else np.array([0.0, 0.0, 1.0])
+        else:
+            ref_dir = self.direction(p[3], e)
+        x = ref_dir - np.dot(ref_dir, z) * z
+        n = float(np.linalg.norm(x))
+        if not n > self.tol.angular:
+            raise self.fail(e, "ref_direction is parallel to the axis")
+        return o, z, x / n
+
+    # ------------------------------------------------------------------ curves
+    def curve(self, ref: Any, referrer: Entity) -> Any:
+        """The 3-D coons curve of a STEP curve entity."""
+        return self._memoised("curve", ref, referrer, self._curve)
+
+    def _curve(self, e: Entity) -> Any:
+        n = e.name
+        if n == "LINE":
+            p = self.params(e, 3)
+            return an.Line(self.point(p[1], e), self.vector(p[2], e))
+        if n == "CIRCLE":
+            p = self.params(e, 3)
+            o, z, x = self.placement(p[1], e)
+            return an.Circle(o, z, x, self.number(p[2], e, "radius") * self.L)
+        if n == "ELLIPSE":
+            p = self.params(e, 4)
+            o, z, x = self.placement(p[1], e)
+            a, b = self.number(p[2], e, "semi_axis_1") * self.L, self.number(p[3], e, "semi_axis_2") * self.L
+            if a < b:  # coons wants the major axis first: turn the frame by 90 degrees
+                x, a, b = np.cross(z, x), b, a
+            return an.Ellipse(o, z, x, a, b)
+        if n in ("SURFACE_CURVE", "SEAM_CURVE", "INTERSECTION_CURVE", "BOUNDED_SURFACE_CURVE"):
+            return self.curve(self.params(e, 2)[1], e)
+        if n == "TRIMMED_CURVE":
+            return self.curve(self.params(e, 2)[1], e)
+        if n == "POLYLINE":
+            pts = self.seq(self.params(e, 2)[1], e, "points", 2)
+            P = np.array([self.point(r, e) for r in pts])
+            m = P.shape[0]
+            return NurbsCurve(P, np.concatenate([[0.0], np.arange(m, dtype=float), [m - 1.0]]), 1)
+        if e.has_type("B_SPLINE_CURVE_WITH_KNOTS") or e.name == "BEZIER_CURVE" or e.has_type("BEZIER_CURVE"):
+            return self._bspline_curve(e)
+        raise self.fail(e, "curve type not supported by the coons STEP reader")
+
+    def _bspline_curve(self, e: Entity) -> NurbsCurve:
+        if e.parts is None:
+            p = self.params(e, 6)
+            deg, pts = p[1], p[2]
+            rest = p[6:] if e.name == "B_SPLINE_CURVE_WITH_KNOTS" else None
+            weights = None
+        else:
+            b = self.params(e, 5, "B_SPLINE_CURVE")
+            deg, pts = b[0], b[1]
+            rest = e.parts.get("B_SPLINE_CURVE_WITH_KNOTS")
+            w = e.parts.get("RATIONAL_B_SPLINE_CURVE")
+            weights = None if w is None else [self.number(x, e, "weight") for x in self.seq(w[0] if w else None, e, "weights")]
+        p_ = self.integer(deg, e, "degree", 1, 64)
+        P = np.array([self.point(r, e) for r in self.seq(pts, e, "control points", 2)])
+        if rest is None:  # Bezier: one span
+            knots = np.concatenate([np.zeros(p_ + 1), np.ones(p_ + 1)])
+        else:
+            if len(rest) < 2:
+                raise self.fail(e, "B_SPLINE_CURVE_WITH_KNOTS needs knot_multiplicities and knots")
+            knots = self._knots(rest[0], rest[1], e)
+        if weights is not None and len(weights) != P.shape[0]:
+            raise self.fail(e, f"{len(weights)} weights for {P.shape[0]} control points")
+        return NurbsCurve(P, knots, p_, weights)
+
+    def _knots(self, mults: Any, values: Any, e: Entity) -> np.ndarray:
+        m = [self.integer(x, e, "knot multiplicity", 1, 64) for x in self.seq(mults, e, "knot multiplicities")]
+        k = [self.number(x, e, "knot") for x in self.seq(values, e, "knots")]
+        if len(m) != len(k):
+            raise self.fail(e, f"{len(m)} knot multiplicities for {len(k)} knots")
+        return np.repeat(np.asarray(k), m)
+
+    # ------------------------------------------------------------------ surfaces
+    def surface(self, ref: Any, referrer: Entity) -> Any:
+        return self._memoised("surface", ref, referrer, self._surface)
+
+    def _surface(self, e: Entity) -> Any:
+        n = e.name
+        if n == "PLANE":
+            o, z, x = self.placement(self.params(e, 2)[1], e)
+            return an.PlanarSurface(o, z, x)
+        if n == "CYLINDRICAL_SURFACE":
+            p = self.params(e, 3)
+            o, z, x = self.placement(p[1], e)
+            return an.CylindricalSurface(o, z, x, self.number(p[2], e, "radius") * self.L)
+        if n == "CONICAL_SURFACE":
+            p = self.params(e, 4)
+            o, z, x = self.placement(p[1], e)
+            return an.ConicalSurface(o, z, x, self.number(p[2], e, "radius") * self.L,
+                                     self.number(p[3], e, "semi_angle") * self.A)
+        if n == "SPHERICAL_SURFACE":
+            p = self.params(e, 3)
+            o, z, x = self.placement(p[1], e)
+            return an.SphericalSurface(o, z, x, self.number(p[2], e, "radius") * self.L)
+        if n == "TOROIDAL_SURFACE":
+            p = self.params(e, 4)
+            o, z, x = self.placement(p[1], e)
+            R, r = self.number(p[2], e, "major_radius") * self.L, self.number(p[3], e, "minor_radius") * self.L
+            if 0.0 < R and r >= R:
+                return _SpindleTorus(o, z, x, R, r)  # made a NURBS per face (see _spindle_torus)
+            return an.ToroidalSurface(o, z, x, R, r)
+        if e.has_type("B_SPLINE_SURFACE_WITH_KNOTS"):
+            return self._bspline_surface(e)
+        if n == "SURFACE_OF_REVOLUTION":
+            from coons.kernel.conics import nurbs_revolution
+            p = self.params(e, 3)
+            profile = self.curve(p[1], e)
+            if not isinstance(profile, NurbsCurve):
+                raise self.fail(e, f"swept curve #{getattr(p[1], 'id', '?')} is a {type(profile).__name__}; "
+                                "only B-spline profiles are supported")
+            ax = self.ent(p[2], e, "AXIS1_PLACEMENT")
+            ap = self.params(ax, 2)
+            z = np.array([0.0, 0.0, 1.0]) if len(ap) < 3 or ap[2] is None else self.direction(ap[2], ax)
+            return nurbs_revolution(profile, self.point(ap[1], ax), z, tol=self.tol)
+        raise self.fail(e, "surface type not supported by the coons STEP reader")
+
+    def _spindle_torus(self, st: "_SpindleTorus", loops: list, e: Entity) -> NurbsSurface:
+        """A spindle torus (``r >= R``, which the analytic type excludes) as an exact NURBS for one face.
+
+        The meridian circle ``C + (R + r cos v) X + r sin v Z`` revolved about ``Z`` (The NURBS
+        Book A8.1 via :func:`coons.kernel.conics.nurbs_revolution`), with ``Su × Sv`` pointing away
+        from the axis on the outer equator as the torus's normal.  A NURBS patch is not periodic:
+        both its seams are put in the largest gaps of the face boundary's torus angles ``(u, v)``
+        (each boundary point's own branch: the apple part where ``R + r cos v > 0``, the lemon
+        part on the other side of the axis), so the face lies inside the patch.
+
+        Raises
+        ------
+        StepError
+            The face's boundary covers a whole turn in ``u`` or ``v``.
+        """
+        from coons.kernel.conics import nurbs_circle, nurbs_revolution
+
+        y = np.cross(st.z, st.x)
+        pts = [np.asarray(c.edge.curve.evaluate(np.linspace(*c.t_range, 17))) for loop in loops for c in loop]
+        if not pts:
+            raise self.fail(e, "a face on a spindle torus needs edges")
+        D = np.concatenate(pts) - st.o
+        h = D @ st.z
+        px, py = D @ st.x, D @ y
+        rho = np.hypot(px, py)
+        ua = np.arctan2(py, px)
+        apple = np.abs((rho - st.R) ** 2 + h**2 - st.r**2) <= np.abs((rho + st.R) ** 2 + h**2 - st.r**2)
+        u = np.where(apple, ua, ua + math.pi)
+        v = np.where(apple, np.arctan2(h, rho - st.R), np.arctan2(h, -rho - st.R))
+        starts = []
+        for ang, what in ((u, "u"), (v, "v")):
+            a = np.sort(np.mod(ang, 2.0 * math.pi))
+            gaps = np.diff(np.concatenate([a, [a[0] + 2.0 * math.pi]]))
+            g = int(np.argmax(gaps))
+            if gaps[g] <= 2.0 * math.pi / 16 * 1.01:  # 17 samples per edge: steps below 2π/16
+                raise self.fail(e, f"a face covering a whole turn in {what} on a spindle torus is not supported")
+            starts.append(float(a[g] + 0.5 * gaps[g]))
+        us, vs = starts
+        xv = math.cos(vs) * st.x + math.sin(vs) * st.z
+        profile = nurbs_circle(st.o + st.R * st.x, np.cross(st.x, st.z), st.r, x_axis=xv, tol=self.tol)
+        return nurbs_revolution(profile, st.o, st.z, us, us + 2.0 * math.pi, tol=self.tol)
+
+    def _bspline_surface(self, e: Entity) -> NurbsSurface:
+        if e.parts is None:
+            p = self.params(e, 13)
+            du, dv, rows, rest = p[1], p[2], p[3], p[8:]
+            weights = None
+        else:
+            b = self.params(e, 7, "B_SPLINE_SURFACE")
+            du, dv, rows = b[0], b[1], b[2]
+            rest = self.params(e, 4, "B_SPLINE_SURFACE_WITH_KNOTS")
+            w = e.parts.get("RATIONAL_B_SPLINE_SURFACE")
+            weights = None
+            if w is not None:
+                wr = self.seq(w[0] if w else None, e, "weights")
+                weights = np.array([[self.number(x, e, "weight") for x in self.seq(r, e, "weight row")] for r in wr])
+        pu, pv = self.integer(du, e, "u_degree", 1, 64), self.integer(dv, e, "v_degree", 1, 64)
+        rows = self.seq(rows, e, "control points", 2)
+        grid = [[self.point(r, e) for r in self.seq(row, e, "control point row", 2)] for row in rows]
+        if len({len(r) for r in grid}) != 1:
+            raise self.fail(e, "control point rows of different lengths")
+        P = np.array(grid)
+        if weights is not None and weights.shape != P.shape[:2]:
+            raise self.fail(e, f"weights of shape {weights.shape} for control points {P.shape[:2]}")
+        ku = self._knots(rest[0], rest[2], e)
+        kv = self._knots(rest[1], rest[3], e)
+        return NurbsSurface(P, ku, kv, pu, pv, weights)
+
+    # ------------------------------------------------------------------ units
+    def units_of(self, context_ref: Any, referrer: Entity) -> tuple[float, float, float | None]:
+        """``(mm per length unit, radians per angle unit, uncertainty in mm)`` of a representation context."""
+        ctx = self.file.get(context_ref, referrer)
+        L, A, unc = 1.0, 1.0, None
+        assigned = ctx.parts.get("GLOBAL_UNIT_ASSIGNED_CONTEXT") if ctx.parts else None
+        if assigned:
+            for r in self.seq(assigned[0], ctx, "units"):
+                u = self.file.get(r, ctx)
+                if u.has_type("LENGTH_UNIT"):
+                    L = self._unit_factor(u, "length")
+                elif u.has_type("PLANE_ANGLE_UNIT"):
+                    A = self._unit_factor(u, "angle")
+        unc_part = ctx.parts.get("GLOBAL_UNCERTAINTY_ASSIGNED_CONTEXT") if ctx.parts else None
+        if unc_part:
+            for r in self.seq(unc_part[0], ctx, "uncertainties"):
+                m = self.file.get(r, ctx)
+                if m.has_type("UNCERTAINTY_MEASURE_WITH_UNIT") and m.parts is None and len(m.params) >= 2:
+                    try:
+                        val = self.number(m.params[0], m, "uncertainty")
+                        unit = self.file.get(m.params[1], m)
+                        if unit.has_type("LENGTH_UNIT"):
+                            unc = abs(val) * self._unit_factor(unit, "length")
+                    except StepError:
+                        unc = None
+        return L, A, unc
+
+    def _unit_factor(self, u: Entity, kind: str, depth: int = 0) -> float:
+        """Millimetres (length) or radians (angle) per unit."""
+        if depth > 8:
+            raise self.fail(u, "unit conversion chain longer than 8")
+        if u.parts is not None and "SI_UNIT" in u.parts:
+            si = u.parts["SI_UNIT"]
+            if len(si) < 2 or not isinstance(si[1], Enum):
+                raise self.fail(u, f"SI_UNIT needs (prefix, name), got {si!r}")
+            prefix = 1.0
+            if isinstance(si[0], Enum):
+                if si[0].name not in _SI_PREFIX:
+                    raise self.fail(u, f"unknown SI prefix .{si[0].name}.")
+                prefix = _SI_PREFIX[si[0].name]
+            name = si[1].name
+            if kind == "length":
+                if name != "METRE":
+                    raise self.fail(u, f"length unit must be based on .METRE., got .{name}.")
+                return prefix * 1000.0
+            if name == "RADIAN":
+                return prefix
+            if name == "STERADIAN":
+                raise self.fail(u, "plane angle unit .STERADIAN.")
+            raise self.fail(u, f"plane angle unit must be based on .RADIAN., got .{name}.")
+        if u.parts is not None and "CONVERSION_BASED_UNIT" in u.parts:
+            cb = u.parts["CONVERSION_BASED_UNIT"]
+            if len(cb) < 2:
+                raise self.fail(u, "CONVERSION_BASED_UNIT needs (name, conversion_factor)")
+            m = self.file.get(cb[1], u)
+            mp = m.parts.get("MEASURE_WITH_UNIT") if m.parts else m.params
+            if m.parts is None and len(mp) >= 2:
+                val, unit = mp[0], mp[1]
+            elif mp is not None and len(mp) >= 2:
+                val, unit = mp[0], mp[1]
+            else:
+                raise self.fail(m, "a measure with unit needs (value, unit)")
+            return self.number(val, m, "conversion factor") * self._unit_factor(self.file.get(unit, m), kind, depth + 1)
+        raise self.fail(u, f"{kind} unit of an unsupported kind")
+
+    # ------------------------------------------------------------------ solids
+    def solids(self) -> list[SolidRecord]:
+        """Every solid of the file, in entity order, with its faces as neutral records.
+
+        Raises
+        ------
+        StepError
+            The file has no solid, or a solid cannot be read (naming the entity).
+        """
+        self._parents = None
+        owner_ctx: dict[int, tuple[Entity, Any]] = {}
+        for rep in self.file:
+            if rep.parts is None and rep.name.endswith("SHAPE_REPRESENTATION") and len(rep.params) >= 3:
+                items = rep.params[1]
+                if isinstance(items, tuple):
+                    for r in items:
+                        if isinstance(r, Ref):
+                            owner_ctx.setdefault(r.id, (rep, rep.params[2]))
+        out = []
+        bodies = [e for e in self.file if e.name in ("MANIFOLD_SOLID_BREP", "BREP_WITH_VOIDS")]
+        shells_models = [e for e in self.file if e.name == "SHELL_BASED_SURFACE_MODEL"]
+        for e in sorted(bodies + shells_models, key=lambda x: x.id):
+            L, A, unc = 1.0, 1.0, None
+            places = [np.eye(4)]
+            if e.id in owner_ctx:
+                rep, ctx = owner_ctx[e.id]
+                L, A, unc = self.units_of(ctx, rep)
+                self.L, self.A, self._xf = L, A, 0
+                self.M, self.b = np.eye(3), np.zeros(3)
+                places = self._instances(rep)
+            for k, T in enumerate(places):
+                self.L, self.A = L, A
+                identity = bool(np.allclose(T, np.eye(4), rtol=0.0, atol=1e-15))
+                self.M, self.b = T[:3, :3], T[:3, 3]
+                self._xf_count += 1
+                self._xf = 0 if identity else self._xf_count  # a fresh memo key per placement
+                out.extend(self._solid_records(e, L, unc))
+        if not out:
+            raise StepError("the file contains no solid (MANIFOLD_SOLID_BREP, BREP_WITH_VOIDS or closed shell of a "
+                            "SHELL_BASED_SURFACE_MODEL)")
+        return out
+
+    def _frame(self, ref: Any, referrer: Entity) -> np.ndarray:
+        """4x4 matrix of an AXIS2_PLACEMENT_3D (local -> global), in the file's units scaled to mm."""
+        o, z, x = self.placement(ref, referrer)
+        T = np.eye(4)
+        T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, o
+        return T
+
+    def _instances(self, rep: Entity) -> list[np.ndarray]:
+        """The placements (4x4, child -> root) of a representation through the assembly structure.
+
+        ``REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION`` with an ``ITEM_DEFINED_TRANSFORMATION``
+        maps ``rep_1`` into ``rep_2`` by ``frame(item_2) frame(item_1)^-1`` (ISO 10303-43; as OCCT);
+        relationships without transformation are identities.  Every path to a root is one instance.
+        """
+        if self._parents is None:
+            self._parents = {}
+            for e in self.file:
+                if not e.has_type("REPRESENTATION_RELATIONSHIP"):
+                    continue
+                rr = e.parts["REPRESENTATION_RELATIONSHIP"] if e.parts else e.params
+                if len(rr) < 4 or not isinstance(rr[2], Ref) or not isinstance(rr[3], Ref):
+                    continue
+                xf = None
+                if e.has_type("REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION"):
+                    p = e.parts["REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION"] if e.parts else e.params[4:]
+                    xf = self.file.get(p[0], e) if p else None
+                    if xf is None or xf.name != "ITEM_DEFINED_TRANSFORMATION":
+                        raise self.fail(e, "only ITEM_DEFINED_TRANSFORMATION placements are supported")
+                    xf = (xf, e)
+                self._parents.setdefault(rr[2].id, []).append((rr[3].id, xf))
+        out: list[np.ndarray] = []
+        stack = [(rep.id, np.eye(4), frozenset([rep.id]))]
+        while stack:
+            rid, T, seen = stack.pop()
+            ups = [(pid, xf) for pid, xf in self._parents.get(rid, []) if pid not in seen]
+            if not ups:
+                out.append(T)
+                if len(out) > 10000:
+                    raise self.fail(rep, "more than 10000 placed instances")
+                continue
+            for pid, xf in ups:
+                if xf is None:
+                    stack.append((pid, T, seen | {pid}))
+                    continue
+                t, rel = xf
+                tp = self.params(t, 4)
+                with np.errstate(all="ignore"):
+                    step = self._frame(tp[3], t) @ np.linalg.inv(self._frame(tp[2], t))
+                if not np.all(np.isfinite(step)):
+                    raise self.fail(t, "singular placement")
+                stack.append((pid, step @ T, seen | {pid}))
+        return out
+
+    def _solid_records(self, e: Entity, L: float, unc: float | None) -> list[SolidRecord]:
+        if e.name == "SHELL_BASED_SURFACE_MODEL":
+            out = []
+            for r in self.seq(self.params(e, 2)[1], e, "shells"):
+                sh = self.file.get(r, e)
+                if sh.name in ("CLOSED_SHELL", "ORIENTED_CLOSED_SHELL"):
+                    out.append(SolidRecord(sh, self.shell_faces(r, e), L, unc))
+            return out
+        p = self.params(e, 2)
+        faces = self.shell_faces(p[1], e)
+        if e.name == "BREP_WITH_VOIDS":
+            for r in self.seq(self.params(e, 3)[2], e, "voids"):
+                faces += self.shell_faces(r, e)
+        return [SolidRecord(e, faces, L, unc)]
+
+    def shell_faces(self, ref: Any, referrer: Entity) -> list[RawFace]:
+        sh = self.ent(ref, referrer, "CLOSED_SHELL", "OPEN_SHELL", "ORIENTED_CLOSED_SHELL", "ORIENTED_OPEN_SHELL")
+        flip = False
+        for _ in range(8):
+            if not sh.name.startswith("ORIENTED_"):
+                break
+            p = self.params(sh, 4)
+            flip ^= not self.logical(p[3], sh, "orientation")
+            sh = self.ent(p[2], sh, "CLOSED_SHELL", "OPEN_SHELL", "ORIENTED_CLOSED_SHELL", "ORIENTED_OPEN_SHELL")
+        else:
+            raise self.fail(sh, "oriented shells nested deeper than 8 (cyclic?)")
+        faces = [self.face(r, sh) for r in self.seq(self.params(sh, 2)[1], sh, "faces")]
+        return [f.reversed() for f in faces] if flip else faces
+
+    # ------------------------------------------------------------------ topology
+    def face(self, ref: Any, referrer: Entity, depth: int = 0) -> RawFace:
+        e = self.ent(ref, referrer, "ADVANCED_FACE", "FACE_SURFACE", "ORIENTED_FACE")
+        if e.name == "ORIENTED_FACE":
+            if depth > 8:
+                raise self.fail(e, "oriented faces nested deeper than 8 (cyclic?)")
+            p = self.params(e, 4)
+            f = self.face(p[2], e, depth + 1)
+            return f if self.logical(p[3], e, "orientation") else f.reversed()
+        p = self.params(e, 4)
+        surface = self.surface(p[2], e)
+        same = self.logical(p[3], e, "same_sense")
+        loops: list[list[RawCoedge]] = []
+        poles: list[np.ndarray] = []
+        outer: int | None = None
+        for r in self.seq(p[1], e, "bounds"):
+            b = self.ent(r, e, "FACE_BOUND", "FACE_OUTER_BOUND")
+            bp = self.params(b, 3)
+            orient = self.logical(bp[2], b, "orientation")
+            lp = self.ent(bp[1], b, "EDGE_LOOP", "VERTEX_LOOP", "POLY_LOOP")
+            if lp.name == "VERTEX_LOOP":
+                poles.append(self.point(self.params(lp, 2)[1], lp))
+                continue
+            if lp.name == "POLY_LOOP":
+                raise self.fail(lp, "POLY_LOOP bounds are not supported")
+            coedges = [self.oriented_edge(x, lp) for x in self.seq(self.params(lp, 2)[1], lp, "edges")]
+            if not orient:
+                coedges = [c.reversed() for c in coedges[::-1]]
+            if b.name == "FACE_OUTER_BOUND":
+                if outer is not None:
+                    raise self.fail(e, "more than one FACE_OUTER_BOUND")
+                outer = len(loops)
+            loops.append(coedges)
+        if isinstance(surface, _SpindleTorus):
+            try:
+                surface = self._spindle_torus(surface, loops, e)
+            except StepError:
+                raise
+            except (CoonsError, ValueError, ArithmeticError) as exc:
+                raise self.fail(e, f"its spindle torus cannot be converted: {exc}") from None
+        return RawFace(surface, same, loops, outer, poles, f"#{e.id} {e.name} (line {e.line})")
+
+    def oriented_edge(self, ref: Any, referrer: Entity) -> RawCoedge:
+        e = self.ent(ref, referrer, "ORIENTED_EDGE")
+        p = self.params(e, 5)
+        edge = self.edge(p[3], e)
+        return RawCoedge(edge, self.logical(p[4], e, "orientation"))
+
+    def edge(self, ref: Any, referrer: Entity) -> RawEdge:
+        def build(e: Entity) -> RawEdge:
+            if e.name == "ORIENTED_EDGE":  # an oriented edge's edge element may itself be oriented
+                raise self.fail(e, "nested ORIENTED_EDGE as edge element is not supported")
+            if e.name != "EDGE_CURVE":
+                raise self.fail(e, "expected EDGE_CURVE")
+            p = self.params(e, 5)
+            a = self.point(p[1], e)
+            b = self.point(p[2], e)
+            curve = self.curve(p[3], e)
+            same = self.logical(p[4], e, "same_sense")
+            from coons.io._faces import edge_parameters
+            try:
+                t0, t1, dev = edge_parameters(curve, a, b, same, self.tol)
+            except CoonsError as exc:
+                raise self.fail(e, str(exc)) from None
+            return RawEdge(curve, t0, t1, a, b, dev, f"#{e.id} EDGE_CURVE (line {e.line})")
+        return self._memoised("edge", ref, referrer, build)

@@ -1,0 +1,155 @@
+"""ISO 10303-21 parser: values, complex instances, line numbers and every error branch."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from coons.errors import StepError
+from coons.io.step.p21 import DERIVED, MAX_DEPTH, Binary, Enum, Ref, Typed, parse, parse_file
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+CORPUS = sorted(DATA.glob("*.step"))
+
+
+def wrap(data: str, header: str = "FILE_DESCRIPTION(('x'),'2;1');FILE_SCHEMA(('AP214'));") -> str:
+    return f"ISO-10303-21;\nHEADER;\n{header}\nENDSEC;\nDATA;\n{data}\nENDSEC;\nEND-ISO-10303-21;\n"
+
+
+def test_values_of_every_kind():
+    f = parse(wrap(
+        "#1=THING('it''s',-3,2.5E-3,1.,.5,#22,.T.,.F.,.U.,.UNSPECIFIED.,$,*,(1,(2,3),()),"
+        "LENGTH_MEASURE(1.),\"0FF\",!USER_TYPE(4));"
+    ))
+    p = f.entities[1].params
+    assert p[0] == "it's"
+    assert p[1] == -3 and isinstance(p[1], int)
+    assert p[2] == 2.5e-3 and p[3] == 1.0 and isinstance(p[3], float) and p[4] == 0.5
+    assert p[5] == Ref(22)
+    assert p[6] is True and p[7] is False and p[8] == Enum("U") and p[9] == Enum("UNSPECIFIED")
+    assert p[10] is None and p[11] is DERIVED
+    assert p[12] == (1, (2, 3), ())
+    assert p[13] == Typed("LENGTH_MEASURE", (1.0,))
+    assert p[14] == Binary("0FF")
+    assert p[15] == Typed("!USER_TYPE", (4,))
+    assert f.schemas == ("AP214",)
+    assert f.header[0][0] == "FILE_DESCRIPTION"
+
+
+def test_string_encodings():
+    f = parse(wrap(r"#1=S('\X2\00E400FC\X0\','\X\E9','\S\a','a\\b','\X4\0001F600\X0\','ab" "\n" r"cd','\PA\x');"))
+    assert f.entities[1].params == ("äü", "é", "á", "a\\b", "\U0001F600", "abcd", "x")
+
+
+def test_complex_instance_comments_lines_and_several_data_sections():
+    text = (
+        "ISO-10303-21;\nHEADER;\n/* a comment\nover two lines */\nFILE_SCHEMA(('X'));\nENDSEC;\n"
+        "DATA;\n#1=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) );\nENDSEC;\n"
+        "DATA;\n#2 = POINT(\n#1);\nENDSEC;\nEND-ISO-10303-21;"
+    )
+    f = parse(text)
+    e = f.entities[1]
+    assert e.is_complex and e.name == "LENGTH_UNIT+NAMED_UNIT+SI_UNIT"
+    assert e.parts["SI_UNIT"] == (Enum("MILLI"), Enum("METRE"))
+    assert e.has_type("NAMED_UNIT") and not e.has_type("POINT")
+    assert e.line == 8 and f.entities[2].line == 11
+    assert f.get(f.entities[2].params[0]) is e
+    assert [x.id for x in f.of_type("SI_UNIT")] == [1]
+
+
+@pytest.mark.parametrize("path", CORPUS, ids=lambda p: p.name)
+def test_corpus_parses_without_dangling_references(path):
+    f = parse_file(path)
+    assert len(f) > 1000
+    assert f.dangling() == []
+    assert f.of_type("ADVANCED_FACE")
+
+
+@given(st.lists(st.one_of(st.integers(-10**12, 10**12), st.floats(allow_nan=False, allow_infinity=False)),
+                min_size=1, max_size=20))
+def test_numbers_round_trip(values):
+    text = ",".join(repr(v) if isinstance(v, int) else f"{v:.17E}" for v in values)
+    got = parse(wrap(f"#5=N(({text}));")).entities[5].params[0]
+    assert list(got) == [float(v) if isinstance(v, float) else v for v in values]
+
+
+# ---------------------------------------------------------------------- errors
+@pytest.mark.parametrize("text, match", [
+    ("HEADER;ENDSEC;", r"expected 'ISO-10303-21'"),
+    (wrap("#1=A(1);#2=B(2,3);").split("3);")[0], r"end of file inside a parameter list \(truncated file\?\)"),
+    (wrap("#1=A(1);")[:-19], r"missing END-ISO-10303-21; \(truncated file\?\)"),
+    (wrap("#1=A(1);")[:-26], r"missing ENDSEC; truncated file\?"),
+    (wrap("#1=A(1);").replace("ENDSEC;\nEND", "END"), r"expected an entity instance"),
+    ("ISO-10303-21;HEADER;FILE_SCHEMA(('X'));", r"missing ENDSEC"),
+    ("ISO-10303-21;HEADER;ENDSEC;END-ISO-10303-21;", r"no DATA section"),
+    (wrap("#1=A(1);#1=B(2);"), r"duplicate entity id #1 \(first defined on line 6\)"),
+    (wrap("#1=A(1,);"), r"expected a parameter after ','"),
+    (wrap("#1=A(,1);"), r"expected a parameter before ','"),
+    (wrap("#1=A(1 2);"), r"expected ',' or '\)' after a parameter"),
+    (wrap("#1=A(1);;"), r"expected an entity instance"),
+    (wrap("#1=A(1)"), r"expected ';' ending the instance"),
+    (wrap("#1=A('abc);"), r"unterminated string"),
+    (wrap("#1=A(@);"), r"unexpected token '@'"),
+    (wrap("#1=A(B);"), r"typed parameter B must be followed by '\('"),
+    (wrap("#1=A(" + "(" * (MAX_DEPTH + 5) + ")" * (MAX_DEPTH + 5) + ");"), r"nested deeper than"),
+    (wrap("#1=();"), r"empty complex instance"),
+    (wrap("#1=(A()A());"), r"appears twice"),
+    (wrap("#1=(A() 5);"), r"expected a partial entity type"),
+    (wrap("#1=5;"), r"expected an entity type name"),
+    (wrap("#1 A(1);"), r"expected '='"),
+    (wrap(r"#1=A('\Q');"), r"backslash must start a control directive"),
+    (wrap(r"#1=A('\X4\7FFFFFFF\X0\');"), r"above U\+10FFFF"),
+    (wrap("#1=A(1);") + "#2=B();", r"after END-ISO-10303-21"),
+    (wrap("#1=A(1);").replace("DATA;", "ANCHOR;"), r"ANCHOR sections"),
+    (wrap("#1=A(1);").replace("DATA;", "DATUM;"), r"expected DATA or END-ISO-10303-21"),
+    (wrap("#1=A(1);", header="FILE_SCHEMA(('X'))"), r"expected ';' after header entity FILE_SCHEMA"),
+    (wrap("#1=A(1);", header="5;"), r"expected a header entity or ENDSEC"),
+    (wrap("#1=A(1.5.5);"), r"expected ',' or '\)'"),
+    (wrap("#1=A(1);").replace("DATA;", "/* no end DATA;"), r"unterminated comment"),
+    (wrap("#1=A('ab'');"), r"unterminated string"),
+])
+def test_malformed_input_raises_step_error(text, match):
+    with pytest.raises(StepError, match=match) as info:
+        parse(text)
+    assert info.value.line is not None
+
+
+@pytest.mark.parametrize("tail", ["/*" * 100000, "#1=A(" + "'" * 100001, "#1=A(" + "(" * 100000])
+def test_pathological_inputs_fail_in_linear_time(tail):
+    """Unterminated comments and strings, deep nesting: an error, quickly (no quadratic rescans, no recursion)."""
+    import time
+
+    t0 = time.perf_counter()
+    with pytest.raises(StepError):
+        parse("ISO-10303-21;HEADER;ENDSEC;DATA;" + tail)
+    assert time.perf_counter() - t0 < 5.0  # linear: ~0.1 s; a quadratic rescan would take minutes
+
+
+def test_error_carries_entity_id_and_line():
+    with pytest.raises(StepError, match=r"#7, line 7: .*expected ',' or '\)'") as info:
+        parse(wrap("#6=A(1);\n#7=A(1 2);"))
+    assert info.value.entity_id == 7 and info.value.line == 7
+
+
+def test_dangling_reference_reported_at_resolution():
+    f = parse(wrap("#1=A(#2,#3);\n#2=B();"))
+    assert f.dangling() == [(1, 3)]
+    with pytest.raises(StepError, match=r"#1, line 6: reference #3 points to no entity"):
+        f.get(f.entities[1].params[1], f.entities[1])
+    with pytest.raises(StepError, match=r"expected an entity reference #id, got 5"):
+        f.get(5)
+
+
+def test_unreadable_file_and_bad_input_type(tmp_path):
+    with pytest.raises(StepError, match=r"cannot read"):
+        parse_file(tmp_path / "missing.step")
+    with pytest.raises(StepError, match=r"parse needs str or bytes, got int"):
+        parse(5)
+
+
+def test_latin1_bytes_and_bytes_input():
+    f = parse(wrap("#1=A('caf\xe9');").encode("latin-1"))
+    assert f.entities[1].params == ("café",)

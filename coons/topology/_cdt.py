@@ -23,7 +23,8 @@ Algorithm
    strictly convex until none crosses.  Only missing constraints are touched; the edges
    created are then made locally Delaunay again by Lawson flips (constraints excepted).
 3. Removal of the outside: triangles are labelled by connected components of the
-   triangle adjacency graph cut at the constraint edges (scipy.sparse.csgraph), and a
+   triangle adjacency graph cut at the constraint edges (min-label propagation in numpy for
+   small triangulations, scipy.sparse.csgraph for large ones), and a
    component is kept when it lies on the left of the constraints bounding it (vectorised;
    contradicting sides raise).
 
@@ -602,6 +603,34 @@ def triangulate(points, segments, *, return_all: bool = False) -> np.ndarray:
     return ConstrainedDelaunay(points, segments).triangles(return_all=return_all)
 
 
+#: Triangulations up to this many triangles label their components by min-label propagation in numpy
+#: (:func:`_small_components`), which costs far less than building a sparse graph for scipy.
+_SMALL_COMPONENTS = 4096
+#: Rounds of min-label propagation before handing over to scipy (a long thin mesh has a large diameter).
+_PROPAGATION_ROUNDS = 48
+
+
+def _small_components(N: np.ndarray, link: np.ndarray) -> tuple[int, np.ndarray] | None:
+    """Connected components ``(count, label (m,))`` of triangles joined across the edges where ``link (m, 3)`` holds
+    (``N (m, 3)`` the neighbours), or None when :data:`_PROPAGATION_ROUNDS` rounds do not settle.
+
+    Min-label propagation with pointer jumping: every label is the index of a triangle of the same
+    component and never above its own index, so a fixed point (labels equal across every link) gives
+    each component its smallest index (Shiloach & Vishkin's hooking and shortcutting, synchronously).
+    """
+    m = N.shape[0]
+    nb = np.where(link, N, np.arange(m)[:, None])
+    label = np.arange(m)
+    for _ in range(_PROPAGATION_ROUNDS):
+        new = np.minimum(label, label[nb].min(axis=1))
+        new = new[new]
+        if np.array_equal(new, label):
+            roots, label = np.unique(label, return_inverse=True)
+            return roots.size, label
+        label = new
+    return None
+
+
 def _inside(T: np.ndarray, N: np.ndarray, S: np.ndarray, n: int, n_all: int) -> np.ndarray:
     """Mask of the triangles left of the constraints: components of the adjacency cut at constraints, seeded by sides.
 
@@ -617,8 +646,11 @@ def _inside(T: np.ndarray, N: np.ndarray, S: np.ndarray, n: int, n_all: int) -> 
     cut = np.isin(und, s_und)
     tri = np.repeat(np.arange(m), 3).reshape(m, 3)
     link = (~cut) & (N >= 0)
-    g = coo_matrix((np.ones(int(link.sum())), (tri[link], N[link])), shape=(m, m))
-    n_comp, label = connected_components(g, directed=False)
+    found = _small_components(N, link) if m <= _SMALL_COMPONENTS else None
+    if found is None:
+        g = coo_matrix((np.ones(int(link.sum())), (tri[link], N[link])), shape=(m, m))
+        found = connected_components(g, directed=False)
+    n_comp, label = found
     # Directed triangle edges a -> b (counter-clockwise): the triangle lies on the left of a -> b.
     d_key = (ea * big + eb).ravel()
     d_tri = tri.ravel()

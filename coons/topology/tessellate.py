@@ -104,7 +104,15 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    still not closed raises).  Strips never draw such chords (interior rows have at least two
    segments of their own).
 
-Polygonal faces (implicit planes or planar surfaces, with straight edges) skip steps 3–5:
+*Flat NURBS faces.*  A NURBS surface whose control points lie within ``tol.linear`` of a plane
+(with a control net whose cells all face one way) lies in that plane (convex-hull property, positive
+weights): its faces are treated as faces of that plane (:func:`_flat_nurbs_planes`, one batched SVD
+per control-grid shape), with the plane's normal along ``Su × Sv`` so that ``face_sense`` keeps its
+meaning, and their boundary samples projected into the plane instead of mapped through their
+p-curves.  They need no interior points: the boundary polygon, triangulated in the plane, is the
+face to within ``2 tol.linear``.  A solid sewn from many bilinear patches is thus a polyhedron here.
+
+Polygonal faces (implicit planes, planar surfaces or flat NURBS surfaces, with straight edges) skip steps 3–5:
 triangles are emitted as they are and strictly convex polygons are fanned, both vectorised by
 polygon size; other polygons (holes, non-convex) go through the constrained triangulator in
 their plane.  A mesh-derived polyhedron therefore tessellates in numpy time.
@@ -116,7 +124,10 @@ a result that is not closed raises.  Nothing is cached between calls.
 Speed (``benchmarks/bench_topology.py``, results in ``benchmarks/results/topology-tessellate.md``):
 the strips make the revolved primitives 3× (coarse) to 60×+ (fine) faster than OCCT's
 ``BRepMesh_IncrementalMesh`` at equal deflection with fewer triangles; faces with holes are
-bounded by Qhull in the constrained triangulator (about 10 µs per boundary point).
+bounded by Qhull in the constrained triangulator (about 10 µs per boundary point).  A cube of
+6 × 13 × 13 flat bilinear NURBS faces (``benchmarks/bench_io.py``) takes about 0.05 s (it took
+14 s through steps 3c–5, ~14 ms per face); curved NURBS faces still cost a few milliseconds each
+(step 3c–5 per face: curvature samples, Qhull, Gauss–Newton distances).
 """
 
 from __future__ import annotations
@@ -727,6 +738,10 @@ class _Builder:
         # Step 0: revolved faces meshed by strips, and what they ask of their edges.
         self.revolved: dict[int, _Revolved] = {}
         self.proposals: dict[int, _Proposal] = {}
+        # NURBS surfaces that are planes within the linear tolerance: surface index -> row of ``flat_frames``
+        # (origin, x_dir, y_dir, normal along Su x Sv), made into PlanarSurface values only where needed.
+        self.flat, self.flat_frames = _flat_nurbs_planes(b.surfaces, t.linear)
+        self._flat_planes: dict[int, PlanarSurface] = {}
 
     def point_array(self) -> np.ndarray:
         """All mesh vertices so far, ``(n, 3)`` (concatenated once, then cached)."""
@@ -1052,7 +1067,7 @@ class _Builder:
         b = self.b
         # Faces on planes (implicit or PlanarSurface) bounded by straight edges are polygons:
         # their loops, counter-clockwise seen from outside, give outward triangles directly.
-        plane_s = [isinstance(S, PlanarSurface) for S in b.surfaces] + [True]
+        plane_s = [isinstance(S, PlanarSurface) or i in self.flat for i, S in enumerate(b.surfaces)] + [True]
         fs = b.face_surface.tolist()
         plane = [plane_s[s] for s in fs]
         curved = set(b.edge_face[~self.straight].ravel().tolist()) if not self.straight.all() else set()
@@ -1269,8 +1284,20 @@ class _Builder:
 
     def _plane_frames(self, surfaces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``x_dir`` and ``y_dir`` ``(n, 3)`` of the planar surfaces ``surfaces (n,)`` (indices)."""
-        S = [self.b.surfaces[i] for i in surfaces.tolist()]
+        flat, surf = self.flat, self.b.surfaces
+        if flat and all(i in flat for i in surfaces.tolist()):
+            rows = [flat[i] for i in surfaces.tolist()]
+            return self.flat_frames[rows, 1], self.flat_frames[rows, 2]
+        S = [self.flat_plane(i) if i in flat else surf[i] for i in surfaces.tolist()]
         return np.array([x.x_dir for x in S]), np.array([x.y_dir for x in S])
+
+    def flat_plane(self, si: int) -> PlanarSurface:
+        """The plane of the flat NURBS surface ``si`` (see :func:`_flat_nurbs_planes`), made once."""
+        S = self._flat_planes.get(si)
+        if S is None:
+            o, x, _, n = self.flat_frames[self.flat[si]]
+            S = self._flat_planes[si] = PlanarSurface(o, n, x)
+        return S
 
     # .................................................................. polyhedral faces
     def _polyhedral(self, faces: np.ndarray) -> None:
@@ -1317,15 +1344,15 @@ class _Builder:
         if si < 0:
             S, sense = _newell_plane(b, f), True
         else:
-            S, sense = b.surfaces[si], bool(b.face_sense[f])
+            S, sense = self.flat_plane(si) if si in self.flat else b.surfaces[si], bool(b.face_sense[f])
         bd = self._boundary(f, S)
         planar = isinstance(S, PlanarSurface)
         if planar:
             steps, scale = (math.inf, math.inf), np.array([1.0, 1.0])
         else:
             lo, hi = bd.uv.min(axis=0), bd.uv.max(axis=0)
-            steps = _grid_steps(S, lo, hi, self.d, self.a)
-            scale = _plane_scale(S, bd.uv, steps)
+            steps, metric = _grid_steps(S, lo, hi, self.d, self.a)
+            scale = _plane_scale(S, bd.uv, steps, metric)
         # Counter-clockwise loops in the triangulation plane: mirror u when the face is reversed.
         if not sense:
             scale = scale * np.array([-1.0, 1.0])
@@ -1351,10 +1378,12 @@ class _Builder:
         e, side = c >> 1, c & 1
         t, ids = self.samples(e)
         pi = int(b.edge_pcurve[e, side])
-        if pi >= 0 and int(b.face_surface[f]) >= 0:
+        si = int(b.face_surface[f])
+        if pi >= 0 and si >= 0 and si not in self.flat:
             uv = b.pcurves[pi].evaluate(t)
         elif isinstance(S, PlanarSurface):
-            # An implicit plane (or a plane without p-curves): project the mesh vertices of the samples.
+            # An implicit plane, a plane without p-curves or a flat NURBS surface (whose p-curves live in its own
+            # parameters, not the plane's): project the mesh vertices of the samples.
             uv = S.closest_parameters(self.boundary_points[ids])
         else:
             raise TopologyError(
@@ -1569,6 +1598,51 @@ def _convex_in_plane(P: np.ndarray, X: np.ndarray, Y: np.ndarray, sign: np.ndarr
     return ok & (np.arctan2(turn, dot).sum(axis=1) < 3.0 * math.pi)  # 2π for a convex polygon, 4π for a pentagram
 
 
+def _flat_nurbs_planes(surfaces: list, eps: float) -> tuple[dict[int, int], np.ndarray]:
+    """The NURBS surfaces of ``surfaces`` that are planes within ``eps``: index -> row of the frames ``(g, 4, 3)``
+    (origin, ``x_dir``, ``y_dir``, normal ``x_dir × y_dir`` along ``Su × Sv``; unit vectors).
+
+    A NURBS surface with positive weights lies in the convex hull of its control points, so
+    control points within ``eps`` of a plane put the whole surface there, and a face on it whose
+    boundary polygon is triangulated in that plane deviates from it by at most ``2 eps`` (the
+    boundary samples lie on the surface; the triangles and the surface both lie in the slab).  The
+    plane's normal follows the control net: the cross products of every cell's diagonals
+    ``(P₁₁ − P₀₀) × (P₀₁ − P₁₀)`` must all point to one side of the plane (a net folding over
+    itself is left to the general path), which is taken as the side of ``Su × Sv`` (exact for
+    bilinear patches, whose diagonal product is twice the mean of ``Su × Sv``; for higher degrees
+    the control net's orientation, which a regular surface shares).  Vectorised over surfaces with
+    the same control grid shape (one batched SVD per shape).
+    """
+    groups: dict[tuple, list[int]] = {}
+    for i, S in enumerate(surfaces):
+        cp = getattr(S, "control_points", None)
+        if cp is not None and hasattr(S, "knots_u") and cp.ndim == 3 and cp.shape[2] == 3:
+            groups.setdefault(cp.shape, []).append(i)
+    out: dict[int, int] = {}
+    frames = []
+    for idx in groups.values():
+        P = np.stack([surfaces[i].control_points for i in idx])  # (g, nu, nv, 3)
+        c = P.mean(axis=(1, 2))
+        Q = (P - c[:, None, None]).reshape(len(idx), -1, 3)
+        _, sv, vt = np.linalg.svd(Q, full_matrices=False)
+        n = vt[:, 2]
+        dist = np.abs(np.einsum("gkj,gj->gk", Q, n)).max(axis=1)
+        cells = _cross(P[:, 1:, 1:] - P[:, :-1, :-1], P[:, :-1, 1:] - P[:, 1:, :-1])  # (g, nu-1, nv-1, 3)
+        side = np.einsum("gabj,gj->gab", cells, n).reshape(len(idx), -1)
+        pos, neg = (side > 0).all(axis=1), (side < 0).all(axis=1)
+        ok = (dist <= eps) & (pos | neg) & (sv[:, 1] > 0)
+        keep = np.flatnonzero(ok)
+        if keep.size == 0:
+            continue
+        n = np.where(neg[:, None], -n, n)[keep]
+        x = vt[keep, 0]
+        F = np.stack([c[keep], x, _cross(n, x), n], axis=1)
+        for k in keep.tolist():
+            out[idx[k]] = len(out)
+        frames.append(F)
+    return out, np.concatenate(frames) if frames else np.zeros((0, 4, 3))
+
+
 def _newell_plane(b: BRep, f: int) -> PlanarSurface:
     """The plane of an implicit face: Newell normal (outward), through the vertex centroid."""
     P, Q = [], []
@@ -1614,7 +1688,8 @@ def _merge_touching(f: int, uv: np.ndarray, ids: np.ndarray, seg: np.ndarray):
     return uv[keep], ids[keep], remap[rep[seg]]
 
 
-def _plane_scale(S, uv: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
+def _plane_scale(S, uv: np.ndarray, steps: tuple[float, float],
+                 metric: tuple[float, float] | None = None) -> np.ndarray:
     """Scale ``(2,)`` of (u, v) in the triangulation plane.
 
     Where both grid steps are finite the plane is ``(u / h_u, v / h_v)``: the grid cells are
@@ -1627,12 +1702,12 @@ def _plane_scale(S, uv: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
     TopologyError
         A degenerate metric (``|Su|`` or ``|Sv|`` vanishing on average over the face).
     """
-    lo, hi = uv.min(axis=0), uv.max(axis=0)
-    s = (np.arange(_CURVATURE_SAMPLES) + 0.5) / _CURVATURE_SAMPLES
-    U, V = np.meshgrid(lo[0] + (hi[0] - lo[0]) * s, lo[1] + (hi[1] - lo[1]) * s, indexing="ij")
-    D = S.derivatives(U.ravel(), V.ravel(), 1)
-    su = float(np.mean(np.linalg.norm(D[:, 1, 0], axis=1)))
-    sv = float(np.mean(np.linalg.norm(D[:, 0, 1], axis=1)))
+    if metric is None:
+        lo, hi = uv.min(axis=0), uv.max(axis=0)
+        s = (np.arange(_CURVATURE_SAMPLES) + 0.5) / _CURVATURE_SAMPLES
+        U, V = np.meshgrid(lo[0] + (hi[0] - lo[0]) * s, lo[1] + (hi[1] - lo[1]) * s, indexing="ij")
+        metric = _mean_metric(S.derivatives(U.ravel(), V.ravel(), 1))
+    su, sv = metric
     if not (su > 0 and sv > 0 and math.isfinite(su) and math.isfinite(sv)):
         raise TopologyError(
             f"surface {type(S).__name__} has a degenerate metric over the face (|Su| = {su:g}, |Sv| = {sv:g})"
@@ -1647,11 +1722,18 @@ def _plane_scale(S, uv: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
     return np.array([su, sv])
 
 
-def _grid_steps(S, lo: np.ndarray, hi: np.ndarray, d: float, a: float) -> tuple[float, float]:
-    """Parameter steps ``(h_u, h_v)`` meeting deflection ``d`` and angle ``a`` everywhere on the box (inf: no curvature)."""
+def _mean_metric(D: np.ndarray) -> tuple[float, float]:
+    """Mean ``|Su|`` and ``|Sv|`` over derivatives ``D (k, ≥2, ≥2, 3)``."""
+    return float(np.mean(np.linalg.norm(D[:, 1, 0], axis=1))), float(np.mean(np.linalg.norm(D[:, 0, 1], axis=1)))
+
+
+def _grid_steps(S, lo: np.ndarray, hi: np.ndarray, d: float,
+                a: float) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Parameter steps ``(h_u, h_v)`` meeting deflection ``d`` and angle ``a`` everywhere on the box (inf: no curvature),
+    and the mean metric ``(|Su|, |Sv|)`` over the cell centres of the box (for :func:`_plane_scale`)."""
     s = (np.arange(_CURVATURE_SAMPLES) + 0.5) / _CURVATURE_SAMPLES
-    us = lo[0] + (hi[0] - lo[0]) * s
-    vs = lo[1] + (hi[1] - lo[1]) * s
+    us0 = us = lo[0] + (hi[0] - lo[0]) * s
+    vs0 = vs = lo[1] + (hi[1] - lo[1]) * s
     for attr, axis in (("knots_u", 0), ("knots_v", 1)):
         knots = getattr(S, attr, None)
         if knots is not None:  # a few samples in every knot span the box touches
@@ -1664,12 +1746,15 @@ def _grid_steps(S, lo: np.ndarray, hi: np.ndarray, d: float, a: float) -> tuple[
                 vs = np.union1d(vs, extra)
     U, V = np.meshgrid(us, vs, indexing="ij")
     D = S.derivatives(U.ravel(), V.ravel(), 2)
+    # The cell centres are among the samples (knot samples are only added): the metric of _plane_scale.
+    centres = (np.isin(us, us0)[:, None] & np.isin(vs, vs0)[None, :]).ravel()
+    metric = _mean_metric(D if centres.all() else D[centres])
     Su, Sv = D[:, 1, 0], D[:, 0, 1]
     W = _cross(Su, Sv)
     w = np.linalg.norm(W, axis=1)
     ok = w > 1e-12 * np.maximum(np.linalg.norm(Su, axis=1) * np.linalg.norm(Sv, axis=1), 1e-300)
     if not np.any(ok):
-        return math.inf, math.inf
+        return (math.inf, math.inf), metric
     Su, Sv, W, w, D = Su[ok], Sv[ok], W[ok], w[ok], D[ok]
     n = W / w[:, None]
     L = np.abs(np.einsum("ij,ij->i", D[:, 2, 0], n))
@@ -1694,7 +1779,7 @@ def _grid_steps(S, lo: np.ndarray, hi: np.ndarray, d: float, a: float) -> tuple[
             h_a = a / turn
         return float(np.min(np.minimum(h_d, h_a)))
 
-    return step(L + M, nu, curved_u), step(N + M, nv, curved_v)
+    return (step(L + M, nu, curved_u), step(N + M, nv, curved_v)), metric
 
 
 def _far_from_boundary(X: np.ndarray, X_b: np.ndarray, seg: np.ndarray, spacing: float) -> np.ndarray:
@@ -1731,18 +1816,24 @@ def _not_collapsed(T: np.ndarray, ids_all: np.ndarray, nb: int) -> np.ndarray:
     return (K[:, 0] != K[:, 1]) & (K[:, 1] != K[:, 2]) & (K[:, 2] != K[:, 0])
 
 
-def _surface_distance(S, P: np.ndarray, uv0: np.ndarray) -> np.ndarray:
+def _surface_distance(S, P: np.ndarray, uv0: np.ndarray, D0: np.ndarray | None = None) -> np.ndarray:
     """Distance of points ``P (k, 3)`` to the (untrimmed) surface; exact for analytic surfaces.
 
-    Other surfaces: four damped Gauss–Newton steps from ``uv0`` inside the surface's domain;
-    the distance to the point reached is an upper bound of the true distance.
+    Other surfaces: at most four damped Gauss–Newton steps from ``uv0`` inside the surface's
+    domain (fewer once every step is below round-off of the domain: the iteration has arrived);
+    the distance to the point reached is an upper bound of the true distance (when the iteration
+    stops early, the distance to the point the last step started from: a surface point as well,
+    so still an upper bound, and within round-off of the next).  ``D0``: the surface derivatives
+    ``(k, ≥2, ≥2, 3)`` at ``uv0`` when the caller has them (the first step then evaluates nothing).
     """
     if hasattr(S, "implicit"):
         return np.abs(S.implicit(P))
     uv = uv0.copy()
     (u0, u1), (v0, v1) = S.domain
-    for _ in range(4):
-        D = S.derivatives(uv[:, 0], uv[:, 1], 1)
+    # A step this small relative to the domain moves the point by round-off only.
+    still = 1e-13 * max(u1 - u0, v1 - v0)
+    for i in range(4):
+        D = D0 if (i == 0 and D0 is not None) else S.derivatives(uv[:, 0], uv[:, 1], 1)
         r = D[:, 0, 0] - P
         J = np.stack([D[:, 1, 0], D[:, 0, 1]], axis=2)  # (k, 3, 2)
         JtJ = np.einsum("kia,kib->kab", J, J)
@@ -1752,10 +1843,12 @@ def _surface_distance(S, P: np.ndarray, uv0: np.ndarray) -> np.ndarray:
         uv = uv + step
         uv[:, 0] = np.clip(uv[:, 0], u0, u1)
         uv[:, 1] = np.clip(uv[:, 1], v0, v1)
+        if not np.abs(step).max(initial=0.0) > still:
+            return np.linalg.norm(r, axis=1)  # the distance to S(uv before the step), D[:, 0, 0]
     return np.linalg.norm(S.evaluate(uv[:, 0], uv[:, 1]) - P, axis=1)
 
 
-def _acute_in_hessian(S, uvT: np.ndarray, Cuv: np.ndarray) -> np.ndarray:
+def _acute_in_hessian(S, uvT: np.ndarray, Cuv: np.ndarray, D: np.ndarray | None = None) -> np.ndarray:
     """``(m,)`` True for triangles ``uvT (m, 3, 2)`` acute in the metric of ``II = [[L, M], [M, N]]`` at their centroids.
 
     The deviation of a linear interpolant of the height ``½ xᵀ II x`` from the surface is
@@ -1763,9 +1856,11 @@ def _acute_in_hessian(S, uvT: np.ndarray, Cuv: np.ndarray) -> np.ndarray:
     circumcentre ``c`` for acute triangles (where the centroid holds at least 8/9 of it, since
     ``|c − g| ≤ r/3``), and at the longest edge's midpoint otherwise.  Where ``II`` is
     indefinite (saddles) or singular (developable surfaces) the largest deviation lies on an
-    edge, and the triangle counts as not acute.
+    edge, and the triangle counts as not acute.  ``D``: the second-order derivatives ``(m, 3, 3, 3)`` at
+    ``Cuv`` when the caller has them.
     """
-    D = S.derivatives(Cuv[:, 0], Cuv[:, 1], 2)
+    if D is None:
+        D = S.derivatives(Cuv[:, 0], Cuv[:, 1], 2)
     W = _cross(D[:, 1, 0], D[:, 0, 1])
     w = np.linalg.norm(W, axis=1)
     n = np.divide(W, w[:, None], out=np.zeros_like(W), where=w[:, None] > 0)
@@ -1801,7 +1896,6 @@ def _refinement_points(
     rows = np.arange(m)
     C = P[T].mean(axis=1)
     Cuv = uv[T].mean(axis=1)
-    dev = np.where(_acute_in_hessian(S, uv[T], Cuv), 9.0 / 8.0, 1.0) * _surface_distance(S, C, Cuv)
     # Edges (j, j+1) of each triangle; boundary segments are already within d (step 1).
     ea, eb = T, T[:, [1, 2, 0]]
     big = np.int64(uv.shape[0] + 1)
@@ -1809,9 +1903,17 @@ def _refinement_points(
     s_und = np.minimum(seg[:, 0], seg[:, 1]) * big + np.maximum(seg[:, 0], seg[:, 1])
     interior = ~np.isin(und, s_und)
     Muv = 0.5 * (uv[ea] + uv[eb])
+    # Centroids and interior edge midpoints in one (pointwise) distance computation: one surface
+    # evaluation setup per Gauss-Newton step instead of two.
+    uv0 = np.concatenate([Cuv, Muv[interior]])
+    # Non-analytic surfaces: the second derivatives at all starting points serve both the acuteness test
+    # (centroids) and the first Gauss-Newton step.
+    D = None if hasattr(S, "implicit") else S.derivatives(uv0[:, 0], uv0[:, 1], 2)
+    dist = _surface_distance(S, np.concatenate([C, 0.5 * (P[ea] + P[eb])[interior]]), uv0, D)
+    dev = np.where(_acute_in_hessian(S, uv[T], Cuv, None if D is None else D[:m]), 9.0 / 8.0, 1.0) * dist[:m]
     if np.any(interior):
         dev_e = np.zeros((m, 3))
-        dev_e[interior] = _surface_distance(S, 0.5 * (P[ea] + P[eb])[interior], Muv[interior])
+        dev_e[interior] = dist[m:]
         dev = np.maximum(dev, dev_e.max(axis=1))
     bad = dev > d
     if not np.any(bad):

@@ -1408,7 +1408,7 @@ class _Builder:
                 nxt = pieces[(i + 1) % len(cs)][0]
                 loop_uv.append(uv_i[:-1])
                 loop_ids.append(id_i[:-1])
-                if np.linalg.norm(uv_i[-1] - nxt) > _SAME_UV * extent:
+                if np.linalg.norm(uv_i[-1] - nxt) > _SAME_UV * extent and self._pole_gap(S, int(cs[i]), uv_i[-1], nxt):
                     # A pole or apex: the loop jumps in (u, v) at one vertex; keep both ends.
                     loop_uv.append(uv_i[-1:])
                     loop_ids.append(id_i[-1:])
@@ -1426,6 +1426,20 @@ class _Builder:
         seg = np.concatenate(segs)
         uv, ids, seg = _merge_touching(f, uv, ids, seg)
         return _Boundary(uv, ids, seg)
+
+    def _pole_gap(self, S, c: int, p: np.ndarray, q: np.ndarray) -> bool:
+        """Whether the parameter jump from ``p`` to ``q`` at the vertex ending coedge ``c`` is a pole or apex.
+
+        Two p-curves meeting at one vertex end at slightly different parameters when one of them
+        is fitted (within its edge tolerance); at a pole they end far apart along the collapsed
+        side.  The jump measured with the surface's largest first derivative at ``p`` tells them
+        apart: a fitting mismatch maps to at most the edge tolerance in space, a pole's jump
+        (``|Su| = 0`` but ``|Sv|`` of the order of the radius) to much more.
+        """
+        D = S.derivatives(p[0], p[1], 1)
+        stretch = max(float(np.linalg.norm(D[1, 0])), float(np.linalg.norm(D[0, 1])))
+        allowed = max(self.tol.linear, float(self.b.edge_tol[c >> 1]))
+        return float(np.linalg.norm(p - q)) * stretch > allowed
 
     def _grid(self, bd: _Boundary, X_b: np.ndarray, scale: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
         """Interior candidate parameters ``(q, 2)`` (unscaled) of a curved face: the grid of ``steps`` inside the box."""

@@ -416,11 +416,14 @@ def test_thin_components_are_dropped():
 
 # ---------------------------------------------------------------------- error branches
 def test_curved_operands_are_rejected_at_input():
+    # The operators send curved operands to coons.booleans.solid; the polyhedral layer itself refuses them.
+    from coons.booleans import polyhedral
+
     with pytest.raises(BooleanError, match="face .* cylinder surface") as info:
-        Cylinder(1, 2) + Box(1, 1, 1)
+        polyhedral.union(Cylinder(1, 2), Box(1, 1, 1))
     assert info.value.stage == "input" and info.value.diagnostics["operand"] == "A"
     with pytest.raises(BooleanError, match="operand B") as info:
-        Box(1, 1, 1) - Cylinder(1, 2)
+        polyhedral.difference(Box(1, 1, 1), Cylinder(1, 2))
     assert info.value.stage == "input"
 
 

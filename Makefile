@@ -13,6 +13,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
+validate: $(STAMP)
+	$(VENV)/bin/coons validate --jobs 2 --report validation-report
+
 demo: $(STAMP)
 	$(VENV)/bin/coons demo --out demo-output
 
@@ -27,4 +30,4 @@ bench: $(STAMP)
 	$(PY) benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) demo-output .pytest_cache .hypothesis
+	rm -rf $(VENV) demo-output validation-report .pytest_cache .hypothesis

@@ -10,7 +10,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_readme_example_runs():
+def test_readme_example_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the example writes part.step and lens.stl to the working directory
     text = (ROOT / "README.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, re.S)
     assert blocks, "README has no python example"
@@ -20,6 +21,11 @@ def test_readme_example_runs():
     # The example's quarter circle is exact.
     pts = namespace["pts"]
     np.testing.assert_allclose(np.linalg.norm(pts, axis=1), 2.0, rtol=1e-15)
+    # The first example's part is exact: 1000 - 90 pi, and its files were written.
+    first: dict = {}
+    exec(compile(blocks[0], "README.md", "exec"), first)  # noqa: S102
+    np.testing.assert_allclose(first["part"].volume, 1000 - 90 * np.pi, rtol=1e-12)
+    assert (tmp_path / "part.step").stat().st_size > 1000 and (tmp_path / "lens.stl").stat().st_size > 1000
 
 
 def test_demo_writes_a_picture_and_a_watertight_stl(tmp_path):

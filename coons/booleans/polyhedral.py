@@ -40,15 +40,21 @@ Phases (each a private function raising ``BooleanError(stage=...)`` with ids and
 1. ``_meshes`` (stage ``"input"``): planar faces and straight edges are required; the first
    curved face or edge is named.  ``tessellate`` gives the exact triangle meshes with face ids
    (solids whose faces are all triangles, as ``from_mesh`` makes them, are read from their tables).
-2. ``_broad_phase``: candidate pairs from two implicit bounding-volume hierarchies
-   (:mod:`._broad_phase`), ``O((n + k) log n)``, no Python loop over triangles.
+2. ``_broad_phase``: candidate pairs from :func:`._broad_phase.triangle_pairs`: a vertex cull and a
+   box cull on uniform grids drop the triangles far from the other surface, then the survivors'
+   overlapping boxes come from a grid (or two implicit bounding-volume hierarchies), no Python
+   loop over triangles.
 3. + 4. ``_intersect`` (stage ``"intersect"``): exact narrow phase and intersection points and
    segments (:func:`._mesh_arrangement.intersect`).
-5. ``_imprint`` (stage ``"imprint"``): every triangle split along its segments by a constrained
-   triangulation that is verified exactly (:func:`._mesh_arrangement.imprint`).
+5. ``_imprint`` (stage ``"imprint"``): every triangle split along its segments; triangles crossed
+   by one chain of segments (nearly all) in array time with every piece's orientation verified
+   exactly, the others by a constrained triangulation that is verified exactly
+   (:func:`._mesh_arrangement.imprint`).
 6. ``_classify`` (stage ``"classify"``): patches are the connected components of the piece
-   adjacency cut at intersection edges (``scipy.sparse.csgraph``).  A patch is ``ON`` when one of
-   its pieces lies in a coplanar triangle of the other mesh (exact test of the piece's centroid);
+   adjacency cut at intersection edges (``scipy.sparse.csgraph``; whole triangles are joined
+   through the operand's edge table, only the pieces of split triangles are paired by sorting).
+   A patch is ``ON`` when one of its pieces lies in a coplanar triangle of the other mesh (exact
+   test of the piece's centroid);
    otherwise one point of the patch is classified by **ray parity**: the ray ``q + λ (1, 0, 0)``,
    ``λ > 0``, crosses the other closed surface an odd number of times exactly when ``q`` is
    inside.  Crossings are decided exactly — the ray meets a triangle when ``q``'s projection on the
@@ -72,13 +78,18 @@ Phases (each a private function raising ``BooleanError(stage=...)`` with ids and
    ============  ==========  ============  ===================
 
 8. ``_sew`` (stage ``"sew"``): exact points are rounded to the nearest floats, features below
-   ``tol.linear`` are cleaned up (below), and the result is built by
-   :func:`~coons.topology.from_mesh.from_mesh` with ``merge_coplanar=True`` (neighbouring coplanar
-   triangles become polygon faces, with holes where needed; shells nest into lumps and voids).
-   An empty selection gives :meth:`Solid.empty() <coons.topology.shape.Solid.empty>` (no lumps,
-   volume 0, valid).
-9. Check (stage ``"check"``): ``from_mesh`` runs :func:`~coons.topology.check.check` on the result;
-   any problem raises.
+   ``tol.linear`` are cleaned up (below; only rows holding a new point or points of both operands
+   are searched), and the result is built by ``from_mesh``'s construction for clean meshes
+   (:func:`~coons.topology.from_mesh._solid_from_clean_triangles`: half-edge pairing, shells as
+   connected components nested into lumps and voids, neighbouring coplanar triangles merged into
+   polygon faces with holes where needed, vertices left on straight edges between two merged
+   faces removed).  An empty selection gives
+   :meth:`Solid.empty() <coons.topology.shape.Solid.empty>` (no lumps, volume 0, valid).
+9. Check (stage ``"check"``): every edge used twice in opposite directions, every shell's volume
+   of the sign its nesting requires, merged faces planar within ``tol.linear``, and the
+   topological checks of :func:`~coons.topology.check.check` (pointers, loops, manifold vertices,
+   Euler–Poincaré per shell); any problem raises.  The geometric checks of ``check`` have nothing
+   to find on a result whose edges are the segments between its vertices.
 
 Rounding and features below the tolerance
 -----------------------------------------
@@ -123,28 +134,28 @@ Status and limitations
   the rest of the result makes it non-manifold, which raises (stage ``"sew"``) rather than return
   a broken solid (a few per cent of random rotated grid-box pairs in the tests).
 * Operands must be valid closed solids; self-intersecting operands are not detected.
-* Faces of the result keep collinear vertices where the tessellation's diagonals met the
-  intersection curves (``from_mesh`` merges coplanar faces, not collinear edges).
-* Speed: the broad phase and the predicates are vectorised; the splits of intersected triangles
-  loop over those triangles in Python, exact rational arithmetic runs on Python integers, and
-  the result goes through ``from_mesh`` and the full checker.  ``benchmarks/bench_booleans_mesh.py``
-  measures coons against manifold3d on a busy 2-core machine: 8–16× slower on offset spheres from
-  1e4 to 6.6e5 input triangles (8× at 1.6e5), with the same growth exponent (about 0.85 for both
-  over that range), and about 25× on a plate minus 400 prisms; sewing (``from_mesh`` with its
-  check) is the largest phase, then the broad phase, the splits and the classification.
+* Vertices left on a straight edge between two merged faces (where the tessellation's diagonals
+  met the intersection curves) are removed when they lie within ``tol.linear`` of the segment
+  between their neighbours (:func:`~coons.topology.from_mesh._remove_straight_vertices`).
+* Speed: every phase is vectorised except the splits of the few triangles that a chain of
+  segments does not describe (Python, exact integers when the float filters cannot decide).
+  ``benchmarks/bench_booleans_mesh.py`` measures coons against manifold3d in the same run
+  (``benchmarks/results/booleans_mesh.md``); at 1.6e5 input triangles the sewing of the result
+  (half-edge pairing, tables, coplanar merging, the topological checks) is the largest phase.
+* Bit-identical rounded points that are not joined by an edge stay distinct vertices (the exact
+  points are distinct); identical input vertices of A and B are one point (keyed exactly).
 * n-ary calls fold left: ``union(a, b, c) = (a ∪ b) ∪ c``.
 """
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from coons.booleans._broad_phase import box_pairs
+from coons.booleans._broad_phase import box_pairs, triangle_boxes, triangle_pairs
 from coons.booleans._mesh_arrangement import (
     Exact,
     Imprint,
@@ -341,7 +352,7 @@ def _meshes(s: Solid, name: str, t: Tolerance) -> Operand | None:
         )
     direct = _triangle_faces(b)
     if direct is not None:
-        return operand(b.vertex_point, direct, np.arange(b.n_faces, dtype=np.int64), name)
+        return operand(b.vertex_point, direct[0], np.arange(b.n_faces, dtype=np.int64), name, tables=direct[1])
     from coons.topology.tessellate import tessellate
 
     box = b.bounding_box()
@@ -352,12 +363,14 @@ def _meshes(s: Solid, name: str, t: Tolerance) -> Operand | None:
     return operand(np.asarray(mesh.vertices), np.asarray(mesh.triangles), np.asarray(mesh.face_ids), name)
 
 
-def _triangle_faces(b) -> np.ndarray | None:
+def _triangle_faces(b) -> tuple[np.ndarray, tuple] | None:
     """The faces as vertex triples ``(F, 3)`` when every face is one loop of three straight edges, else None.
 
     Such a B-rep (a mesh read by ``from_mesh``) is its own exact triangulation: each loop runs
     counter-clockwise about the outward normal (``docs/brep.md``), so the origins of its three
-    coedges are an outward triangle.  Read from the tables in array time, no tessellation.
+    coedges are an outward triangle.  Read from the tables in array time, no tessellation.  The
+    mesh's edge tables are the B-rep's (``edges`` with the smaller vertex first, ``tri_edge``,
+    ``edge_tris``), also read without a sort.
     """
     if b.n_loops != b.n_faces or np.any(np.diff(b.face_loop_ptr) != 1):
         return None
@@ -369,13 +382,20 @@ def _triangle_faces(b) -> np.ndarray | None:
     c2 = nxt[c1]
     if np.any(nxt[c2] != c0):
         return None
-    return np.stack([b.coedge_origin[c0], b.coedge_origin[c1], b.coedge_origin[c2]], axis=1)
+    T = np.stack([b.coedge_origin[c0], b.coedge_origin[c1], b.coedge_origin[c2]], axis=1)
+    ev = b.edge_vertex
+    edges = np.sort(ev, axis=1)
+    # One loop per face: the triangle (face) of each side of an edge.
+    face_of_loop = np.empty(b.n_loops, dtype=np.int64)
+    face_of_loop[b.face_loops] = np.arange(b.n_faces)
+    edge_tris = face_of_loop[b.edge_loop]
+    tri_edge = np.stack([c0 >> 1, c1 >> 1, c2 >> 1], axis=1)
+    return T, (edges, tri_edge, edge_tris)
 
 
 def _broad_phase(A: Operand, B: Operand) -> tuple[np.ndarray, np.ndarray]:
     """Phase 2: candidate triangle pairs whose closed boxes overlap."""
-    CA, CB = A.P[A.T], B.P[B.T]
-    return box_pairs(CA.min(axis=1), CA.max(axis=1), CB.min(axis=1), CB.max(axis=1))
+    return triangle_pairs(A.P, A.T, B.P, B.T)
 
 
 def _intersect(A: Operand, B: Operand, I: np.ndarray, J: np.ndarray, ex: Exact) -> Intersections:
@@ -401,21 +421,9 @@ def _classify(imp: Imprint, X: Operand, Y: Operand, which: int, inter: Intersect
     """
     tris = imp.tris
     k = tris.shape[0]
-    a = tris.ravel()
-    b = tris[:, [1, 2, 0]].ravel()
-    n = np.int64(max(int(tris.max(initial=0)) + 1, 1))
-    und = np.minimum(a, b) * n + np.maximum(a, b)
-    order = np.argsort(und, kind="stable")
-    piece = np.repeat(np.arange(k), 3)
-    p1, p2 = piece[order[0::2]], piece[order[1::2]]
-    key = und[order[0::2]]
-    on_keys = imp.on_edges[:, 0] * n + imp.on_edges[:, 1] if imp.on_edges.size else np.zeros(0, np.int64)
-    link = ~np.isin(key, on_keys)
-    g = coo_matrix((np.ones(int(link.sum()), dtype=np.int8), (p1[link], p2[link])), shape=(k, k))
-    n_patch, patch = connected_components(g, directed=False)
-    patch = patch.astype(np.int64)
-    rep = np.full(n_patch, k, dtype=np.int64)
-    np.minimum.at(rep, patch, np.arange(k))  # first piece of each patch
+    n_patch, patch = _patches(imp, X, table.float.shape[0])
+    rep = np.empty(n_patch, dtype=np.int64)
+    rep[patch[::-1]] = np.arange(k - 1, -1, -1)  # a piece of each patch (any one will do)
     status = np.full(n_patch, -1, dtype=np.int8)
     # --- ON patches: the representative piece lies in a coplanar triangle of Y.
     cop = inter.coplanar
@@ -430,6 +438,59 @@ def _classify(imp: Imprint, X: Operand, Y: Operand, which: int, inter: Intersect
     if todo.size:
         status[todo] = _ray_status(todo, patch, tris, X, Y, which, inter, table, ex)
     return _Classified(patch, status)
+
+
+def _patches(imp: Imprint, X: Operand, n_ids: int) -> tuple[int, np.ndarray]:
+    """Connected components of the pieces joined across piece edges not on the other surface.
+
+    Whole (unsplit) triangles are joined through the operand's own edge table (no sort); only the
+    pieces of split triangles and the edges around them are paired by sorting their keys.
+    """
+    tris = imp.tris
+    k = tris.shape[0]
+    n = np.int64(max(n_ids, 1))
+    on = imp.on_edges
+    on_keys = np.sort(on[:, 0] * n + on[:, 1]) if on.size else np.zeros(0, np.int64)
+
+    def off_surface(key: np.ndarray) -> np.ndarray:
+        if on_keys.size == 0:
+            return np.ones(key.size, dtype=bool)
+        pos = np.minimum(np.searchsorted(on_keys, key), on_keys.size - 1)
+        return on_keys[pos] != key
+
+    if imp.vid is None:  # generic: pair every piece edge by sorting
+        a = tris.ravel()
+        b = tris[:, [1, 2, 0]].ravel()
+        und = np.minimum(a, b) * n + np.maximum(a, b)
+        order = np.argsort(und, kind="stable")
+        piece = np.repeat(np.arange(k), 3)
+        p1, p2 = piece[order[0::2]], piece[order[1::2]]
+        link = off_surface(und[order[0::2]])
+        src, dst = p1[link], p2[link]
+    else:
+        nw = imp.n_whole
+        row = np.full(X.m, -1, dtype=np.int64)
+        row[imp.source[:nw]] = np.arange(nw)
+        r = row[X.edge_tris]  # (E, 2) piece rows of the two triangles of each edge (-1: split)
+        ev = imp.vid[X.edges]
+        ekey = np.minimum(ev[:, 0], ev[:, 1]) * n + np.maximum(ev[:, 0], ev[:, 1])
+        both = np.flatnonzero((r[:, 0] >= 0) & (r[:, 1] >= 0))
+        both = both[off_surface(ekey[both])]
+        # The small part: the split triangles' pieces and the whole triangles next to them.
+        one = np.flatnonzero((r[:, 0] >= 0) != (r[:, 1] >= 0))
+        pieces = tris[nw:]
+        pa, pb = pieces.ravel(), pieces[:, [1, 2, 0]].ravel()
+        keys = np.concatenate([np.minimum(pa, pb) * n + np.maximum(pa, pb), ekey[one]])
+        node = np.concatenate([nw + np.repeat(np.arange(pieces.shape[0]), 3), np.maximum(r[one, 0], r[one, 1])])
+        order = np.argsort(keys, kind="stable")
+        ks = keys[order]
+        pair = np.flatnonzero(ks[1:] == ks[:-1])
+        pair = pair[off_surface(ks[pair])]
+        src = np.concatenate([r[both, 0], node[order[pair]]])
+        dst = np.concatenate([r[both, 1], node[order[pair + 1]]])
+    g = coo_matrix((np.ones(src.size, dtype=np.int8), (src, dst)), shape=(k, k))
+    n_patch, patch = connected_components(g, directed=False)
+    return int(n_patch), patch.astype(np.int64)
 
 
 def _centroids(tris: np.ndarray, table: PointTable) -> np.ndarray:
@@ -497,11 +558,14 @@ def _ray_status(todo: np.ndarray, patch: np.ndarray, tris: np.ndarray, X: Operan
     want = np.zeros(patch.max(initial=-1) + 1, dtype=bool)
     want[todo] = True
     # A free original vertex of each patch, if any.
-    V = tris.ravel()
-    P3 = np.repeat(patch, 3)
-    ok = np.isin(V, free_id) & want[P3]
+    free_mask = np.zeros(table.float.shape[0], dtype=bool)
+    free_mask[free_id] = True
+    wanted = want[patch]
     vert_of = np.full(want.size, -1, dtype=np.int64)
-    vert_of[P3[ok][::-1]] = V[ok][::-1]  # any one; reversed so the first occurrence wins
+    for c in range(3):
+        V = tris[:, c]
+        ok = np.flatnonzero(free_mask[V] & wanted)
+        vert_of[patch[ok]] = V[ok]  # any one
     result = np.zeros(want.size, dtype=np.int8)
     with_vertex = todo[vert_of[todo] >= 0]
     if with_vertex.size:
@@ -509,17 +573,40 @@ def _ray_status(todo: np.ndarray, patch: np.ndarray, tris: np.ndarray, X: Operan
         result[with_vertex] = _parity_float(q, Y)
     without = todo[vert_of[todo] < 0]
     if without.size:
-        first = np.full(want.size, tris.shape[0], dtype=np.int64)
-        np.minimum.at(first, patch, np.arange(tris.shape[0]))
+        first = np.empty(want.size, dtype=np.int64)
+        first[patch[::-1]] = np.arange(tris.shape[0] - 1, -1, -1)  # a piece of each patch
         H = _centroids(tris[first[without]], table)
         result[without] = _parity_exact(H, Y, ex)
     return np.where(result % 2 == 1, IN, OUT).astype(np.int8)[todo]
 
 
+#: Query–triangle tests done by brute force before the ray boxes go to the broad phase.
+_RAY_BRUTE = 1 << 22
+
+
 def _ray_candidates(lo: np.ndarray, hi: np.ndarray, Y: Operand) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (query, triangle of Y) whose boxes meet the ray boxes ``[lo, hi]``."""
-    C = Y.P[Y.T]
-    return box_pairs(lo, hi, C.min(axis=1), C.max(axis=1))
+    """Pairs (query, triangle of Y) whose boxes meet the ray boxes ``[lo, hi]``.
+
+    Few queries (the usual case: one per patch) are tested against every triangle box directly,
+    one query at a time over contiguous columns; many go to :func:`box_pairs`.
+    """
+    Ylo, Yhi = (Y.lo, Y.hi) if Y.lo is not None else triangle_boxes(Y.P, Y.T)
+    if lo.shape[0] * Y.m > _RAY_BRUTE:
+        return box_pairs(lo, hi, Ylo, Yhi)
+    cols = [(np.ascontiguousarray(Ylo[:, c]), np.ascontiguousarray(Yhi[:, c])) for c in range(3)]
+    I, J = [], []
+    for q in range(lo.shape[0]):
+        ok = cols[0][1] >= lo[q, 0]
+        ok &= cols[0][0] <= hi[q, 0]
+        for c in (1, 2):
+            ok &= cols[c][0] <= hi[q, c]
+            ok &= cols[c][1] >= lo[q, c]
+        j = np.flatnonzero(ok)
+        I.append(np.full(j.size, q, dtype=np.int64))
+        J.append(j)
+    if not I:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(I), np.concatenate(J)
 
 
 def _perturbed(d: np.ndarray, az_bz: np.ndarray, by_ay: np.ndarray) -> np.ndarray:
@@ -666,15 +753,19 @@ def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
     """
     if tris.shape[0] == 0:
         return Solid.empty()
-    used, T = np.unique(tris, return_inverse=True)
-    T = T.reshape(-1, 3)
+    nA, nB = table.nA, table.nB
+    # Rows made only of one operand's original vertices are input triangles (whole, or a piece
+    # that is a whole triangle): nothing below the tolerance can start there (see _clean).
+    lo_all = (tris[:, 0] < nA) & (tris[:, 1] < nA) & (tris[:, 2] < nA)
+    inb = (tris >= nA) & (tris < nA + nB)
+    active = ~(lo_all | (inb[:, 0] & inb[:, 1] & inb[:, 2]))
+    used, T = _compact(tris, table.float.shape[0])
     P = table.float[used]
-    original = used < table.nA + table.nB
-    T = _clean(P, T, original, t.linear)
+    original = used < nA + nB
+    T = _clean(P, T, original, t.linear, active)
     if T.shape[0] == 0:
         return Solid.empty()
-    used, T = np.unique(T, return_inverse=True)
-    T = T.reshape(-1, 3)
+    used, T = _compact(T, P.shape[0])
     P = P[used]
     try:
         return _build(P, T, t)
@@ -696,18 +787,27 @@ def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
             raise
 
 
+def _compact(T: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ids ``T`` uses (increasing) and ``T`` renumbered onto them (``np.unique`` without a sort)."""
+    mask = np.zeros(n, dtype=bool)
+    mask[T.ravel()] = True
+    used = np.flatnonzero(mask)
+    new = np.zeros(n, dtype=np.int64)
+    new[used] = np.arange(used.size)
+    return used, new[T]
+
+
 def _build(P: np.ndarray, T: np.ndarray, t: Tolerance) -> Solid:
-    """``from_mesh`` with coplanar merging; its errors become ``BooleanError`` (stage ``"sew"`` or ``"check"``)."""
-    from coons.topology.from_mesh import from_mesh
+    """The checked solid of the cleaned result mesh (``from_mesh``'s construction with coplanar merging,
+    through its fast path for clean meshes); errors become ``BooleanError`` (stage ``"sew"`` or ``"check"``)."""
+    from coons.topology.from_mesh import _solid_from_clean_triangles
 
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", UserWarning)
-            return from_mesh(P, T, merge_coplanar=True, tol=t)
-    except UserWarning as w:
-        raise BooleanError(f"the selected pieces are inconsistently oriented: {w}", stage="sew") from None
+        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True)
     except TopologyError as exc:
         msg = str(exc)
+        if "wrong sign" in msg:
+            raise BooleanError(f"the selected pieces are inconsistently oriented: {msg}", stage="sew") from None
         stage = "check" if "does not bound a valid solid" in msg else "sew"
         raise BooleanError(msg, stage=stage, diagnostics={"triangles": int(T.shape[0])}) from None
 
@@ -716,7 +816,8 @@ def _build(P: np.ndarray, T: np.ndarray, t: Tolerance) -> Solid:
 _MAX_CLEAN_ROUNDS = 32
 
 
-def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float) -> np.ndarray:
+def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
+           active: np.ndarray | None = None) -> np.ndarray:
     """Remove the features of the rounded result that lie below the tolerance ``eps``.
 
     Near-coincident inputs (faces that agree only up to rounding, a vertex an ulp off an
@@ -734,7 +835,13 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float) -> np
        edge is split at the apex (an edge split), which keeps the mesh closed.
 
     Geometry moves by at most ``eps`` per operation (cluster diameters are checked against a few
-    ``eps``).  Results without such features are returned unchanged.  (Closed components thinner
+    ``eps``).  Results without such features are returned unchanged.
+
+    ``active (k,)`` bool, optional: the rows where a feature can start (the others are input
+    triangles between original vertices of one operand: their edges and heights are the valid
+    input's, and a cancelling twin of one would lie on the other operand's surface, classified
+    ``ON`` and not selected).  Only they are searched until the first change, after which every row
+    is.  (Closed components thinner
     than the tolerance are removed by :func:`_drop_thin_components` when ``from_mesh`` rejects
     the result.)
 
@@ -750,12 +857,15 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float) -> np
     n = P.shape[0]
     for _ in range(_MAX_CLEAN_ROUNDS):
         changed = False
+        rows = np.flatnonzero(active) if active is not None else None
         # 1. short edges and identical points.
-        a = T.ravel()
-        b = T[:, [1, 2, 0]].ravel()
+        Ts = T if rows is None else T[rows]
+        a = Ts.ravel()
+        b = Ts[:, [1, 2, 0]].ravel()
         L = np.linalg.norm(P[a] - P[b], axis=1)
         short = L <= eps
         if np.any(short):
+            active = None
             src, dst = a[short], b[short]
             g = coo_matrix((np.ones(src.size, dtype=np.int8), (src, dst)), shape=(n, n))
             _, comp = connected_components(g, directed=False)
@@ -792,10 +902,17 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float) -> np
             T = T[keep]
             changed = True
         # 2. cancelling pairs.
-        if T.shape[0]:
-            S = np.sort(T, axis=1)
+        rows = np.flatnonzero(active) if active is not None else None
+        if T.shape[0] and (rows is None or rows.size):
+            sub = T if rows is None else T[rows]
+            S = np.sort(sub, axis=1)
             key = (S[:, 0] * np.int64(n) + S[:, 1]) * np.int64(n) + S[:, 2]
             _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+            if rows is not None and np.any(cnt > 1):  # something to cancel: search every row
+                active = rows = None
+                S = np.sort(T, axis=1)
+                key = (S[:, 0] * np.int64(n) + S[:, 1]) * np.int64(n) + S[:, 2]
+                _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
             rep_dup = cnt[inv] > 1
             if np.any(rep_dup):
                 # parity of the rotation from the sorted triple: even permutations are one orientation
@@ -815,16 +932,20 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float) -> np
                     T = T[keep]
                     changed = True
         # 3. caps.
-        if T.shape[0]:
-            C = P[T]
+        if changed:
+            active = None
+        rows = np.flatnonzero(active) if active is not None else np.arange(T.shape[0])
+        if rows.size:
+            C = P[T[rows]]
             e = np.stack([C[:, 1] - C[:, 0], C[:, 2] - C[:, 1], C[:, 0] - C[:, 2]], axis=1)
             el = np.linalg.norm(e, axis=2)
             longest = np.argmax(el, axis=1)
             area2 = np.linalg.norm(np.cross(C[:, 1] - C[:, 0], C[:, 2] - C[:, 0]), axis=1)
-            height = area2 / np.maximum(el[np.arange(T.shape[0]), longest], np.finfo(float).tiny)
+            height = area2 / np.maximum(el[np.arange(rows.size), longest], np.finfo(float).tiny)
             caps = np.flatnonzero(height <= eps)
             if caps.size:
-                T = _split_caps(T, caps, longest[caps])
+                T = _split_caps(T, rows[caps], longest[caps])
+                active = None
                 changed = True
         if not changed:
             return T

@@ -145,6 +145,63 @@ def from_mesh(
     return Solid(brep)
 
 
+def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, merge_coplanar: bool = True,
+                                straighten: bool = False) -> Solid:
+    """:func:`from_mesh` for callers that guarantee their mesh is clean (the polyhedral Booleans).
+
+    Preconditions, not re-verified: ``P (n, 3)`` finite float64 with every vertex used by ``T``;
+    ``T (m, 3)`` int64 indices into ``P`` with no degenerate triangle (height above
+    ``t.linear``).  Skipping :func:`from_mesh`'s input normalisation (bit-identical vertices are
+    **not** merged: distinct vertices stay distinct) and degenerate-triangle test, it runs the same
+    construction and verifies what the construction could get wrong: every edge used twice in
+    opposite directions (raises as :func:`from_mesh`), nesting, the orientation of every
+    component (a component that would need reversing raises instead of being reversed), planar
+    merged regions, and the topological checks of :func:`~coons.topology.check.check`
+    (pointers, loops, manifold vertices, Euler–Poincaré per shell).  The geometric checks of
+    ``check`` are not run: every edge is the straight segment between its vertices (nothing can
+    deviate), merged faces are verified planar within ``t.linear`` here, and shell orientation is
+    the volume test above.  ``straighten`` (with ``merge_coplanar``) also removes the vertices
+    left on straight boundaries between merged faces (:func:`_remove_straight_vertices`).
+
+    Raises
+    ------
+    TopologyError
+        As :func:`from_mesh`; "encloses volume of the wrong sign" for a component whose
+        orientation disagrees with its nesting.
+    """
+    orig = np.arange(P.shape[0])
+    a, b = _pair_half_edges(P, T, orig)
+    labels, n_comp = _components(T.shape[0], a // 3, b // 3)
+    depth, parent = _nesting(P, T, labels, n_comp)
+    flip = _orientation(P, T, labels, n_comp, depth)
+    if np.any(flip):
+        k = int(np.flatnonzero(flip)[0])
+        raise TopologyError(
+            f"component {k} encloses volume of the wrong sign for its nesting depth {int(depth[k])} "
+            f"(outer shells must enclose positive and voids negative volume); {int(flip.sum())} such component(s)"
+        )
+    if merge_coplanar:
+        # _merge_coplanar needs only these columns of the triangle tables; the full tables are made
+        # only when nothing merges.
+        org, dst = T.ravel(), T[:, [1, 2, 0]].ravel()
+        h0 = np.where(org[a] < dst[a], a, b)
+        shell_solid, solid_ptr, solid_shells = _solids(n_comp, depth, parent)
+        few = dict(edge_vertex=np.stack([org[h0], dst[h0]], axis=1), face_shell=labels, shell_solid=shell_solid,
+                   solid_shell_ptr=solid_ptr, solid_shells=solid_shells)
+        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten)
+        if cols is few:
+            cols = _tables(P, T, a, b, labels, n_comp, depth, parent, t)
+    else:
+        cols = _tables(P, T, a, b, labels, n_comp, depth, parent, t)
+    brep = BRep(**cols)
+    from coons.topology.check import check
+
+    report = check(brep, t, geometry=False)
+    if not report.ok:
+        raise TopologyError("from_mesh: the mesh does not bound a valid solid:\n" + report.summary(20))
+    return Solid(brep)
+
+
 # ====================================================================== input
 def _as_arrays(vertices, triangles) -> tuple[np.ndarray, np.ndarray]:
     """Validated ``(n, 3) float64`` vertices and ``(m, 3) int64`` triangles.
@@ -308,8 +365,12 @@ def _components(m: int, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, int
 def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Signed volume of each triangle's tetrahedron with the centre of the vertex box, and its magnitude."""
     x0 = 0.5 * (P.min(axis=0) + P.max(axis=0))
-    A, B, C = P[T[:, 0]] - x0, P[T[:, 1]] - x0, P[T[:, 2]] - x0
-    v = np.einsum("ij,ij->i", A, np.cross(B, C)) / 6.0
+    Q = [np.ascontiguousarray(P[:, k]) - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
+    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    ax, ay, az = (q[t0] for q in Q)
+    bx, by, bz = (q[t1] for q in Q)
+    cx, cy, cz = (q[t2] for q in Q)
+    v = (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)) / 6.0
     return v, np.abs(v)
 
 
@@ -468,7 +529,7 @@ def _tables(
         edge_loop=cloop.reshape(E, 2),
         edge_wing=np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1),
         edge_curve=np.full(E, -1, dtype=np.int64),
-        edge_range=np.tile([0.0, 1.0], (E, 1)),
+        edge_range=_unit_ranges(E),
         edge_pcurve=np.full((E, 2), -1, dtype=np.int64),
         edge_tol=np.full(E, t.linear),
         loop_face=np.arange(m, dtype=np.int64),
@@ -487,6 +548,14 @@ def _tables(
     )
 
 
+def _unit_ranges(E: int) -> np.ndarray:
+    """``(E, 2)`` rows ``[0, 1]`` (``np.tile`` is several times slower at a million rows)."""
+    r = np.empty((E, 2))
+    r[:, 0] = 0.0
+    r[:, 1] = 1.0
+    return r
+
+
 def _solids(n_comp: int, depth: np.ndarray, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``shell_solid`` and the solid → shells CSR rows (outer shell first) from the nesting."""
     outer = np.flatnonzero(depth % 2 == 0)
@@ -503,7 +572,8 @@ def _solids(n_comp: int, depth: np.ndarray, parent: np.ndarray) -> tuple[np.ndar
 
 # ====================================================================== coplanar merging
 def _merge_coplanar(
-    cols: dict[str, np.ndarray], P: np.ndarray, T: np.ndarray, a: np.ndarray, b: np.ndarray, t: Tolerance
+    cols: dict[str, np.ndarray], P: np.ndarray, T: np.ndarray, a: np.ndarray, b: np.ndarray, t: Tolerance,
+    straighten: bool = False,
 ) -> dict[str, np.ndarray]:
     """Merge neighbouring coplanar triangles into polygon faces (outer loop first, then holes).
 
@@ -528,30 +598,52 @@ def _merge_coplanar(
     ta, tb = a // 3, b // 3
     far_a = T[ta, (a % 3 + 2) % 3]  # vertex of ta opposite the shared edge
     far_b = T[tb, (b % 3 + 2) % 3]
-    N = np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]])
+    # Column arrays: gathers of contiguous 1-D columns, no (E, 3) temporaries.
+    X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
+    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    e1 = [x[t1] - x[t0] for x in X]
+    e2 = [x[t2] - x[t0] for x in X]
+    Nc = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+    N = np.stack(Nc, axis=1)
+
+    def dot_far(n: list, tri: np.ndarray, far: np.ndarray) -> np.ndarray:
+        q = t0[tri]
+        return n[0][tri] * (X[0][far] - X[0][q]) + n[1][tri] * (X[1][far] - X[1][q]) + n[2][tri] * (X[2][far] - X[2][q])
+
     if np.all(P == np.round(P)) and np.max(np.abs(P), initial=0.0) < _EXACT_COORD_LIMIT:
-        Q = P[T[ta, 0]]
-        coplanar = (np.einsum("ij,ij->i", N[ta], P[far_b] - Q) == 0.0) & (np.einsum("ij,ij->i", N[ta], N[tb]) > 0)
+        coplanar = dot_far(Nc, ta, far_b) == 0.0
+        c = np.flatnonzero(coplanar)
+        coplanar[c] = Nc[0][ta[c]] * Nc[0][tb[c]] + Nc[1][ta[c]] * Nc[1][tb[c]] + Nc[2][ta[c]] * Nc[2][tb[c]] > 0
     else:
-        nrm = np.linalg.norm(N, axis=1)
-        U = N / nrm[:, None]
-        d_b = np.abs(np.einsum("ij,ij->i", U[ta], P[far_b] - P[T[ta, 0]]))
-        d_a = np.abs(np.einsum("ij,ij->i", U[tb], P[far_a] - P[T[tb, 0]]))
-        coplanar = (d_a <= t.linear) & (d_b <= t.linear) & (np.einsum("ij,ij->i", U[ta], U[tb]) > 0)
+        nrm = np.sqrt(Nc[0] * Nc[0] + Nc[1] * Nc[1] + Nc[2] * Nc[2])
+        U = [x / nrm for x in Nc]
+        coplanar = np.abs(dot_far(U, ta, far_b)) <= t.linear  # one side first, the rest on the survivors
+        c = np.flatnonzero(coplanar)
+        coplanar[c] = (np.abs(dot_far(U, tb[c], far_a[c])) <= t.linear) & (
+            U[0][ta[c]] * U[0][tb[c]] + U[1][ta[c]] * U[1][tb[c]] + U[2][ta[c]] * U[2][tb[c]] > 0)
     if not np.any(coplanar):
         return cols
-    region, n_reg = _components(m, ta[coplanar], tb[coplanar])
+    # Only triangles with a coplanar edge take part in regions; every other triangle stays a face of
+    # its own, its loop its three half-edges (most triangles of a curved mesh: the work below is on
+    # the region triangles only).
+    in_reg = np.zeros(m, dtype=bool)
+    in_reg[ta[coplanar]] = True
+    in_reg[tb[coplanar]] = True
+    rt = np.flatnonzero(in_reg)  # region triangles, increasing
+    local = np.full(m, -1, dtype=np.int64)
+    local[rt] = np.arange(rt.size)
+    region, n_reg = _components(rt.size, local[ta[coplanar]], local[tb[coplanar]])
     # Verify each region's planarity against its Newell plane (guards against drift).
-    normal = np.zeros((n_reg, 3))
-    np.add.at(normal, region, N)
+    Nr = N[rt]
+    normal = np.stack([np.bincount(region, weights=Nr[:, k], minlength=n_reg) for k in range(3)], axis=1)
     unit = normal / np.linalg.norm(normal, axis=1)[:, None]
     size = np.bincount(region, minlength=n_reg)
-    cen = np.zeros((n_reg, 3))
-    np.add.at(cen, np.repeat(region, 3), P[org])
-    cen /= (3 * size)[:, None]
+    r3 = np.repeat(region, 3)
+    Pr = P[T[rt].ravel()]
+    cen = np.stack([np.bincount(r3, weights=Pr[:, k], minlength=n_reg) for k in range(3)], axis=1) / (3 * size)[:, None]
+    off = np.abs(np.einsum("ij,ij->i", Pr - cen[r3], unit[r3]))
     dev = np.zeros(n_reg)
-    np.maximum.at(dev, np.repeat(region, 3), np.abs(np.einsum("ij,ij->i", P[org] - cen[np.repeat(region, 3)],
-                                                                unit[np.repeat(region, 3)])))
+    np.maximum.at(dev, r3, off)
     bent = dev > t.linear
     if np.any(bent):  # split bent regions back into single triangles
         tri_bent = bent[region]
@@ -559,112 +651,228 @@ def _merge_coplanar(
         region[tri_bent] = n_reg + np.arange(int(tri_bent.sum()))
         _, region = np.unique(region, return_inverse=True)
         n_reg = int(region.max()) + 1
-    interior = region[ta] == region[tb]
+    size = np.bincount(region, minlength=n_reg)
+    # Faces: the triangles outside regions in order, then the regions; face_of per triangle.
+    single = np.flatnonzero(~in_reg)
+    n_single = single.size
+    face_of = np.empty(m, dtype=np.int64)
+    face_of[single] = np.arange(n_single)
+    face_of[rt] = n_single + region
+    n_faces = n_single + n_reg
+    interior = face_of[ta] == face_of[tb]
     if not np.any(interior):
         return cols
-    # Half-edges that stay: those on region boundaries.
     twin = np.empty(3 * m, dtype=np.int64)
     twin[a], twin[b] = b, a
-    h_all = np.arange(3 * m)
-    inner_h = region[h_all // 3] == region[twin // 3]
-    # next boundary half-edge after h (ending at v): g = next(h); while g is interior: g = next(twin(g)).
-    nxt_h = h_all - h_all % 3 + (h_all % 3 + 1) % 3
-    g = nxt_h.copy()
-    todo = np.flatnonzero(~inner_h & inner_h[g])
+    # Region half-edges (the three of each region triangle, in triangle order).
+    hr = (3 * rt[:, None] + np.arange(3)).ravel()
+    inner_r = face_of[hr // 3] == face_of[twin[hr] // 3]
+    inner_h = np.zeros(3 * m, dtype=bool)
+    inner_h[hr] = inner_r
+    # Next boundary half-edge after h (ending at v): g = next(h); while g is interior: g = next(twin(g)).
+    nxt_of = lambda h: h - h % 3 + (h % 3 + 1) % 3  # noqa: E731
+    kr = hr[~inner_r]  # boundary half-edges of regions
+    g = nxt_of(kr)
+    todo = np.flatnonzero(inner_h[g])
     while todo.size:
-        g[todo] = nxt_h[twin[g[todo]]]
+        g[todo] = nxt_of(twin[g[todo]])
         todo = todo[inner_h[g[todo]]]
-    keep_h = np.flatnonzero(~inner_h)
-    # Loops: cycles of the permutation h -> g on boundary half-edges.
+    # Region loops: cycles of the permutation h -> g on the region boundary half-edges.
     pos = np.full(3 * m, -1, dtype=np.int64)
-    pos[keep_h] = np.arange(keep_h.size)
-    perm = pos[g[keep_h]]
+    pos[kr] = np.arange(kr.size)
+    perm = pos[g]
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    k = keep_h.size
-    n_loops, loop_of = connected_components(
+    k = kr.size
+    n_rloops, rloop_of = connected_components(
         coo_matrix((np.ones(k, dtype=np.int8), (np.arange(k), perm)), shape=(k, k)), directed=True, connection="weak"
     )
-    loop_of = loop_of.astype(np.int64)
-    loop_region = np.empty(n_loops, dtype=np.int64)
-    loop_region[loop_of] = region[keep_h // 3]
+    rloop_of = rloop_of.astype(np.int64)
+    rloop_face = np.empty(n_rloops, dtype=np.int64)
+    rloop_face[rloop_of] = face_of[kr // 3]
     # Orientation of each loop about its region's normal: Newell vector · normal (unnormalised).
-    normal = np.zeros((n_reg, 3))
-    np.add.at(normal, region, N)
-    area_vec = np.zeros((n_loops, 3))
-    np.add.at(area_vec, loop_of, np.cross(P[org[keep_h]], P[dst[keep_h]]))
-    signed = np.einsum("ij,ij->i", area_vec, normal[loop_region])
-    # Faces: one per region, outer loop (largest signed area) first.
-    loop_order = np.lexsort((-signed, loop_region))
-    loop_rank = np.empty(n_loops, dtype=np.int64)
-    loop_rank[loop_order] = np.arange(n_loops)
-    face_loop_ptr = np.concatenate([[0], np.cumsum(np.bincount(loop_region, minlength=n_reg))])
-    outer_loops = loop_order[face_loop_ptr[:-1]]
-    if np.any(signed[outer_loops] <= 0):
-        r = int(np.flatnonzero(signed[outer_loops] <= 0)[0])
+    normal = np.stack([np.bincount(region, weights=Nr[:, c], minlength=n_reg) for c in range(3)], axis=1)
+    cr = np.cross(P[org[kr]], P[dst[kr]])
+    area_vec = np.stack([np.bincount(rloop_of, weights=cr[:, c], minlength=n_rloops) for c in range(3)], axis=1)
+    signed = np.einsum("ij,ij->i", area_vec, normal[rloop_face - n_single])
+    # Loops: one per single triangle (its face id), then the region loops by face, outer loop
+    # (largest signed area) first.
+    rloop_order = np.lexsort((-signed, rloop_face))
+    rloop_rank = np.empty(n_rloops, dtype=np.int64)
+    rloop_rank[rloop_order] = n_single + np.arange(n_rloops)
+    loops_per_face = np.concatenate([np.ones(n_single, dtype=np.int64),
+                                     np.bincount(rloop_face - n_single, minlength=n_reg)])
+    face_loop_ptr = np.concatenate([[0], np.cumsum(loops_per_face)])
+    outer = rloop_order[face_loop_ptr[n_single:-1] - n_single]
+    if np.any(signed[outer] <= 0):
+        r = int(np.flatnonzero(signed[outer] <= 0)[0])
         raise TopologyError(f"internal: merged flat region {r} has no counter-clockwise outer loop")
     # Edges that stay, renumbered; their sides keep the side numbering of the triangle tables.
     E_old = a.size
     keep_e = np.flatnonzero(~interior)
     e_new = np.full(E_old, -1, dtype=np.int64)
     e_new[keep_e] = np.arange(keep_e.size)
-    old_c = np.empty(3 * m, dtype=np.int64)  # coedge of each half-edge in the triangle tables
+    # The new coedge of every half-edge of a kept edge (side 0 runs from edge_vertex[e, 0]).
     ev = cols["edge_vertex"]
-    fwd = org[a] == ev[:, 0]
-    old_c[a] = 2 * np.arange(E_old) + np.where(fwd, 0, 1)
-    old_c[b] = 2 * np.arange(E_old) + np.where(fwd, 1, 0)
-
-    def cmap(hh: np.ndarray) -> np.ndarray:
-        oc = old_c[hh]
-        return 2 * e_new[oc >> 1] + (oc & 1)
-
+    fwd = (org[a] == ev[:, 0]).astype(np.int64)
+    C = np.empty(3 * m, dtype=np.int64)
+    C[a] = 2 * e_new + 1 - fwd
+    C[b] = 2 * e_new + fwd
     E = keep_e.size
-    new_c = cmap(keep_h)
     nxt = np.empty(2 * E, dtype=np.int64)
-    prv = np.empty(2 * E, dtype=np.int64)
-    nxt[new_c] = cmap(g[keep_h])
-    prv[nxt[new_c]] = new_c
     cloop = np.empty(2 * E, dtype=np.int64)
-    cloop[new_c] = loop_rank[loop_of]  # loops renumbered so each face's loops are contiguous, outer first
-    loop_first = np.empty(n_loops, dtype=np.int64)
-    loop_first[loop_rank[loop_of]] = new_c
+    loop_first = np.empty(n_single + n_rloops, dtype=np.int64)
+    # Single triangles: their three coedges in a cycle, loop = face = their rank.
+    Cs = C.reshape(m, 3)[single]
+    ranks = np.arange(n_single)
+    for kk in range(3):
+        nxt[Cs[:, kk]] = Cs[:, (kk + 1) % 3]
+        cloop[Cs[:, kk]] = ranks
+    loop_first[:n_single] = Cs[:, 0]
+    # Region loops.
+    ck = C[kr]
+    nxt[ck] = C[g]
+    cloop[ck] = rloop_rank[rloop_of]
+    loop_first[rloop_rank[rloop_of]] = ck
+    prv = np.empty(2 * E, dtype=np.int64)
+    prv[nxt] = np.arange(2 * E)
+    loop_face = np.repeat(np.arange(n_faces), loops_per_face)
     # Vertices that still have an edge, renumbered.
     edge_vertex = ev[keep_e]
     used = np.zeros(P.shape[0], dtype=bool)
     used[edge_vertex.ravel()] = True
+    n_used = int(used.sum())
     v_new = np.full(P.shape[0], -1, dtype=np.int64)
-    v_new[used] = np.arange(int(used.sum()))
+    v_new[used] = np.arange(n_used)
     edge_vertex = v_new[edge_vertex]
-    # The smallest coedge leaving each vertex (coedge 2e starts at v_start, 2e + 1 at v_end).
-    vertex_coedge = np.full(int(used.sum()), 2 * E, dtype=np.int64)
-    np.minimum.at(vertex_coedge, edge_vertex.ravel(), np.arange(2 * E))
+    # A coedge leaving each vertex (coedge 2e starts at v_start, 2e + 1 at v_end): the smallest one,
+    # written in decreasing order so that it is the last write.
+    vertex_coedge = np.empty(n_used, dtype=np.int64)
+    vertex_coedge[edge_vertex.ravel()[::-1]] = np.arange(2 * E - 1, -1, -1)
     # Faces are regions, shells follow the old face shells of their triangles.
-    face_shell = np.empty(n_reg, dtype=np.int64)
-    face_shell[region] = cols["face_shell"]
+    face_shell = np.empty(n_faces, dtype=np.int64)
+    face_shell[face_of] = cols["face_shell"]
     n_shell = cols["shell_solid"].size
-    loops_sorted_region = loop_region[loop_order]
-    return dict(
+    n_loops = n_single + n_rloops
+    merged = dict(
         cols,
         vertex_point=P[used],
-        vertex_tol=cols["vertex_tol"][used],
+        vertex_tol=np.full(n_used, t.linear),
         vertex_coedge=vertex_coedge,
         edge_vertex=edge_vertex,
         edge_loop=cloop.reshape(E, 2),
         edge_wing=np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1),
-        edge_curve=cols["edge_curve"][keep_e],
-        edge_range=cols["edge_range"][keep_e],
-        edge_pcurve=cols["edge_pcurve"][keep_e],
-        edge_tol=cols["edge_tol"][keep_e],
-        loop_face=loops_sorted_region,
+        edge_curve=np.full(E, -1, dtype=np.int64),  # the constant columns of _tables
+        edge_range=_unit_ranges(E),
+        edge_pcurve=np.full((E, 2), -1, dtype=np.int64),
+        edge_tol=np.full(E, t.linear),
+        loop_face=loop_face,
         loop_coedge=loop_first,
         loop_vertex=np.full(n_loops, -1, dtype=np.int64),
-        face_surface=np.full(n_reg, -1, dtype=np.int64),
-        face_sense=np.ones(n_reg, dtype=bool),
+        face_surface=np.full(n_faces, -1, dtype=np.int64),
+        face_sense=np.ones(n_faces, dtype=bool),
         face_shell=face_shell,
         face_loop_ptr=face_loop_ptr,
         face_loops=np.arange(n_loops, dtype=np.int64),
         shell_face_ptr=np.concatenate([[0], np.cumsum(np.bincount(face_shell, minlength=n_shell))]),
         shell_faces=np.argsort(face_shell, kind="stable"),
     )
+    return _remove_straight_vertices(merged, t) if straighten else merged
 
+
+#: Rounds of straight-vertex removal (each removes an independent set; chains shrink by at least one).
+_MAX_STRAIGHT_ROUNDS = 64
+
+
+def _remove_straight_vertices(cols: dict[str, np.ndarray], t: Tolerance) -> dict[str, np.ndarray]:
+    """Remove vertices where exactly two edges meet in a straight line (after coplanar merging).
+
+    Merging coplanar triangles leaves, on the boundary between two merged faces, the vertices where
+    the triangulation's edges met that boundary: a vertex with two edges only, both faces on
+    either side of both.  Such a vertex lies on the line where the two planes meet, so its two
+    edges are collinear; it is removed (its two edges become one: Euler's ``kev`` in the winged
+    edge tables) when it lies within ``t.linear`` of the segment between its neighbours and
+    strictly between them.  Each round removes, vectorised, a set of straight vertices no two of
+    which are adjacent or share a neighbour (each the smallest id around its neighbours), so
+    their pointer updates touch disjoint coedges; at least one vertex goes per round.  Tables are
+    renumbered at the end.
+    """
+    ev = cols["edge_vertex"].copy()
+    wing = cols["edge_wing"]
+    nxt = wing[:, [1, 3]].ravel().copy()
+    prv = wing[:, [0, 2]].ravel().copy()
+    loop_coedge = cols["loop_coedge"].copy()
+    vertex_coedge = cols["vertex_coedge"].copy()
+    P = cols["vertex_point"]
+    n_v, E = P.shape[0], ev.shape[0]
+    v_alive = np.ones(n_v, dtype=bool)
+    e_alive = np.ones(E, dtype=bool)
+    for _ in range(_MAX_STRAIGHT_ROUNDS):
+        deg = np.bincount(ev[e_alive].ravel(), minlength=n_v)
+        v = np.flatnonzero((deg == 2) & v_alive)
+        if v.size == 0:
+            break
+        org = ev.ravel()
+        tgt = ev[:, ::-1].ravel()
+        c_out = vertex_coedge[v]
+        c_in = prv[c_out]
+        u, w = org[c_in], tgt[c_out]
+        ok = ((c_out >> 1) != (c_in >> 1)) & (u != w) & (nxt[c_out ^ 1] == (c_in ^ 1)) & (tgt[c_in] == v)
+        d = P[w] - P[u]
+        q = P[v] - P[u]
+        L2 = np.einsum("ij,ij->i", d, d)
+        along = np.einsum("ij,ij->i", q, d)
+        off = np.linalg.norm(np.cross(d, q), axis=1)
+        ok &= (off <= t.linear * np.sqrt(L2)) & (along > 0) & (along < L2)
+        if not np.any(ok):
+            break
+        # An independent set: no two removed vertices adjacent or sharing a neighbour (their pointer
+        # updates then touch disjoint coedges); the smallest id wins.
+        straight = np.zeros(n_v, dtype=bool)
+        straight[v[ok]] = True
+        first = np.full(n_v, n_v, dtype=np.int64)
+        np.minimum.at(first, np.concatenate([u[ok], w[ok]]), np.concatenate([v[ok], v[ok]]))
+        keep = ok & (first[u] == v) & (first[w] == v) & (~straight[u] | (v < u)) & (~straight[w] | (v < w))
+        v, c_out, c_in, u, w = v[keep], c_out[keep], c_in[keep], u[keep], w[keep]
+        o_in, o_out = c_in ^ 1, c_out ^ 1
+        # Loop of c_in: c_in now runs on to w.  Other loop: the twin of c_in now starts at w.
+        after = nxt[c_out]
+        before = prv[o_out]
+        e_in = c_in >> 1
+        ev[e_in, 1 - (c_in & 1)] = w  # c_in's target: the end of a left side, the start of a right side
+        nxt[c_in] = after
+        prv[after] = c_in
+        prv[o_in] = before
+        nxt[before] = o_in
+        # First coedges and vertex coedges that pointed at the removed edge's coedges.
+        repl = np.arange(2 * E)
+        repl[c_out] = c_in
+        repl[o_out] = o_in
+        loop_coedge = repl[loop_coedge]
+        vertex_coedge = repl[vertex_coedge]
+        e_alive[c_out >> 1] = False
+        v_alive[v] = False
+    if v_alive.all():
+        return cols
+    # Renumber edges and vertices.
+    e_new = np.cumsum(e_alive) - 1
+    v_new = np.cumsum(v_alive) - 1
+    keep_e = np.flatnonzero(e_alive)
+    cmap = lambda c: 2 * e_new[c >> 1] + (c & 1)  # noqa: E731
+    nxt2, prv2 = nxt.reshape(E, 2)[keep_e], prv.reshape(E, 2)[keep_e]
+    out = dict(cols)
+    out.update(
+        vertex_point=P[v_alive],
+        vertex_tol=cols["vertex_tol"][v_alive],
+        vertex_coedge=cmap(vertex_coedge[v_alive]),
+        edge_vertex=v_new[ev[keep_e]],
+        edge_loop=cols["edge_loop"][keep_e],
+        edge_wing=np.stack([cmap(prv2[:, 0]), cmap(nxt2[:, 0]), cmap(prv2[:, 1]), cmap(nxt2[:, 1])], axis=1),
+        edge_curve=cols["edge_curve"][keep_e],
+        edge_range=cols["edge_range"][keep_e],
+        edge_pcurve=cols["edge_pcurve"][keep_e],
+        edge_tol=cols["edge_tol"][keep_e],
+        loop_coedge=cmap(loop_coedge),
+    )
+    return out

@@ -11,7 +11,8 @@ coons B-rep rules of ``docs/brep.md`` and sews them:
    the checker accepts;
 2. **outer loop first**: when the foreign face does not say which loop is outer, it is the loop
    whose signed area in the parameter plane (oriented by the face sense) is positive and largest;
-3. **p-curves** are computed with :func:`coons.kernel.onsurface.pcurve_on` (exact ``Line2D`` /
+3. **p-curves** are computed with :func:`coons.kernel.onsurface.pcurves_on` (all edges of a face
+   at once through its verified cheap exact path, the rest through ``pcurve_on``: exact ``Line2D`` /
    ``Trig2D`` for the iso-curves of analytic surfaces, fitted 2-D NURBS otherwise; the foreign
    system's own p-curves are not used), placed on the branch of the face's periodic parameters
    found from the face's boundary (the face occupies an arc of the period; the largest gap in the
@@ -76,7 +77,10 @@ class RawEdge:
     @property
     def degenerate(self) -> bool:
         """The curve collapsed to a point (ends and midpoint within the edge tolerance)."""
-        return False if self.curve is None else self._collapsed()
+        cached = self.__dict__.get("_degenerate")
+        if cached is None:  # asked by both faces of the edge: computed once
+            cached = self.__dict__["_degenerate"] = False if self.curve is None else self._collapsed()
+        return cached
 
     def _collapsed(self) -> bool:
         P = np.asarray(self.curve.evaluate(np.array([self.t0, 0.5 * (self.t0 + self.t1), self.t1])))
@@ -214,6 +218,10 @@ def _face_box(face: RawFace, loops: list, t: Tolerance, fixed: dict | None = Non
         return ((-math.inf, math.inf), (-math.inf, math.inf))
     fixed = fixed or {}
     periods = _periods(face.surface)
+    if all(per is None or k in fixed for k, per in enumerate(periods)):
+        # nothing to choose (a plane, or every period fixed by a seam): no samples needed
+        return tuple((fixed[k], fixed[k] + per) if per is not None else (-math.inf, math.inf)
+                     for k, per in enumerate(periods))
     pts = []
     for loop in loops:
         for c in loop:

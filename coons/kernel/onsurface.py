@@ -25,27 +25,36 @@ Method (Cohen–Riesenfeld–Elber §16.2 for the projection, The NURBS Book §9
    is within ``tol.linear``;
 4. otherwise interpolate the samples with a cubic in the parameter ``t`` and halve every sample
    interval whose midpoint deviates by more than ``tol.linear`` (an a-posteriori error control that
-   follows the curvature), until all midpoints pass.
+   follows the curvature), until all midpoints pass;
+5. on a NURBS surface, a p-curve that leaves the domain by round-off (a boundary iso-line fitted
+   to ~1e-11 outside) is moved inside and its deviation measured again.
+
+:func:`pcurves_on` does the same for the edges of one face at once, trying the cheap exact
+candidate first for all of them in a few vectorised calls (a :class:`Line2D` through the
+inverted end points on an open NURBS surface; the least-squares :class:`Line2D` of the projected
+samples on an analytic surface), each verified on the samples before it is accepted; the rest go
+through :func:`pcurve_on`.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import weakref
 from typing import Any
 
 import numpy as np
 
-from coons.errors import ConvergenceError, InvalidGeometryError, InvalidInputError
+from coons.errors import CoonsError, ConvergenceError, InvalidGeometryError, InvalidInputError
 from coons.kernel import projection
-from coons.kernel.analytic import Circle, Ellipse
+from coons.kernel.analytic import Circle, CylindricalSurface, Ellipse
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.fitting import interpolate_curve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
 
-__all__ = ["pcurve_on"]
+__all__ = ["pcurve_on", "pcurves_on"]
 
 _log = logging.getLogger("coons")
 
@@ -76,10 +85,42 @@ def surface_periods(surface, tol: Tolerance) -> tuple[float | None, float | None
         pu = getattr(surface, "period_u", None) if getattr(surface, "periodic_u", False) else None
         pv = getattr(surface, "period_v", None) if getattr(surface, "periodic_v", False) else None
         return pu, pv
+    # Surfaces are immutable values: the answer is cached per surface object and tolerance (every
+    # p-curve of a face asks it several times).
+    per_surface = _PERIODS_CACHE.get(surface)
+    if per_surface is None:
+        per_surface = _PERIODS_CACHE.setdefault(surface, {})
+    key = float(tol.linear)
+    if key not in per_surface:
+        per_surface[key] = _nurbs_periods(surface, tol)
+    return per_surface[key]
+
+
+#: ``surface -> {tol.linear: periods}`` for NURBS surfaces (weak keys: an entry dies with its surface).
+_PERIODS_CACHE: "weakref.WeakKeyDictionary[NurbsSurface, dict]" = weakref.WeakKeyDictionary()
+
+
+def _clamped(knots: np.ndarray, p: int) -> bool:
+    return bool(np.all(knots[:p + 1] == knots[0]) and np.all(knots[-p - 1:] == knots[-1]))
+
+
+def _nurbs_periods(surface: NurbsSurface, tol: Tolerance) -> tuple[float | None, float | None]:
     (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
+    C = np.asarray(surface.control_points)
+    if _clamped(surface.knots_u, surface.degree_u) and _clamped(surface.knots_v, surface.degree_v):
+        # The corners of a clamped surface are its corner control points: boundary curves whose
+        # ends already differ by more than tol.linear do not coincide (the common, open case).
+        open_u = max(np.linalg.norm(C[0, 0] - C[-1, 0]), np.linalg.norm(C[0, -1] - C[-1, -1])) > tol.linear
+        open_v = max(np.linalg.norm(C[0, 0] - C[0, -1]), np.linalg.norm(C[-1, 0] - C[-1, -1])) > tol.linear
+        if open_u and open_v:
+            return None, None
     su, sv = np.linspace(u0, u1, _CLOSED_SAMPLES), np.linspace(v0, v1, _CLOSED_SAMPLES)
-    gap_u = np.linalg.norm(surface.evaluate(u0, sv) - surface.evaluate(u1, sv), axis=-1).max()
-    gap_v = np.linalg.norm(surface.evaluate(su, v0) - surface.evaluate(su, v1), axis=-1).max()
+    n = _CLOSED_SAMPLES
+    # the four boundary curves in one evaluation: u = u0, u = u1 (along v), v = v0, v = v1 (along u)
+    B = np.asarray(surface.evaluate(np.concatenate([np.full(n, u0), np.full(n, u1), su, su]),
+                                    np.concatenate([sv, sv, np.full(n, v0), np.full(n, v1)]))).reshape(4, n, -1)
+    gap_u = np.linalg.norm(B[0] - B[1], axis=-1).max()
+    gap_v = np.linalg.norm(B[2] - B[3], axis=-1).max()
     return (u1 - u0 if gap_u <= tol.linear else None), (v1 - v0 if gap_v <= tol.linear else None)
 
 
@@ -128,9 +169,13 @@ def singular_parameters(surface, uv: np.ndarray, box, tol: Tolerance) -> np.ndar
     moves the surface point by less than ``tol.linear``: ``|S_u| L_u <= tol.linear``.
     """
     lu, lv = _direction_lengths(surface, box, tol)
-    d = np.asarray(surface.derivatives(*_clipped(surface, uv), 1))
-    su = np.linalg.norm(d[..., 1, 0, :], axis=-1)
-    sv = np.linalg.norm(d[..., 0, 1, :], axis=-1)
+    if isinstance(surface, CylindricalSurface):  # |S_u| = radius, |S_v| = 1 everywhere: no evaluation
+        su = np.full(uv.shape[:-1], float(surface.radius))
+        sv = np.ones(uv.shape[:-1])
+    else:
+        d = np.asarray(surface.derivatives(*_clipped(surface, uv), 1))
+        su = np.linalg.norm(d[..., 1, 0, :], axis=-1)
+        sv = np.linalg.norm(d[..., 0, 1, :], axis=-1)
     out = np.zeros(uv.shape, bool)
     if math.isfinite(lu):
         out[..., 0] = su * lu <= tol.linear
@@ -156,8 +201,12 @@ def continuous_parameters(surface, t: np.ndarray, uv: np.ndarray, box, tol: Tole
     """
     uv = np.array(uv, dtype=np.float64)
     free = singular_parameters(surface, uv, box, tol)
-    if box is None and isinstance(surface, NurbsSurface):
-        box = surface.domain
+    if isinstance(surface, NurbsSurface):
+        # A closed NURBS is unwrapped towards its domain where the box says nothing (None or an
+        # infinite side): its p-curves must stay where the surface can be evaluated.
+        dom = surface.domain
+        box = dom if box is None else tuple(
+            tuple(box[k]) if np.all(np.isfinite(box[k])) else dom[k] for k in range(2))
     for k, per in enumerate(surface_periods(surface, tol)):
         good = ~free[:, k]
         if not np.any(good):
@@ -168,7 +217,7 @@ def continuous_parameters(surface, t: np.ndarray, uv: np.ndarray, box, tol: Tole
         uv[good, k] = col
         if not np.all(good):
             uv[~good, k] = np.interp(t[~good], t[good], col)
-        if per is not None and box is not None:
+        if per is not None and box is not None and np.all(np.isfinite(box[k])):
             mid = 0.5 * (float(box[k][0]) + float(box[k][1]))
             have = 0.5 * (float(uv[:, k].min()) + float(uv[:, k].max()))
             uv[:, k] += per * round((mid - have) / per)
@@ -253,9 +302,8 @@ def pcurve_on(surface, curve, t0: float, t1: float, box=None, tol: Tolerance | N
     _check_on(surface, ts, P, uv, t)
 
     exact = _exact_form(surface, curve, ts, uv, t)
-    if exact is not None:
-        return exact
-    return _fitted(surface, curve, ts, P, uv, bx, t)
+    pc, dev = exact if exact is not None else _fitted(surface, curve, ts, P, uv, bx, t)
+    return _into_domain(surface, curve, pc, dev, a, b, t)
 
 
 # ---------------------------------------------------------------------------- internals
@@ -347,3 +395,232 @@ def _fitted(surface, curve, ts, P, uv, box, t: Tolerance) -> tuple[NurbsCurve, f
         f"{ts.size} samples (is the p-curve continuous on [{float(ts[0])!r}, {float(ts[-1])!r}]?)",
         residuals=np.array([worst]),
     )
+
+
+# ---------------------------------------------------------------------------- domain clamping
+#: A p-curve on a NURBS surface leaving the domain by less than this fraction of the domain length
+#: is moved inside (round-off of a fit or a projection along a domain boundary, ~1e-11 in practice).
+#: The deviation is measured again after the move, so the slack decides nothing about accuracy.
+_DOMAIN_SLACK = 1e-6
+
+
+def _into_domain(surface, curve, pc, dev: float, a: float, b: float, t: Tolerance) -> tuple[Any, float]:
+    """Move a p-curve on a NURBS surface that leaves the domain by round-off back into it.
+
+    NURBS evaluation refuses parameters outside the domain (beyond ``tol.solver``), so a p-curve
+    along a domain boundary that overshoots it by ~1e-11 would make every later evaluation fail.
+    A :class:`Line2D` within the slack of a boundary gets that boundary as its constant
+    coordinate, one that overshoots by less than the slack is shifted inside; a NURBS p-curve's
+    control points are clipped (the curve stays in their convex hull).  Larger overshoots are left
+    alone for the caller's checks to report.  When anything moved the deviation is measured again.
+    """
+    if not isinstance(surface, NurbsSurface) or pc is None:
+        return pc, dev
+    doms = surface.domain
+    new = pc
+    if isinstance(pc, Line2D):
+        E = np.asarray(pc.evaluate(np.array([a, b])))
+        o, d = pc.origin.copy(), pc.direction.copy()
+        changed = False
+        for k, (d0, d1) in enumerate(doms):
+            eps = _DOMAIN_SLACK * (d1 - d0)
+            lo, hi = float(E[:, k].min()), float(E[:, k].max())
+            if lo < d0 - eps or hi > d1 + eps:
+                continue  # a real overshoot: not round-off
+            snapped = False
+            for bound in (d0, d1):
+                if max(abs(lo - bound), abs(hi - bound)) <= eps and (lo != bound or hi != bound):
+                    o[k], d[k] = bound, 0.0
+                    changed = snapped = True
+                    break
+            if not snapped and (lo < d0 or hi > d1):
+                o[k] += max(d0 - lo, 0.0) - max(hi - d1, 0.0)
+                changed = True
+        if changed and np.any(d):
+            new = Line2D(o, d)
+    elif isinstance(pc, NurbsCurve):
+        P = pc.control_points.copy()
+        for k, (d0, d1) in enumerate(doms):
+            eps = _DOMAIN_SLACK * (d1 - d0)
+            if P[:, k].min() >= d0 - eps and P[:, k].max() <= d1 + eps:
+                P[:, k] = np.clip(P[:, k], d0, d1)
+        if np.any(P != pc.control_points):
+            new = NurbsCurve(P, pc.knots, pc.degree, pc.weights)
+    if new is pc:
+        return pc, dev
+    ts = np.linspace(a, b, 2 * _INITIAL_SAMPLES - 1)
+    return new, max(dev, float(np.max(_deviation(surface, curve, new, ts))))
+
+
+# ---------------------------------------------------------------------------- batches
+#: Newton steps of the batched point inversion (quadratic convergence from a grid seed: a point
+#: on the surface is found to round-off in 3-5 steps; more is a sign of a bad seed, and the
+#: candidate built from it simply fails verification).
+_NEWTON_STEPS = 8
+
+
+def _invert_nurbs(surface: NurbsSurface, P: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters of points ``P`` ``(m, 3)`` on a NURBS surface: nearest control point, then Gauss–Newton.
+
+    The seed of each point is the Greville abscissa pair of its nearest control point (the
+    parameter a control point "belongs to"; exact at the corners of a clamped surface), then the
+    local inversion of The NURBS Book §6.1 (eq. 6.6, first-order form), vectorised over the
+    points, parameters clipped to the domain at every step.  No global guarantee: callers verify
+    what they build from the result.
+
+    Returns
+    -------
+    uv : (m, 2) float64
+    speed : (m, 2) float64
+        ``|S_u|, |S_v|`` at the last Newton iterate (for detecting undetermined parameters).
+    """
+    (u0, u1), (v0, v1) = surface.domain
+
+    def greville(knots, p, n):
+        idx = np.arange(n)[:, None] + np.arange(1, p + 1)[None, :]
+        return np.asarray(knots, dtype=np.float64)[idx].mean(axis=1)
+
+    C = np.asarray(surface.control_points, dtype=np.float64)
+    nu, nv = C.shape[:2]
+    gu = np.clip(greville(surface.knots_u, surface.degree_u, nu), u0, u1)
+    gv = np.clip(greville(surface.knots_v, surface.degree_v, nv), v0, v1)
+    G = C.reshape(-1, C.shape[-1])
+    d2 = np.einsum("mj,mj->m", G, G)[None, :] - 2.0 * P @ G.T
+    idx = np.argmin(d2, axis=1)
+    uv = np.stack([gu[idx // nv], gv[idx % nv]], axis=1)
+    lo, hi = np.array([u0, v0]), np.array([u1, v1])
+    for _ in range(_NEWTON_STEPS):
+        D = np.asarray(surface.derivatives(uv[:, 0], uv[:, 1], 1))
+        r = P - D[:, 0, 0]
+        Su, Sv = D[:, 1, 0], D[:, 0, 1]
+        speed = np.stack([np.linalg.norm(Su, axis=-1), np.linalg.norm(Sv, axis=-1)], axis=1)
+        a, bb, c = np.einsum("mj,mj->m", Su, Su), np.einsum("mj,mj->m", Su, Sv), np.einsum("mj,mj->m", Sv, Sv)
+        g0, g1 = np.einsum("mj,mj->m", Su, r), np.einsum("mj,mj->m", Sv, r)
+        det = a * c - bb * bb
+        ok = det > 1e-300  # a singular Jacobian (pole, collapsed edge): no step; verification decides
+        safe = np.where(ok, det, 1.0)
+        step = np.where(ok[:, None], np.stack([(c * g0 - bb * g1) / safe, (a * g1 - bb * g0) / safe], axis=1), 0.0)
+        new = np.clip(uv + step, lo, hi)
+        moved = np.abs(new - uv)
+        uv = new
+        if np.all(moved <= t.solver * np.maximum(1.0, hi - lo)):
+            break  # the speeds of the last step are those at uv to round-off
+    return uv, speed
+
+
+def pcurves_on(surface, items, box=None, tol: Tolerance | None = None, general: bool = True) -> list:
+    """:func:`pcurve_on` for several curves on one surface: ``[(pcurve, deviation), ...]`` per item.
+
+    ``items`` is a sequence of ``(curve, t0, t1)``.  On an analytic surface the ``2 × 33 - 1``
+    samples of all items are projected in one closed-form call, unwrapped and shifted towards
+    ``box`` as in :func:`continuous_parameters`, and the least-squares :class:`Line2D` of each item
+    is accepted when it is within ``tol.linear`` at every sample (no sample at a pole or apex).
+    On an open (not closed) NURBS surface the
+    cheap exact candidate is tried first for all items at once: the curve's end points are
+    inverted (:func:`_invert_nurbs`) and the :class:`Line2D` through their parameters is accepted
+    when ``surface(line(t))`` is within ``tol.linear`` of ``curve(t)`` at the same
+    ``2 × 33 - 1`` check samples as :func:`pcurve_on`'s exact forms, and neither end sits where a
+    parameter is undetermined.  Everything else (and every item on other surfaces) goes through
+    :func:`pcurve_on`, whose result and errors are returned / raised unchanged; with
+    ``general=False`` those items are ``None`` instead (for callers with their own fallback).
+
+    Raises
+    ------
+    InvalidInputError, InvalidGeometryError, ConvergenceError
+        As :func:`pcurve_on` for the first item that takes the general path and fails.
+    """
+    t = resolve(tol)
+    items = list(items)
+    out: list = [None] * len(items)
+    if items and isinstance(surface, NurbsSurface):
+        if surface.dimension == 3 and surface_periods(surface, t) == (None, None):
+            _cheap_lines(surface, items, out, t)
+    elif items and hasattr(surface, "implicit") and hasattr(surface, "closest_parameters"):
+        _cheap_analytic(surface, items, _check_box(box), out, t)
+    if not general:
+        return out
+    return [r if r is not None else pcurve_on(surface, c, a, b, box, t) for r, (c, a, b) in zip(out, items)]
+
+
+def _cheap_lines(surface: NurbsSurface, items: list, out: list, t: Tolerance) -> None:
+    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve is affine in ``t``."""
+    got = _samples(items)
+    if got is None:
+        return
+    ab, ts, X = got
+    ends = X[:, [0, -1]].reshape(-1, 3)
+    uv, speed = _invert_nurbs(surface, ends, t)
+    uv, speed = uv.reshape(-1, 2, 2), speed.reshape(-1, 2, 2)
+    (u0, u1), (v0, v1) = surface.domain
+    lengths = np.array([u1 - u0, v1 - v0])
+    # both ends must fix both parameters (not a pole or collapsed edge: see singular_parameters)
+    determined = np.all(speed * lengths > t.linear, axis=(1, 2))
+    span = ab[:, 1] - ab[:, 0]
+    d = (uv[:, 1] - uv[:, 0]) / span[:, None]
+    scale = np.maximum(1.0, np.abs(uv).max(axis=(1, 2)))
+    d[np.abs(d) * span[:, None] <= t.solver * scale[:, None]] = 0.0  # an iso-line: its constant parameter is exact
+    o = uv[:, 0] - ab[:, :1] * d
+    Q = o[:, None, :] + ts[..., None] * d[:, None, :]
+    dev = np.linalg.norm(evaluate_on_surface(surface, Q.reshape(-1, 2)).reshape(X.shape) - X, axis=-1).max(axis=1)
+    inside = np.all((Q[:, [0, -1]] >= [u0, v0]) & (Q[:, [0, -1]] <= [u1, v1]), axis=(1, 2))
+    for i in np.flatnonzero(determined & (dev <= t.linear) & np.any(d != 0.0, axis=1)):
+        c, a, b = items[i]
+        pc = Line2D(o[i], d[i])
+        out[i] = (pc, float(dev[i])) if inside[i] else _into_domain(surface, c, pc, float(dev[i]), float(a), float(b), t)
+
+
+def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(ab (k, 2), ts (k, n), X (k, n, 3))``: ranges, uniform parameters and curve points, or None."""
+    n = 2 * _INITIAL_SAMPLES - 1
+    s = np.linspace(0.0, 1.0, n)
+    try:
+        ab = np.array([(float(a), float(b)) for _, a, b in items])
+    except (TypeError, ValueError):
+        return None
+    if not (np.all(np.isfinite(ab)) and np.all(ab[:, 0] < ab[:, 1])):
+        return None  # pcurve_on reports malformed ranges
+    ts = ab[:, :1] + s[None, :] * (ab[:, 1:] - ab[:, :1])
+    ts[:, -1] = ab[:, 1]
+    try:
+        X = np.stack([np.asarray(c.evaluate(row), dtype=np.float64) for (c, _, _), row in zip(items, ts)])
+    except (AttributeError, TypeError, ValueError, CoonsError):
+        return None  # pcurve_on reports unusable curves
+    if X.ndim != 3 or X.shape[-1] != 3:
+        return None
+    return ab, ts, X
+
+
+def _cheap_analytic(surface, items: list, box, out: list, t: Tolerance) -> None:
+    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve on an analytic surface is affine in ``t``."""
+    got = _samples(items)
+    if got is None:
+        return
+    ab, ts, X = got
+    k, n = ts.shape
+    uv = np.asarray(surface.closest_parameters(X.reshape(-1, 3)), dtype=np.float64)
+    free = singular_parameters(surface, uv, box, t).reshape(k, n, 2)
+    uv = uv.reshape(k, n, 2)
+    for j, per in enumerate(surface_periods(surface, t)):
+        if per is None:
+            continue
+        col = np.unwrap(uv[:, :, j], period=per, axis=1)
+        if box is not None and np.all(np.isfinite(box[j])):
+            mid = 0.5 * (box[j][0] + box[j][1])
+            have = 0.5 * (col.min(axis=1) + col.max(axis=1))
+            col = col + per * np.round((mid - have) / per)[:, None]
+        uv[:, :, j] = col
+    # least-squares line in t per item (closed form of _exact_form's lstsq)
+    tm = 0.5 * (ab[:, 0] + ab[:, 1])
+    sc = ts - tm[:, None]
+    mean = uv.mean(axis=1)
+    d = np.einsum("kn,knj->kj", sc, uv - mean[:, None, :]) / np.einsum("kn,kn->k", sc, sc)[:, None]
+    reach = ab[:, 1] - ab[:, 0]
+    scale = np.maximum(1.0, np.abs(uv).max(axis=(1, 2)))
+    d[np.abs(d) * reach[:, None] <= t.solver * scale[:, None]] = 0.0  # as _snap_small
+    o = mean - tm[:, None] * d
+    Q = o[:, None, :] + ts[..., None] * d[:, None, :]
+    S = np.asarray(surface.evaluate(Q[..., 0].ravel(), Q[..., 1].ravel())).reshape(X.shape)
+    dev = np.linalg.norm(S - X, axis=-1).max(axis=1)
+    good = ~free.any(axis=(1, 2)) & (dev <= t.linear) & np.any(d != 0.0, axis=1)
+    for i in np.flatnonzero(good):
+        out[i] = (Line2D(o[i], d[i]), float(dev[i]))

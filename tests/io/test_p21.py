@@ -153,3 +153,66 @@ def test_unreadable_file_and_bad_input_type(tmp_path):
 def test_latin1_bytes_and_bytes_input():
     f = parse(wrap("#1=A('caf\xe9');").encode("latin-1"))
     assert f.entities[1].params == ("café",)
+
+
+# ---------------------------------------------------------------------------- fast path
+def _general(text: str):
+    from coons.io.step import p21
+
+    toks, lines = p21._tokens(text)
+    return p21._Parser(toks, lines).file()
+
+
+def _same(a, b) -> None:
+    assert a.header == b.header
+    assert sorted(a.entities) == sorted(b.entities)
+    for k, e in a.entities.items():
+        g = b.entities[k]
+        assert (e.name, e.params, e.parts, e.line) == (g.name, g.params, g.parts, g.line), k
+
+
+MIXED = (
+    "#1=CARTESIAN_POINT('',(0.,1.5,-2));\n"
+    "#2 = DIRECTION ( 'NONE', ( 0.0, 1.5E-3, -2 ) ) ;\n"       # OCCT's spacing
+    "#3=ADVANCED_FACE('',(#4,#5),#6,.T.);#4=EDGE_CURVE('',#1,#1,#7,.F.);\n"
+    "#5=B_SPLINE_CURVE_WITH_KNOTS('',3,(#1,#2),.UNSPECIFIED.,.F.,.F.,(4,4),(0.,1.),.UNSPECIFIED.);\n"
+    "#6=PRODUCT('it''s','a;b (c)','',(#3));\n"                # escapes and specials: general path
+    "#7=( LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.) );\n"  # complex instance
+    "#8=UNCERTAINTY_MEASURE_WITH_UNIT(LENGTH_MEASURE(1.E-07),#7,'d','e');\n"  # typed parameter
+    "#9=B_SPLINE_SURFACE('',1,1,((#1,#1),(#1,#1)),.UNSPECIFIED.,.F.,.F.,.F.);\n"  # nested lists
+    "#10=X('\\X2\\00E9\\X0\\',$,*,\"0FF\",());\n"
+    "#11=Y((1.,2.),3,'a,b');#12=Z();\n"
+    "#13=W('multi\nline',#1);\n"
+)
+
+
+@pytest.mark.parametrize("text", [wrap(MIXED), wrap(MIXED.replace("\n", "\r\n")),
+                                  wrap(MIXED) + "\n", wrap("/* a comment */" + MIXED)]
+                         + [p.read_bytes().decode("latin-1") for p in CORPUS])
+def test_fast_path_gives_the_general_parse(text):
+    # Values, names, parts and line numbers equal the general tokenising parser's, entity by entity.
+    _same(parse(text), _general(text))
+
+
+def test_common_instances_are_deferred_until_used():
+    from coons.io.step import p21
+
+    f = parse(wrap(MIXED))
+    assert f.entities[1]._raw is not None  # validated, not yet converted
+    assert f.entities[1].params == ("", (0.0, 1.5, -2)) and f.entities[1]._raw is None
+    assert f.entities[7]._raw is None and f.entities[6]._raw is None  # complex / escaped: parsed at once
+    assert p21._DEFERRABLE.fullmatch("'',(#1,#2),.T.,$,*,-1.5E+3")
+    assert not p21._DEFERRABLE.fullmatch("'',1 2")  # tokens side by side
+    assert not p21._DEFERRABLE.fullmatch("'a''b'")  # an escaped quote
+
+
+@pytest.mark.parametrize("data, match, line", [
+    ("#1=CARTESIAN_POINT('',(0.,1.5,-2));\n#2=CARTESIAN_POINT('',(0.,,1.));", "expected a parameter before ','", 7),
+    ("#1=CARTESIAN_POINT('',(0.,1.5,-2));\n#2=DIRECTION('',(0. 1.));", "expected ',' or '\\)' after a parameter", 7),
+    ("#1=CARTESIAN_POINT('',(0.,1.5,-2));\n#1=DIRECTION('',(0.,1.));", "duplicate entity id #1", 7),
+    ("#1=CARTESIAN_POINT('',(0.,1_0,-2));", "expected ',' or", 6),
+])
+def test_errors_in_common_instances_keep_their_line(data, match, line):
+    with pytest.raises(StepError, match=match) as info:
+        parse(wrap(data))
+    assert info.value.line == line

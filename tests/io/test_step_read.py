@@ -277,3 +277,52 @@ def test_hand_written_boxes_any_size_place_and_unit(size, corner, unit):
     k = unit[1]
     np.testing.assert_allclose(s.volume, np.prod(size) * k**3, rtol=1e-12)
     np.testing.assert_allclose(s.bounding_box(), np.array([lo, hi]) * k, rtol=1e-12, atol=1e-9 * k)
+
+
+def _bspline_box(n: int):
+    """The cube [-1, 1]³, each side an n × n grid of bilinear NURBS faces (benchmarks/bench_io.py)."""
+    from coons.kernel.analytic import Line
+    from coons.kernel.pcurve import Line2D
+    from coons.kernel.surface import NurbsSurface
+    from coons.topology.sew import EdgeSpec, FaceSpec, sew_faces
+
+    I = np.eye(3)
+    g = np.linspace(-1.0, 1.0, n + 1)
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    faces = []
+    for k in range(3):
+        for s in (-1.0, 1.0):
+            ea, eb = I[(k + 1) % 3], I[(k + 2) % 3]
+            if s < 0:
+                ea, eb = eb, ea
+            for i in range(n):
+                for j in range(n):
+                    cp = np.array([[s * I[k] + g[i + di] * ea + g[j + dj] * eb for dj in (0, 1)] for di in (0, 1)])
+                    surf = NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
+                    P = surf.evaluate(corners[:, 0], corners[:, 1])
+                    loop = []
+                    for q in range(4):
+                        p0, p1 = P[q], P[(q + 1) % 4]
+                        L = float(np.linalg.norm(p1 - p0))
+                        loop.append(EdgeSpec(Line(p0, p1 - p0), 0.0, L, Line2D(corners[q], (corners[(q + 1) % 4] - corners[q]) / L)))
+                    faces.append(FaceSpec(surf, True, [loop]))
+    return sew_faces(faces)
+
+
+def test_nurbs_faces_get_exact_boundary_pcurves(tmp_path):
+    # Every edge of a bilinear NURBS face is a boundary iso-line: the reader's p-curves are Line2D
+    # with the constant coordinate exactly 0 or 1 (never outside the domain), same parameter.
+    from coons.io.step.writer import export_step
+    from coons.kernel.pcurve import Line2D
+
+    shape = _bspline_box(2)
+    export_step(shape, tmp_path / "bbox.step")
+    back = import_step(tmp_path / "bbox.step")
+    assert back.check().ok and back.brep.n_faces == 24
+    np.testing.assert_allclose(back.volume, 8.0, rtol=1e-12)
+    np.testing.assert_allclose(back.area, 24.0, rtol=1e-12)
+    pcs = [pc for pc in back.brep.pcurves if pc is not None]
+    assert len(pcs) == 2 * back.brep.n_edges and all(isinstance(pc, Line2D) for pc in pcs)
+    for pc in pcs:
+        k = int(np.flatnonzero(pc.direction == 0.0)[0])
+        assert pc.origin[k] in (0.0, 1.0)

@@ -22,7 +22,7 @@ from coons.kernel.analytic import (
 )
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.fitting import interpolate_curve, interpolate_surface
-from coons.kernel.onsurface import pcurve_on
+from coons.kernel.onsurface import pcurve_on, pcurves_on
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance
 
@@ -293,3 +293,98 @@ def test_two_dimensional_curve_raises():
 def test_object_without_evaluate_raises():
     with pytest.raises(InvalidInputError, match="need evaluate"):
         pcurve_on(object(), Line([0, 2, 0], [0, 0, 1]), 0.0, 1.0)
+
+
+# ---------------------------------------------------------------------------- batches (pcurves_on)
+def _bilinear(z11=0.0):
+    from coons.kernel.surface import NurbsSurface
+
+    cp = np.array([[[0.0, 0.0, 0.0], [0.0, 2.0, 0.0]], [[3.0, 0.0, 0.0], [3.0, 2.0, z11]]])
+    return NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
+
+
+def test_pcurves_on_bilinear_boundary_lines_are_exact_iso_lines():
+    # The four boundary edges of a bilinear patch (a B-spline box face): cheap path, Line2D whose
+    # constant coordinate is exactly the domain boundary, same parameter as the 3-D line.
+    S = _bilinear(0.5)
+    P = S.evaluate(np.array([0.0, 1.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0, 1.0]))
+    items = []
+    for q in range(4):
+        a, b = P[q], P[(q + 1) % 4]
+        L = float(np.linalg.norm(b - a))
+        items.append((Line(a, b - a), 0.0, L))
+    out = pcurves_on(S, items)
+    iso = [(1, 0.0), (0, 1.0), (1, 1.0), (0, 0.0)]  # (constant coordinate, value) per edge
+    for (curve, t0, t1), (pc, dev), (k, value) in zip(items, out, iso):
+        assert isinstance(pc, Line2D)
+        assert pc.origin[k] == value and pc.direction[k] == 0.0
+        _check(S, curve, t0, t1, pc, dev, 1e-12)  # the boundary of a bilinear patch is straight
+        ref, _ = pcurve_on(S, curve, t0, t1)
+        np.testing.assert_allclose(pc.evaluate(np.linspace(t0, t1, 9)), ref.evaluate(np.linspace(t0, t1, 9)),
+                                   rtol=0, atol=1e-9)
+
+
+def test_pcurves_on_matches_pcurve_on_for_every_kind():
+    # NURBS: an iso-curve (cheap path), a curved parameter path (general path); cylinder: a ruling,
+    # a coaxial circle (cheap path), an oblique ellipse (general path, Trig2D); with a box.
+    surface = _bump()
+    t = np.linspace(0.0, 1.0, 200)
+    path = interpolate_curve(surface.evaluate(0.1 + 0.8 * t, 0.2 + 0.5 * t**2), 3, params=t)
+    iso = surface.iso_curve("u", 0.4)
+    cases = [
+        (surface, [(iso, *iso.domain), (path, 0.0, 1.0)], None),
+        (CYL, [(Line([0, 2, 0], [0, 0, -1]), -1.0, 3.0), (Circle([0, 0, 1], [0, 0, -1], [1, 0, 0], 2.0), 0.5, 5.0),
+               (Ellipse([0, 0, 0], [0, -math.sin(0.3), math.cos(0.3)], [0, math.cos(0.3), math.sin(0.3)], 2.0 / math.cos(0.3), 2.0),
+                0.0, 2.0)],
+         ((4 * PI, 6 * PI), (-10.0, 10.0))),
+    ]
+    for S, items, box in cases:
+        got = pcurves_on(S, items, box)
+        for (curve, t0, t1), (pc, dev) in zip(items, got):
+            ref, ref_dev = pcurve_on(S, curve, t0, t1, box)
+            assert type(pc) is type(ref)
+            s = np.linspace(t0, t1, 33)
+            np.testing.assert_allclose(pc.evaluate(s), ref.evaluate(s), rtol=0, atol=1e-9)
+            _check(S, curve, t0, t1, pc, dev, 2 * TOL.linear)
+    cheap = pcurves_on(CYL, cases[1][1], cases[1][2], general=False)
+    assert isinstance(cheap[0][0], Line2D) and isinstance(cheap[1][0], Line2D) and cheap[2] is None
+    assert 4 * PI <= cheap[1][0].evaluate(0.5)[0] <= 6 * PI  # shifted into the box by whole periods
+
+
+def test_pcurves_on_errors_are_pcurve_on_errors():
+    with pytest.raises(InvalidGeometryError, match=r"not on the SphericalSurface: distance 0\.1"):
+        pcurves_on(SPHERE, [(Circle([0, 0, 0], [0, -1, 0], [1, 0, 0], 2.1), 0.0, 1.0)])
+    with pytest.raises(InvalidGeometryError, match=r"not on the NurbsSurface"):
+        pcurves_on(_bilinear(), [(Line([0, 0, 1], [1, 0, 0]), 0.0, 1.0)])
+    with pytest.raises(InvalidInputError, match="need finite t0 < t1"):
+        pcurves_on(CYL, [(Line([0, 2, 0], [0, 0, 1]), 1.0, 1.0)])
+
+
+def test_pcurve_on_nurbs_boundary_stays_in_the_domain():
+    # A p-curve along a domain boundary must not leave the domain by round-off (the checker's
+    # NURBS evaluation refuses that): moved inside, deviation measured again.
+    from coons.kernel.onsurface import _into_domain
+
+    S = _bilinear()
+    curve = Line([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    over = Line2D([-2e-11, 0.0], [1e-12, 0.5])
+    pc, dev = _into_domain(S, curve, over, 0.0, 0.0, 2.0, TOL)
+    assert pc.origin[0] == 0.0 and pc.direction[0] == 0.0 and dev <= 1e-10
+    far = Line2D([-1e-3, 0.0], [0.0, 0.5])  # not round-off: left for the checks to report
+    assert _into_domain(S, curve, far, 0.0, 0.0, 2.0, TOL)[0] is far
+    nc = NurbsCurve(np.array([[-3e-11, 0.0], [1e-12, 0.5], [0.0, 1.0 + 4e-11]]), [0, 0, 0, 2, 2, 2], 2)
+    pc, dev = _into_domain(S, curve, nc, 0.0, 0.0, 2.0, TOL)
+    assert pc.control_points.min() >= 0.0 and pc.control_points.max() <= 1.0 and dev <= 1e-9
+
+
+def test_closed_nurbs_with_an_unbounded_box_is_finite():
+    # An infinite box says nothing: a closed NURBS is unwrapped towards its domain (no NaN).
+    nurbs = SPHERE.to_nurbs()
+    meridian = Circle([0, 0, 0], [0, -1, 0], [1, 0, 0], 2.0)
+    inf = ((-math.inf, math.inf), (-math.inf, math.inf))
+    pc, dev = pcurve_on(nurbs, meridian, 0.1, PI / 2, inf)
+    ref, _ = pcurve_on(nurbs, meridian, 0.1, PI / 2)
+    s = np.linspace(0.1, PI / 2, 20)
+    assert np.all(np.isfinite(pc.evaluate(s)))
+    np.testing.assert_allclose(pc.evaluate(s), ref.evaluate(s), rtol=0, atol=1e-12)
+    _check(nurbs, meridian, 0.1, PI / 2, pc, dev, 2 * TOL.linear)

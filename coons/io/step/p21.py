@@ -23,10 +23,20 @@ Parameter values::
     LENGTH_MEASURE(1.)                                Typed('LENGTH_MEASURE', (1.0,))
     "0FF"                                             Binary('0FF')
 
-Algorithm: one regular expression tokenises the whole text (``re.findall``; comments, strings
-and every other token in a single pass), then a loop over the tokens builds the instances with
-an explicit stack for nested lists, bounded by :data:`MAX_DEPTH`, so that no input can recurse
-or loop without bound.  Every malformed input raises :class:`~coons.errors.StepError` with the
+Algorithm.  *Fast path* (files as CAD systems write them): the header goes through the general
+parser; in the DATA sections one anchored regular expression matches each whole simple instance
+``#id = NAME( args );`` at C speed, a second one validates the arguments when they have the
+common shapes (numbers, references, enumerations, ``$``, ``*``, plain strings, lists of those
+one level deep), and such instances keep their argument text until :attr:`Entity.params` is
+first read (entities a reader never visits, such as the file's own p-curves, are never
+converted).  Every other instance (complex, typed or nested parameters, escaped strings,
+binaries) is parsed at once by the general parser, and anything the fast path cannot follow
+(comments, syntax errors, edition-3 sections) sends the whole file to the general parser, so
+errors are reported exactly as below.  *General parser*: one regular expression tokenises the
+text (``re.findall``; comments, strings and every other token in a single pass), then a loop
+over the tokens builds the instances with an explicit stack for nested lists, bounded by
+:data:`MAX_DEPTH`, so that no input can recurse or loop without bound.  The two paths give
+identical values and line numbers (``tests/io/test_p21.py`` compares them).  Every malformed input raises :class:`~coons.errors.StepError` with the
 entity id and the 1-based line where it was found; a file that lacks its ``ENDSEC`` or
 ``END-ISO-10303-21;`` (a truncated file) is refused rather than read in part, and so is a
 duplicated entity id.
@@ -555,11 +565,11 @@ class _Parser:
 
 # ---------------------------------------------------------------------- fast path
 # Well-formed files written by CAD systems are read without tokenising the DATA section: one
-# regular expression matches each whole instance ``#id = NAME( args );`` (C speed) and the
-# arguments are split with str methods and a few anchored regular expressions for the common
-# shapes (flat lists of numbers, references, enumerations, one leading string, lists nested one
-# level).  Anything else -- complex instances, typed parameters, strings with escapes, nested
-# lists, comments, binaries -- is handed instance by instance to the general parser above, and a
+# regular expression matches each whole instance ``#id = NAME( args );`` (C speed), a second one
+# (_DEFERRABLE) validates the arguments when they have the common shapes (atoms and lists of atoms
+# one level deep), and those are converted with str methods only when first read
+# (_deferred_args).  Anything else -- complex instances, typed parameters, strings with escapes,
+# nested lists, binaries -- is handed instance by instance to the general parser above, and a
 # file the fast path cannot follow at all (a syntax error, an unusual section) is re-read by the
 # general parser from the start, which reports the error with its line.  Both paths produce the
 # same values (tests/io/test_p21.py compares them).
@@ -578,12 +588,7 @@ _DATA_OPEN = re.compile(r"\s*DATA\s*;")
 _END_SEC = re.compile(r"\s*ENDSEC\s*;")
 _END_FILE = re.compile(r"\s*END-ISO-10303-21\s*;\s*\Z")
 _NUM = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
-_NUMBERS = re.compile(rf"{_NUM}(?:,{_NUM})*")
-_REFS = re.compile(r"\#[0-9]+(?:,\#[0-9]+)*")
-_NUMBER = re.compile(_NUM)
-_ENUM = re.compile(r"\.[A-Za-z_][A-Za-z0-9_]*\.")
-_ITEM = r"(?:\([^()]*\)|[^,()]+)"
-_LEVEL1 = re.compile(rf"{_ITEM}(?:,{_ITEM})*")
+#: Items of validated arguments without strings or white space: a one-level list, or an atom.
 _LEVEL1_ITEMS = re.compile(r"\(([^()]*)\)|([^,()]+)")
 # The argument grammar the fast path defers: atoms (numbers, references, enumerations, $, *, plain
 # strings) and lists of atoms one level deep, comma separated, optional white space between tokens.
@@ -595,89 +600,49 @@ _DEFERRABLE = re.compile(rf"\s*(?:{_ARG1}(?:\s*,\s*{_ARG1})*)?\s*")
 
 
 def _deferred_args(raw: str, eid: int, line: int) -> tuple:
-    """Parse argument text that matched :data:`_DEFERRABLE` (so it is valid)."""
-    try:
-        return _fast_args(raw)
-    except (_Irregular, IndexError, ValueError):
-        pass  # strings after the first one, etc.: the general parser
-    toks, _ = _tokens("(" + raw + ")")
-    return _Parser(toks, [line] * len(toks)).params(eid)
-
-
-def _scalar(s: str) -> Any:
-    c = s[0]
-    if c == "#":
-        if s[1:].isascii() and s[1:].isdigit():
-            return Ref(int(s[1:]))
-    elif c == ".":
-        if _ENUM.fullmatch(s):
-            e = s[1:-1]
-            return True if e == "T" else False if e == "F" else Enum(e)
-        if _NUMBER.fullmatch(s):
-            return float(s)
-    elif c == "$":
-        if s == "$":
-            return None
-    elif c == "*":
-        if s == "*":
-            return DERIVED
-    elif _NUMBER.fullmatch(s):
-        return float(s) if ("." in s or "e" in s or "E" in s) else int(s)
-    raise _Irregular(s)
-
-
-def _numbers(a: str) -> tuple:
-    return tuple(float(x) if ("." in x or "e" in x or "E" in x) else int(x) for x in a.split(","))
-
-
-def _flat(a: str) -> tuple:
-    """Values of comma-separated items without strings, lists at most one level deep."""
-    if not a:
-        return ()
-    if _WS.search(a):
-        if re.search(r"[^\s,()]\s+[^\s,()]", a):
-            raise _Irregular(a)  # two tokens side by side: the general path reports it
-        a = "".join(a.split())
-    if "(" not in a:
-        if _NUMBERS.fullmatch(a):
-            return _numbers(a)
-        if _REFS.fullmatch(a):
-            return tuple(Ref(int(x[1:])) for x in a.split(","))
-        return tuple(map(_scalar, a.split(",")))
-    if not _LEVEL1.fullmatch(a):
-        raise _Irregular(a)
-    out = []
-    for inner, item in _LEVEL1_ITEMS.findall(a):
+    """Parse argument text that matched :data:`_DEFERRABLE` (so it is valid: no checks needed here)."""
+    head: tuple = ()
+    if "'" in raw:
+        a = raw.lstrip()
+        j = a.find("'", 1)
+        if a[0] != "'" or "'" in a[j + 1:]:  # strings after the first one: the general parser
+            toks, _ = _tokens("(" + raw + ")")
+            return _Parser(toks, [line] * len(toks)).params(eid)
+        head = (a[1:j],)
+        raw = a[j + 1:]
+    # outside strings valid arguments have no white space inside a token: dropping it is safe
+    if _WS.search(raw):
+        raw = "".join(raw.split())
+    if head:
+        if not raw:
+            return head
+        raw = raw[1:]  # the comma after the string
+    if not raw:
+        return head
+    if "(" not in raw:
+        return head + tuple(map(_valid_scalar, raw.split(",")))
+    out = list(head)
+    for inner, item in _LEVEL1_ITEMS.findall(raw):
         if item:
-            out.append(_scalar(item))
-        elif not inner:
-            out.append(())
-        elif _NUMBERS.fullmatch(inner):
-            out.append(_numbers(inner))
-        elif _REFS.fullmatch(inner):
-            out.append(tuple(Ref(int(x[1:])) for x in inner.split(",")))
+            out.append(_valid_scalar(item))
         else:
-            out.append(tuple(map(_scalar, inner.split(","))))
+            out.append(tuple(map(_valid_scalar, inner.split(","))) if inner else ())
     return tuple(out)
 
 
-def _fast_args(a: str) -> tuple:
-    """The parameters of ``NAME(a)``: at most one string, which must come first."""
-    if "'" not in a:
-        return _flat(a.strip())
-    a = a.strip()
-    if a[0] != "'":
-        raise _Irregular(a)
-    j = a.index("'", 1)
-    rest = a[j + 1:].lstrip()
-    if "'" in rest:
-        raise _Irregular(a)
-    head = a[1:j]
-    if not rest:
-        return (head,)
-    if rest[0] != ",":
-        raise _Irregular(a)
-    return (head,) + _flat(rest[1:])
+def _valid_scalar(s: str) -> Any:
+    """The value of a token known to be a valid atom (number, reference, enumeration, $, *)."""
+    c = s[0]
+    if c == "#":
+        return Ref(int(s[1:]))
+    if c == "." and s[-1] == "." and len(s) > 2 and not s[1].isdigit():
+        e = s[1:-1]
+        return True if e == "T" else False if e == "F" else Enum(e)
+    if c == "$":
+        return None
+    if c == "*":
+        return DERIVED
+    return float(s) if ("." in s or "e" in s or "E" in s) else int(s)
 
 
 def _parse_fast(text: str) -> P21File | None:

@@ -14,7 +14,9 @@ Algorithm
 1. Delaunay triangulation of the points plus four far corners by Qhull
    (:class:`scipy.spatial.Delaunay`); the corners make every input point interior, so
    collinear points on the hull cannot produce flat triangles, and the flat triangles that
-   Qhull's triangulation of merged facets can leave are flipped away.
+   Qhull's triangulation of merged facets can leave are flipped away.  Points Qhull leaves
+   out as near-duplicates at its precision (distinct in floating point) are then inserted by
+   Lawson insertion with the exact predicates.
 2. Recovery of each missing constraint by edge flips (Sloan, "A fast algorithm for
    generating constrained Delaunay triangulations", Computers & Structures 47, 1993;
    Anglada, "An improved incremental algorithm for constructing restricted Delaunay
@@ -387,7 +389,7 @@ class _Mesh:
         return np.asarray(self.T, dtype=np.int64).reshape(-1, 3), np.asarray(self.N, dtype=np.int64).reshape(-1, 3)
 
 
-def _delaunay(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _delaunay(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Qhull's Delaunay triangulation of ``P`` plus four far corners, made counter-clockwise.
 
     Returns
@@ -395,11 +397,13 @@ def _delaunay(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     Q : (n + 4, 2) the points and the corners
     T, N : (m, 3) triangles and neighbours (``N[t, j]`` opposite ``T[t, j]``)
     flat : (f,) indices of zero-area triangles (Qhull's triangulated merged facets)
+    dropped : (k,) indices of the points Qhull left out as near-duplicates at its precision
+        (distinct in floating point: the caller inserts them with the exact predicates)
 
     Raises
     ------
     InvalidInputError
-        Qhull fails or drops points (near-duplicates at its precision).
+        Qhull fails.
     """
     lo, hi = P.min(axis=0), P.max(axis=0)
     size = float(np.max(hi - lo))
@@ -413,19 +417,14 @@ def _delaunay(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
         d = Delaunay(Q)
     except QhullError as exc:  # pragma: no cover - Qhull rejects only degenerate input
         raise InvalidInputError(f"triangulate: Qhull failed: {exc}") from None
-    if d.coplanar.size:
-        i = int(d.coplanar[0, 0])
-        raise InvalidInputError(
-            f"triangulate: {d.coplanar.shape[0]} point(s) dropped by Qhull as near-duplicates "
-            f"(first: point {i} {Q[i].tolist()})"
-        )
+    dropped = np.unique(d.coplanar[:, 0]).astype(np.int64) if d.coplanar.size else np.zeros(0, dtype=np.int64)
     T = d.simplices.astype(np.int64)
     N = d.neighbors.astype(np.int64)
     s = _orient_signs(Q, T)
     neg = s < 0
     T[neg] = T[neg][:, [0, 2, 1]]
     N[neg] = N[neg][:, [0, 2, 1]]
-    return Q, T, N, np.flatnonzero(s == 0)
+    return Q, T, N, np.flatnonzero(s == 0), dropped
 
 
 def _remove_flat(mesh: _Mesh, flat: np.ndarray) -> None:
@@ -477,7 +476,7 @@ class ConstrainedDelaunay:
         P, S = _validated(points, segments)
         n = P.shape[0]
         self.n, self.S = n, S
-        Q, T, N, flat = _delaunay(P)
+        Q, T, N, flat, dropped = _delaunay(P)
         m_all = np.int64(n + 4)
         s_lo, s_hi = np.minimum(S[:, 0], S[:, 1]), np.maximum(S[:, 0], S[:, 1])
         self.fixed: set[tuple[int, int]] = set(zip(s_lo.tolist(), s_hi.tolist()))
@@ -489,6 +488,19 @@ class ConstrainedDelaunay:
             missing = np.flatnonzero(~np.isin(s_lo * m_all + s_hi, e_lo * m_all + e_hi))
         self._mesh: _Mesh | None = None
         self._Q, self._T, self._N = Q, T, N
+        if dropped.size:
+            # Qhull's precision merged them with a neighbour; they are distinct points, placed by Lawson
+            # insertion with the exact predicates (which raise for a point on a vertex or a constraint).
+            mesh = self._mutable()
+            if flat.size:
+                _remove_flat(mesh, flat)
+                flat = np.zeros(0, dtype=np.int64)
+            for p in dropped.tolist():
+                mesh.insert_point(p, 0, self.fixed)
+            T, _ = mesh.arrays()
+            e_lo = np.minimum(T, T[:, [1, 2, 0]]).ravel()
+            e_hi = np.maximum(T, T[:, [1, 2, 0]]).ravel()
+            missing = np.flatnonzero(~np.isin(s_lo * m_all + s_hi, e_lo * m_all + e_hi))
         if flat.size or missing.size:
             mesh = self._mutable()
             if flat.size:
@@ -588,7 +600,7 @@ def triangulate(points, segments, *, return_all: bool = False) -> np.ndarray:
     Raises
     ------
     InvalidInputError
-        Malformed arrays, coincident points (or points Qhull merges as near-duplicates), a
+        Malformed arrays, coincident points (exactly equal: near-duplicates are inserted), a
         segment through another point, crossing segments, or loops whose sides contradict
         (the same region both left and right of constraints).
     ConvergenceError

@@ -39,6 +39,9 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    cone's apex: see ``docs/brep.md``) both points are kept and joined by a *gap segment*;
    both carry the same mesh vertex, so the one triangle on the gap degenerates and is
    dropped, which is an edge collapse of the parameter-space triangulation onto the pole.
+   A loop that would get fewer than three samples (a sliver bounded by an arc and a line
+   whose chords both lie within the deflection) has its longest curved edge bisected in
+   step 1, once or twice, so that every face gets a triangle.
    Implicit planes (``face_surface == -1``) use coordinates in their Newell plane.
 3a. **Revolved faces: strips.**  The rows are the samples of the face's left side (which
    must equal its right side's); boundary rows are the samples of the bottom and top edges
@@ -74,9 +77,11 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    samples).  The linear interpolation error of a quadratic on a grid cell is
    ``(L h_u² + N h_v²) / 8`` at the midpoint of either diagonal, so ``d_u = d_v = d / 2`` when
    both directions are curved and ``d`` otherwise, both times a margin of 0.8 that leaves the
-   grid's own triangles clear of refinement.  A direction without curvature gets no grid
-   lines.  Grid points closer to the boundary than half the local boundary spacing (or half
-   the grid spacing) are dropped.
+   grid's own triangles clear of refinement.  A direction without curvature (the rulings of a
+   cylinder or cone) gets lines at the curved direction's step measured in the triangulation
+   plane (square cells there) when the curved direction's metric varies by less than a factor
+   2 over the face (not near a cone's apex), and none otherwise.  Grid points closer to the
+   boundary than half the local boundary spacing (or half the grid spacing) are dropped.
 4. **Triangulation** (step 3c faces) with the constrained Delaunay triangulator of
    :mod:`coons.topology._cdt` (which never inserts a point on a boundary segment), keeping
    the triangles left of the loops, in the plane ``(u / h_u, v / h_v)`` where the grid cells
@@ -89,7 +94,10 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    saddles it lies on the edges; boundary edges are bounded by step 1.  Distances are exact
    for analytic surfaces (``implicit``) and found by a few Gauss–Newton steps for others.
    Offending triangles are split at the midpoint of their longest interior edge (Rivara's
-   longest-edge bisection) or at their centroid, by Lawson insertion into the kept
+   longest-edge bisection) or at their centroid; a triangle offending through an interior
+   edge whose midpoint is off the surface, while its longest edge is not, is split on that
+   edge instead (else the bad edge survives in the neighbour and the rounds end in a long
+   tail of single points near thin boundary features); all by Lawson insertion into the kept
    triangulation (or a new triangulation when many points come at once), at most
    :data:`MAX_REFINEMENTS` rounds.
 6. **Orientation.**  When ``face_sense`` is False the parameter plane is mirrored before
@@ -157,7 +165,7 @@ from coons.topology.mesh import TriangleMesh
 __all__ = ["tessellate", "edge_parameters", "MAX_REFINEMENTS"]
 
 #: Re-triangulations per face in the refinement step before giving up with ConvergenceError.
-MAX_REFINEMENTS = 12
+MAX_REFINEMENTS = 32
 #: Bisection rounds of the adaptive edge discretisation (each at most doubles the samples).
 _MAX_EDGE_ROUNDS = 40
 #: Largest turning angle of an edge chord whatever ``angular_deflection`` says (a half circle gets
@@ -988,6 +996,7 @@ class _Builder:
         curves = b.curves
         ts = [self._edge_samples(e, curved[e], *er[e], None if ec[e] < 0 else curves[ec[e]], ev[e][0] == ev[e][1])
               for e in todo]
+        self._at_least_a_triangle(todo, ts)
         # Circle samples are evaluated for all circle edges at once, as Circle.evaluate would (same operations).
         rows: dict[int, int] = {}  # curve index -> row of the frames array
         circles, which = [], []
@@ -1026,6 +1035,34 @@ class _Builder:
             self.edge_ids[e] = ids
         # Every boundary sample of every face is a B-rep vertex or an edge sample, all made by now.
         self.boundary_points = self.point_array()
+
+    def _at_least_a_triangle(self, todo: list[int], ts: list[np.ndarray]) -> None:
+        """Bisect curved edges of loops that would have fewer than three boundary samples (in place).
+
+        A sliver face bounded by an arc and a line (or two curved edges) whose chords are within the
+        deflection gets only their two end points: a polygon without area.  Halving the longest (in
+        parameter) curved edge of such a loop, once or twice, gives it a triangle; the samples stay
+        shared with the edge's other face.
+        """
+        b = self.b
+        nseg = np.ones(b.n_edges, dtype=np.int64)
+        nseg[todo] = [t.size - 1 for t in ts]
+        count = np.bincount(b.edge_loop.ravel(), weights=np.repeat(nseg, 2), minlength=b.n_loops)
+        thin = np.nonzero((count < 3) & (b.loop_coedge >= 0))[0]
+        if thin.size == 0:
+            return
+        where = {e: k for k, e in enumerate(todo)}
+        for lp in thin.tolist():
+            edges = [e for e in np.unique(np.nonzero(b.edge_loop == lp)[0]).tolist() if e in where]
+            for _ in range(3 - int(count[lp])):
+                if not edges:
+                    break  # only straight edges: an invalid loop, which the triangulator reports
+                # A curved edge first: bisecting a straight one would only add a collinear point.
+                pick = [e for e in edges if not self.straight[e]] or edges
+                k = where[max(pick, key=lambda e: np.diff(ts[where[e]]).max())]
+                t = ts[k]
+                i = int(np.argmax(np.diff(t)))
+                ts[k] = np.insert(t, i + 1, 0.5 * (t[i] + t[i + 1]))
 
     def _curve(self, e: int):
         ci = int(self.b.edge_curve[e])
@@ -1360,7 +1397,7 @@ class _Builder:
         extra = np.zeros((0, 2)) if extra_uv is None else np.asarray(extra_uv, dtype=np.float64).reshape(-1, 2)
         if extra_xyz is not None and len(extra_xyz):
             extra = np.concatenate([extra, S.closest_parameters(extra_xyz)])
-        uv_in = np.zeros((0, 2)) if planar else self._grid(bd, X_b, scale, steps)
+        uv_in = np.zeros((0, 2)) if planar else self._grid(S, bd, X_b, scale, steps)
         uv_in = np.concatenate([uv_in, extra])
         cdt, T, idx, uv_all, ids_all = self._cdt(f, bd, X_b, uv_in, scale)
         if planar:
@@ -1441,13 +1478,20 @@ class _Builder:
         allowed = max(self.tol.linear, float(self.b.edge_tol[c >> 1]))
         return float(np.linalg.norm(p - q)) * stretch > allowed
 
-    def _grid(self, bd: _Boundary, X_b: np.ndarray, scale: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
+    def _grid(self, S, bd: _Boundary, X_b: np.ndarray, scale: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
         """Interior candidate parameters ``(q, 2)`` (unscaled) of a curved face: the grid of ``steps`` inside the box."""
         lo, hi = bd.uv.min(axis=0), bd.uv.max(axis=0)
         lines = []
         for h, a0, a1 in ((steps[0], lo[0], hi[0]), (steps[1], lo[1], hi[1])):
             n = math.ceil((a1 - a0) / h * (1 - 1e-12)) if math.isfinite(h) and h > 0 else 1
             lines.append(np.linspace(a0, a1, n + 1)[1:-1])
+        if (lines[0].size == 0) != (lines[1].size == 0) and _even_metric(S, lo, hi, 1 if lines[0].size == 0 else 0):
+            # One curved direction (cylinders, cones away from the apex): lines of the other direction at the
+            # same step in the triangulation plane (unit squares there, see _plane_scale), instead of none at all.
+            k = 0 if lines[0].size == 0 else 1
+            h = 1.0 / abs(scale[k])
+            n = math.ceil((hi[k] - lo[k]) / h * (1 - 1e-12))
+            lines[k] = np.linspace(lo[k], hi[k], n + 1)[1:-1]
         if lines[0].size == 0 or lines[1].size == 0:
             return np.zeros((0, 2))
         U, V = np.meshgrid(lines[0], lines[1], indexing="ij")
@@ -1796,6 +1840,19 @@ def _grid_steps(S, lo: np.ndarray, hi: np.ndarray, d: float,
     return (step(L + M, nu, curved_u), step(N + M, nv, curved_v)), metric
 
 
+def _even_metric(S, lo: np.ndarray, hi: np.ndarray, curved: int) -> bool:
+    """True when the metric ``|S_curved|`` of the curved direction varies by less than a factor 2 over the box.
+
+    Then a grid of equal steps is isotropic enough everywhere; near a cone's apex (``|Su| → 0``) it is not,
+    and the face is left to the refinement (step 5) as before.
+    """
+    u = np.array([lo[0], hi[0], lo[0], hi[0], 0.5 * (lo[0] + hi[0])])
+    v = np.array([lo[1], lo[1], hi[1], hi[1], 0.5 * (lo[1] + hi[1])])
+    D = S.derivatives(u, v, 1)
+    g = np.linalg.norm(D[:, 1, 0] if curved == 0 else D[:, 0, 1], axis=1)
+    return bool(g.min() > 0.5 * g.max())
+
+
 def _far_from_boundary(X: np.ndarray, X_b: np.ndarray, seg: np.ndarray, spacing: float) -> np.ndarray:
     """Mask of points ``X`` at least half the local boundary spacing (and half ``spacing``) from the boundary segments."""
     A, B = X_b[seg[:, 0]], X_b[seg[:, 1]]
@@ -1901,7 +1958,9 @@ def _refinement_points(
     (see the module docstring and :func:`_acute_in_hessian`).  An offending triangle is
     split at the midpoint of its longest edge in the triangulation plane ``X`` (Rivara's
     longest-edge bisection, which never degrades the triangles), or at its centroid when that
-    edge is a boundary segment (boundary samples are shared with the neighbouring face).
+    edge is a boundary segment (boundary samples are shared with the neighbouring face).  When
+    the triangle offends through an interior edge's midpoint and the longest edge does not,
+    the worst such edge is split instead (the tail of slow rounds near thin features).
     """
     none = (np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
     if T.shape[0] == 0:
@@ -1934,6 +1993,13 @@ def _refinement_points(
         return none
     length = np.linalg.norm(X[ea] - X[eb], axis=2)
     longest = np.argmax(length, axis=1)
+    if np.any(interior):
+        # A triangle bad through one of its interior edges (the chord's midpoint is off the surface by
+        # more than d) is split on that edge when the longest edge is within d: bisecting a good edge
+        # would leave the bad one in a neighbour, a slow tail of rounds near thin boundary features.
+        worst = np.argmax(dev_e, axis=1)  # boundary edges have dev_e 0
+        edge_bad = dev_e[rows, worst] > d
+        longest = np.where(edge_bad & (dev_e[rows, longest] <= d), worst, longest)
     split = bad & interior[rows, longest]
     cent = bad & ~split
     pts, where = [Cuv[cent]], [rows[cent]]

@@ -164,6 +164,10 @@ class Classifier:
     solid : Solid or BRep
     tol : Tolerance
     deflection : float, optional
+    mesh : TriangleMesh, optional
+        The solid's tessellation at ``deflection`` (``tessellate(solid, deflection, tol=tol)``),
+        when the caller already has it.  Per-face data (trim polygons, boxes) is built lazily,
+        only for faces whose box is near some query point.
 
     Raises
     ------
@@ -171,7 +175,7 @@ class Classifier:
         Not a Solid or BRep.
     """
 
-    def __init__(self, solid, tol: Tolerance | None = None, *, deflection: float | None = None) -> None:
+    def __init__(self, solid, tol: Tolerance | None = None, *, deflection: float | None = None, mesh=None) -> None:
         from coons.topology.tessellate import tessellate
 
         b = solid if isinstance(solid, BRep) else getattr(solid, "brep", None)
@@ -182,7 +186,8 @@ class Classifier:
         self.empty = b.n_faces == 0
         if self.empty:
             return
-        mesh = tessellate(b, deflection=deflection, tol=self.t)
+        if mesh is None:
+            mesh = tessellate(b, deflection=deflection, tol=self.t)
         self.tri = mesh.vertices[mesh.triangles]
         self.lo, self.hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
         # The tessellator's default deflection when none is given (its documented default).
@@ -191,7 +196,29 @@ class Classifier:
         # Mesh and exact boundary are within d of each other; twice that plus a few tolerances
         # is the distance beyond which the mesh's answer is the exact one.
         self.band = 2.0 * d + 10.0 * self.t.linear
-        self.faces = [self._face(f, mesh) for f in range(b.n_faces)]
+        # Per-face data is built on first use (only faces near some query point are needed);
+        # their mesh boxes, enlarged by the deflection (edge samples may stick out of the mesh
+        # by that much), select them.
+        self._mesh = mesh
+        F = b.n_faces
+        lo, hi = np.full((F, 3), np.inf), np.full((F, 3), -np.inf)
+        np.minimum.at(lo, mesh.face_ids, self.tri.min(axis=1))
+        np.maximum.at(hi, mesh.face_ids, self.tri.max(axis=1))
+        lo[~np.isfinite(lo)], hi[~np.isfinite(hi)] = -np.inf, np.inf  # a face without triangles: always near
+        self._face_lo, self._face_hi = lo - d, hi + d
+        self._faces: list[_Face | None] = [None] * F
+
+    @property
+    def faces(self) -> list[_Face]:
+        """Per-face data of every face (built on demand)."""
+        return [self.face(f) for f in range(self.b.n_faces)]
+
+    def face(self, f: int) -> _Face:
+        """Per-face data of face ``f`` (built on first use)."""
+        F = self._faces[f]
+        if F is None:
+            F = self._faces[f] = self._face(f, self._mesh)
+        return F
 
     # ------------------------------------------------------------------ face data
     def _face(self, f: int, mesh) -> _Face:
@@ -250,7 +277,7 @@ class Classifier:
         n = P.shape[0]
         cls = np.zeros(n, dtype=np.int8)
         normal = np.full((n, 3), np.nan)
-        if self.empty:
+        if self.empty or n == 0:
             cls[:] = OUTSIDE
             return cls, normal
         lin = self.t.linear
@@ -261,7 +288,12 @@ class Classifier:
         on_face = np.zeros(n, dtype=bool)
         on_normal = np.full((n, 3), np.nan)  # normal of a face the point lies on near its trim boundary
         conflict = np.zeros(n, dtype=bool)
-        for fi, F in enumerate(self.faces):
+        plo, phi = P.min(axis=0) - self.band, P.max(axis=0) + self.band
+        near = np.flatnonzero(np.all((self._face_lo <= phi) & (self._face_hi >= plo), axis=1))
+        for fi in near.tolist():
+            if not np.any(np.all((P >= self._face_lo[fi] - self.band) & (P <= self._face_hi[fi] + self.band), axis=1)):
+                continue
+            F = self.face(fi)
             idx = np.flatnonzero(np.all((P >= F.lo - self.band) & (P <= F.hi + self.band), axis=1))
             if idx.size == 0:
                 continue
@@ -334,7 +366,7 @@ class Classifier:
         ``(X − q)·(n × T) >= −tol.linear``, ``T`` the face's direction of travel along the edge and
         ``n`` its outward normal (the face lies to the left); at a vertex, when ``|X − q| <= tol.linear``.
         """
-        b, F = self.b, self.faces[f]
+        b, F = self.b, self.face(f)
         k = X.shape[0]
         best = np.full(k, np.inf)
         ok = np.zeros(k, dtype=bool)
@@ -389,9 +421,9 @@ class Classifier:
         n_faces, inward = [], []
         for side in (0, 1):
             f = int(b.edge_face[e, side])
-            S = self.faces[f].surface
+            S = self.face(f).surface
             uv = _project(S, q, self.t)
-            nrm = self.faces[f].sign * np.asarray(S.normal(uv[:, 0], uv[:, 1]))
+            nrm = self.face(f).sign * np.asarray(S.normal(uv[:, 0], uv[:, 1]))
             T = dq if side == 0 else -dq  # direction of travel of this side
             n_faces.append(nrm)
             inward.append(np.cross(nrm, T))  # face on the left of the travel direction

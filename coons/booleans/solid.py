@@ -40,8 +40,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    parameter plane (sampled p-curves).
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
-   every branch is clipped to both trimmed faces (``clip_to_face``) and the common sub-ranges
-   become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
+   every branch is clipped to both trimmed faces (``clip_to_face``; answered at once by
+   ``_clip`` when the sampled p-curve's box meets no loop segment's box: the branch is then
+   wholly inside or outside) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
    Coincident surfaces imprint each face's boundary edges onto the other (``pcurve_on`` of the
    edge curve on the other surface, ``clip_to_face``).  Isolated tangent points split nothing.
    Cuts repeated by several pairs (a curve along an edge of the other operand meets both faces of
@@ -49,14 +50,19 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    crosses a boundary edge at a small angle ``φ`` (both faces compute that point independently).
    Every cut end must meet another cut end, the face's boundary or an edge of the other operand;
    a dangling end means a missing branch and raises here rather than as an open shell later.
-4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts; each cut must then
+4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
+   form separate simple closed cycles clear of the face's loops — a hole drilled through a
+   plate — ``_split_islands`` builds the holed face and one island per cycle directly); each cut must then
    bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
 5. ``_classify`` (stage ``"classify"``): one interior point per piece (the sample of a grid over
    the piece's parameter box that lies inside the trim polygon farthest from its boundary,
    mapped to space) against the other solid by
    :class:`~coons.booleans.classify.Classifier` (winding number far from the boundary, exact
-   projection near it); a point *on* the other boundary compares the outward normals.
+   projection near it); a point *on* the other boundary compares the outward normals.  Pieces
+   of faces in no broad-phase pair are classified by their first vertex instead (they are far
+   from the other boundary), and the classifier builds its per-face data only for faces near
+   the query points, on the operand's own tessellation.
 6. ``_select`` by the table (B's kept pieces reversed in a difference: sense flipped, loops
    reversed, each EdgeSpec's ``t0, t1`` swapped)
 
@@ -70,7 +76,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
 
 7. ``_split_edges_at_vertices``: every vertex of the selected faces lying inside another edge
    use splits it (a T-junction: a cut ends on an edge of one face while the face across that
-   edge received no cut, e.g. a sphere whose meridian lies in a box face).
+   edge received no cut, e.g. a sphere whose meridian lies in a box face).  An operand's
+   unchanged face is tested only against vertices of other faces within its box.
 8. ``_merge``: neighbouring selected faces on the same surface (the same object, ``is_close``,
    or the same point set in another parametrisation — the second face's p-curves are then
    recomputed on the first's surface by ``pcurve_on`` and shifted by whole periods to join it)
@@ -90,15 +97,21 @@ Status and limitations
   solid — to ``1e-8``) and against OCCT; OCCT itself is off by ``1e-5`` on crossing cylinders
   and offset spheres and wrong on a few (a lens of spheres along x, torus ∪ cylinder).
 * Classification is one point per piece, all pieces of an operand in one vectorised call;
-  classes are not propagated across uncut edges (the classifier's cost is its one tessellation
-  of the other solid, so propagation would save little).
+  classes are not propagated across uncut edges.
+* Cost: a Boolean still costs about the whole of both operands in ``_Operand`` (face specs,
+  one tessellation), the T-junction and merge passes and ``sew_faces`` (with its check), so
+  sequential cuts into a large part cost its size each time; the plate of the benchmark is
+  far slower than OCCT (``benchmarks/results/booleans_brep.md``).
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
   wall).  Touching in a point gives separate lumps or shells meeting there.
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
-* n-ary calls fold left: ``union(a, b, c) = (a ∪ b) ∪ c``.
+* n-ary calls: ``difference(a, t0, t1, ...)`` and ``union(s0, s1, ...)`` first gather operands
+  whose bounding boxes are pairwise apart into one solid (their faces sewn together, no Boolean
+  among them) and run one pipeline pass per such group (a plate minus 100 separate cylinders is
+  one pass); otherwise and for ``intersection`` they fold left: ``(a ∪ b) ∪ c``.
 """
 
 from __future__ import annotations
@@ -217,10 +230,66 @@ def _fold(op: str, solids: tuple, tol: Tolerance | None, method: str) -> Solid:
     for i, s in enumerate(solids):
         if not isinstance(s, Solid):
             raise InvalidInputError(f"{op}: argument {i} must be a coons Solid, got {type(s).__name__}")
+    if op == "difference" and len(solids) > 2:
+        out = solids[0]
+        for group in _disjoint_groups(solids[1:], t):
+            out = _dispatch(out, _gathered(group, t), op, t, method)
+        return out
+    if op == "union" and len(solids) > 2:
+        groups = [_gathered(g, t) for g in _disjoint_groups(solids, t)]
+        out = groups[0]
+        for s in groups[1:]:
+            out = _dispatch(out, s, op, t, method)
+        return out
     out = solids[0]
     for s in solids[1:]:
         out = _dispatch(out, s, op, t, method)
     return out
+
+
+def _disjoint_groups(solids, t: Tolerance) -> list[list[Solid]]:
+    """The non-empty solids in groups whose bounding boxes are pairwise apart (by more than ``t.linear``).
+
+    Greedy in argument order: each solid joins the first group none of whose members' boxes it
+    meets, else starts a new one.  The solids of one group are disjoint, so their union is just
+    all their faces together (:func:`_gathered`); a difference or union by a group is then one
+    pipeline pass instead of one per solid.  The result does not depend on the grouping (the
+    Booleans are associative), only the cost does.
+    """
+    groups: list[list[Solid]] = []
+    boxes: list[list[np.ndarray]] = []
+    for s in solids:
+        if s.is_empty:
+            continue
+        bb = np.asarray(s.bounding_box(), dtype=np.float64)
+        # Boxes closer than the tolerances could let sewing merge vertices of two solids.
+        pad = max(t.linear, float(np.max(s.brep.edge_tol, initial=0.0)), float(np.max(s.brep.vertex_tol, initial=0.0)))
+        bb = bb + np.array([[-pad], [pad]])
+        gap = 0.0
+        for g, B in zip(groups, boxes):
+            L = np.array([b[0] for b in B])
+            H = np.array([b[1] for b in B])
+            apart = np.any((bb[0] > H + gap) | (bb[1] < L - gap), axis=1)
+            if np.all(apart):
+                g.append(s)
+                B.append(bb)
+                break
+        else:
+            groups.append([s])
+            boxes.append([bb])
+    return groups or [[Solid.empty()]]
+
+
+def _gathered(group: list[Solid], t: Tolerance) -> Solid:
+    """One solid made of the pairwise disjoint solids of ``group`` (their faces sewn together)."""
+    if len(group) == 1:
+        return group[0]
+    specs = [spec for s in group for spec in face_specs(s)]
+    try:
+        return sew_faces(specs, t)
+    except CoonsError as exc:
+        raise BooleanError(f"gathering {len(group)} disjoint operands into one failed: {type(exc).__name__}: {exc}",
+                           stage="input", diagnostics={"operands": len(group), "error": str(exc)}) from exc
 
 
 def is_polyhedral(s: Solid) -> bool:
@@ -254,12 +323,15 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     cuts_a, cuts_b = _intersect(A, B, I, J, t)
     pieces_a = _split(A, cuts_a, t)
     pieces_b = _split(B, cuts_b, t)
-    status_a = _classify(pieces_a, A, B, t)
-    status_b = _classify(pieces_b, B, A, t)
+    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I))
+    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J))
     faces = _select(op, pieces_a, status_a, pieces_b, status_b)
     if not faces:
         return Solid.empty()
-    faces = _split_edges_at_vertices(faces, t)
+    # Faces passed through unchanged: their operand (1 for A, 2 for B) and padded space box.
+    orig = {id(spec): (1, A.lo[f], A.hi[f]) for f, spec in enumerate(A.specs)}
+    orig.update({id(spec): (2, B.lo[f], B.hi[f]) for f, spec in enumerate(B.specs)})
+    faces = _split_edges_at_vertices(faces, t, orig)
     faces = _merge(faces, t)
     faces = _fuse_edges(faces, t)
     return _sew(faces, t)
@@ -291,7 +363,7 @@ class _Operand:
                 raise BooleanError(f"operand {name}, face {f}: cannot compute the p-curves of its edges: {exc}",
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
             self.specs.append(FaceSpec(S, spec.sense, loops))
-        mesh = tessellate(solid, tol=t)
+        mesh = self.mesh = tessellate(solid, tol=t)
         diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
         # Tessellation deflection (the tessellator's default) plus the edges' own tolerances: the
         # exact face lies within this of its triangles.
@@ -312,6 +384,22 @@ class _Operand:
             (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
             mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
             self.uv_box.append(((float(u0 - mu), float(u1 + mu)), (float(v0 - mv), float(v1 + mv))))
+        self.segments, self.seg_lo, self.seg_hi = [], [], []
+        for spec, rings in zip(self.specs, self.polygons):
+            seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
+            # A sampled curved edge stays within about one chord of its samples; a straight
+            # p-curve (Line2D, sampled by its two ends) is its segment.
+            pads = []
+            for loop in spec.loops:
+                for e in loop:
+                    straight = isinstance(e.pcurve, Line2D)
+                    U = _edge_uv(e, spec.surface, _LOOP_SAMPLES)
+                    step = 0.0 if straight else float(np.max(np.linalg.norm(np.diff(U, axis=0), axis=1)))
+                    pads.append(np.full(U.shape[0], step))
+            pad = np.concatenate(pads)[:, None]
+            self.segments.append(seg)
+            self.seg_lo.append(seg.min(axis=1) - pad)
+            self.seg_hi.append(seg.max(axis=1) + pad)
         self._classifier = None
 
     @property
@@ -319,7 +407,7 @@ class _Operand:
         from coons.booleans.classify import Classifier
 
         if self._classifier is None:
-            self._classifier = Classifier(self.solid, self.t)
+            self._classifier = Classifier(self.solid, self.t, mesh=self.mesh)  # the same tessellation
         return self._classifier
 
 
@@ -378,10 +466,10 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                 _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
                 continue
             for c in si.curves:
-                ra = clip_to_face(X, c.pcurve_a, c.t0, c.t1, t)
+                ra = _clip(A, i, c.pcurve_a, c.t0, c.t1, t, c.curve)
                 if not ra:
                     continue
-                rb = clip_to_face(Y, c.pcurve_b, c.t0, c.t1, t)
+                rb = _clip(B, j, c.pcurve_b, c.t0, c.t1, t, c.curve)
                 for a0, a1, wa in ra:
                     for b0, b1, wb in rb:
                         s0, s1 = max(a0, b0), min(a1, b1)
@@ -407,6 +495,43 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                 continue
             _check_cut_ends(X, f, cuts[f], B if X is A else A, t)
     return cuts_a, cuts_b
+
+
+#: Samples of a branch's p-curve for the quick test that it stays clear of a face's boundary.
+_CLEAR_SAMPLES = 33
+
+
+def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve) -> list[tuple[float, float, str]]:
+    """``clip_to_face`` of face ``f`` of X, answered at once when the branch stays clear of the face's loops.
+
+    The p-curve is sampled; when the box of the samples (enlarged by the largest sample step)
+    meets no box of a loop segment (enlarged by its length, see ``_Operand``), the branch
+    neither crosses nor touches the boundary, and one sample inside or outside the trim polygon
+    decides the whole range.  Otherwise (near the boundary) the exact ``clip_to_face`` runs.
+    """
+    from coons.booleans.classify import _in_polygon
+    from coons.topology.split import clip_to_face
+
+    Q = None
+    if pcurve is not None:
+        try:
+            Q = np.asarray(pcurve.evaluate(np.linspace(t0, t1, _CLEAR_SAMPLES)), dtype=np.float64)
+        except (CoonsError, ValueError, TypeError, ArithmeticError):
+            Q = None
+    if Q is not None and Q.shape == (_CLEAR_SAMPLES, 2) and np.all(np.isfinite(Q)):
+        step = float(np.max(np.linalg.norm(np.diff(Q, axis=0), axis=1)))
+        scale = 1.0 + float(np.max(np.abs(Q)))
+        lo = Q.min(axis=0) - step - 1e-9 * scale  # rounding margin of parameter values
+        hi = Q.max(axis=0) + step + 1e-9 * scale
+        meet = np.all((X.seg_lo[f] <= hi) & (X.seg_hi[f] >= lo), axis=1)
+        if not np.any(meet):
+            inside = bool(_in_polygon(Q[_CLEAR_SAMPLES // 2][None], X.segments[f])[0])
+            if inside:
+                return [(t0, t1, "inside")]
+            S = X.specs[f].surface
+            if not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
+                return []  # (on a periodic surface clip_to_face may still find it a period away)
+    return clip_to_face(X.specs[f], pcurve, t0, t1, t, curve=curve)
 
 
 def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: Tolerance) -> None:
@@ -512,7 +637,7 @@ def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance)
         for e in loop:
             lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
             pc, dev = pcurve_on(X.surface, e.curve, lo, hi, box=box_x, tol=t)
-            for s0, s1, where in clip_to_face(X, pc, lo, hi, t):
+            for s0, s1, where in clip_to_face(X, pc, lo, hi, t, curve=e.curve):
                 if where == "inside" and s1 > s0 and _long_enough(e.curve, s0, s1, t):
                     out.append(EdgeSpec(e.curve, s0, s1, pc, max(dev, e.tol or 0.0)))
 
@@ -524,23 +649,41 @@ def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
 
 
 def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance) -> list[EdgeSpec]:
-    """Drop cuts that repeat an earlier one (same end points and midpoint within tolerance)."""
-    keep: list[EdgeSpec] = []
-    keys: list[np.ndarray] = []
-    for c in cuts:
-        P = np.asarray(c.curve.evaluate(np.array([c.t0, 0.5 * (c.t0 + c.t1), c.t1])))
-        thr = max(t.linear, c.tol or 0.0)
-        dup = False
-        for Q, other in zip(keys, keep):
-            th = max(thr, other.tol or 0.0)
-            same = np.all(np.linalg.norm(P - Q, axis=1) <= th) or np.all(np.linalg.norm(P[::-1] - Q, axis=1) <= th)
-            if same:
-                dup = True
-                break
-        if not dup:
-            keep.append(c)
-            keys.append(P)
-    return keep
+    """Drop cuts that repeat an earlier one (same end points and midpoint within tolerance, either way).
+
+    Candidates are found by a k-d tree on the midpoints (within the widest cut tolerance), so the
+    cost is about linear in the number of cuts.
+    """
+    from scipy.spatial import cKDTree
+
+    n = len(cuts)
+    if n < 2:
+        return list(cuts)
+    P = np.empty((n, 3, 3))
+    groups: dict[int, list[int]] = {}
+    for k, c in enumerate(cuts):
+        groups.setdefault(id(c.curve), []).append(k)
+    for rows in groups.values():  # one evaluation per curve object
+        r = np.asarray(rows)
+        t0 = np.array([cuts[k].t0 for k in rows])
+        t1 = np.array([cuts[k].t1 for k in rows])
+        tt = np.stack([t0, 0.5 * (t0 + t1), t1], axis=1)
+        P[r] = np.asarray(cuts[rows[0]].curve.evaluate(tt), dtype=np.float64).reshape(r.size, 3, 3)
+    thr = np.array([max(t.linear, c.tol or 0.0) for c in cuts])
+    pairs = cKDTree(P[:, 1]).query_pairs(r=float(thr.max()), output_type="ndarray")
+    dropped = np.zeros(n, dtype=bool)
+    if pairs.size:
+        p, q = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+        order = np.lexsort((p, q))  # later cut q first by q, then by the earlier cut p
+        p, q = p[order], q[order]
+        th = np.maximum(thr[p], thr[q])[:, None]
+        same = np.all(np.linalg.norm(P[p] - P[q], axis=2) <= th, axis=1) \
+            | np.all(np.linalg.norm(P[p][:, ::-1] - P[q], axis=2) <= th, axis=1)
+        # A cut is dropped when it repeats an earlier cut that is itself kept (in order).
+        for a, b in zip(p[same].tolist(), q[same].tolist()):
+            if not dropped[a] and not dropped[b]:
+                dropped[b] = True
+    return [c for k, c in enumerate(cuts) if not dropped[k]]
 
 
 # ---------------------------------------------------------------------- split
@@ -560,7 +703,9 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
             out.append((f, spec))
             continue
         try:
-            pieces = split_face(spec, cuts[f], t)
+            pieces = _split_islands(X, f, cuts[f], t)
+            if pieces is None:
+                pieces = split_face(spec, cuts[f], t)
         except (CoonsError, ValueError, ArithmeticError) as exc:
             raise BooleanError(
                 f"operand {X.name}, face {f} ({_kind(spec)}) split by {len(cuts[f])} cut(s): {type(exc).__name__}: {exc}",
@@ -569,6 +714,115 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
         _check_cuts_used(X, f, cuts[f], pieces, t)
         out.extend((f, p) for p in pieces)
     return out
+
+
+def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> list[FaceSpec] | None:
+    """The pieces of face ``f`` when its cuts form separate closed cycles clear of its boundary, else None.
+
+    The common case of a tool passing through a face (a hole drilled through a plate): every cut
+    stays clear of the face's loops (the box test of :func:`_clip`), the cuts join end to end
+    into simple closed cycles whose parameter boxes are pairwise disjoint, and no existing loop
+    of the face lies inside a cycle.  The pieces are then the face with each cycle added as a
+    hole, and one island face per cycle, built directly instead of by ``split_face`` (whose
+    cost grows with the number of cuts and loops).  Anything else returns None (``split_face``
+    decides).
+    """
+    from coons.booleans.classify import _in_polygon
+
+    spec = X.specs[f]
+    n = len(cuts)
+    Qs = []
+    for c in cuts:
+        if c.pcurve is None:
+            return None
+        Q = np.asarray(c.pcurve.evaluate(np.linspace(c.t0, c.t1, _CLEAR_SAMPLES)), dtype=np.float64)
+        if Q.shape != (_CLEAR_SAMPLES, 2) or not np.all(np.isfinite(Q)):
+            return None
+        step = float(np.max(np.linalg.norm(np.diff(Q, axis=0), axis=1)))
+        margin = step + 1e-9 * (1.0 + float(np.max(np.abs(Q))))
+        lo, hi = Q.min(axis=0) - margin, Q.max(axis=0) + margin
+        if np.any(np.all((X.seg_lo[f] <= hi) & (X.seg_hi[f] >= lo), axis=1)):
+            return None  # near the face's boundary: split_face decides
+        Qs.append(Q)
+    # Join the cuts end to end: every end cluster must hold exactly two ends.
+    E = np.array([np.asarray(c.curve.evaluate(np.array([c.t0, c.t1])), dtype=np.float64).reshape(2, 3)
+                  for c in cuts]).reshape(-1, 3)
+    thr = np.repeat([max(t.linear, c.tol or 0.0) for c in cuts], 2)
+    D = np.linalg.norm(E[:, None] - E[None], axis=-1)
+    close = D <= np.maximum(thr[:, None], thr[None])
+    np.fill_diagonal(close, False)
+    if np.any(close.sum(axis=1) != 1):
+        return None
+    partner = np.argmax(close, axis=1)
+    seen = np.zeros(n, dtype=bool)
+    cycles: list[list[EdgeSpec]] = []
+    polys: list[np.ndarray] = []
+    for k0 in range(n):
+        if seen[k0]:
+            continue
+        uses, pts, k, fwd = [], [], k0, True
+        while True:
+            if seen[k]:
+                if k != k0 or not fwd:
+                    return None
+                break
+            seen[k] = True
+            c = cuts[k]
+            uses.append(c if fwd else EdgeSpec(c.curve, c.t1, c.t0, c.pcurve, c.tol))
+            pts.append(Qs[k] if fwd else Qs[k][::-1])
+            end = 2 * k + (1 if fwd else 0)
+            p = int(partner[end])
+            k, fwd = p // 2, p % 2 == 0
+        # Closed in the parameter plane too (not around a pole or across a period).
+        gaps = [np.linalg.norm(a[-1] - b[0]) for a, b in zip(pts, pts[1:] + pts[:1])]
+        span = float(np.max(np.ptp(np.concatenate(pts), axis=0)))
+        if max(gaps) > 1e-6 * (1.0 + span):  # parameter round-off of joined ends, far below a sample step
+            return None
+        R = np.concatenate([q[1:] for q in pts])  # each first sample is (within the gap) the previous last
+        cycles.append(uses)
+        polys.append(R)
+    # Simple, separate cycles, none around an existing loop of the face.
+    boxes = np.array([[R.min(axis=0), R.max(axis=0)] for R in polys])
+    if len(polys) > 1:
+        apart = np.any((boxes[:, None, 0] > boxes[None, :, 1]) | (boxes[:, None, 1] < boxes[None, :, 0]), axis=2)
+        np.fill_diagonal(apart, True)
+        if not np.all(apart):
+            return None
+    probes = np.array([R[0] for R in X.polygons[f]])
+    out_loops = [list(loop) for loop in spec.loops]
+    islands = []
+    sgn = 1.0 if spec.sense else -1.0
+    for uses, R in zip(cycles, polys):
+        seg = np.stack([R, np.roll(R, -1, axis=0)], axis=1)
+        if _self_crossing(seg) or np.any(_in_polygon(probes, seg)):
+            return None
+        if not _in_polygon(R[len(R) // 2][None], X.segments[f])[0]:
+            return None
+        area = _shoelace(R) * sgn
+        if area == 0.0:
+            return None
+        if area < 0:
+            uses = [EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
+        islands.append(FaceSpec(spec.surface, spec.sense, [uses]))
+        out_loops.append([EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)])
+    return [FaceSpec(spec.surface, spec.sense, out_loops)] + islands
+
+
+def _self_crossing(seg: np.ndarray) -> bool:
+    """Whether two non-adjacent segments of a closed polyline ``(m, 2, 2)`` cross properly (touching is not tested)."""
+    m = seg.shape[0]
+    i, j = np.triu_indices(m, 2)
+    keep = ~((i == 0) & (j == m - 1))
+    i, j = i[keep], j[keep]
+    a, b, c, d = seg[i, 0], seg[i, 1], seg[j, 0], seg[j, 1]
+
+    def orient(p, q, r):
+        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+
+    d1, d2, d3, d4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+    # Zero-length segments (repeated samples where cuts join) are adjacent in effect: skip them.
+    degenerate = np.all(a == b, axis=1) | np.all(c == d, axis=1)
+    return bool(np.any((d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate))
 
 
 def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.ndarray:
@@ -642,8 +896,22 @@ def _check_cuts_used(X: _Operand, f: int, cuts: list[EdgeSpec], pieces: list[Fac
 
 
 # ---------------------------------------------------------------------- classify
-def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: Tolerance) -> np.ndarray:
+def _unpaired(n: int, idx: np.ndarray) -> np.ndarray:
+    """``(n,)`` bool: faces in no broad-phase pair (their boxes meet no face box of the other operand)."""
+    free = np.ones(n, dtype=bool)
+    free[idx] = False
+    return free
+
+
+def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: Tolerance,
+              free: np.ndarray | None = None) -> np.ndarray:
     """Status of every piece of X with respect to solid Y (``(k,)`` int8 of OUT/IN/ON_SAME/ON_OPPOSITE).
+
+    A piece of a face in ``free`` (no broad-phase pair: the face is farther from Y's boundary
+    than the boxes' padding everywhere) is classified by any of its points, its first vertex,
+    instead of a searched interior point; all such pieces still go through the classifier in
+    the one vectorised call, and should one of them come out on Y's boundary, it is redone with
+    an interior point.
 
     Raises
     ------
@@ -655,13 +923,29 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
 
     P = np.empty((len(pieces), 3))
     N = np.empty((len(pieces), 3))
-    for k, (f, spec) in enumerate(pieces):
+    quick = np.zeros(len(pieces), dtype=bool)
+
+    def interior(k: int, f: int, spec: FaceSpec) -> None:
         try:
             P[k], N[k] = _interior_point(spec)
         except CoonsError as exc:
             raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
                                diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
+
+    for k, (f, spec) in enumerate(pieces):
+        if free is not None and free[f]:
+            e = spec.loops[0][0]
+            P[k] = np.asarray(e.curve.evaluate(e.t0), dtype=np.float64).reshape(3)
+            N[k] = np.nan
+            quick[k] = True
+        else:
+            interior(k, f, spec)
     cls, normal = Y.classifier.classify(P)
+    redo = np.flatnonzero(quick & (cls == ON))
+    if redo.size:  # not expected: a free face's vertex on Y's boundary
+        for k in redo.tolist():
+            interior(k, *pieces[k])
+        cls[redo], normal[redo] = Y.classifier.classify(P[redo])
     status = np.where(cls == INSIDE, IN, OUT).astype(np.int8)
     on = np.flatnonzero(cls == ON)
     if on.size:
@@ -705,12 +989,42 @@ def _interior_point(spec: FaceSpec) -> tuple[np.ndarray, np.ndarray]:
         G = np.stack(np.meshgrid(lo[0] + g * (hi[0] - lo[0]), lo[1] + g * (hi[1] - lo[1]), indexing="ij"), -1).reshape(-1, 2)
         G = G[_in_polygon(G, seg)]
         if G.shape[0]:
-            d = _segment_distance(G * scale, seg * scale)
+            if G.shape[0] * seg.shape[0] > _EXACT_DISTANCES:
+                d = _boundary_distance(G * scale, seg * scale, n)
+            else:
+                d = _segment_distance(G * scale, seg * scale)
             uv = G[int(np.argmax(d))]
             P = np.asarray(S.evaluate(uv[0], uv[1]), dtype=np.float64).reshape(3)
             nrm = np.asarray(S.normal(uv[0], uv[1]), dtype=np.float64).reshape(3)
             return P, (nrm if spec.sense else -nrm)
     raise InvalidInputError(f"no interior point found in a {_kind(spec)} piece with parameter box {lo.tolist()}–{hi.tolist()}")
+
+
+#: Above this many point–segment pairs, the interior point's distances to the boundary are
+#: taken from a k-d tree of boundary samples (a face with many holes) instead of every segment.
+_EXACT_DISTANCES = 20000
+
+
+def _boundary_distance(G: np.ndarray, seg: np.ndarray, n: int) -> np.ndarray:
+    """Approximate distances ``(k,)`` of points ``G (k, 2)`` to segments ``seg (s, 2, 2)``.
+
+    The segments are sampled at spacing ``h`` (1/n of the larger box side, the grid's own
+    resolution) and the distance to the nearest sample, less ``h / 2``, is returned: it is
+    within ``h / 2`` of the exact one, which is all the choice of a point far from the boundary
+    needs.
+    """
+    from scipy.spatial import cKDTree
+
+    a, b = seg[:, 0], seg[:, 1]
+    lo, hi = seg.reshape(-1, 2).min(axis=0), seg.reshape(-1, 2).max(axis=0)
+    h = max(float(np.max(hi - lo)) / n, 1e-300)
+    length = np.linalg.norm(b - a, axis=1)
+    k = np.maximum(1, np.ceil(length / h).astype(np.int64))
+    which = np.repeat(np.arange(seg.shape[0]), k)
+    frac = (np.arange(which.size) - np.repeat(np.cumsum(k) - k, k)) / np.repeat(k, k)
+    pts = a[which] + frac[:, None] * (b - a)[which]
+    d, _ = cKDTree(pts).query(G)
+    return d - 0.5 * h
 
 
 # ---------------------------------------------------------------------- select
@@ -730,7 +1044,7 @@ def reversed_face(spec: FaceSpec) -> FaceSpec:
 
 
 # ---------------------------------------------------------------------- T-junctions
-def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -738,23 +1052,41 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance) -> list[FaceSp
     along the edge: a sphere's meridian lying in a box face).  Sewing needs both uses of an edge
     to have the same vertices, so every vertex of the selected faces that lies on the interior
     of an edge use (within the edges' tolerance, parameter strictly inside) splits it.
+
+    ``orig`` maps ``id(face)`` of faces passed through unchanged to ``(operand 1 or 2, lo, hi)``
+    (their padded space box): such a face is only tested against vertices of faces not of its
+    operand's unchanged faces (a valid solid has no vertex inside its own edges), and skipped
+    when none lies in its box.  Faces without split edges are returned as the same objects.
     """
     from scipy.spatial import cKDTree
 
     from coons.booleans.classify import _curve_closest
 
+    orig = orig or {}
     starts = np.array([np.asarray(e.curve.evaluate(e.t0), dtype=np.float64).reshape(3)
                        for f in faces for loop in f.loops for e in loop])
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
     start_tol = np.array([max(t.linear, e.tol or 0.0) for f in faces for loop in f.loops for e in loop])
-    start_tol = _cluster_max(starts, start_tol)
     if starts.shape[0] == 0:
         return faces
+    start_tol = _cluster_max(starts, start_tol)
+    # An unchanged face of an operand can only meet vertices not of that operand's unchanged
+    # faces (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.
+    group = np.repeat([orig.get(id(f), (0,))[0] for f in faces], [sum(len(l) for l in f.loops) for f in faces])
     tree = cKDTree(starts)
     out = []
     changed_any = False
     for f in faces:
+        info = orig.get(id(f))
+        if info is not None:
+            g, lo, hi = info
+            other = group != g
+            inside = other & np.all((starts >= lo - start_tol[:, None]) & (starts <= hi + start_tol[:, None]), axis=1)
+            if not np.any(inside):
+                out.append(f)  # no foreign vertex near this face
+                continue
         loops = []
+        face_changed = False
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
@@ -789,12 +1121,13 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance) -> list[FaceSp
                         knots.append(x)
                         last = P
                 knots.append(e.t1)
-                changed_any = changed_any or len(knots) > 2
+                face_changed = face_changed or len(knots) > 2
                 for a, b in zip(knots[:-1], knots[1:]):
                     if a != b:
                         new.append(EdgeSpec(e.curve, a, b, e.pcurve, e.tol))
             loops.append(new)
-        out.append(FaceSpec(f.surface, f.sense, loops))
+        out.append(FaceSpec(f.surface, f.sense, loops) if face_changed else f)
+        changed_any |= face_changed
     return out if changed_any else faces
 
 
@@ -835,21 +1168,30 @@ def _same_surface(S1, S2, t: Tolerance) -> bool:
 
 def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
     """Repeatedly fuse two faces that share an edge use pair on one surface with one sense."""
+    from scipy.spatial import cKDTree
+
     faces = list(faces)
+    failed: set[tuple] = set()  # pairs of uses already tried (their faces are kept alive in ``seen``)
+    seen: list[tuple[FaceSpec, FaceSpec]] = []
     changed = True
     while changed:
         changed = False
-        uses = []  # (face, loop, pos, start, end, mid)
+        uses = []  # (face, loop, pos, (start, end, mid))
+        by_curve: dict[int, list[int]] = {}
         for fi, f in enumerate(faces):
             for li, loop in enumerate(f.loops):
                 for pi, e in enumerate(loop):
-                    P = np.asarray(e.curve.evaluate(np.array([e.t0, e.t1, 0.5 * (e.t0 + e.t1)])))
-                    uses.append((fi, li, pi, P))
+                    by_curve.setdefault(id(e.curve), []).append(len(uses))
+                    uses.append((fi, li, pi, e))
         if len(uses) < 2:
             break
-        M = np.array([u[3][2] for u in uses])
-        from scipy.spatial import cKDTree
-
+        P3 = np.empty((len(uses), 3, 3))
+        for rows in by_curve.values():  # one evaluation per curve object
+            e0 = uses[rows[0]][3]
+            tt = np.array([[uses[k][3].t0, uses[k][3].t1, 0.5 * (uses[k][3].t0 + uses[k][3].t1)] for k in rows])
+            P3[rows] = np.asarray(e0.curve.evaluate(tt), dtype=np.float64).reshape(len(rows), 3, 3)
+        uses = [(fi, li, pi, P3[k]) for k, (fi, li, pi, _) in enumerate(uses)]
+        M = P3[:, 2]
         pairs = cKDTree(M).query_pairs(r=max(t.linear, 1e-12), output_type="ndarray")
         for p, q in pairs.tolist():
             fp, fq = uses[p][0], uses[q][0]
@@ -858,6 +1200,11 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             A, B = faces[fp], faces[fq]
             if type(A.surface) is not type(B.surface):
                 continue
+            key = (id(A), uses[p][1], uses[p][2], id(B), uses[q][1], uses[q][2])
+            if key in failed:
+                continue
+            failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
+            seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
             ea = A.loops[uses[p][1]][uses[p][2]]
             eb = B.loops[uses[q][1]][uses[q][2]]
             Pa, Pb = uses[p][3], uses[q][3]
@@ -882,6 +1229,8 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             ub = _edge_uv(eb, A.surface, 3)[::-1]
             if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
                 continue
+            if _wraps(A, B):
+                continue  # (the cheap form of _fuse's own full-period test: two half cylinders)
             merged = _fuse(A, B, (uses[p][1], uses[p][2]), (uses[q][1], uses[q][2]), t)
             if merged is None:
                 continue
@@ -889,6 +1238,21 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             changed = True
             break
     return faces
+
+
+def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
+    """Whether faces A and B (B's p-curves on A's surface) together span a full period of a periodic parameter.
+
+    The samples are a subset of those :func:`_fuse` tests, so this never rejects a merge that
+    ``_fuse`` would make.
+    """
+    S = A.surface
+    pers = [(k, getattr(S, name, None)) for k, name in ((0, "period_u"), (1, "period_v"))]
+    pers = [(k, p) for k, p in pers if p]
+    if not pers:
+        return False
+    U = np.concatenate([_edge_uv(e, S, 5) for F in (A, B) for loop in F.loops for e in loop])
+    return any(float(np.ptp(U[:, k])) >= p - 1e-9 * p for k, p in pers)
 
 
 def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:

@@ -353,11 +353,11 @@ def _curves_agree(uses: _Uses, i: int, j: int) -> bool:
     thr = max(uses.tol[i], uses.tol[j])
     if np.linalg.norm(uses.mid[i] - uses.mid[j]) <= thr:
         return True  # same parametric midpoint (the common case: a shared curve object)
-    return (_distance_to_curve(uses.mid[i], uses.spec[j]) <= thr
-            and _distance_to_curve(uses.mid[j], uses.spec[i]) <= thr)
+    return (_distance_to_curve(uses.mid[i], uses.spec[j], stop=thr) <= thr
+            and _distance_to_curve(uses.mid[j], uses.spec[i], stop=thr) <= thr)
 
 
-def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int = 8) -> float:
+def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int = 8, stop: float | None = None) -> float:
     """Distance from ``p`` to ``spec.curve`` over its range: dense samples, then zooming on the nearest.
 
     Each round samples ``n`` parameters and shrinks the bracket around the nearest sample to two
@@ -365,15 +365,24 @@ def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int =
     is quadratic in it near a minimum off the curve but linear for a point on the curve (the
     nearest sample is up to half a step away along it), so 8 rounds bring the step to
     ``range · 16⁻⁸ / 32 ≈ 7e-12 range``, below any tolerance.  Only evaluation is needed, so any
-    curve type works.
+    curve type works.  With ``stop``, a point farther from the first samples than ``stop`` plus
+    the largest sample spacing returns that first estimate at once (only "is it within stop"
+    matters to the caller).
     """
     lo, hi = min(spec.t0, spec.t1), max(spec.t0, spec.t1)
     best = math.inf
-    for _ in range(rounds):
+    for r in range(rounds):
         tt = np.linspace(lo, hi, n)
-        d = np.linalg.norm(np.asarray(spec.curve.evaluate(tt)) - p, axis=-1)
+        X = np.asarray(spec.curve.evaluate(tt))
+        d = np.linalg.norm(X - p, axis=-1)
         k = int(np.argmin(d))
         best = min(best, float(d[k]))
+        if r == 0 and stop is not None:
+            # Farther from every sample than the sample spacing allows the curve to come back
+            # (the same resolution assumption as the zoom itself): no closer than ``stop``.
+            gap = float(np.max(np.linalg.norm(np.diff(X, axis=0), axis=-1), initial=0.0))
+            if best - gap > stop:
+                return best
         step = (hi - lo) / (n - 1)
         lo, hi = max(lo, tt[k] - step), min(hi, tt[k] + step)
     return best

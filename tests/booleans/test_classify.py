@@ -153,3 +153,22 @@ def test_errors():
         classify_points("sphere", [[0, 0, 0]])
     with pytest.raises(InvalidInputError, match="tol must be a coons.Tolerance"):
         classify_points(Sphere(1.0), [[0, 0, 0]], tol=1e-3)
+
+
+def test_classifier_builds_face_data_only_near_the_queries_and_reuses_a_mesh():
+    from coons.booleans.classify import Classifier
+    from coons.topology.primitives import Box
+    from coons.topology.tessellate import tessellate
+
+    box = Box(10, 10, 10)
+    mesh = tessellate(box)
+    c = Classifier(box, mesh=mesh)
+    assert all(f is None for f in c._faces)
+    P = np.array([[0.0, 0.0, 4.9999], [0.0, 0.0, 0.0], [0.0, 0.0, 5.0]])  # near the top face only
+    cls, _ = c.classify(P)
+    assert cls.tolist() == [-1, -1, 0]
+    built = [f is not None for f in c._faces]
+    assert 1 <= sum(built) < 6
+    again, _ = Classifier(box).classify(P)  # its own tessellation: the same answers
+    assert again.tolist() == cls.tolist()
+    assert len(c.faces) == 6 and all(f is not None for f in c._faces)

@@ -372,13 +372,14 @@ def test_stage_errors_name_the_faces(monkeypatch):
 
     with monkeypatch.context() as m:
         m.setattr(split, "split_face", fail_split)
-        with pytest.raises(BooleanError, match=r"\[split\] operand A, face \d+ \(plane\) split by \d+ cut") as ei:
+        # (the box's faces take the direct island path; the cylinder's faces go through split_face)
+        with pytest.raises(BooleanError, match=r"\[split\] operand B, face \d+ \(cylinder\) split by \d+ cut") as ei:
             S.difference(box, cyl)
         assert ei.value.stage == "split"
 
     with monkeypatch.context() as m:  # a split that ignores its cuts leaves a hole's rim unused
         m.setattr(split, "split_face", lambda face, cuts, tol=None: [face])
-        with pytest.raises(BooleanError, match=r"\[split\] operand A, face \d+ \(plane\): cut 0 from .* bounds the "
+        with pytest.raises(BooleanError, match=r"\[split\] operand B, face \d+ \(cylinder\): cut 0 from .* bounds the "
                                                r"pieces for 0 times its length; expected 2") as ei:
             S.difference(box, cyl)
         assert ei.value.diagnostics["coverage"] == 0.0
@@ -432,3 +433,86 @@ def _occt_cylinder(radius, height, direction):
     d = d / np.linalg.norm(d)
     base = tuple(float(x) for x in -0.5 * height * d)
     return bd.Solid.make_cylinder(radius, height, bd.Plane(origin=base, z_dir=tuple(d.tolist())))
+
+
+# ---------------------------------------------------------------------- many tools in one pass, local work
+def test_crossings_solved_on_the_exact_curve():
+    """A tilted cylinder through a box: clip_to_face gets the 3-D curve (the union used to fail at sew)."""
+    a = Box(4, 8.7938, 4)
+    b = Cylinder(2.2294, 12, direction=(0.25, 0.515625, 0)).translate((0, 1.96484375, 0))
+    u = _ok(S.union(a, b))
+    i = _ok(S.intersection(a, b))
+    np.testing.assert_allclose(u.volume + i.volume, a.volume + b.volume, rtol=1e-9)
+
+
+def test_plate_with_holes_one_pass(monkeypatch):
+    """difference(plate, *tools) with pairwise disjoint tools: one pipeline pass, holes made without split_face."""
+    import coons.topology.split as split
+
+    plate = Box(40, 40, 10)
+    tools = [Cylinder(2, 20).translate((-15 + 10 * i, -15 + 10 * j, 0)) for i in range(4) for j in range(4)]
+    groups = S._disjoint_groups(tools, S.resolve(None))
+    assert [len(g) for g in groups] == [16]
+    calls = {"boolean": 0, "split_plane": 0}
+    real_boolean, real_split = S._boolean, split.split_face
+
+    def count_boolean(*a, **k):
+        calls["boolean"] += 1
+        return real_boolean(*a, **k)
+
+    def count_split(face, cuts, tol=None):
+        calls["split_plane"] += type(face.surface).__name__ == "PlanarSurface"
+        return real_split(face, cuts, tol)
+
+    monkeypatch.setattr(S, "_boolean", count_boolean)
+    monkeypatch.setattr(split, "split_face", count_split)
+    r = _ok(S.difference(plate, *tools))
+    assert calls == {"boolean": 1, "split_plane": 0}
+    _vol(r, 40 * 40 * 10 - 16 * PI * 4 * 10, rtol=1e-12)
+    assert _types(r) == {"plane": 6, "cylinder": 32}
+    # The same as cutting one at a time.
+    seq = plate
+    for tl in tools[:3]:
+        seq = S.difference(seq, tl)
+    _vol(_ok(seq), 40 * 40 * 10 - 3 * PI * 4 * 10, rtol=1e-12)
+
+
+def test_overlapping_tools_fall_into_several_groups():
+    t = S.resolve(None)
+    a, b, c = Cylinder(2, 20), Cylinder(2, 20).translate((3, 0, 0)), Cylinder(2, 20).translate((10, 0, 0))
+    assert [len(g) for g in S._disjoint_groups([a, b, c], t)] == [2, 1]
+    assert [len(g) for g in S._disjoint_groups([a, Solid.empty(), c], t)] == [2]
+    r = _ok(S.difference(Box(30, 10, 10), a, b, c))
+    # Two overlapping holes (lens of two discs of radius 2, centres 3 apart) and a separate one.
+    lens = 2 * (4 * math.acos(0.75) - 1.5 * math.sqrt(4 - 2.25))
+    _vol(r, 3000 - (3 * PI * 4 - lens) * 10, rtol=1e-9)
+    u = _ok(S.union(a, b, c))
+    _vol(u, (3 * PI * 4 - lens) * 20, rtol=1e-9)
+    assert len(u.lumps()) == 2
+
+
+def test_union_of_disjoint_solids_is_one_solid_of_lumps():
+    balls = [Sphere(1.0).translate((3.0 * k, 0, 0)) for k in range(4)]
+    u = _ok(S.union(*balls))
+    _vol(u, 4 * 4 / 3 * PI, rtol=1e-12)
+    assert len(u.lumps()) == 4
+
+
+def test_unique_cuts_drops_repeats_either_way():
+    from coons.kernel.analytic import Line
+    from coons.topology.sew import EdgeSpec
+
+    t = S.resolve(None)
+    line = Line(np.zeros(3), np.array([1.0, 0, 0]))
+    other = Line(np.array([0.0, 1e-9, 0]), np.array([1.0, 0, 0]))
+    cuts = [EdgeSpec(line, 0.0, 1.0), EdgeSpec(other, 1.0, 0.0), EdgeSpec(line, 1.0, 2.0), EdgeSpec(line, 0.0, 1.0)]
+    keep = S._unique_cuts(cuts, t)
+    assert keep == [cuts[0], cuts[2]]
+
+
+def test_self_crossing_polyline():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+    bow = np.array([[0, 0], [1, 1], [1, 0], [0, 1.0]])
+    seg = lambda R: np.stack([R, np.roll(R, -1, axis=0)], axis=1)  # noqa: E731
+    assert not S._self_crossing(seg(square))
+    assert S._self_crossing(seg(bow))

@@ -351,6 +351,11 @@ def point_mesh_distance(P, V, T, *, samples: int = 20000, k: int = 4, seed: int 
         raise InvalidInputError("point_mesh_distance needs a target mesh with at least one triangle, got none")
     if len(P) == 0:
         return np.zeros(0)
+    # Zero-area triangles (BRepMesh emits some) have no interior: their points lie on edges of their
+    # neighbours, and the point–triangle formula would divide by zero on them.
+    area2 = np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]), axis=1)
+    if np.any(area2 > 0):
+        T = T[area2 > 0]
     S, tri = sample_triangles(V, T, samples, seed)
     kk = min(k, len(S))
     _, idx = cKDTree(S).query(P, k=kk)

@@ -221,3 +221,12 @@ def test_compare_engines_errors():
         compare_engines(result("coons"), result("occt", status="raised"), scale=1.0, deflection=0.01)
     with pytest.raises(InvalidInputError, match="unknown reference engine 'other'"):
         compare_engines(result("coons"), result("other"), scale=1.0, deflection=0.01)
+
+
+def test_zero_area_triangles_do_not_poison_the_distance():
+    from coons.validation.compare import point_mesh_distance
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0.0]])
+    T = np.array([[0, 1, 2], [0, 1, 3]])  # the second triangle is a segment of zero area
+    d = point_mesh_distance(np.array([[0.2, 0.2, 1.0], [1.5, 0.0, 1.0]]), V, T)
+    np.testing.assert_allclose(d, [1.0, np.hypot(0.5, 1.0)], rtol=1e-12)

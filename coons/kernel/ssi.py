@@ -25,7 +25,9 @@ singular and tangential points):
    boundary, closed chains are loops).
 2. *Correction.*  Every crossing is moved onto the intersection by Newton's method on the 4 × 4
    system ``G(u_G, v_G) - F(u_F, v_F) = 0`` plus the grid line of its edge (``u_G`` or ``v_G``
-   fixed), batched over all crossings.
+   fixed), batched over all crossings.  Solutions are shifted by whole periods to the seed's
+   (a sphere's ``v`` counts as 2π-periodic here); a crossing whose Newton fails or leaves its
+   edge keeps its seed, so that a wandering solution never marks a false exit from ``F``'s box.
 3. *Singular points* (``n_G ∥ n_F``, where branches cross, e.g. two equal cylinders): local minima
    of ``|n_G × n_F|`` along the chains start a Gauss–Newton iteration on the 5 equations
    ``G - F = 0``, ``n_G · F_u = n_G · F_v = 0``; a converged solution splits every chain through it,
@@ -620,12 +622,18 @@ def _trace(g, f, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> tuple[list[tup
         X[plausible], pts[plausible], ok[plausible] = _correct(
             g, f, x0[plausible], fixed[plausible], value[plausible], None, t
         )
+    # Newton may land on the same point with other parameters (a period away): back to the seed's.
+    X = _near_seed(g, f, X, x0, fbox)
     # A crossing must stay on its edge (f changes sign there, so a root lies on it): where the curve
     # is nearly tangent to a grid line, Newton may reach the other of two close roots, which belongs
     # to a neighbouring edge.  1% of the edge is slack for round-off, far below such a jump.
     free = X[np.arange(X.shape[0]), 1 - fixed]
     margin = 0.01 * (edge[:, 1] - edge[:, 0])
     ok &= (free >= edge[:, 0] - margin) & (free <= edge[:, 1] + margin)
+    # A failed crossing keeps its seed (the projection of the grid crossing), not where Newton
+    # wandered: only the seed says whether the branch is inside F's box there.  A diverged
+    # solution far outside the box would otherwise cut the branch in two.
+    X[~ok], pts[~ok] = x0[~ok], Pc[~ok]
 
     chains = []
     for order, loop in _chains(uv.shape[0], segments):
@@ -648,6 +656,8 @@ def _trace(g, f, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> tuple[list[tup
             Xc, Pc_, okc, inside = Xc[distinct], Pc_[distinct], okc[distinct], inside[distinct]
         if loop and Xc.shape[0] > 2 and np.linalg.norm(Pc_[0] - Pc_[-1]) <= t.linear:
             Xc, Pc_, okc, inside = Xc[:-1], Pc_[:-1], okc[:-1], inside[:-1]
+        if Xc.shape[0] > 1 and not np.all(inside):
+            Xc, Pc_, inside = _densify_corners(g, f, Xc, Pc_, inside, fbox, t)
         if Xc.shape[0] == 0 or not np.any(inside):
             continue
         chains.append([Xc, Pc_, inside, loop and Xc.shape[0] > 2])
@@ -804,6 +814,67 @@ def _find_singular(g, f, chains, t: Tolerance) -> np.ndarray:
     d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)
     first = np.argmax(d <= t.linear, axis=1)
     return xs[np.unique(first)]
+
+
+#: Bisections of a chain step that passes through F's box between two samples outside it.
+_CORNER_BISECTIONS = 10
+#: Points per chain step tested against F's box (linear in the parameters).
+_CORNER_PROBES = 9
+
+
+def _densify_corners(g, f, Xc, Pc, inside, fbox: "_FieldBox", t: Tolerance):
+    """Samples added where a chain step, both ends outside ``F``'s box, passes through it.
+
+    A branch may cross a corner of the box within one grid cell: no sample lands inside and the
+    short piece would be lost (the neighbouring faces' branches then end apart).  Such steps
+    (some of :data:`_CORNER_PROBES` points interpolated in ``F``'s parameters inside the box) are
+    bisected by Newton in the plane through the chord's midpoint normal to it, up to
+    :data:`_CORNER_BISECTIONS` times, until a sample falls inside or the step clears the box.
+    """
+    s = np.linspace(0.0, 1.0, _CORNER_PROBES)[1:-1]
+    for _ in range(_CORNER_BISECTIONS):
+        out = ~inside
+        cand = np.flatnonzero(out[:-1] & out[1:])
+        if cand.size == 0:
+            break
+        y0, y1 = Xc[cand, 2:], Xc[cand + 1, 2:]
+        probes = y0[:, None, :] + s[None, :, None] * (y1 - y0)[:, None, :]
+        hit = fbox.inside(probes.reshape(-1, 2)).reshape(cand.size, s.size).any(axis=1)
+        cand = cand[hit]
+        if cand.size == 0:
+            break
+        chord = Pc[cand + 1] - Pc[cand]
+        if not np.all(np.linalg.norm(chord, axis=1) > t.linear):
+            cand = cand[np.linalg.norm(chord, axis=1) > t.linear]
+            chord = Pc[cand + 1] - Pc[cand]
+            if cand.size == 0:
+                break
+        D = np.stack([0.5 * (Pc[cand] + Pc[cand + 1]), chord], axis=1)
+        Xm, Pm, ok = _correct_on_planes(g, f, D, 0.5 * (Xc[cand] + Xc[cand + 1]), t)
+        Xm = _near_seed(g, f, Xm, 0.5 * (Xc[cand] + Xc[cand + 1]), fbox)
+        if not np.any(ok):
+            break
+        cand, Xm, Pm = cand[ok], Xm[ok], Pm[ok]
+        Xc = np.insert(Xc, cand + 1, Xm, axis=0)
+        Pc = np.insert(Pc, cand + 1, Pm, axis=0)
+        inside = np.insert(inside, cand + 1, fbox.inside(Xm[:, 2:]))
+    return Xc, Pc, inside
+
+
+def _near_seed(g, f, X: np.ndarray, x0: np.ndarray, fbox: "_FieldBox") -> np.ndarray:
+    """Corrected parameters ``X`` (m, 4) shifted by whole periods to lie nearest the seeds ``x0``.
+
+    Besides the periodic directions of the boxes, a sphere's ``v`` is 2π-periodic as a formula
+    (the same point): Newton from a seed near a pole may come back a turn away."""
+    X = X.copy()
+    per = list(fbox.g_periods + fbox.periods)
+    for k, S in ((1, g), (3, f)):
+        if getattr(S, "surface_type", None) == "sphere" and not isinstance(S, (NurbsSurface, _ClosedNurbs)):
+            per[k] = 2.0 * math.pi
+    for j, p in enumerate(per):
+        if p is not None:
+            X[:, j] += p * np.round((x0[:, j] - X[:, j]) / p)
+    return X
 
 
 def _near(x: np.ndarray, ref: np.ndarray, fbox: _FieldBox) -> np.ndarray:

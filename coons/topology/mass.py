@@ -84,7 +84,11 @@ accurate computation of polyhedral mass properties", 1996):
    K15 results are far more accurate:
    extruded, revolved and lofted spline faces agree with independent references to round-off
    (measured <= 5e-16, tests/topology/test_mass.py).
-   ``ConvergenceError`` if a face needs more than ``MAX_BISECTIONS`` halvings.
+   Where a round of halvings no longer lowers a face's summed estimate (by ``_STALL_FACTOR``,
+   for ``_STALL_ROUNDS`` rounds) the estimate is the rounding noise of the integrand (closed
+   forms with cancellation on fitted p-curves), not truncation error: the face is accepted if
+   that floor is within ``_ROUNDOFF_SLACK`` (1e3) times the target.
+   ``ConvergenceError`` if a face needs more than ``MAX_BISECTIONS`` halvings, or stalls above that.
 6. *Polygonal faces* (implicit planes ``face_surface = -1`` or :class:`PlanarSurface` faces,
    bounded only by straight edges: no curve or a :class:`Line`) use closed forms over all
    their coedges at once, whatever their sense: each coedge ``(a, b)`` of a face with
@@ -183,6 +187,14 @@ _WG = np.concatenate([_WG7[:-1], _WG7[::-1]])
 _WKG = np.stack([_WK, _WG], axis=1)  # (15, 2)
 #: Initial Gauss–Kronrod pieces per knot span (or per angular piece) before any bisection.
 _INITIAL_PIECES = 2
+#: The adaptive quadrature stalls when a round of halvings leaves the summed error estimate above
+#: this fraction of the previous round's (a jump discontinuity halves it: 0.5 is progress) ...
+_STALL_FACTOR = 0.7
+#: ... for this many rounds in a row; it then accepts a round-off floor of at most
+#: _ROUNDOFF_SLACK times the target (relative error estimate <= 1e3 rtol = 1e-9 by default,
+#: an overestimate: the noise of the G7 estimates largely cancels in the K15 sums).
+_STALL_ROUNDS = 3
+_ROUNDOFF_SLACK = 1e3
 #: Most pieces alive at once in one adaptive integration (memory bound; ConvergenceError beyond).
 _MAX_PIECES = 1 << 20
 
@@ -1234,13 +1246,23 @@ def _adaptive(item, lo, hi, owner, n_owners: int, fn: Callable, ncols: int, rtol
     if item.size == 0:
         return total
     K, E, A = _gk15(item, lo, hi, fn, ncols)
+    last = np.full(n_owners, np.inf)  # previous round's error / target, per owner
+    stall = np.zeros(n_owners, dtype=np.int64)
     for depth in range(MAX_BISECTIONS + 1):
         if not np.all(np.isfinite(K)):
             bad = np.unique(owner_face[owner[~np.all(np.isfinite(K), axis=1)]])
             raise ConvergenceError(f"mass properties: non-finite integrand on face(s) {bad.tolist()}", indices=bad)
         E_o, A_o = _sum_by(owner, E, n_owners), _sum_by(owner, A, n_owners)
         target = rtol * (A_o + A_o[:, :1] * scale)
-        done_o = np.all(E_o <= target, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio_o = np.max(np.where(E_o > 0, E_o / target, 0.0), axis=1)
+        # Round-off floor: where halving every piece no longer lowers the summed estimate (a
+        # smooth integrand's drops 2^-15 per halving, a kink's 1/4, a jump's 1/2), the estimate
+        # is the rounding noise of the integrand, not its truncation error.  The owner is done
+        # once that has held for _STALL_ROUNDS rounds and the noise is below _ROUNDOFF_SLACK targets.
+        stall = np.where(ratio_o > _STALL_FACTOR * last, stall + 1, 0)
+        last = ratio_o
+        done_o = np.all(E_o <= target, axis=1) | ((stall >= _STALL_ROUNDS) & (ratio_o <= _ROUNDOFF_SLACK))
         done = done_o[owner]
         if done.all():
             return total + _sum_by(owner, K, n_owners)

@@ -25,7 +25,11 @@ the pieces split at their mutual intersections; *nodes* are sub-piece ends merge
 working-plane tolerance ``eps = tol3 / σ`` (``tol3`` the largest edge tolerance and
 ``tol.linear``, ``σ`` the largest singular value of the scaled surface Jacobian on the
 boundary, at most about 1, so that working-plane points within ``eps`` are within ``tol3`` in
-space); *half-edges* are the two directions of a sub-piece.  The regions are the faces of the
+space); *half-edges* are the two directions of a sub-piece.  Where the surface is slow along a
+parameter (near a sphere or cone pole) a point known to ``tol3`` in space may lie many ``eps``
+away in the plane: there ends within ``tol3`` in space and ``tol3 / σ_min`` in the plane (at
+most ``100 eps``) are one node too, and a cut end that stops that short of a piece splits the
+piece at its foot (:func:`_snap_cut_ends`).  The regions are the faces of the
 arrangement, walked by turning most clockwise at every node (tangent directions, ties broken
 by curvature); counter-clockwise cycles that lie inside the original face (their boundary
 pieces run forward) are outer loops, and each clockwise cycle becomes a hole of the smallest
@@ -473,6 +477,7 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     for i, c in enumerate(cuts):
         pieces.append(_Piece(_pcurve(plane, c, f"cuts[{i}]"), c.t0, c.t1, "cut", -1, c, [], []))
     _intersect_pieces(pieces, nb, plane)
+    _snap_cut_ends(pieces, nb, plane)
     sub = _sub_pieces(pieces, plane)
     _check_cuts_inside(sub, pieces, region, cuts, plane)
     while True:
@@ -556,18 +561,112 @@ def _check_cuts_inside(sub: list[_Sub], pieces: list[_Piece], region: _Inside, c
         )
 
 
+#: Largest factor by which a node merge may exceed ``eps`` in the working plane where the surface
+#: is slow along a parameter (near a pole); beyond it ends stay apart even if close in space.
+_SLOW_MERGE = 100.0
+
+
+def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """3-D points ``(m, 3)`` of working-plane points ``X`` (m, 2) on a curved face, and how far
+    ``(m,)`` in the plane a point found to ``tol3`` in space may lie from them: ``tol3 / σ_min``
+    (σ_min the smallest singular value of the scaled Jacobian there), at most
+    :data:`_SLOW_MERGE` ``eps``."""
+    Minv = np.diag(1.0 / np.diag(plane.M))
+    uv = X @ Minv.T
+    S = plane.surface
+    P = np.asarray(S.evaluate(uv[:, 0], uv[:, 1]), dtype=np.float64).reshape(-1, 3)
+    D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1), dtype=np.float64)
+    J = np.stack([D[:, 1, 0] * Minv[0, 0], D[:, 0, 1] * Minv[1, 1]], axis=2)  # (m, 3, 2)
+    smin = np.linalg.svd(J, compute_uv=False)[:, -1]
+    reach = np.minimum(_SLOW_MERGE * plane.eps, plane.tol3 / np.maximum(smin, np.finfo(float).tiny))
+    return P, reach
+
+
+def _foot(pc: Any, a: float, b: float, q: np.ndarray) -> tuple[float, float]:
+    """The parameter in ``[min(a, b), max(a, b)]`` of the point of ``pc`` nearest ``q`` (2,), and the distance.
+
+    Dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few steps, kept in the range)."""
+    lo, hi = min(a, b), max(a, b)
+    s = np.linspace(lo, hi, 257)
+    k = int(np.argmin(np.linalg.norm(_uv(pc, s) - q, axis=1)))
+    x = float(s[k])
+    for _ in range(8):
+        D = np.asarray(pc.derivatives(np.array([x]), 2))[0]
+        r = D[0] - q
+        g, h = float(r @ D[1]), float(D[1] @ D[1] + r @ D[2])
+        if not h > 0:
+            break
+        x = min(max(x - g / h, lo), hi)
+    return x, float(np.linalg.norm(_uv(pc, x) - q))
+
+
+def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
+    """Split pieces where a cut ends on them within ``tol3`` in space but beyond ``eps`` in the plane.
+
+    Near a pole the surface is slow along ``u``: a cut ending on a meridian, computed to
+    ``tol3`` in space, may stop short of it by many ``eps`` in the working plane, so that
+    :func:`intersect_curves` finds no crossing there.  The foot of the end on the piece becomes a
+    split (and :func:`_node_pairs` merges the end with it)."""
+    if plane.project or isinstance(plane.surface, PlanarSurface):
+        return
+    for i in range(nb, len(pieces)):
+        c = pieces[i]
+        ends = _uv(c.pc, np.array([c.a, c.b]))
+        P, reach = _space_reach(plane, ends)
+        for q, Pq, r in zip(ends, P, reach):
+            if not r > plane.eps:
+                continue
+            box = np.stack([q - r, q + r])
+            for j, o in enumerate(pieces):
+                if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
+                    continue
+                s, d = _foot(o.pc, o.a, o.b, q)
+                if not plane.eps < d <= r:
+                    continue
+                Ps, _ = _space_reach(plane, _uv(o.pc, s)[None])
+                if np.linalg.norm(Ps[0] - Pq) <= plane.tol3:
+                    o.splits.append(s)
+
+
+def _node_pairs(X: np.ndarray, plane: _Plane) -> np.ndarray:
+    """Pairs ``(p, 2)`` of sub-piece ends ``X`` (m, 2) that are one node.
+
+    Ends within ``eps`` in the working plane always are.  Where the surface moves slowly along
+    a parameter (near a sphere or cone pole) a point found to ``tol3`` in space may be
+    ``tol3 / σ_min`` away in the working plane (σ_min the smallest singular value of the scaled
+    Jacobian there): two fitted p-curves ending at one 3-D vertex then miss each other by more
+    than ``eps``.  Such ends are merged when they are within ``tol3`` in space and within
+    ``tol3 / σ_min`` (at most :data:`_SLOW_MERGE` ``eps``) in the plane, so that distinct
+    parameter points of a pole, far apart in the plane, never merge.
+    """
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(X)
+    pairs = tree.query_pairs(r=plane.eps, output_type="ndarray")
+    if plane.project or isinstance(plane.surface, PlanarSurface):
+        return pairs  # the working plane is the plane itself: distances are 3-D distances
+    wide = tree.query_pairs(r=_SLOW_MERGE * plane.eps, output_type="ndarray")
+    if wide.shape[0] == pairs.shape[0]:
+        return pairs
+    P, reach = _space_reach(plane, X)
+    i, j = wide[:, 0], wide[:, 1]
+    d2 = np.linalg.norm(X[i] - X[j], axis=1)
+    d3 = np.linalg.norm(P[i] - P[j], axis=1)
+    ok = (d2 <= plane.eps) | ((d3 <= plane.tol3) & (d2 <= np.minimum(reach[i], reach[j])))
+    return wide[ok]
+
+
 class _Graph:
     """The planar arrangement of the sub-pieces: nodes, half-edges sorted around nodes, cycles."""
 
     def __init__(self, sub: list[_Sub], pieces: list[_Piece], plane: _Plane) -> None:
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
-        from scipy.spatial import cKDTree
 
         self.sub, self.pieces, self.plane = sub, pieces, plane
         n = len(sub)
         X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
-        pairs = cKDTree(X).query_pairs(r=plane.eps, output_type="ndarray") if n else np.zeros((0, 2), int)
+        pairs = _node_pairs(X, plane) if n else np.zeros((0, 2), int)
         g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(2 * n, 2 * n))
         _, label = connected_components(g, directed=False)
         # Half-edge 2k runs sub k forward (node n0 -> n1), 2k + 1 backward.

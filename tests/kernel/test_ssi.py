@@ -152,7 +152,7 @@ def test_viviani_curve(swap):
     a, b, box_a, box_b = (cyl, sphere, box_c, None) if swap else (sphere, cyl, None, box_c)
     r = march_intersection(a, b, box_a, box_b)
     assert len(r.curves) == 4
-    _check_branches(r, a, b)
+    _check_branches(r, a, b, box_a, box_b)
     ends = np.concatenate([_samples(c)[[0, -1]] for c in r.curves])
     special = np.array([[0, 0, R], [0, 0, -R], [R, 0, 0]])
     d = np.linalg.norm(ends[:, None, :] - special[None], axis=2)
@@ -511,3 +511,91 @@ def test_tangency_along_a_curve_is_logged_not_reported(caplog):
         r = march_intersection(cyl, plane, ((0, 2 * PI), (-1, 1)), ((-3, 3), (-3, 3)))
     assert r.curves == () and r.points.shape == (0, 3)
     assert "touch along a curve" in caplog.text
+
+
+# ---------------------------------------------------------------------------- regressions (random Booleans)
+def _assert_ends_on_boundaries(r, a, b, box_a, box_b, extra=()):
+    """The branches' union is connected: every open end lies on a box boundary, at a pole or
+    apex (``extra`` points), or at an end of another branch."""
+    ends = []
+    for c in r.curves:
+        if not c.closed:
+            t = np.array([c.t0, c.t1])
+            ends += [(c.curve.evaluate(t)[k], c.pcurve_a.evaluate(t)[k], c.pcurve_b.evaluate(t)[k]) for k in (0, 1)]
+    P = np.array([e[0] for e in ends]).reshape(-1, 3)
+    for i, (p, ua, ub) in enumerate(ends):
+        on_box = any(np.any(np.abs(uv[:, None] - np.array(box)) <= 1e-7) for uv, box in ((ua, box_a), (ub, box_b)))
+        d = np.linalg.norm(P - p, axis=1)
+        d[i] = np.inf
+        at_other = d.min(initial=np.inf) <= 1e-6
+        at_extra = any(np.linalg.norm(p - q) <= 1e-6 for q in extra)
+        assert on_box or at_other or at_extra, f"branch end {p.tolist()} (uv_a {ua.tolist()}, uv_b {ub.tolist()}) is loose"
+
+
+def test_cone_and_sphere_branch_has_no_gap():
+    """A crossing whose Newton came back with the sphere's v a turn away (5.77 for -0.52) was taken
+    for a point outside the sphere's box and cut the branch (a 0.05 gap)."""
+    a = ConicalSurface([2.7608287050455567, 1.599448249325841, -3.0985048923660026],
+                       [-0.5995290713459612, -0.3508896509362203, 0.7193339596299532],
+                       [-0.22465267926295698, 0.9364168157748223, 0.26954539661088167],
+                       2.2075580506337307, -0.2816502066935166)
+    b = SphericalSurface([-0.1366398597555003, 0.5124034194596274, 0.5409047355988528], [0, 0, 1], [1, 0, 0],
+                         1.5516681895290736)
+    box_a = ((-0.03141602653589794, 3.173008680125691), (-0.0621845290491712, 6.28062743396629))
+    box_b = ((3.110176627053895, 6.314601333715484), (-1.6022123533307946, 1.6022123533307946))
+    r = march_intersection(a, b, box_a, box_b)
+    _check_branches(r, a, b, box_a, box_b)
+    assert len(r.curves) == 2
+    _assert_ends_on_boundaries(r, a, b, box_a, box_b)
+
+
+def test_torus_and_cylinder_branch_has_no_gap():
+    """A crossing where Newton jumped to another root (5.8 away, outside the cylinder's box) cut the branch."""
+    a = ToroidalSurface([1.9169131567582505, 0.15337293630516013, 0.9486008904831342],
+                        [0.5749974952009027, 0.5642489012675261, 0.592453422583647],
+                        [0.807752697580607, -0.27640449123133204, -0.520707342735246],
+                        3.9891410332725434, 0.5301274963753239)
+    b = CylindricalSurface([0.9390478614972365, -0.08848912524341124, 1.3611248218073961],
+                           [-0.4392647570867809, 0.5818891757444946, -0.6844351396099445],
+                           [0.8983576532659425, 0.28452299204620435, -0.33466430018091886], 1.8692544891059153)
+    box_a = ((-0.03141602653589794, 3.173008680125691), (-0.03141602653589794, 3.173008680125691))
+    box_b = ((3.110176627053895, 6.314601333715484), (-0.03360781806320531, 3.3943796243837356))
+    r = march_intersection(a, b, box_a, box_b)
+    _check_branches(r, a, b, box_a, box_b)
+    assert len(r.curves) == 1
+    _assert_ends_on_boundaries(r, a, b, box_a, box_b)
+
+
+def test_sphere_grid_beyond_the_pole_gives_no_stray_branch():
+    """The sphere's box reaches past its pole (v up to 1.6022): samples there must not be folded
+    into a branch outside the box (a stray branch with tol 0.22 did)."""
+    a = SphericalSurface([0.8464841386067945, -0.05577507469285403, 0.13195260952388144],
+                         [0.007637582623912037, -0.40215623882908813, 0.9155392000905829],
+                         [0.313970335614917, -0.868301104185617, -0.3840258074972236], 3.3509554785341473)
+    b = ToroidalSurface([1.80845641667185, -1.5645390141726703, -0.30647971969847115],
+                        [-0.5429271816186924, -0.7233818416786101, -0.4265545528877238],
+                        [-0.7685569971174963, 0.22329926740981487, 0.5995478124019609],
+                        3.4509934765182555, 1.0338477832741002)
+    box_a = ((-0.03141602653589794, 3.173008680125691), (-1.6022123533307946, 1.6022123533307946))
+    box_b = ((3.110176627053895, 6.314601333715484), (3.110176627053895, 6.314601333715484))
+    r = march_intersection(a, b, box_a, box_b)
+    _check_branches(r, a, b, box_a, box_b)
+
+
+def test_branch_crossing_a_box_corner_within_one_cell_is_found():
+    """A 0.2-long piece of a sphere–torus branch cuts the corner of the torus face's box between
+    two grid samples outside it; without it the neighbouring faces' cuts ended 0.1 apart."""
+    a = SphericalSurface([0.9567527471223962, -0.20710899696138285, -0.9444901798908854],
+                         [-0.7379077027664579, -0.3845590173864419, -0.5546229208612848],
+                         [-0.5240807700146016, -0.19129103885813012, 0.8299078773897014], 2.74746617060107)
+    b = ToroidalSurface([0.6330717751252952, -0.03664132391536215, -0.38536310939977914],
+                        [-0.15948037109074897, 0.8536666825002551, -0.4958015796926886],
+                        [0.7303225867098161, -0.23589522476076613, -0.6410790608626606],
+                        2.9280700556379835, 0.8287011953903672)
+    box_a = ((-0.03141602653589794, 3.173008680125691), (-1.6022123533307946, 1.6022123533307946))
+    box_b = ((3.110176627053895, 6.314601333715484), (3.110176627053895, 6.314601333715484))
+    r = march_intersection(a, b, box_a, box_b)
+    _check_branches(r, a, b, box_a, box_b)
+    lengths = sorted(c.curve.length() for c in r.curves)
+    assert len(lengths) == 2 and 0.1 < lengths[0] < 0.3
+    _assert_ends_on_boundaries(r, a, b, box_a, box_b)

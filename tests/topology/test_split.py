@@ -475,6 +475,62 @@ def test_hemisphere_by_meridian_from_pole_to_pole():
     assert [len(p.loops[0]) for p in pieces] == [2, 2]
 
 
+def test_cut_chain_near_a_pole_joins_within_the_3d_tolerance():
+    """Two fitted p-curves ending at one 3-D vertex near a pole miss each other by more than
+    eps in the plane (u is slow there) but by less than the tolerance in space: one node, so
+    the chain from meridian u = pi to meridian u = 2 pi splits the face (regression: 1 piece)."""
+    face = face_specs(Sphere(1))[1]  # u in [pi, 2 pi]
+    v0 = -1.45
+    lat = Circle([0, 0, math.sin(v0)], [0, 0, 1], [1, 0, 0], math.cos(v0))
+    um, du = 1.5 * math.pi, 5e-7  # du: 4e-7 beyond eps in the plane, 6e-8 (< 1e-7) in space
+    assert du * math.cos(v0) < 1e-7 < du
+    half = 0.5 * math.pi
+    cut1 = EdgeSpec(lat, math.pi, um, Line2D([0, v0], [1, 0]))
+    cut2 = EdgeSpec(lat, um, 2 * math.pi, Line2D([um + du - um * (1 - du / half), v0], [1 - du / half, 0]))
+    np.testing.assert_allclose(cut2.pcurve.evaluate(np.array([um, 2 * math.pi])), [[um + du, v0], [2 * math.pi, v0]],
+                               atol=1e-14)
+    pieces = split_face(face, [cut1, cut2])
+    assert len(pieces) == 2
+    areas = sorted(_area(p, "sphere") for p in pieces)
+    cap = math.pi * (1 - math.cos(0.5 * math.pi + v0))  # half of the polar cap below v0
+    np.testing.assert_allclose(areas, [cap, 2 * math.pi - cap], rtol=1e-5)
+    _assert_cut_uses(pieces, [cut1, cut2])
+
+
+def test_sphere_sphere_union_through_a_pole_region_has_the_lens_volume():
+    """The Boolean whose cut chain crossed a hemisphere near its pole (split_face gave 1 piece)."""
+    from coons.booleans.solid import union
+
+    c1, r1 = np.array([-0.7294060329, -0.7576609654, 0.0845180920]), 3.605718347897091
+    c2, r2 = np.array([1.7679752117, -0.3345214383, 1.4848296024]), 3.7012874840163095
+    A, B = Sphere(r1).translate(c1), Sphere(r2).translate(c2)
+    lens = _lens(r1, r2, float(np.linalg.norm(c2 - c1)))
+    R = union(A, B)
+    np.testing.assert_allclose(R.volume, 4 / 3 * math.pi * (r1**3 + r2**3) - lens, rtol=1e-6)
+
+
+def _lens(r1: float, r2: float, d: float) -> float:
+    """Volume of the intersection of two balls of radii r1, r2 at distance d (|r1 - r2| < d < r1 + r2)."""
+    return math.pi * (r1 + r2 - d) ** 2 * (d * d + 2 * d * (r1 + r2) - 3 * (r1 - r2) ** 2) / (12 * d)
+
+
+def test_cut_ending_on_a_meridian_near_a_pole_splits_the_hemisphere():
+    """A cut chain from meridian u = 0 back to it, whose first end (0.017 from the pole) stops
+    2.3e-7 short of the meridian in u: 4 eps in the plane, 4e-9 in space.  The end is snapped
+    onto the meridian (regression: 1 piece, "cut bounds the pieces 0 times")."""
+    from coons.booleans.solid import difference, intersection, union
+    from tests.booleans.occt_cases import draw_pair
+
+    p = draw_pair("sph", "sph", 3, seed=4242)
+    A, B = p.operands()
+    (r1,), (r2,) = p.sizes_a, p.sizes_b
+    d = float(np.linalg.norm(np.array(p.matrix_a)[:3, 3] - np.array(p.matrix_b)[:3, 3]))
+    lens = _lens(r1, r2, d)
+    va, vb = 4 / 3 * math.pi * r1**3, 4 / 3 * math.pi * r2**3
+    np.testing.assert_allclose([intersection(A, B).volume, difference(A, B).volume, union(A, B).volume],
+                               [lens, va - lens, va + vb - lens], rtol=1e-7)
+
+
 # ====================================================================== split + sew solids
 def _box_section(f: FaceSpec):
     """The cut x = 0 on the faces of Box(2, 2, 2) it crosses (3-D lines; p-curves projected)."""

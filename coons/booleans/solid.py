@@ -1288,13 +1288,19 @@ def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
     return FaceSpec(S, bool(np.dot(n, N) > 0.0), loops)
 
 
-def _period_shifted(B: FaceSpec, S, offset: np.ndarray) -> FaceSpec | None:
-    """B with its p-curves moved by the whole periods nearest to ``offset`` (None if impossible)."""
+def _whole_periods(S, offset: np.ndarray) -> np.ndarray:
+    """The multiples of S's periods nearest to ``offset`` ``(2,)``, per parameter (0 where not periodic)."""
     shift = np.zeros(2)
     for k, name in ((0, "period_u"), (1, "period_v")):
         per = getattr(S, name, None)
         if per:
             shift[k] = per * np.round(offset[k] / per)
+    return shift
+
+
+def _period_shifted(B: FaceSpec, S, offset: np.ndarray) -> FaceSpec | None:
+    """B with its p-curves moved by the whole periods nearest to ``offset`` (None if impossible)."""
+    shift = _whole_periods(S, offset)
     if not np.any(shift):
         return B
     loops = []
@@ -1311,11 +1317,7 @@ def _period_shifted(B: FaceSpec, S, offset: np.ndarray) -> FaceSpec | None:
 
 def _shifted_edge(e: EdgeSpec, S, offset: np.ndarray) -> EdgeSpec | None:
     """``e`` with its p-curve moved by the whole periods of S nearest to ``offset`` (None if impossible)."""
-    shift = np.zeros(2)
-    for k, name in ((0, "period_u"), (1, "period_v")):
-        per = getattr(S, name, None)
-        if per:
-            shift[k] = per * np.round(offset[k] / per)
+    shift = _whole_periods(S, offset)
     if not np.any(shift):
         return e
     pc = e.pcurve

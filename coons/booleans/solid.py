@@ -285,11 +285,7 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     if len(group) == 1:
         return group[0]
     specs = [spec for s in group for spec in face_specs(s)]
-    try:
-        return sew_faces(specs, t)
-    except CoonsError as exc:
-        raise BooleanError(f"gathering {len(group)} disjoint operands into one failed: {type(exc).__name__}: {exc}",
-                           stage="input", diagnostics={"operands": len(group), "error": str(exc)}) from exc
+    return _sew(specs, t, stage="input", what=f"gathering {len(group)} disjoint operands into one")
 
 
 def is_polyhedral(s: Solid) -> bool:
@@ -1342,12 +1338,16 @@ def _fuse(A: FaceSpec, B: FaceSpec, ua: tuple[int, int], ub: tuple[int, int], t:
     k = len(items)
     thr = max([t.linear] + [e.tol or 0.0 for e in items])
     # Cancel further shared pairs (a face pair may share several consecutive edges).
+    def near(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(P[:, None, :] - Q[None, :, :], axis=-1) <= thr
+
+    # Use x and use y run along one curve in opposite directions: all (x, y) at once, then the
+    # pairs taken greedily in (x, y) order, each use cancelled at most once.
+    match = np.triu(near(mids, mids) & near(ends[:, 0], ends[:, 1]) & near(ends[:, 1], ends[:, 0]), 1)
     alive = np.ones(k, dtype=bool)
-    for x in range(k):
-        for y in range(x + 1, k):
-            if alive[x] and alive[y] and np.linalg.norm(mids[x] - mids[y]) <= thr \
-                    and np.linalg.norm(ends[x, 0] - ends[y, 1]) <= thr and np.linalg.norm(ends[x, 1] - ends[y, 0]) <= thr:
-                alive[x] = alive[y] = False
+    for x, y in zip(*np.nonzero(match)):
+        if alive[x] and alive[y]:
+            alive[x] = alive[y] = False
     idx = np.flatnonzero(alive)
     if idx.size == 0:
         return None
@@ -1475,12 +1475,14 @@ def _joined(a: EdgeSpec, b: EdgeSpec, t: Tolerance) -> EdgeSpec | None:
 
 
 # ---------------------------------------------------------------------- sew
-def _sew(faces: list[FaceSpec], t: Tolerance) -> Solid:
+def _sew(faces: list[FaceSpec], t: Tolerance, stage: str = "sew", what: str | None = None) -> Solid:
+    """``sew_faces`` with its failure reported as ``BooleanError(stage=stage)``, saying ``what`` was sewn."""
     try:
         return sew_faces(faces, t)
     except CoonsError as exc:
-        raise BooleanError(f"sewing {len(faces)} selected faces failed: {type(exc).__name__}: {exc}",
-                           stage="sew", diagnostics={"faces": len(faces), "error": str(exc)}) from exc
+        what = what or f"sewing {len(faces)} selected faces"
+        raise BooleanError(f"{what} failed: {type(exc).__name__}: {exc}",
+                           stage=stage, diagnostics={"faces": len(faces), "error": str(exc)}) from exc
 
 
 def _kind(spec: FaceSpec) -> str:

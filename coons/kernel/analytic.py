@@ -620,13 +620,12 @@ class _Revolved(_Framed):
         rho, h = self._meridian(v, order)
         X, Y, Z = self._frame
         c, s = np.cos(u), np.sin(u)
-        out = np.empty(u.shape + (order + 1, order + 1, 3))
-        for k in range(order + 1):
-            e = _cos_d(c, s, k)[..., None] * X + _sin_d(c, s, k)[..., None] * Y
-            for l in range(order + 1):
-                out[..., k, l, :] = rho[l][..., None] * e
-        for l in range(order + 1):
-            out[..., 0, l, :] += h[l][..., None] * Z
+        # e^(k)(u) for every k, times ρ^(l)(v) for every l, in one broadcast product (the same
+        # element-wise arithmetic as a loop over k and l).
+        E = np.stack([_cos_d(c, s, k)[..., None] * X + _sin_d(c, s, k)[..., None] * Y for k in range(order + 1)],
+                     axis=-2)  # shape + (order + 1, 3)
+        out = E[..., :, None, :] * np.stack(rho, axis=-1)[..., None, :, None]
+        out[..., 0, :, :] += np.stack(h, axis=-1)[..., None] * Z
         out[..., 0, 0, :] += self._origin
         return out
 

@@ -26,6 +26,8 @@ __all__ = [
     "domain_of",
     "check_parameters",
     "find_spans",
+    "basis_first_derivatives",
+    "last_span",
     "basis_functions",
     "basis_derivatives",
     "basis_matrix",
@@ -61,6 +63,12 @@ def as_knot_vector(knots, degree: int, n_coefficients: int, *, what: str = "knot
     if not isinstance(degree, (int, np.integer)) or degree < 1:
         raise InvalidGeometryError(f"degree must be an integer >= 1, got {degree!r}")
     U = np.array(knots, dtype=np.float64).ravel()
+    # Models repeat a few knot vectors over and over (every patch of a sewn spline model): a
+    # vector validated before is returned as the same read-only array, unchecked again.
+    key = (U.tobytes(), int(degree), int(n_coefficients)) if U.size <= _VALID_KNOTS_LEN else None
+    known = _VALID_KNOTS.get(key) if key is not None else None
+    if known is not None:
+        return known
     expected = n_coefficients + degree + 1
     if U.shape[0] != expected:
         raise InvalidGeometryError(
@@ -89,7 +97,19 @@ def as_knot_vector(knots, degree: int, n_coefficients: int, *, what: str = "knot
             raise InvalidGeometryError(
                 f"{what}: interior knot {vals[j]!r} has multiplicity {counts[j]}, at most degree = {degree} allowed"
             )
-    return readonly(U)
+    readonly(U)
+    if key is not None:
+        if len(_VALID_KNOTS) >= _VALID_KNOTS_MAX:
+            _VALID_KNOTS.clear()  # a bound on memory, not an LRU: the common vectors come straight back
+        _VALID_KNOTS[key] = U
+    return U
+
+
+#: Knot vectors already validated by :func:`as_knot_vector`, by (bytes, degree, count) -> read-only array.
+_VALID_KNOTS: dict[tuple, np.ndarray] = {}
+#: Most vectors remembered, and the longest remembered (at most 1024 × 64 × 8 bytes = 512 KB).
+_VALID_KNOTS_MAX = 1024
+_VALID_KNOTS_LEN = 64
 
 
 def domain_of(knots: np.ndarray, degree: int) -> tuple[float, float]:
@@ -113,7 +133,7 @@ def check_parameters(u, domain: tuple[float, float], tol: Tolerance, *, what: st
     lo, hi = domain
     slack = tol.solver * max(1.0, hi - lo)
     if u.size:
-        umin, umax = float(np.min(u)), float(np.max(u))
+        umin, umax = float(u.min()), float(u.max())
         if not (np.isfinite(umin) and np.isfinite(umax)):
             raise InvalidInputError(f"{what}: parameters must be finite, got NaN or inf")
         if umin < lo - slack or umax > hi + slack:
@@ -124,7 +144,7 @@ def check_parameters(u, domain: tuple[float, float], tol: Tolerance, *, what: st
     return u
 
 
-def find_spans(knots: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
+def find_spans(knots: np.ndarray, degree: int, u: np.ndarray, last: int | None = None) -> np.ndarray:
     """Knot span index of each parameter (The NURBS Book A2.1).
 
     The span is ``#{i : U[i] <= u} - 1`` kept inside ``[p, last]``, ``last`` being the
@@ -137,15 +157,15 @@ def find_spans(knots: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
     ----------
     knots : (n + p + 1,) float64
     u : (m,) float64, inside the domain
+    last : int, optional
+        :func:`last_span` of the knot vector, when the caller has it cached.
 
     Returns
     -------
     (m,) int64 in ``[p, n - 1]``
     """
-    n = knots.shape[0] - degree - 1
-    # The last non-empty span: with a floating knot vector U[n] may repeat above the
-    # domain, so span n - 1 can be empty and u = U[n] belongs to the span before it.
-    last = int(np.searchsorted(knots, knots[n], side="left")) - 1
+    if last is None:
+        last = last_span(knots, degree)
     u = np.asarray(u)
     if u.size >= _TABLE_MIN_POINTS:
         table = span_table(knots, degree, last)
@@ -153,6 +173,16 @@ def find_spans(knots: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
             return _table_spans(table, knots, u, last)
     spans = np.minimum(np.searchsorted(knots, u, side="right") - 1, last)
     return np.maximum(spans, degree).astype(np.int64, copy=False)
+
+
+def last_span(knots: np.ndarray, degree: int) -> int:
+    """Index of the last non-empty knot span of the domain ``[U[p], U[n]]``.
+
+    With a floating knot vector ``U[n]`` may repeat above the domain, so span ``n - 1`` can
+    be empty and ``u = U[n]`` belongs to the span before it.
+    """
+    n = knots.shape[0] - degree - 1
+    return int(np.searchsorted(knots, knots[n], side="left")) - 1
 
 
 #: Batches below this size use the binary search: the bucket table costs O(cells) to build.
@@ -236,6 +266,36 @@ def basis_rows(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray)
         nxt.append(saved)
         N = nxt
     return N
+
+
+def basis_first_derivatives(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Non-zero basis functions and their first derivatives, ``(2, p + 1, m)`` (small batches).
+
+    From the degree ``p - 1`` rows of :func:`basis_rows`, one more step of its recursion gives
+    the degree ``p`` values (the same operations, so the same bits) and the derivative formula
+    ``N'_{i,p} = p (N_{i,p-1} / (U[i+p] - U[i]) - N_{i+1,p-1} / (U[i+p+1] - U[i+1]))`` (The
+    NURBS Book eq. 2.7) reuses that step's quotients: a dozen array operations in all, against
+    the ``O(p²)`` of :func:`basis_derivative_rows`, whose derivatives it matches to round-off.
+
+    Returns
+    -------
+    (2, p + 1, m) float64: ``[0, j]`` is ``N[span - p + j, p](u)``, ``[1, j]`` its derivative
+    """
+    p = degree
+    m = u.shape[0]
+    lower = np.asarray(basis_rows(knots, p - 1, spans, u)) if p > 1 else np.ones((1, m))
+    r = np.arange(1, p + 1)[:, None]
+    hi = knots[spans + r]  # U[span + 1 + j], j < p
+    lo = knots[spans + (r - p)]  # U[span + 1 + j - p]
+    temp = lower / (hi - lo)
+    out = np.zeros((2, p + 1, m))
+    N, dN = out[0], out[1]
+    N[:p] = (hi - u) * temp
+    N[1:] += (u - lo) * temp
+    dN[1:] = temp
+    dN[:p] -= temp
+    dN *= p
+    return out
 
 
 def basis_derivative_rows(

@@ -34,6 +34,14 @@ with ``derivatives(t, order) -> shape + (order + 1, d)``.
    Solutions inside an overlap are dropped; solutions closer than ``tol.linear`` (or joined by
    a stretch within ``tol.linear`` of both curves, as around a tangential touching) are one.
 
+Speed (many small problems: face splitting intersects each p-curve with every boundary piece).
+A clamped NURBS is evaluated through per-span polynomials built once per curve object and
+cached weakly (:class:`_PowerForm`); its piece boxes are the Bézier hulls of equal fractions of
+its spans.  Lines and conics are evaluated from their closed forms (``o + t d``,
+``C + A cos t + B sin t``) without the per-call checks of the curve classes.  Feet of points
+on lines and circles are closed forms; the feet of the range ends are computed once per call
+and shared by the seeds, the end contacts and the overlap cuts.
+
 The module does not intersect a curve with itself, does not compute intersection
 multiplicities, and does not find two distinct intersections closer together than the pieces
 resolve (both are reported as one).
@@ -42,6 +50,7 @@ resolve (both are reported as one).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,6 +66,8 @@ __all__ = ["CurveIntersections", "curve_box", "intersect_curves", "refine_inters
 
 #: Pieces per full turn of a conic: the chord box margin h² M / 8 is then below 2 % of the radius.
 _CONIC_PIECES_PER_TURN = 32
+#: One turn of a periodic parameter.
+_TWO_PI = 2.0 * math.pi
 #: Target number of pieces of a general curve (NURBS spans are refined up to about this many).
 _TARGET_PIECES = 64
 #: Samples along a curve used to seed projections.
@@ -67,6 +78,9 @@ _OVERLAP_PROBES = np.array([0.1, 0.3, 0.5, 0.7, 0.9])
 _NEWTON_ITERATIONS = 60
 #: Newton steps without getting closer after which a seed is abandoned (not an intersection).
 _STALL = 4
+#: sin² of the angle between the tangents above which Newton also tries the Gauss–Newton step (a
+#: solver strategy, not a geometric decision: the closer trial point is kept either way).
+_TRANSVERSAL = 1e-4
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +140,162 @@ def _range(r, curve: Any, what: str, t_: Tolerance) -> tuple[float, float]:
 
 def _derivs(curve: Any, t: np.ndarray, order: int) -> np.ndarray:
     """``(k, order + 1, d)`` derivatives at the parameters ``t`` (k,)."""
+    lin = _linear(curve)
+    if lin is not None:  # o + t d, without the per-call validation of the curve classes
+        o, d = lin
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        out = np.zeros((t.size, order + 1, o.size))
+        out[:, 0] = o + t[:, None] * d
+        if order:
+            out[:, 1] = d
+        return out
+    if isinstance(curve, NurbsCurve):
+        form = _power_form(curve)
+        if form is not None:
+            return form.derivatives(t, order)
+    elif isinstance(curve, (Circle, Ellipse, Trig2D)):
+        C, A, B = _trig_form(curve)
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        c, s = np.cos(t)[:, None], np.sin(t)[:, None]
+        cycle = ((c, s), (-s, c), (-c, -s), (s, -c))  # d^k/dt^k (cos t, sin t), period 4
+        out = np.empty((t.size, order + 1, C.size))
+        for k in range(order + 1):
+            ck, sk = cycle[k % 4]
+            out[:, k] = ck * A + sk * B
+        out[:, 0] += C
+        return out
     return np.asarray(curve.derivatives(t, order), dtype=np.float64)
+
+
+_TRIG: "weakref.WeakKeyDictionary[Any, tuple[np.ndarray, np.ndarray, np.ndarray]]" = weakref.WeakKeyDictionary()
+
+
+def _trig_form(curve) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(C, A, B)`` with ``curve(t) = C + A cos t + B sin t`` for a circle, ellipse or ``Trig2D`` (cached)."""
+    form = _TRIG.get(curve)
+    if form is None:
+        if isinstance(curve, Trig2D):
+            form = (curve.center, curve.a, curve.b)
+        else:
+            D = np.asarray(curve.derivatives(np.zeros(1), 1), dtype=np.float64)[0]
+            C = np.asarray(curve.center, dtype=np.float64)
+            form = (C, D[0] - C, D[1])
+        _TRIG[curve] = form
+    return form
+
+
+class _PowerForm:
+    """A clamped NURBS curve as one polynomial per knot span, for the many small evaluations here.
+
+    Each span ``[a, b]`` of the homogeneous curve ``[w C, w]`` is a polynomial of degree ``p``
+    in ``x = (t - a) / (b - a) ∈ [0, 1]``; its power coefficients are its Taylor coefficients at
+    ``a`` (one vectorised derivative evaluation of the homogeneous B-spline).  Derivatives are
+    sums of powers of ``x`` and the rational quotient rule (The NURBS Book eq. 4.8).  Built once
+    per curve object (:func:`_power_form`): the callers (face splitting) intersect one p-curve
+    with many others, and this evaluation costs a few array operations where
+    ``NurbsCurve.derivatives`` costs a basis-function evaluation.  On ``[0, 1]`` the power form
+    of a low-degree polynomial is well conditioned (values to a few ulps of the control points'
+    magnitude).
+    """
+
+    def __init__(self, curve: NurbsCurve):
+        p = curve.degree
+        self.p, self.rational, self.dim = p, curve.is_rational, curve.dimension
+        self.breaks = vals = curve.knot_multiplicities[0]
+        # Taylor coefficients at each span's start, D^k(a) h^k / k!, of the homogeneous curve (a polynomial
+        # B-spline in d + 1 coordinates; at a knot the span to its right is evaluated).
+        hom = NurbsCurve(curve.homogeneous, curve.knots, p)
+        h = np.diff(vals)
+        D = np.asarray(hom.derivatives(vals[:-1], p), dtype=np.float64)  # (spans, p + 1, d + 1)
+        scale = np.array([1.0 / math.factorial(k) for k in range(p + 1)])[None, :] * h[:, None] ** np.arange(p + 1)
+        #: (spans, p + 1, d + 1) power coefficients in the local parameter x = (t - a) / h.
+        self.coef = D * scale[:, :, None]
+        self._stacked: np.ndarray | None = None
+        self._powers = np.arange(p + 1)
+        self._binom = [[math.comb(k, i) for i in range(k + 1)] for k in range(p + 3)]
+
+    def _stack(self, order: int) -> np.ndarray:
+        """``(spans, order + 1, p + 1, d + 1)``: power coefficients of the x-derivatives of orders 0..order."""
+        if self._stacked is None or self._stacked.shape[1] <= order:
+            c = [self.coef]
+            for _ in range(order):
+                nxt = np.zeros_like(c[-1])
+                nxt[:, :-1] = c[-1][:, 1:] * np.arange(1, self.p + 1)[None, :, None]
+                c.append(nxt)
+            self._stacked = np.stack(c, axis=1)
+        return self._stacked
+
+    def pieces(self, lo: float, hi: float):
+        """The spans meeting ``[lo, hi]``, each cut into ``per`` equal pieces (about :data:`_TARGET_PIECES` in
+        all), with the boxes of the pieces' Bézier control points (convex hull property, positive weights).
+
+        The piece ``x ∈ [x0, x0 + g]`` of a span has power coefficients
+        ``c'_m = g^m Σ_{k>=m} C(k, m) x0^(k-m) c_k`` and Bézier points ``P_i = Σ_{m<=i} C(i, m) / C(p, m) c'_m``.
+
+        Returns
+        -------
+        a, b : (m,) float64; box_lo, box_hi : (m, d) float64
+        """
+        br, p = self.breaks, self.p
+        sel = np.flatnonzero((br[1:] > lo) & (br[:-1] < hi))
+        per = max(1, math.ceil(_TARGET_PIECES / max(1, sel.size)))
+        x0 = np.arange(per) / per
+        g = 1.0 / per
+        T = np.zeros((per, p + 1, p + 1))  # T[q, m, k]: c'_m of piece q from c_k
+        Minv = np.zeros((p + 1, p + 1))
+        for m in range(p + 1):
+            for k in range(m, p + 1):
+                T[:, m, k] = math.comb(k, m) * x0 ** (k - m) * g ** m
+            for i in range(m, p + 1):
+                Minv[i, m] = math.comb(i, m) / math.comb(p, m)
+        B = np.einsum("im,qmk,skd->sqid", Minv, T, self.coef[sel])  # (spans, per, p + 1, d + 1)
+        P = B[..., :-1] / B[..., -1:]
+        h = br[sel + 1] - br[sel]
+        a = (br[sel][:, None] + x0[None] * h[:, None]).ravel()
+        b = (br[sel][:, None] + (x0 + g)[None] * h[:, None]).ravel()
+        b = np.where(np.repeat(np.arange(per)[None] == per - 1, sel.size, axis=0).ravel(),
+                     np.repeat(br[sel + 1], per), b)  # the last piece ends exactly at the knot
+        P = P.reshape(-1, p + 1, self.dim)
+        keep = (b > lo) & (a < hi)
+        return np.maximum(a[keep], lo), np.minimum(b[keep], hi), P[keep].min(axis=1), P[keep].max(axis=1)
+
+    def derivatives(self, t: np.ndarray, order: int) -> np.ndarray:
+        """``(k, order + 1, d)`` point and derivatives at ``t (k,)`` (the span to the right at a knot)."""
+        t = np.asarray(t, dtype=np.float64).ravel()
+        br = self.breaks
+        span = np.minimum(np.maximum(np.searchsorted(br, t, side="right") - 1, 0), br.size - 2)
+        a, h = br[span], br[span + 1] - br[span]
+        x = (t - a) / h
+        X = x[:, None] ** self._powers  # (k, p + 1)
+        C = self._stack(order)[span, : order + 1]  # (k, order + 1, p + 1, d + 1)
+        H = np.einsum("kj,kojd->kod", X, C)
+        if order:
+            H[:, 1:] /= (h[:, None] ** self._powers[1 : order + 1])[:, :, None]
+        if not self.rational:
+            return H[:, :, :-1] / H[:, :1, -1:]  # constant weight
+        A, w = H[:, :, :-1], H[:, :, -1:]
+        # Quotient rule C^(k) = (A^(k) - Σ_{i=1..k} C(k, i) w^(i) C^(k-i)) / w (The NURBS Book eq. 4.8).
+        out = np.empty_like(A)
+        for k in range(order + 1):
+            v = A[:, k].copy()
+            for i in range(1, k + 1):
+                v -= self._binom[k][i] * w[:, i] * out[:, k - i]
+            out[:, k] = v / w[:, 0]
+        return out
+
+
+_FORMS: "weakref.WeakKeyDictionary[NurbsCurve, _PowerForm | None]" = weakref.WeakKeyDictionary()
+
+
+def _power_form(curve: NurbsCurve) -> _PowerForm | None:
+    """The cached :class:`_PowerForm` of a clamped curve, None for an unclamped one."""
+    form = _FORMS.get(curve, False)
+    if form is False:
+        U, p = curve.knots, curve.degree
+        clamped = U[0] == U[p] and U[-1] == U[-p - 1]
+        form = _PowerForm(curve) if clamped else None
+        _FORMS[curve] = form
+    return form
 
 
 # ====================================================================== pieces and boxes
@@ -165,7 +334,12 @@ def _pieces(curve: Any, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _nurbs_pieces(curve: NurbsCurve, lo: float, hi: float):
-    """Knot spans of a refined copy of ``curve`` over ``[lo, hi]``, boxed by their control points."""
+    """Knot spans of ``curve`` over ``[lo, hi]`` cut into about :data:`_TARGET_PIECES` pieces, each boxed by
+    its Bézier control points (of the cached :class:`_PowerForm`; a refined copy's B-spline control
+    points for an unclamped curve)."""
+    form = _power_form(curve)
+    if form is not None:
+        return form.pieces(lo, hi)
     U, p = curve.knots, curve.degree
     vals = np.unique(U[p : U.size - p])
     spans = np.stack([vals[:-1], vals[1:]], axis=1)
@@ -245,13 +419,20 @@ def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Toleranc
 
 
 # ====================================================================== Newton
+def _clamp(x: np.ndarray, r: tuple[float, float]) -> np.ndarray:
+    """``x`` clipped to ``[r0, r1]`` (``np.clip``'s dispatch costs more than this on small arrays)."""
+    return np.minimum(np.maximum(x, r[0]), r[1])
+
+
 def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
     """Newton on ``f(s, t) = |c1(s) - c2(t)|² / 2``, clipped to the ranges.
 
     The full Hessian ``JᵀJ + diag(r·c1'', -r·c2'')`` is used where it is positive definite —
-    quadratic convergence at crossings and at tangential touchings alike (where ``JᵀJ`` alone
-    is singular) — and Gauss–Newton with Levenberg damping elsewhere (The NURBS Book §6.1,
-    generalised to two curves).
+    quadratic convergence at crossings, at closest approaches and at tangential touchings (where
+    ``JᵀJ`` alone is singular) — and Gauss–Newton with Levenberg damping elsewhere (The NURBS
+    Book §6.1, generalised to two curves).  Where the tangents also make an angle (sin² above
+    :data:`_TRANSVERSAL`) the Gauss–Newton step is tried too and the closer of the two points
+    kept: from a far seed the Hessian's ``r·c''`` terms can overshoot a crossing.
 
     Returns
     -------
@@ -261,40 +442,46 @@ def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
     best = np.full(s.size, np.inf)
     stalled = np.zeros(s.size, dtype=np.int64)
     act = np.arange(s.size)
+    tiny = np.finfo(float).tiny
     for _ in range(_NEWTON_ITERATIONS):
         if act.size == 0:
             break
         sa, ta = s[act], t[act]
         A, B = _derivs(c1, sa, 2), _derivs(c2, ta, 2)
         r = A[:, 0] - B[:, 0]
-        dist = np.linalg.norm(r, axis=1)
+        dist = np.sqrt(np.einsum("kd,kd->k", r, r))
         # A seed that has not come closer for a few steps sits at a positive local minimum of
         # the distance (often on a range end): it is no intersection, stop iterating it.
         better = dist < best[act]
         best[act] = np.minimum(best[act], dist)
         stalled[act] = np.where(better, 0, stalled[act] + 1)
-        J = np.stack([A[:, 1], -B[:, 1]], axis=2)  # (k, d, 2)
-        JtJ = np.einsum("kdi,kdj->kij", J, J)
-        g = np.einsum("kdi,kd->ki", J, r)
-        H = JtJ.copy()
-        H[:, 0, 0] += (r * A[:, 2]).sum(axis=1)
-        H[:, 1, 1] -= (r * B[:, 2]).sum(axis=1)
-        det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] * H[:, 1, 0]
+        # J = [c1', -c2'] (d, 2); JᵀJ and g = Jᵀr entry by entry (2x2 per seed).
+        j11 = np.einsum("kd,kd->k", A[:, 1], A[:, 1])
+        j12 = -np.einsum("kd,kd->k", A[:, 1], B[:, 1])
+        j22 = np.einsum("kd,kd->k", B[:, 1], B[:, 1])
+        g1 = np.einsum("kd,kd->k", A[:, 1], r)
+        g2 = -np.einsum("kd,kd->k", B[:, 1], r)
+        h11 = j11 + np.einsum("kd,kd->k", r, A[:, 2])
+        h22 = j22 - np.einsum("kd,kd->k", r, B[:, 2])
+        det = h11 * h22 - j12 * j12
         # Definite and not singular to round-off (coincident curves give a singular Hessian).
-        scale = np.abs(H[:, 0, 0] * H[:, 1, 1]) + H[:, 0, 1] ** 2
-        pd = (det > t_.solver * scale) & (H[:, 0, 0] > 0)
+        scale = np.abs(h11 * h22) + j12 * j12
+        pd = (det > t_.solver * scale) & (h11 > 0)
         # Damping proportional to the scale of JᵀJ keeps parallel tangents solvable.
-        lam = t_.solver * (JtJ[:, 0, 0] + JtJ[:, 1, 1]) + np.finfo(float).tiny
-        M = np.where(pd[:, None, None], H, JtJ + lam[:, None, None] * np.eye(2))
-        # Explicit 2x2 solve: a singular system (a stationary point of a curve) takes no step.
-        dm = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-        ok = np.abs(dm) > 0
-        dm = np.where(ok, dm, 1.0)
-        step = np.stack([(M[:, 1, 1] * -g[:, 0] - M[:, 0, 1] * -g[:, 1]) / dm,
-                         (M[:, 0, 0] * -g[:, 1] - M[:, 1, 0] * -g[:, 0]) / dm], axis=1)
-        step = np.where(ok[:, None] & np.all(np.isfinite(step), axis=1)[:, None], step, 0.0)
-        s_new = np.clip(sa + step[:, 0], *r1)
-        t_new = np.clip(ta + step[:, 1], *r2)
+        lam = t_.solver * (j11 + j22) + tiny
+        s_new, t_new = _step2(sa, ta, np.where(pd, h11, j11 + lam), j12, np.where(pd, h22, j22 + lam), g1, g2, r1, r2)
+        # Where the tangents make an angle, the Gauss–Newton step (Newton on c1(s) = c2(t)) is
+        # quadratic at a crossing and unaffected by the r·c'' terms, which can throw a far seed
+        # (|r| large) out of the range; at a positive minimum (curves that miss) the full
+        # Hessian is the right model.  Both are tried where they differ; the closer point wins.
+        two = pd & (j11 * j22 - j12 * j12 > _TRANSVERSAL * j11 * j22)
+        if np.any(two):
+            k = np.flatnonzero(two)
+            sg, tg = _step2(sa[k], ta[k], j11[k], j12[k], j22[k], g1[k], g2[k], r1, r2)
+            rh = _derivs(c1, s_new[k], 0)[:, 0] - _derivs(c2, t_new[k], 0)[:, 0]
+            rg = _derivs(c1, sg, 0)[:, 0] - _derivs(c2, tg, 0)[:, 0]
+            use = np.einsum("kd,kd->k", rg, rg) < np.einsum("kd,kd->k", rh, rh)
+            s_new[k[use]], t_new[k[use]] = sg[use], tg[use]
         moved = np.abs(s_new - sa) + np.abs(t_new - ta)
         s[act], t[act] = s_new, t_new
         done = (moved <= t_.solver * (1.0 + np.abs(s_new) + np.abs(t_new))) | (stalled[act] >= _STALL)
@@ -303,12 +490,60 @@ def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
     return s, t, d
 
 
+def _step2(s, t, m11, m12, m22, g1, g2, r1, r2):
+    """The step ``-M⁻¹ g`` of the symmetric 2x2 systems ``M = [[m11, m12], [m12, m22]]`` from ``(s, t)``,
+    clipped to the ranges; a singular or non-finite system takes no step."""
+    dm = m11 * m22 - m12 * m12
+    ok = np.abs(dm) > 0
+    dm = np.where(ok, dm, 1.0)
+    st = (m12 * g2 - m22 * g1) / dm
+    tt = (m12 * g1 - m11 * g2) / dm
+    ok &= np.isfinite(st) & np.isfinite(tt)
+    return _clamp(s + np.where(ok, st, 0.0), r1), _clamp(t + np.where(ok, tt, 0.0), r2)
+
+
+def _circle_frame(curve: Any, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(C, A, B)`` with ``curve(t) = C + A cos t + B sin t``, ``A ⊥ B``, ``|A| = |B|``, for a circle, else None.
+
+    A :class:`Circle` always; a :class:`Trig2D` whose axes are orthogonal and of equal length to
+    ``tol.solver`` relative (then the closed-form foot below is off by at most that, relative to
+    the radius, far below ``tol.linear``).
+    """
+    if isinstance(curve, Circle):
+        return _trig_form(curve)
+    if isinstance(curve, Trig2D):
+        A, B = curve.a, curve.b
+        aa, bb = float(A @ A), float(B @ B)
+        if abs(float(A @ B)) <= t_.solver * math.sqrt(aa * bb) and abs(aa - bb) <= t_.solver * max(aa, bb):
+            return curve.center, A, B
+    return None
+
+
 def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Closest parameters on ``curve(r)`` of the points ``X`` (k, d) and the distances (k,).
 
-    Seeded at the nearest of :data:`_SEED_SAMPLES` samples, then Newton on ``(C - X)·C' = 0``
-    clipped to the range (The NURBS Book §6.1).
+    Lines and circles in closed form: the foot on the line clipped to the range; the polar angle
+    about a circle's centre, taken in the range or replaced by the nearer range end.  Other
+    curves: seeded at the nearest of :data:`_SEED_SAMPLES` samples, then Newton on
+    ``(C - X)·C' = 0`` clipped to the range (The NURBS Book §6.1).
     """
+    lin = _linear(curve)
+    if lin is not None:
+        o, d = lin
+        t = np.clip(((X - o) @ d) / float(d @ d), *r)
+        return t, np.linalg.norm(o + t[:, None] * d - X, axis=1)
+    circle = _circle_frame(curve, t_)
+    if circle is not None:
+        C, A, B = circle
+        W = X - C
+        base = np.arctan2(W @ B, W @ A)  # the foot on the whole circle (any angle on the centre)
+        inner = base + _TWO_PI * np.ceil((r[0] - base) / _TWO_PI)
+        inner = np.clip(np.where(inner <= r[1], inner, r[0]), *r)
+        cand = np.stack([inner, np.full_like(inner, r[0]), np.full_like(inner, r[1])], axis=1)  # (k, 3)
+        dist = np.linalg.norm(_derivs(curve, cand.ravel(), 0)[:, 0].reshape(cand.shape + (-1,)) - X[:, None], axis=2)
+        pick = np.argmin(dist, axis=1)
+        rows = np.arange(X.shape[0])
+        return cand[rows, pick], dist[rows, pick]
     ts = np.linspace(r[0], r[1], _SEED_SAMPLES)
     S = _derivs(curve, ts, 0)[:, 0]
     d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
@@ -320,7 +555,7 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.nda
         df = (D[:, 1] * D[:, 1]).sum(axis=1) + (diff * D[:, 2]).sum(axis=1)
         ok = df > 0
         step = np.where(ok, -f / np.where(ok, df, 1.0), 0.0)
-        t_new = np.clip(t + step, *r)
+        t_new = _clamp(t + step, r)
         done = np.abs(t_new - t) <= t_.solver * (1.0 + np.abs(t))
         t = t_new
         if np.all(done):
@@ -364,8 +599,9 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
     r1, r2 = _range(range1, c1, "range1", t_), _range(range2, c2, "range2", t_)
     eps = t_.linear
     exact = _exact(c1, r1, c2, r2, t_)
+    feet = _end_feet(c1, r1, c2, r2, t_)
     if exact is not None:
-        return _with_end_contacts(exact, c1, r1, c2, r2, t_)
+        return _with_end_contacts(exact, c1, r1, c2, r2, t_, feet)
 
     # 1-2. Pieces, boxes and candidate pairs.
     a1, b1, lo1, hi1 = _pieces(c1, *r1)
@@ -376,8 +612,7 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
     seeds_t = [0.5 * (a2[j] + b2[j])]
     # End points against the other curve: cuts ending on an edge converge from here.
     ends1, ends2 = np.array(r1), np.array(r2)
-    t_of_1, _ = _project(c2, r2, _derivs(c1, ends1, 0)[:, 0], t_)
-    s_of_2, _ = _project(c1, r1, _derivs(c2, ends2, 0)[:, 0], t_)
+    t_of_1, _, s_of_2, _ = feet
     seeds_s += [ends1, s_of_2]
     seeds_t += [t_of_1, ends2]
 
@@ -387,7 +622,7 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
     s, t, dist = s[good], t[good], dist[good]
 
     # 4. Overlaps, then de-duplication of the isolated solutions.
-    overlaps = _overlaps(c1, r1, c2, r2, t_, eps)
+    overlaps = _overlaps(c1, r1, c2, r2, t_, eps, feet)
     if overlaps and s.size:
         keep = np.ones(s.size, dtype=bool)
         speed = np.linalg.norm(_derivs(c1, s, 1)[:, 1], axis=1)
@@ -398,7 +633,7 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
     s, t = _deduplicate(c1, r1, c2, r2, s, t, dist, eps, t_)
     # Projected Newton can stall at a range end whose point is within eps of the other curve
     # while the unconstrained solution lies outside the range: add those contacts directly.
-    return _with_end_contacts(_result(c1, c2, s, t), c1, r1, c2, r2, t_, tuple(overlaps))
+    return _with_end_contacts(_result(c1, c2, s, t), c1, r1, c2, r2, t_, feet, tuple(overlaps))
 
 
 # ====================================================================== closed forms
@@ -498,7 +733,15 @@ def _line_trig(line: Line2D, rl, trig: Trig2D, rt, t_: Tolerance, swap: bool) ->
     return _result(trig, line, t, s) if swap else _result(line, trig, s, t)
 
 
-def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, overlaps=()) -> CurveIntersections:
+def _end_feet(c1, r1, c2, r2, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Feet of each curve's range ends on the other: ``(t of c1's ends on c2, distances, s of c2's ends on c1,
+    distances)``, each (2,); computed once per call (seeds, end contacts and overlap cuts use them)."""
+    t_of_1, d1 = _project(c2, r2, _derivs(c1, np.array(r1), 0)[:, 0], t_)
+    s_of_2, d2 = _project(c1, r1, _derivs(c2, np.array(r2), 0)[:, 0], t_)
+    return t_of_1, d1, s_of_2, d2
+
+
+def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, feet, overlaps=()) -> CurveIntersections:
     """Add the range ends lying within ``tol.linear`` of the other curve, merged with nearby solutions.
 
     A slanted segment ending just short of (or past) another curve meets it, within the
@@ -511,8 +754,7 @@ def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, ove
     """
     eps = t_.linear
     e1, e2 = np.array(r1), np.array(r2)
-    t_of_1, d1 = _project(c2, r2, _derivs(c1, e1, 0)[:, 0], t_)
-    s_of_2, d2 = _project(c1, r1, _derivs(c2, e2, 0)[:, 0], t_)
+    t_of_1, d1, s_of_2, d2 = feet
     s = np.concatenate([e1[d1 <= eps], s_of_2[d2 <= eps]])
     t = np.concatenate([t_of_1[d1 <= eps], e2[d2 <= eps]])
     kind = np.concatenate([np.full(int(np.sum(d1 <= eps)), 1), np.full(int(np.sum(d2 <= eps)), 2)])
@@ -573,10 +815,9 @@ def _deduplicate(c1, r1, c2, r2, s, t, dist, eps, t_):
     return s[best], t[best]
 
 
-def _overlaps(c1, r1, c2, r2, t_: Tolerance, eps: float):
+def _overlaps(c1, r1, c2, r2, t_: Tolerance, eps: float, feet):
     """Maximal ranges of ``c1`` within ``eps`` of ``c2`` (see the module docstring, step 4)."""
-    ends2 = _derivs(c2, np.array(r2), 0)[:, 0]
-    s_e, d_e = _project(c1, r1, ends2, t_)
+    _, _, s_e, d_e = feet
     cuts = np.unique(np.concatenate([np.array(r1), s_e[d_e <= eps]]))
     if cuts.size < 2:
         return []

@@ -345,12 +345,17 @@ def _banded_solve(A: sp.spmatrix, rhs: np.ndarray, what: str) -> np.ndarray:
     precision is refused instead of returning noise.
     """
     C = A.tocoo()
-    n = A.shape[1]
-    offsets = C.col - C.row
+    return _banded_solve_entries(C.row, C.col, C.data, A.shape[1], rhs, what)
+
+
+def _banded_solve_entries(row: np.ndarray, col: np.ndarray, data: np.ndarray, n: int, rhs: np.ndarray,
+                          what: str) -> np.ndarray:
+    """:func:`_banded_solve` of the ``n × n`` matrix given by its entries (COO form, no duplicates)."""
+    offsets = col - row
     kl, ku = max(0, -int(offsets.min())), max(0, int(offsets.max()))
     ab = np.zeros((2 * kl + ku + 1, n))  # LAPACK band storage with kl extra rows for the fill-in
-    ab[kl + ku + C.row - C.col, C.col] = C.data
-    anorm = float(np.max(np.asarray(abs(A).sum(axis=0))))
+    ab[kl + ku + row - col, col] = data
+    anorm = float(np.max(np.bincount(col, np.abs(data), minlength=n)))
     lu, piv, info = _lapack.dgbtrf(ab, kl, ku)
     if info > 0:
         raise InvalidInputError(f"{what}: the linear system is singular (zero pivot in column {info - 1})")
@@ -364,10 +369,9 @@ def _banded_solve(A: sp.spmatrix, rhs: np.ndarray, what: str) -> np.ndarray:
     return x
 
 
-def _check_schoenberg_whitney(A: sp.csr_matrix, rows: np.ndarray, what: str) -> None:
-    """The diagonal of a square collocation matrix must not vanish (Schoenberg–Whitney;
+def _check_schoenberg_whitney(diag: np.ndarray, rows: np.ndarray, what: str) -> None:
+    """The diagonal ``diag`` of a square collocation matrix must not vanish (Schoenberg–Whitney;
     Cohen–Riesenfeld–Elber §9.2): parameter ``k`` lies in the support of basis function ``k``."""
-    diag = A.diagonal()
     bad = np.flatnonzero(diag == 0.0)
     if bad.size:
         k = int(bad[0])
@@ -501,9 +505,20 @@ def interpolate_curve(
     all_u = np.concatenate([b[0] for b in blocks])
 
     U = _averaging(all_u, p) if knots is None else _user_knots(knots, p, n, u, t, "interpolate_curve")
-    A = sp.vstack([_b.basis_matrix(U, p, uu, k) for uu, k, _ in blocks], format="csr")
-    _check_schoenberg_whitney(A, all_u, "interpolate_curve")
-    P = _banded_solve(A, np.concatenate([b[2] for b in blocks]), "interpolate_curve")
+    # The collocation matrix by its entries (p + 1 per row), straight into band storage.
+    vals, cols = [], []
+    for uu, k, _ in blocks:
+        spans = _b.find_spans(U, p, uu)
+        if k == 0:
+            vals.append(_b.basis_functions(U, p, spans, uu))
+        else:
+            vals.append(_b.basis_derivatives(U, p, spans, uu, k)[:, k, :])
+        cols.append(spans[:, None] - p + np.arange(p + 1))
+    V, J = np.concatenate(vals), np.concatenate(cols)
+    I = np.repeat(np.arange(n), p + 1)
+    diag = np.where(J == np.arange(n)[:, None], V, 0.0).sum(axis=1)
+    _check_schoenberg_whitney(diag, all_u, "interpolate_curve")
+    P = _banded_solve_entries(I, J.ravel(), V.ravel(), n, np.concatenate([b[2] for b in blocks]), "interpolate_curve")
     return NurbsCurve(P, U, p)
 
 

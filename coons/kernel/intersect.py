@@ -607,6 +607,19 @@ def _pole_parameters(curve, s, tol: Tolerance) -> list[float]:
     return out
 
 
+def _form_parameters(window: tuple[float, float]) -> np.ndarray:
+    """The :data:`_FORM_SAMPLES` parameters on which a coordinate's form is fitted (off the window ends by
+    ``_OFFSET / _FORM_SAMPLES`` of it, far more than the pole inset, so no clipping applies to them)."""
+    w0, w1 = window
+    return w0 + (w1 - w0) * (np.arange(_FORM_SAMPLES) + _OFFSET) / _FORM_SAMPLES
+
+
+def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"]:
+    """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples."""
+    uv = np.asarray(surface.closest_parameters(curve.evaluate(_form_parameters(window))), dtype=np.float64)
+    return [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+
+
 class _Coord:
     """One coordinate of a p-curve as a function of the branch parameter.
 
@@ -615,13 +628,14 @@ class _Coord:
     reference grid over ``window`` (extended by whole turns for a closed curve).
     """
 
-    def __init__(self, surface, curve, index: int, window: tuple[float, float], full: bool, tol: Tolerance):
+    def __init__(self, surface, curve, index: int, window: tuple[float, float], full: bool, tol: Tolerance,
+                 samples: np.ndarray | None = None):
         self.surface, self.curve, self.index, self.window, self.full = surface, curve, index, window, full
         self.periodic = bool(surface.periodic_u if index == 0 else surface.periodic_v)
         is_line = isinstance(curve, Line)
         w0, w1 = window
-        t = w0 + (w1 - w0) * (np.arange(_FORM_SAMPLES) + _OFFSET) / _FORM_SAMPLES
-        g = self._raw(t)
+        t = _form_parameters(window)
+        g = self._raw(t) if samples is None else samples
         if self.periodic:
             g = np.unwrap(g, period=TWO_PI)
         basis = np.stack([np.ones_like(t), t] + ([] if is_line else [np.cos(t), np.sin(t)]), axis=-1)
@@ -745,13 +759,18 @@ def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: 
         A, B = np.array([cu.coef[2], cv.coef[2]]), np.array([cu.coef[3], cv.coef[3]])
         if A[0] * B[1] - A[1] * B[0] != 0.0:
             return Trig2D([cu.coef[0] + du, cv.coef[0] + dv], A, B), 0.0
-    return _fitted_pcurve(lambda t: np.stack([cu(t) + du, cv(t) + dv], axis=-1), s0, s1, surface, curve, tol)
+    return _fitted_pcurve(lambda t: np.stack([cu(t) + du, cv(t) + dv], axis=-1), s0, s1, surface, curve, tol,
+                          pointwise=True)
 
 
-def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance):
+def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False):
     """``(p-curve, deviation)``: cubic interpolation of the exact parameters ``f(t)`` (The NURBS Book A9.1),
     refined adaptively: every interval whose image on ``surface`` misses ``curve`` by more than
     ``tol.linear / 2`` at its quarter points gets its midpoint as a new sample, until none does.
+
+    ``pointwise``: ``f``'s value at a parameter does not depend on the other parameters passed
+    with it (a :class:`_Coord` pair), so each round evaluates only the new samples; otherwise
+    (an unwrapping over the whole array) every round evaluates all of them.
 
     Raises
     ------
@@ -759,17 +778,24 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance):
         Still off after growing to :data:`_MAX_FIT_SAMPLES` samples.
     """
     t = np.linspace(s0, s1, 17)
+    Q = f(t)
     worst = math.inf
     quarters = np.array([0.25, 0.5, 0.75])
     while len(t) <= _MAX_FIT_SAMPLES:
-        fit = interpolate_curve(f(t), 3, params=t)
+        fit = interpolate_curve(Q, 3, params=t)
         tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         gap = np.linalg.norm(surface.evaluate(*fit.evaluate(tm).T) - curve.evaluate(tm), axis=-1).reshape(-1, 3)
         worst = float(gap.max())
         bad = np.max(gap, axis=1) > 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
         if not np.any(bad):
             return fit, worst
-        t = np.sort(np.concatenate([t, 0.5 * (t[:-1][bad] + t[1:][bad])]))
+        new = 0.5 * (t[:-1][bad] + t[1:][bad])
+        if pointwise:
+            order = np.argsort(np.concatenate([t, new]), kind="stable")
+            t, Q = np.concatenate([t, new])[order], np.concatenate([Q, f(new)])[order]
+        else:
+            t = np.sort(np.concatenate([t, new]))
+            Q = f(t)
     raise ConvergenceError(
         f"p-curve fit: deviation {worst:.3g} above {0.5 * tol.linear:.3g} with {_MAX_FIT_SAMPLES} samples",
         residuals=np.array([worst]),
@@ -796,7 +822,7 @@ def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[Inte
             windows, full = [(0.0, TWO_PI)], True
     out = []
     for window in windows:
-        coords = [[_Coord(s, curve, i, window, full, tol) for i in (0, 1)] for s in surfaces]
+        coords = [_coords(s, curve, window, full, tol) for s in surfaces]
         pairs = [(c, box[i]) for cs, box in zip(coords, boxes) for i, c in enumerate(cs)]
         if isinstance(curve, Line):
             t0, t1 = -math.inf, math.inf
@@ -827,7 +853,7 @@ def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[Inte
                 flipped = [p for p in pieces if _against(curve, 0.5 * (p[0] + p[1]), a, b)]
                 if flipped:
                     rev = _reversed(curve)
-                    rev_coords = [[_Coord(s, rev, i, window, full, tol) for i in (0, 1)] for s in surfaces]
+                    rev_coords = [_coords(s, rev, window, full, tol) for s in surfaces]
                     for s0, s1 in flipped:
                         out.append(_piece(rev, rev_coords, -s1, -s0, a, b, boxes, slack, False, cand.tangent, tol))
                     pieces = [p for p in pieces if p not in flipped]

@@ -6,9 +6,8 @@ cubic 3-D NURBS curves with p-curves on both surfaces in the same parameter; it 
 :func:`coons.kernel.intersect.intersect_surfaces` for the pairs that have no exact form.
 :func:`intersect_curve_surface` finds the points where a curve crosses or touches a surface.  The
 module deliberately does not trace intersection curves along which the two surfaces are tangent
-(the signed distance does not change sign there: such a tangency is detected and logged), nor
-closed loops smaller than a cell of the sampling grid (see *Limitations*); exact analytic pairs
-are :mod:`coons.kernel.intersect`'s.
+(the signed distance does not change sign there: such a tangency is detected and logged; see
+*Limitations*); exact analytic pairs are :mod:`coons.kernel.intersect`'s.
 
 Notation: ``G`` is the *grid* surface, sampled on its box, ``F`` the *field* surface, whose signed
 distance ``f = ±dist(G(u, v), F)`` is sampled on ``G``'s grid (the closed-form ``implicit`` of an
@@ -22,18 +21,32 @@ singular and tangential points):
 1. *Sampling.*  ``f`` on a (slightly irregular, to avoid symmetric coincidences) grid over
    ``G``'s box; marching squares (saddle cells decided by the centre value) gives the crossings of
    ``f = 0`` with the grid edges and their connections into chains (open chains end on ``G``'s box
-   boundary, closed chains are loops).
+   boundary, closed chains are loops).  A chain whose samples all lie within ``tol.linear`` of
+   each other is dropped: it is the sign flip of ``f`` around a vertex where the surfaces touch.
+1b. *Small loops.*  A loop that meets no grid edge twice, or too few of them to be followed, is
+   found through the critical points of ``f`` (Patrikalakis–Maekawa §5.8.3): inside a loop ``f``
+   has an extremum of the other sign.  Newton's method on ``∇f = 0`` (difference quotients) from
+   the grid vertices where ``|f|`` is locally smallest without a sign change nearby reaches it;
+   the quadratic model there gives the loop's extent, and a local grid of :data:`_LOOP_CELLS`
+   cells over twice that is marched like the main one (and doubled until its chains close).
+   Loops of the main grid with fewer than :data:`_LOOP_MIN_SAMPLES` samples are marched again
+   on such a local grid (a cubic through three or four samples of a loop folds back).
 2. *Correction.*  Every crossing is moved onto the intersection by Newton's method on the 4 × 4
    system ``G(u_G, v_G) - F(u_F, v_F) = 0`` plus the grid line of its edge (``u_G`` or ``v_G``
    fixed), batched over all crossings.  Solutions are shifted by whole periods to the seed's
-   (a sphere's ``v`` counts as 2π-periodic here); a crossing whose Newton fails or leaves its
-   edge keeps its seed, so that a wandering solution never marks a false exit from ``F``'s box.
+   (a sphere's ``v`` counts as 2π-periodic here; a sphere latitude that Newton carried over a
+   pole and out of the box is reflected back, so that p-curves stay in the domain); a crossing
+   whose Newton fails or leaves its edge keeps its seed, so that a wandering solution never marks
+   a false exit from ``F``'s box.
 3. *Singular points* (``n_G ∥ n_F``, where branches cross, e.g. two equal cylinders): local minima
    of ``|n_G × n_F|`` along the chains start a Gauss–Newton iteration on the 5 equations
    ``G - F = 0``, ``n_G · F_u = n_G · F_v = 0``; a converged solution splits every chain through it,
-   so that the branches end there.  The poles of a sphere and the apex of a cone that lie on the
-   other surface split the chains in the same way (the p-curve on that surface jumps there; each
-   side ends with the parameter of its own limit).
+   so that the branches end there (a chain is taken to pass through the point when its nearest
+   sample is within a step of it, or within the 3 × 3 grid cells around it with nearly parallel
+   normals: next to a saddle contact, branches leaving through one edge are invisible and the
+   chain turns a cell away; never at the point's image beyond ``G``'s seam).  The poles of a
+   sphere and the apex of a cone that lie on the other surface split the chains in the same way
+   (the p-curve on that surface jumps there; each side ends with the parameter of its own limit).
 4. *Boxes.*  ``F``'s parameters are unwrapped along each chain; chains are cut where they leave
    ``F``'s box (or cross its seam when the box is a whole period), the cut point found by Newton
    with the boundary parameter fixed.  A loop cut only at a seam is one branch from one side of
@@ -49,12 +62,16 @@ singular and tangential points):
    them by more than half of ``tol.linear``, until none does.  The achieved ``tol`` of a branch is the
    largest distance measured between the three curves and the corrected points.
 
-Limitations: loops and branches that pass between the signs of the grid without crossing a cell
-edge twice are missed (a loop must span more than about one grid cell, 1/:data:`_GRID_CELLS` of
-the box), and so is a piece shorter than a cell between two cuts (a branch that leaves ``F``'s box
-and crosses its seam within one cell); surfaces tangent along a curve give no branch (a warning
-is logged on ``logging.getLogger("coons")``).  A typical pair takes 0.05–0.3 s, mostly in the
-Newton corrections and interpolations of the refinement.
+Limitations: a loop smaller than a grid cell is found when the grid vertex nearest it is a local
+minimum of ``|f|`` (step 1b): true when the surfaces approach each other over more than a cell
+(the usual case, two nearly tangent surfaces cutting slightly: loops down to ``1e-3`` of the box
+are tested), not when a feature narrower than a cell pokes through a surface that stays away
+elsewhere (that needs the subdivision with normal cones of Sederberg's loop criterion, not done).
+A piece shorter than a cell between two cuts is missed (a branch that leaves ``F``'s box and
+crosses its seam within one cell, or the arms of a singular point closer than a cell to ``G``'s
+periodic seam, which then end a cell short of it); surfaces tangent along a curve give no branch
+(a warning is logged on ``logging.getLogger("coons")``).  A typical pair takes 0.05–0.3 s, mostly
+in the Newton corrections and interpolations of the refinement.
 """
 
 from __future__ import annotations
@@ -252,12 +269,14 @@ def _periodic_view(surface, t: Tolerance):
 
 
 def _correct(g, f, x: np.ndarray, fixed: np.ndarray, value: np.ndarray, plane: np.ndarray | None,
-             t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             t: Tolerance, boxes=(None, None)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Newton on ``G(x[:2]) - F(x[2:]) = 0`` plus one constraint per row, batched.
 
     The constraint is ``x[fixed] = value`` where ``fixed >= 0``, else the plane
     ``(G(x[:2]) - plane[:, :3]) · plane[:, 3:] = 0``.  Singular systems (near a singular point of
     the intersection) take pseudo-inverse steps, so those rows still move towards the curve.
+    A sphere's latitude that ends beyond a pole and outside its box (``boxes``: G's and F's, or
+    None) is brought back over the pole (:func:`_on_sphere_domain`).
 
     Returns
     -------
@@ -265,7 +284,8 @@ def _correct(g, f, x: np.ndarray, fixed: np.ndarray, value: np.ndarray, plane: n
     points : (m, 3) ``G(x[:2])``
     ok : (m,) bool, ``|G - F| <= tol.linear / 10`` (a tenth of the budget: fitting adds its error)
     """
-    x = np.array(x, dtype=np.float64)
+    x0 = np.asarray(x, dtype=np.float64)
+    x = x0.copy()
     active = np.arange(x.shape[0])
     for _ in range(_NEWTON_ITERATIONS):
         if active.size == 0:
@@ -295,9 +315,37 @@ def _correct(g, f, x: np.ndarray, fixed: np.ndarray, value: np.ndarray, plane: n
         x[active] = xa
         moving = np.any(np.abs(step) > t.solver * np.maximum(1.0, np.abs(xa)), axis=1)
         active = active[moving]
+    x[:, :2] = _on_sphere_domain(g, x[:, :2], x0[:, :2], boxes[0])
+    x[:, 2:] = _on_sphere_domain(f, x[:, 2:], x0[:, 2:], boxes[1])
     A = _frame(g, x[:, 0], x[:, 1])[0]
     B = _frame(f, x[:, 2], x[:, 3])[0]
     return x, A, np.linalg.norm(A - B, axis=1) <= 0.1 * t.linear
+
+
+def _on_sphere_domain(surface, uv: np.ndarray, seed: np.ndarray, box) -> np.ndarray:
+    """A sphere's parameters ``(m, 2)`` with a latitude beyond a pole, and beyond ``box``, brought back.
+
+    Newton's iterates may pass over a pole: ``(u, v)`` and ``(u + π, ±π - v)`` are the same point,
+    and a latitude beyond the pole gives p-curves outside the surface's domain (their longitude
+    then sweeps wildly).  Rows whose latitude lies outside ``[-π/2, π/2]`` and outside ``box``'s
+    latitude range (a face box may reach a little past a pole: such points stay) are reflected;
+    every longitude is shifted by whole turns to lie nearest the seed's.  Other surfaces, or
+    ``box`` None: ``uv`` unchanged.
+    """
+    if (box is None or getattr(surface, "surface_type", None) != "sphere"
+            or isinstance(surface, (NurbsSurface, _ClosedNurbs))):
+        return uv
+    uv = uv.copy()
+    v = uv[:, 1]
+    lo, hi = min(box[1][0], -0.5 * math.pi), max(box[1][1], 0.5 * math.pi)
+    beyond = (v < lo) | (v > hi)
+    w = np.mod(v + 0.5 * math.pi, 2.0 * math.pi)
+    over = beyond & (w > math.pi)
+    uv[beyond, 1] = np.where(over, 1.5 * math.pi - w, w - 0.5 * math.pi)[beyond]
+    # Near a pole the longitude is nearly free and Newton's steps in it may be turns long.
+    u = np.where(over, uv[:, 0] + math.pi, uv[:, 0])
+    uv[:, 0] = u + 2.0 * math.pi * np.round((seed[:, 0] - u) / (2.0 * math.pi))
+    return uv
 
 
 def _solve(J: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -443,6 +491,7 @@ class _FieldBox:
     """Inside tests and boundary values for the field surface's box (periodic directions modulo a period)."""
 
     def __init__(self, box: np.ndarray, periods, t: Tolerance, g_periods=(None, None)) -> None:
+        self.box = box
         self.lo, self.hi = box[:, 0], box[:, 1]
         self.length = self.hi - self.lo
         self.periods = periods
@@ -605,9 +654,24 @@ def _trace(g, f, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> tuple[list[tup
     P = np.asarray(g.evaluate(*_clip(g, U, V))).reshape(-1, 3)
     _, dist = _project(f, P, t)
     fbox = _FieldBox(bf, surface_periods(f, t), t, surface_periods(g, t))
-    uv, fixed, edge, ends, segments = _marching_squares(dist.reshape(U.shape), us, vs)
+    chains = _coarse_loops(g, f, bg, us, vs, _grid_chains(g, f, us, vs, P, dist, fbox, t), fbox, t)
+    seeds = _touch_seeds(dist.reshape(U.shape), P.reshape(U.shape + (3,)), t)
+    chains += _small_loops(g, f, bg, us, vs, dist.reshape(U.shape), seeds, chains, fbox, t)
+    crossings = _find_singular(g, f, chains, t)
+    singular = np.concatenate([crossings, _degenerate_on(g, f, bg, bf, t)])
+    return _cut(g, f, chains, singular, fbox, t, (us, vs)), _contacts(g, f, U, V, P, seeds, fbox, crossings, t)
+
+
+def _grid_chains(g, f, us: np.ndarray, vs: np.ndarray, P: np.ndarray, dist: np.ndarray, fbox: "_FieldBox",
+                 t: Tolerance) -> list[list]:
+    """Steps 1–2 on one grid: the corrected chains ``[X (m, 4), points (m, 3), inside (m,), loop]``.
+
+    ``P`` ``(nu * nv, 3)`` are ``G`` at the grid vertices ``us × vs`` and ``dist`` their signed
+    distances to ``F``.
+    """
+    uv, fixed, edge, ends, segments = _marching_squares(dist.reshape(us.size, vs.size), us, vs)
     if uv.shape[0] == 0:
-        return [], _contacts(g, f, U, V, P, dist, fbox, np.zeros((0, 4)), t)
+        return []
     # Seeds on F: the projections of the crossings.
     Pc = np.asarray(g.evaluate(*_clip(g, uv[:, 0], uv[:, 1])))
     uv_f, _ = _project(f, Pc, t)
@@ -620,7 +684,7 @@ def _trace(g, f, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> tuple[list[tup
     X, pts, ok = x0.copy(), Pc.copy(), np.zeros(uv.shape[0], bool)
     if np.any(plausible):
         X[plausible], pts[plausible], ok[plausible] = _correct(
-            g, f, x0[plausible], fixed[plausible], value[plausible], None, t
+            g, f, x0[plausible], fixed[plausible], value[plausible], None, t, (None, fbox.box)
         )
     # Newton may land on the same point with other parameters (a period away): back to the seed's.
     X = _near_seed(g, f, X, x0, fbox)
@@ -660,27 +724,23 @@ def _trace(g, f, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> tuple[list[tup
             Xc, Pc_, inside = _densify_corners(g, f, Xc, Pc_, inside, fbox, t)
         if Xc.shape[0] == 0 or not np.any(inside):
             continue
+        # A chain whose samples all lie within tol.linear of its first is no branch: sign flips
+        # of f around a vertex where the surfaces touch (f = 0 there counts as positive); left
+        # in, it would pass for a crossing and hide the contact point.
+        if np.linalg.norm(Pc_ - Pc_[0], axis=1).max() <= t.linear:
+            continue
         chains.append([Xc, Pc_, inside, loop and Xc.shape[0] > 2])
-
-    crossings = _find_singular(g, f, chains, t)
-    singular = np.concatenate([crossings, _degenerate_on(g, f, bg, bf, t)])
-    return _cut(g, f, chains, singular, fbox, t), _contacts(g, f, U, V, P, dist, fbox, crossings, t)
+    return chains
 
 
-def _contacts(g, f, U, V, P: np.ndarray, dist: np.ndarray, fbox: _FieldBox, singular: np.ndarray,
-              t: Tolerance) -> np.ndarray:
-    """Isolated points where the surfaces touch without crossing, ``(k, 4)``.
+def _touch_seeds(F: np.ndarray, Q: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grid vertices near which the surfaces may touch or cut a loop smaller than a cell: ``(i, j, reach)``.
 
-    Seeds are the grid vertices where ``|f|`` is not above any of their 8 neighbours, all of one sign,
-    and no larger than the longest of their grid edges (a touching point in the neighbouring cells is
-    that close, ``f`` being a signed distance).  The Gauss–Newton solve of :func:`_singular_points`
-    decides; a solution is an isolated contact when the difference of the two second fundamental
-    forms there is definite (the surfaces separate in every direction).  A semi-definite difference
-    means the surfaces touch along a curve, which this module does not trace: it is logged.
-    Contacts that coincide with singular points of the traced branches are not isolated.
+    The vertices where ``|f|`` (``F`` ``(nu, nv)``) is not above any of their 8 neighbours, all of
+    one sign, and no larger than the longest of their grid edges (a touching point or a small loop
+    in the neighbouring cells is that close, ``f`` being a signed distance); ``reach`` ``(nu, nv)``
+    is that longest edge at every vertex (``Q`` ``(nu, nv, 3)`` the grid points).
     """
-    F = dist.reshape(U.shape)
-    Q = P.reshape(U.shape + (3,))
     pad = np.pad(np.abs(F), 1, constant_values=np.inf)
     # Signs of the values beyond tol.linear (a vertex on the other surface has no side).
     pos = np.pad(F > t.linear, 1)
@@ -704,8 +764,23 @@ def _contacts(g, f, U, V, P: np.ndarray, dist: np.ndarray, fbox: _FieldBox, sing
     reach[:, :-1] = np.maximum(reach[:, :-1], dv)
     reach[:, 1:] = np.maximum(reach[:, 1:], dv)
     i, j = np.nonzero(lowest & same & (np.abs(F) <= reach))
+    return i, j, reach
+
+
+def _contacts(g, f, U, V, P: np.ndarray, seeds, fbox: _FieldBox, singular: np.ndarray,
+              t: Tolerance) -> np.ndarray:
+    """Isolated points where the surfaces touch without crossing, ``(k, 4)``.
+
+    Seeds are those of :func:`_touch_seeds`.  The Gauss–Newton solve of :func:`_singular_points`
+    decides; a solution is an isolated contact when the difference of the two second fundamental
+    forms there is definite (the surfaces separate in every direction).  A semi-definite difference
+    means the surfaces touch along a curve, which this module does not trace: it is logged.
+    Contacts that coincide with singular points of the traced branches are not isolated.
+    """
+    i, j, reach = seeds
     if i.size == 0:
         return np.zeros((0, 4))
+    Q = P.reshape(U.shape + (3,))
     seeds_g = np.stack([U[i, j], V[i, j]], axis=1)
     seeds_f, _ = _project(f, Q[i, j], t)
     xs = _singular_points(g, f, np.concatenate([seeds_g, seeds_f], axis=1), t)
@@ -731,6 +806,237 @@ def _contacts(g, f, U, V, P: np.ndarray, dist: np.ndarray, fbox: _FieldBox, sing
             np.round(pts[~definite][0], 6).tolist(),
         )
     return xs[definite]
+
+
+# ---------------------------------------------------------------------------- small loops
+#: Cells per direction of the local grid laid over a small loop (the loop spans about half of it).
+_LOOP_CELLS = 16
+#: Newton iterations for a critical point of the signed distance (quadratic convergence from a
+#: seed within a cell; the cap only stops a seed that wanders).
+_CRITICAL_ITERATIONS = 30
+#: Local grids tried per loop, each twice the size of the previous, until its chains close.
+_LOOP_ATTEMPTS = 3
+#: Loops of the main grid with fewer samples are traced again on a local grid (a cubic through
+#: fewer points of a closed curve cannot be trusted to follow it).
+_LOOP_MIN_SAMPLES = 8
+#: The 9-point stencil of the difference quotients of the signed distance.
+_STENCIL = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]], np.float64)
+
+
+def _field_stencil(g, f, x: np.ndarray, h: np.ndarray, t: Tolerance):
+    """Signed distance ``f`` of ``G(x)`` to ``F``, its gradient and Hessian in ``G``'s parameters.
+
+    ``x``, ``h`` ``(m, 2)``: points and difference steps.  Central differences (truncation error
+    ``O(h²)``) over the 9-point stencil, batched in one projection.  Returns ``(m,)``, ``(m, 2)``,
+    ``(m, 2, 2)``.
+    """
+    q = x[:, None, :] + _STENCIL[None] * h[:, None, :]
+    P = np.asarray(g.evaluate(*_clip(g, q[..., 0], q[..., 1]))).reshape(-1, 3)
+    F = _project(f, P, t)[1].reshape(q.shape[:2])
+    grad = np.stack([(F[:, 1] - F[:, 2]) / (2 * h[:, 0]), (F[:, 3] - F[:, 4]) / (2 * h[:, 1])], axis=1)
+    H = np.empty((x.shape[0], 2, 2))
+    H[:, 0, 0] = (F[:, 1] - 2 * F[:, 0] + F[:, 2]) / h[:, 0] ** 2
+    H[:, 1, 1] = (F[:, 3] - 2 * F[:, 0] + F[:, 4]) / h[:, 1] ** 2
+    H[:, 0, 1] = H[:, 1, 0] = (F[:, 5] - F[:, 6] - F[:, 7] + F[:, 8]) / (4 * h[:, 0] * h[:, 1])
+    return F[:, 0], grad, H
+
+
+def _loop_candidates(F: np.ndarray, us: np.ndarray, vs: np.ndarray, i: np.ndarray, j: np.ndarray,
+                     t: Tolerance):
+    """The seeds ``(i, j)`` where the Hessian of ``f`` from the 3 × 3 grid values is definite, of the
+    sign of an extremum away from the other surface (a minimum where ``f > 0``), and not flat.
+
+    A cheap filter for :func:`_small_loops`' Newton solves: surfaces parallel at a distance give
+    every vertex as a seed (``|f|`` ties) and a flat ``f``.  Seeds on the grid's boundary are kept
+    (no centred differences there).
+    """
+    nu, nv = F.shape[0] - 1, F.shape[1] - 1
+    inner = (i > 0) & (i < nu) & (j > 0) & (j < nv)
+    keep = ~inner
+    a, b = i[inner], j[inner]
+    if a.size:
+        hp, hm = us[a + 1] - us[a], us[a] - us[a - 1]
+        kp, km = vs[b + 1] - vs[b], vs[b] - vs[b - 1]
+        f0 = F[a, b]
+        huu = 2 * ((F[a + 1, b] - f0) / hp - (f0 - F[a - 1, b]) / hm) / (hp + hm)
+        hvv = 2 * ((F[a, b + 1] - f0) / kp - (f0 - F[a, b - 1]) / km) / (kp + km)
+        huv = (F[a + 1, b + 1] - F[a + 1, b - 1] - F[a - 1, b + 1] + F[a - 1, b - 1]) / ((hp + hm) * (kp + km))
+        det = huu * hvv - huv**2
+        big = 0.5 * np.abs(huu + hvv) + np.hypot(0.5 * (huu - hvv), huv)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            small = np.where(big > 0, det / big, 0.0)
+        # An extremum of f of the right kind (a minimum where f > 0) whose curvature moves f by more
+        # than tol.linear across the seed's cells: round-off of a flat f does not.
+        span = np.minimum(np.minimum(hp, hm), np.minimum(kp, km))
+        keep[inner] = (det > 0) & (np.sign(huu) == np.sign(f0)) & (small * span**2 > t.linear)
+    return i[keep], j[keep]
+
+
+def _loop_extrema(g, f, bg: np.ndarray, x0: np.ndarray, sign: np.ndarray, cell: np.ndarray,
+                  t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Extrema of ``f`` inside loops, from seeds ``x0`` ``(m, 2)`` where ``f`` has ``sign`` around them.
+
+    Newton's method on ``∇f = 0`` (difference quotients of :func:`_field_stencil`, steps held
+    within ``cell`` ``(2,)``).  An extremum of the other sign than ``sign``, beyond ``tol.linear``
+    (a smaller one is a contact), within two cells of its seed, is a loop's: returns its parameters
+    ``c`` ``(k, 2)`` and the half-size ``(k, 2)`` of a box twice the quadratic model's ellipse
+    ``f(c) + ½ dᵀ H d = 0``, for loops that reach into ``bg``.
+    """
+    cell = np.broadcast_to(cell, x0.shape)
+    # Difference steps a thousandth of a cell: truncation error ~1e-6 of the curvature terms, round-off
+    # of f (~1e-15 of the coordinates) amplified by 1/h² stays far below it.
+    h = 1e-3 * cell
+    sign = np.array(sign, dtype=np.float64)
+    x = np.array(x0, dtype=np.float64)
+    active = np.flatnonzero(sign != 0)
+    for _ in range(_CRITICAL_ITERATIONS):
+        if active.size == 0:
+            break
+        _, grad, H = _field_stencil(g, f, x[active], h[active], t)
+        det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] ** 2
+        # The extremum sought has the Hessian's sign definite and that of a minimum where f > 0:
+        # a seed whose Hessian is not so has no such extremum within reach of this model.
+        good = (det > 0) & (np.sign(H[:, 0, 0]) == sign[active])
+        safe = np.where(good, det, 1.0)
+        step = np.stack([(H[:, 1, 1] * grad[:, 0] - H[:, 0, 1] * grad[:, 1]) / safe,
+                         (H[:, 0, 0] * grad[:, 1] - H[:, 0, 1] * grad[:, 0]) / safe], axis=1)
+        # Steps held within a cell (trust region of the quadratic model).
+        scale = np.minimum(1.0, np.min(cell[active] / np.maximum(np.abs(step), np.finfo(float).tiny), axis=1))
+        x[active] -= np.where(good[:, None], scale[:, None] * step, 0.0)
+        moving = np.any(np.abs(step) > t.solver * np.maximum(1.0, np.abs(x[active])), axis=1)
+        sign[active[~good]] = 0  # given up
+        active = active[good & moving]
+    found = np.flatnonzero(sign != 0)
+    if found.size == 0:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    value, _, H = _field_stencil(g, f, x[found], h[found], t)
+    det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] ** 2
+    # The extremum of a loop between the vertices lies in a cell next to its seed (the vertex of
+    # least |f| around it); one more cell of slack.  Farther ones are other seeds' business.
+    near = np.all(np.abs(x[found] - x0[found]) <= 2 * cell[found], axis=1)
+    loop = near & (det > 0) & (value * sign[found] < 0) & (np.abs(value) > t.linear)
+    c, d, H, det = x[found][loop], value[loop], H[loop], det[loop]
+    # Extent of the ellipse f(c) + ½ dᵀ H d = 0 along each parameter: sqrt(2 |f(c)| |(H⁻¹)_kk|).
+    inv_diag = np.stack([H[:, 1, 1], H[:, 0, 0]], axis=1) / det[:, None]
+    half = 2.0 * np.sqrt(2.0 * np.abs(d)[:, None] * np.abs(inv_diag))
+    # The extremum may lie just outside G's box while its loop reaches in (the local grid is
+    # clipped to the box; its arcs end on the boundary): only loops clear of the box are dropped.
+    meets = np.all((c - half < bg[:, 1]) & (c + half > bg[:, 0]), axis=1)
+    return c[meets], half[meets]
+
+
+def _small_loops(g, f, bg: np.ndarray, us: np.ndarray, vs: np.ndarray, F: np.ndarray, seeds, chains,
+                 fbox: "_FieldBox", t: Tolerance) -> list[list]:
+    """Chains of the closed loops that lie between the vertices of the grid (step 1b), as :func:`_grid_chains`'.
+
+    Inside a loop the signed distance ``f`` has the other sign than around it, so it has an extremum
+    there (a minimum where the grid sees ``f > 0``): near a vertex of :func:`_touch_seeds` (``|f|``
+    locally smallest, no sign change around), Newton's method on ``∇f = 0`` (difference quotients,
+    steps held within a grid cell) finds that critical point (Patrikalakis–Maekawa §5.8.3: loops
+    are detected through the critical points of the distance).  An extremum of the other sign,
+    beyond ``tol.linear`` (a smaller one is a contact, :func:`_contacts`' business), means a loop:
+    the quadratic model ``f(c) + ½ dᵀ H d = 0`` gives its extent, a local grid of
+    :data:`_LOOP_CELLS` cells over twice that is marched like the main one, and enlarged
+    (:data:`_LOOP_ATTEMPTS` times) until its chains close.  Loops whose local grid meets a chain of
+    the main grid are already traced.
+    """
+    i, j, _ = seeds
+    i, j = _loop_candidates(F, us, vs, i, j, t)
+    if i.size == 0:
+        return []
+    cell = np.array([np.diff(us).max(), np.diff(vs).max()])
+    c, half = _loop_extrema(g, f, bg, np.stack([us[i], vs[j]], axis=1), np.sign(F[i, j]), cell, t)
+    if c.shape[0] == 0:
+        return []
+    out: list[list] = []
+    for k, found in enumerate(_local_loops(g, f, bg, c, half, chains, fbox, t)):  # loop over loops (a few)
+        if found is None:
+            _log.debug("march_intersection: no whole loop traced around the extremum of f at %s", c[k].tolist())
+            continue
+        out.extend(found)
+    return out
+
+
+def _local_loops(g, f, bg: np.ndarray, centre: np.ndarray, half: np.ndarray, chains, fbox: "_FieldBox",
+                 t: Tolerance, own=None) -> list[list | None]:
+    """Chains traced on local grids around ``centre`` ``(k, 2)`` of half-size ``half`` ``(k, 2)``; one list per centre.
+
+    Each local grid (:data:`_LOOP_CELLS` cells per direction, clipped to ``bg``) is marched like the
+    main one and doubled, up to :data:`_LOOP_ATTEMPTS` times, until every chain it finds closes or
+    has both ends on ``bg``'s boundary (it is then whole).  ``None`` for a centre whose local grid
+    holds samples of ``chains`` or of an earlier centre's (traced already, or too close to another
+    branch to be marched alone), or whose chains never came out whole.  ``own`` (optional, one
+    ``(m, 2)`` array per centre): samples of the coarse chain being replaced; an empty list for a
+    centre whose samples all lie in an earlier centre's successful local grid (one loop that the
+    main grid broke into two coarse chains was traced there whole).
+    """
+    done: list[tuple[np.ndarray, np.ndarray]] = []
+    taken = np.concatenate([ch[0][:, :2] for ch in chains]) if chains else np.zeros((0, 2))
+    # Round-off of the grid arithmetic: a chain end on a line of bg is on its boundary.
+    slack = 1e-9 * (bg[:, 1] - bg[:, 0])
+
+    def whole(ch) -> bool:
+        if ch[3]:
+            return True
+        ends = ch[0][[0, -1], :2]
+        return bool(np.all(np.any((np.abs(ends - bg[:, 0]) <= slack) | (np.abs(ends - bg[:, 1]) <= slack), axis=1)))
+
+    half = half.copy()
+    out: list[list | None] = []
+    for k in range(centre.shape[0]):  # loop over small loops (a few per pair)
+        if own is not None and any(np.all((own[k] >= lo) & (own[k] <= hi)) for lo, hi in done):
+            out.append([])
+            continue
+        found = None
+        for _attempt in range(_LOOP_ATTEMPTS):
+            lo = np.maximum(centre[k] - half[k], bg[:, 0])
+            hi = np.minimum(centre[k] + half[k], bg[:, 1])
+            if np.any(np.all((taken >= lo) & (taken <= hi), axis=1)):
+                break
+            lus, lvs = _grid_lines(lo[0], hi[0], _LOOP_CELLS), _grid_lines(lo[1], hi[1], _LOOP_CELLS)
+            LU, LV = np.meshgrid(lus, lvs, indexing="ij")
+            P = np.asarray(g.evaluate(*_clip(g, LU, LV))).reshape(-1, 3)
+            chains_k = _grid_chains(g, f, lus, lvs, P, _project(f, P, t)[1], fbox, t)
+            if chains_k and all(whole(ch) for ch in chains_k):
+                found = chains_k
+                done.append((lo, hi))
+                break
+            half[k] *= 2.0
+        out.append(found)
+        if found:
+            taken = np.concatenate([taken] + [ch[0][:, :2] for ch in found])
+    return out
+
+
+def _coarse_loops(g, f, bg: np.ndarray, us: np.ndarray, vs: np.ndarray, chains, fbox: "_FieldBox",
+                  t: Tolerance) -> list[list]:
+    """``chains`` with those of fewer than :data:`_LOOP_MIN_SAMPLES` samples traced again on local grids.
+
+    A loop about one cell across, or an arc dipping into the box for a cell or two, meets few grid
+    edges, and a crossing that fails its Newton correction leaves too few samples for the
+    interpolation to follow it (the fit folds back, or the chain stops short of the boundary).
+    Such a chain is marched again over its parameter box enlarged by a cell on every side; where
+    that does not give whole chains (:func:`_local_loops`) the chain is kept as it was.
+    """
+    coarse = [k for k, ch in enumerate(chains) if ch[0].shape[0] < _LOOP_MIN_SAMPLES]
+    if not coarse:
+        return chains
+    cell = np.array([np.diff(us).max(), np.diff(vs).max()])
+    lo = np.array([chains[k][0][:, :2].min(axis=0) for k in coarse])
+    hi = np.array([chains[k][0][:, :2].max(axis=0) for k in coarse])
+    rest = [ch for k, ch in enumerate(chains) if k not in coarse]
+    own = [chains[k][0][:, :2] for k in coarse]
+    again = _local_loops(g, f, bg, 0.5 * (lo + hi), 0.5 * (hi - lo) + cell, rest, fbox, t, own)
+    for k, found in zip(coarse, again):  # loop over coarse chains (a few)
+        if found is None:
+            # A loop smaller than the cells of its local grid too: sized by the extremum of f
+            # inside it (either sign of f around it), as in _small_loops.
+            mid = chains[k][0][:, :2].mean(axis=0)
+            c, half = _loop_extrema(g, f, bg, np.array([mid, mid]), np.array([1.0, -1.0]), cell, t)
+            if c.shape[0]:
+                found = _local_loops(g, f, bg, c[:1], half[:1], rest, fbox, t)[0]
+        rest.extend(found if found is not None else [chains[k]])
+    return rest
 
 
 def _separating(g, f, xs: np.ndarray, h: float, t: Tolerance) -> np.ndarray:
@@ -886,8 +1192,16 @@ def _near(x: np.ndarray, ref: np.ndarray, fbox: _FieldBox) -> np.ndarray:
     return x
 
 
-def _split_at_singular(Xc, Pc, inside, loop, singular, sing_pts, fbox):
-    """Replace the sample nearest each singular point on the chain by it; flags of the replaced samples."""
+def _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, grid):
+    """Replace the sample nearest each singular point on the chain by it; flags of the replaced samples.
+
+    A chain passes through a singular point when its nearest sample is within one chain step of
+    it, or lies in the cell of the main grid (``grid = (us, vs)``) that holds the point or in one
+    of its 8 neighbours, with nearly parallel normals there (sine below :data:`_SINGULAR_SINE`):
+    the segments of a saddle cell may cut its corner, far from the crossing, and two branches
+    leaving the point through one edge are invisible on it (no sign change), so the chain turns a
+    cell away; a branch merely passing by has no reason to be nearly tangent.
+    """
     split = np.zeros(Xc.shape[0], bool)
     if Xc.shape[0] < 2 or singular.shape[0] == 0:
         return Xc, split
@@ -896,24 +1210,46 @@ def _split_at_singular(Xc, Pc, inside, loop, singular, sing_pts, fbox):
     before = np.concatenate([[closing], seg])
     after = np.concatenate([seg, [closing]])
     reach = np.maximum(before, after)
+    sine = np.linalg.norm(np.cross(_normals(g, Xc[:, 0], Xc[:, 1]), _normals(f, Xc[:, 2], Xc[:, 3])), axis=1)
     Xc = Xc.copy()
     for s in range(singular.shape[0]):  # loop over singular points (a few)
+        on_cell = sine < _SINGULAR_SINE
+        for k, lines in enumerate(grid):  # the two parameters of G
+            per = fbox.g_periods[k]
+            y = singular[s, k] if per is None else lines[0] + np.mod(singular[s, k] - lines[0], per)
+            i = int(np.clip(np.searchsorted(lines, y) - 1, 0, lines.size - 2))
+            lo, width = lines[max(i - 1, 0)], lines[min(i + 2, lines.size - 1)] - lines[max(i - 1, 0)]
+            # Round-off of the grid arithmetic (crossings lie on the lines up to it).  No wrapping
+            # across a seam: the chain beyond it is another piece, which the point does not end.
+            slack = 1e-9 * width
+            w = Xc[:, k] - lo + slack
+            on_cell &= (w >= 0.0) & (w <= width + 2 * slack)
         # A chain may pass a singular point more than once (it runs along two of its branches).
         d = np.linalg.norm(Pc - sing_pts[s], axis=1)
         prev = np.roll(d, 1) if loop else np.concatenate([[np.inf], d[:-1]])
         nxt = np.roll(d, -1) if loop else np.concatenate([d[1:], [np.inf]])
-        for k in np.flatnonzero((d <= prev) & (d < nxt) & (d <= reach) & inside):
-            Xc[k], split[k] = _near(singular[s], Xc[k], fbox), True
+        for k in np.flatnonzero((d <= prev) & (d < nxt) & ((d <= reach) | on_cell) & inside):
+            x = _near(singular[s], Xc[k], fbox)
+            # The point's image a period beyond G's box (the chain ends at G's seam next to it)
+            # is not on this piece: the piece on the other side of the seam runs through it.
+            # (1e-9 of the box: round-off of the grid arithmetic, as above.)
+            if all(lines[0] - 1e-9 * (lines[-1] - lines[0]) <= x[j] <= lines[-1] + 1e-9 * (lines[-1] - lines[0])
+                   for j, lines in enumerate(grid)):
+                Xc[k], split[k] = x, True
     return Xc, split
 
 
-def _cut(g, f, chains, singular: np.ndarray, fbox: _FieldBox, t: Tolerance) -> list[tuple[np.ndarray, bool]]:
-    """Split chains at singular points and where they leave F's box; boundary points by Newton."""
+def _cut(g, f, chains, singular: np.ndarray, fbox: _FieldBox, t: Tolerance,
+         grid: tuple[np.ndarray, np.ndarray]) -> list[tuple[np.ndarray, bool]]:
+    """Split chains at singular points and where they leave F's box; boundary points by Newton.
+
+    ``grid``: the lines ``(us, vs)`` of the main grid (see :func:`_split_at_singular`).
+    """
     sing_pts = _frame(g, singular[:, 0], singular[:, 1])[0] if singular.shape[0] else np.zeros((0, 3))
     pieces: list[tuple[np.ndarray, bool]] = []
     requests: list[tuple[int, str, np.ndarray, np.ndarray]] = []
     for Xc, Pc, inside, loop in chains:  # loop over branches
-        Xc, split = _split_at_singular(Xc, Pc, inside, loop, singular, sing_pts, fbox)
+        Xc, split = _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, grid)
         n = Xc.shape[0]
         virtual = False
         if loop:
@@ -987,7 +1323,7 @@ def _add_boundary_points(g, f, pieces, requests, fbox: _FieldBox, t: Tolerance) 
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.clip(np.where(d != 0, (target - x_in[rows, 2 + which]) / d, 0.5), 0.0, 1.0)
     x0 = x_in + frac[:, None] * (x_out - x_in)
-    X, _, ok = _correct(g, f, x0, 2 + which, target, None, t)
+    X, _, ok = _correct(g, f, x0, 2 + which, target, None, t, (None, fbox.box))
     for i, (slot, end, *_rest) in enumerate(requests):  # loop over cut points (a few per branch)
         if not ok[i]:
             _log.debug("march_intersection: a box boundary point did not converge; the piece ends inside")
@@ -1073,7 +1409,7 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
         sm = [0.5 * (br.s[:-1] + br.s[1:]) for br in work]
         D = np.concatenate([np.asarray(br.fit[0].derivatives(m, 1)) for br, m in zip(work, sm)])
         x0 = np.concatenate([0.5 * (br.X[:-1] + br.X[1:]) for br in work])
-        Xm, Pm, okm = _correct_on_planes(g, f, D, x0, t)
+        Xm, Pm, okm = _correct_on_planes(g, f, D, x0, t, (bg, bf))
         Cm = D[:, 0]
         qg = np.concatenate([np.asarray(br.fit[1].evaluate(m)) for br, m in zip(work, sm)])
         qf = np.concatenate([np.asarray(br.fit[2].evaluate(m)) for br, m in zip(work, sm)])
@@ -1101,7 +1437,7 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
             owners.append((br, owner))
         if not owners:
             break
-        Xn, _, okn = _correct_on_planes(g, f, np.concatenate(new_D), np.concatenate(new_x0), t)
+        Xn, _, okn = _correct_on_planes(g, f, np.concatenate(new_D), np.concatenate(new_x0), t, (bg, bf))
         nb = np.cumsum([0] + [o.size for _, o in owners])
         for i, (br, owner) in enumerate(owners):  # loop over pieces
             xs, oks = Xn[nb[i] : nb[i + 1]], okn[nb[i] : nb[i + 1]]
@@ -1124,11 +1460,11 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
     return out
 
 
-def _correct_on_planes(g, f, D: np.ndarray, x0: np.ndarray, t: Tolerance):
+def _correct_on_planes(g, f, D: np.ndarray, x0: np.ndarray, t: Tolerance, boxes=(None, None)):
     """Newton from ``x0`` in the planes through ``D[:, 0]`` normal to ``D[:, 1]`` (curve points and tangents)."""
     T = D[:, 1] / np.linalg.norm(D[:, 1], axis=1, keepdims=True)
     m = x0.shape[0]
-    return _correct(g, f, x0, np.full(m, -1), np.zeros(m), np.concatenate([D[:, 0], T], 1), t)
+    return _correct(g, f, x0, np.full(m, -1), np.zeros(m), np.concatenate([D[:, 0], T], 1), t, boxes)
 
 
 # ---------------------------------------------------------------------------- curve–surface

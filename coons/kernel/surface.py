@@ -11,6 +11,14 @@ same operations.  Grid evaluation (``evaluate_grid``, ``derivatives_grid``)
 multiplies collocation matrices ``Bu^(k) @ Pw @ Bv^(l)T`` (The NURBS Book A3.5/A4.3
 in matrix form, Cohen–Riesenfeld–Elber ch. 13).
 
+Small batches (fewer than :data:`_SMALL` points: checking, projecting and inverting the
+edges of a model a few points at a time) take a path with as few numpy calls as possible
+(per-call overhead dominates there): cached last spans and net rows, first basis
+derivatives in closed form (:func:`coons.kernel.basis.basis_first_derivatives`), one
+gather and two einsums.  :class:`NurbsSurfaceStack` evaluates many surfaces of one
+structure (degrees, knots, net shape) in one batch, each point on its own surface: the
+mass properties of a model of a thousand patches then cost a few numpy passes.
+
 Knot operations, differential geometry and projection are in
 :mod:`coons.kernel.refine`, :mod:`coons.kernel.differential` and
 :mod:`coons.kernel.projection`; the methods here delegate to them.
@@ -35,7 +43,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from coons.kernel.curve import NurbsCurve
     from coons.kernel.projection import ClosestPoints
 
-__all__ = ["NurbsSurface"]
+__all__ = ["NurbsSurface", "NurbsSurfaceStack", "evaluate_surfaces"]
 
 #: Points per batch of the numpy scattered path.  Its temporaries are 1-D arrays of this
 #: length (128 KB), small enough to stay in cache and to be recycled by the allocator rather
@@ -98,6 +106,75 @@ def _rational_partials(A: list, binom: np.ndarray, d: int) -> list:
     return S
 
 
+def _contract(knots_u: np.ndarray, pu: int, knots_v: np.ndarray, pv: int, nv: int, planes, u: np.ndarray,
+              v: np.ndarray, order: int, offset: np.ndarray | None, last: tuple[int, int] | None = None) -> list:
+    """Mixed partials of the net given by ``planes`` at one chunk of parameters.
+
+    Basis rows per direction (A2.2 / A2.3), then the tensor contraction of The NURBS
+    Book A3.6 in two stages (v, then u), on contiguous 1-D arrays with one gather per
+    control point of the local ``(pu+1) × (pv+1)`` window and coordinate; below
+    :data:`_SMALL` points, one gather of all windows and two einsums instead.  ``offset``
+    ``(m,)`` (or None) is added to every gathered index: the start of each point's net in
+    planes that stack several nets of the same shape (:class:`NurbsSurfaceStack`); ``last``
+    the cached last spans in ``u`` and ``v`` (:func:`coons.kernel.basis.last_span`).
+
+    Returns
+    -------
+    A : nested lists ``A[k][l][c]`` of (m,) float64, ``k, l <= order``
+    """
+    lu, lv = last if last is not None else (None, None)
+    su = _b.find_spans(knots_u, pu, u, lu)
+    sv = _b.find_spans(knots_v, pv, v, lv)
+    if order == 0:
+        Nu = [_b.basis_rows(knots_u, pu, su, u)]
+        Nv = [_b.basis_rows(knots_v, pv, sv, v)]
+    else:
+        Nu = _b.basis_derivative_rows(knots_u, pu, su, u, order)
+        Nv = _b.basis_derivative_rows(knots_v, pv, sv, v, order)
+    base = (su - pu) * nv + (sv - pv)
+    if offset is not None:
+        base += offset
+    D = len(planes)
+    if u.shape[0] < _SMALL:
+        # Few points: one gather and two einsums cost fewer numpy calls than the
+        # per-coordinate loop below (same sums, possibly different round-off).
+        window = (np.arange(pu + 1)[:, None] * nv + np.arange(pv + 1))[:, :, None]
+        G = np.stack(planes)[:, base + window]  # (D, pu+1, pv+1, m)
+        T = np.einsum("ljm,cijm->lcim", np.asarray(Nv), G)
+        A = np.einsum("kim,lcim->klcm", np.asarray(Nu), T)
+    else:
+        A = _contract_loop(Nu, Nv, base, planes, pu, pv, nv)
+    # Orders above the degree vanish.
+    zero = np.zeros(u.shape[0])
+    return [
+        [A[k][l] if k < len(Nu) and l < len(Nv) else [zero] * D for l in range(order + 1)]
+        for k in range(order + 1)
+    ]
+
+
+def _contract_loop(Nu: list, Nv: list, base: np.ndarray, planes, pu: int, pv: int, nv: int) -> list:
+    """``A[k][l][c] = sum_i Nu[k][i] sum_j Nv[l][j] P_c[base + i nv + j]`` on 1-D arrays (A3.6).
+
+    The v sums first, in ``j`` order, then the u sums in ``i`` order: the operations
+    the numba surface kernel repeats.
+    """
+    D = len(planes)
+    A: list = [[[None] * D for _ in Nv] for _ in Nu]
+    for i in range(pu + 1):
+        G = [[P.take(idx) for P in planes] for idx in (base + (i * nv + j) for j in range(pv + 1))]
+        for l, Nvl in enumerate(Nv):
+            for c in range(D):
+                t = Nvl[0] * G[0][c]
+                for j in range(1, pv + 1):
+                    t += Nvl[j] * G[j][c]
+                for k, Nuk in enumerate(Nu):
+                    if i == 0:
+                        A[k][l][c] = Nuk[0] * t
+                    else:
+                        A[k][l][c] += Nuk[i] * t
+    return A
+
+
 @dataclass(frozen=True, eq=False)
 class NurbsSurface:
     """A (rational) tensor-product B-spline surface.
@@ -155,7 +232,7 @@ class NurbsSurface:
     @cached_property
     def is_rational(self) -> bool:
         w = self.weights
-        return bool(np.any(w != w.flat[0]))
+        return bool((w != w.flat[0]).any())
 
     @cached_property
     def domain_u(self) -> tuple[float, float]:
@@ -192,11 +269,80 @@ class NurbsSurface:
         t = resolve(tol)
         u = _b.check_parameters(u, self.domain_u, t, what="u")
         v = _b.check_parameters(v, self.domain_v, t, what="v")
+        if u.shape == v.shape:
+            return u, v
         try:
             u, v = np.broadcast_arrays(u, v)
         except ValueError as exc:
             raise InvalidInputError(f"u and v do not broadcast: shapes {u.shape} and {v.shape}") from exc
         return u, v
+
+    @cached_property
+    def _last_spans(self) -> tuple[int, int]:
+        """The last non-empty knot span in ``u`` and ``v`` (:func:`coons.kernel.basis.last_span`)."""
+        return _b.last_span(self.knots_u, self.degree_u), _b.last_span(self.knots_v, self.degree_v)
+
+    @cached_property
+    def _net_rows(self) -> np.ndarray:
+        """The net's coordinate planes as rows ``(D, nu * nv)`` (one copy; :attr:`_planes` are its
+        rows): ``P`` for a polynomial surface, ``[w P, w]`` for a rational one."""
+        net = self.homogeneous if self.is_rational else self.control_points
+        return np.ascontiguousarray(net.reshape(-1, net.shape[2]).T)
+
+    def _small_derivatives(self, u: np.ndarray, v: np.ndarray, order: int) -> np.ndarray:
+        """:meth:`_derivatives_flat` for fewer than :data:`_SMALL` points, ``(m, order+1, order+1, d)``.
+
+        Per-call overhead dominates there (the edges of a model are checked and projected a few
+        points at a time), so the path makes as few numpy calls as it can: spans by one binary
+        search per direction (cached last span), first derivatives of the basis by
+        :func:`coons.kernel.basis.basis_first_derivatives`, one gather of all ``(pu+1)(pv+1)``
+        windows of the stacked net and two einsums straight into the output layout.  The same
+        values as :func:`_contract` to round-off.
+        """
+        pu, pv = self.degree_u, self.degree_v
+        lu, lv = self._last_spans
+        # np.maximum/np.minimum rather than np.clip: the ufuncs skip np.clip's Python wrapper.
+        su = np.maximum(np.minimum(np.searchsorted(self.knots_u, u, side="right") - 1, lu), pu)
+        sv = np.maximum(np.minimum(np.searchsorted(self.knots_v, v, side="right") - 1, lv), pv)
+        if order == 0:
+            Nu = [_b.basis_rows(self.knots_u, pu, su, u)]
+            Nv = [_b.basis_rows(self.knots_v, pv, sv, v)]
+        elif order == 1:
+            Nu = _b.basis_first_derivatives(self.knots_u, pu, su, u)
+            Nv = _b.basis_first_derivatives(self.knots_v, pv, sv, v)
+        else:
+            Nu = _b.basis_derivative_rows(self.knots_u, pu, su, u, order)
+            Nv = _b.basis_derivative_rows(self.knots_v, pv, sv, v, order)
+        nv = self.shape[1]
+        window = self._small_window
+        G = self._net_rows[:, ((su - pu) * nv + (sv - pv)) + window]  # (D, pu+1, pv+1, m)
+        T = np.einsum("ljm,cijm->lcim", np.asarray(Nv), G)
+        A = np.einsum("kim,lcim->mklc", np.asarray(Nu), T)  # (m, ku, kv, D)
+        d = self.dimension
+        if self.is_rational:
+            K = order + 1
+            zero = np.zeros(u.shape[0])
+            D = A.shape[3]
+            L = [[[A[:, k, l, c] if k < A.shape[1] and l < A.shape[2] else zero for c in range(D)] for l in range(K)]
+                 for k in range(K)]
+            S = _rational_partials(L, binomials(order), d)
+            out = np.empty((u.shape[0], K, K, d))
+            for k in range(K):
+                for l in range(K):
+                    for c in range(d):
+                        out[:, k, l, c] = S[k][l][c]
+            return out
+        if A.shape[1] == order + 1 and A.shape[2] == order + 1:
+            return A
+        # Orders above the degree vanish.
+        out = np.zeros((u.shape[0], order + 1, order + 1, d))
+        out[:, : A.shape[1], : A.shape[2]] = A
+        return out
+
+    @cached_property
+    def _small_window(self) -> np.ndarray:
+        nv = self.shape[1]
+        return (np.arange(self.degree_u + 1)[:, None] * nv + np.arange(self.degree_v + 1))[:, :, None]
 
     @cached_property
     def _planes(self) -> tuple[np.ndarray, ...]:
@@ -205,8 +351,7 @@ class NurbsSurface:
         ``d`` planes of ``P`` for a polynomial surface (no weight channel, no divide),
         ``d + 1`` planes of ``[w P, w]`` for a rational one.
         """
-        net = self.homogeneous if self.is_rational else self.control_points
-        return tuple(np.ascontiguousarray(net[:, :, c]).ravel() for c in range(net.shape[2]))
+        return tuple(self._net_rows)
 
     @cached_property
     def _homogeneous_planes(self) -> tuple[np.ndarray, ...]:
@@ -214,68 +359,14 @@ class NurbsSurface:
         return tuple(np.ascontiguousarray(H[:, :, c]).ravel() for c in range(H.shape[2]))
 
     def _contract_chunk(self, u: np.ndarray, v: np.ndarray, order: int, planes) -> list:
-        """Mixed partials of the net given by ``planes`` at one chunk of parameters.
-
-        Basis rows per direction (A2.2 / A2.3), then the tensor contraction of The NURBS
-        Book A3.6 in two stages (v, then u), on contiguous 1-D arrays with one gather per
-        control point of the local ``(pu+1) × (pv+1)`` window and coordinate; below
-        :data:`_SMALL` points, one gather of all windows and two einsums instead.
+        """Mixed partials of the net given by ``planes`` at one chunk of parameters (:func:`_contract`).
 
         Returns
         -------
         A : nested lists ``A[k][l][c]`` of (m,) float64, ``k, l <= order``
         """
-        pu, pv = self.degree_u, self.degree_v
-        nv = self.shape[1]
-        su = _b.find_spans(self.knots_u, pu, u)
-        sv = _b.find_spans(self.knots_v, pv, v)
-        if order == 0:
-            Nu = [_b.basis_rows(self.knots_u, pu, su, u)]
-            Nv = [_b.basis_rows(self.knots_v, pv, sv, v)]
-        else:
-            Nu = _b.basis_derivative_rows(self.knots_u, pu, su, u, order)
-            Nv = _b.basis_derivative_rows(self.knots_v, pv, sv, v, order)
-        base = (su - pu) * nv + (sv - pv)
-        D = len(planes)
-        if u.shape[0] < _SMALL:
-            # Few points: one gather and two einsums cost fewer numpy calls than the
-            # per-coordinate loop below (same sums, possibly different round-off).
-            window = (np.arange(pu + 1)[:, None] * nv + np.arange(pv + 1))[:, :, None]
-            G = np.stack(planes)[:, base + window]  # (D, pu+1, pv+1, m)
-            T = np.einsum("ljm,cijm->lcim", np.asarray(Nv), G)
-            A = np.einsum("kim,lcim->klcm", np.asarray(Nu), T)
-        else:
-            A = self._contract_loop(Nu, Nv, base, planes)
-        # Orders above the degree vanish.
-        zero = np.zeros(u.shape[0])
-        return [
-            [A[k][l] if k < len(Nu) and l < len(Nv) else [zero] * D for l in range(order + 1)]
-            for k in range(order + 1)
-        ]
-
-    def _contract_loop(self, Nu: list, Nv: list, base: np.ndarray, planes) -> list:
-        """``A[k][l][c] = sum_i Nu[k][i] sum_j Nv[l][j] P_c[base + i nv + j]`` on 1-D arrays (A3.6).
-
-        The v sums first, in ``j`` order, then the u sums in ``i`` order: the operations
-        the numba surface kernel repeats.
-        """
-        pu, pv = self.degree_u, self.degree_v
-        nv = self.shape[1]
-        D = len(planes)
-        A: list = [[[None] * D for _ in Nv] for _ in Nu]
-        for i in range(pu + 1):
-            G = [[P.take(idx) for P in planes] for idx in (base + (i * nv + j) for j in range(pv + 1))]
-            for l, Nvl in enumerate(Nv):
-                for c in range(D):
-                    t = Nvl[0] * G[0][c]
-                    for j in range(1, pv + 1):
-                        t += Nvl[j] * G[j][c]
-                    for k, Nuk in enumerate(Nu):
-                        if i == 0:
-                            A[k][l][c] = Nuk[0] * t
-                        else:
-                            A[k][l][c] += Nuk[i] * t
-        return A
+        return _contract(self.knots_u, self.degree_u, self.knots_v, self.degree_v, self.shape[1], planes,
+                         u, v, order, None, self._last_spans)
 
     def _homogeneous_derivatives(self, u: np.ndarray, v: np.ndarray, order: int) -> np.ndarray:
         """Mixed partials of the homogeneous surface, ``(m, order+1, order+1, d+1)``, flat ``u, v``.
@@ -308,6 +399,8 @@ class NurbsSurface:
             )
             if out is not None:
                 return out
+        if m < _SMALL:
+            return self._small_derivatives(u, v, order)
         d = self.dimension
         planes = self._planes
         out = np.empty((m, order + 1, order + 1, d))
@@ -676,3 +769,148 @@ class NurbsSurface:
         from coons.kernel import differential
 
         return differential.surface_curvatures(self, u, v, tol)
+
+
+class NurbsSurfaceStack:
+    """Several :class:`NurbsSurface` of one structure, evaluated together as one batch.
+
+    Surfaces with equal degrees, knot vectors, net shape, dimension and rationality (equal
+    :meth:`key`) share their basis functions at a parameter; only the control points differ.
+    The stack concatenates their nets (the same coordinate planes as each surface's own
+    evaluation, one after the other) so that the points of many surfaces (a model of a
+    thousand bilinear patches, say) are evaluated in a few numpy passes instead of one call
+    per surface: :meth:`derivatives` takes, per point, the index of its surface in the stack.
+    The sums are those of :meth:`NurbsSurface.derivatives` on the numpy path (the numba
+    kernel is not used), so each point agrees with its surface's own evaluation to round-off.
+
+    Parameters
+    ----------
+    surfaces : sequence of NurbsSurface, non-empty, all with the same :meth:`key`
+
+    Raises
+    ------
+    InvalidInputError
+        An empty sequence, or surfaces of different structure.
+    """
+
+    def __init__(self, surfaces) -> None:
+        surfaces = list(surfaces)
+        if not surfaces or not all(isinstance(S, NurbsSurface) for S in surfaces):
+            raise InvalidInputError("NurbsSurfaceStack: expected a non-empty sequence of NurbsSurface")
+        k = self.key(surfaces[0])
+        for i, S in enumerate(surfaces[1:], 1):
+            if self.key(S) != k:
+                raise InvalidInputError(
+                    f"NurbsSurfaceStack: surface {i} has another structure (degrees, knots, net shape, dimension or "
+                    "rationality) than surface 0"
+                )
+        S0 = surfaces[0]
+        self.surfaces = tuple(surfaces)
+        self.degree_u, self.degree_v = S0.degree_u, S0.degree_v
+        self.knots_u, self.knots_v = S0.knots_u, S0.knots_v
+        self.domain = S0.domain
+        self.dimension = S0.dimension
+        self.rational = S0.is_rational
+        nu, nv = S0.shape
+        self._nv, self._size = nv, nu * nv
+        self._last = S0._last_spans
+        self._planes = tuple(np.concatenate([S._net_rows for S in surfaces], axis=1))
+
+    @staticmethod
+    def key(S: NurbsSurface) -> tuple:
+        """Structure of ``S``: surfaces with equal keys can share a :class:`NurbsSurfaceStack`."""
+        return (S.degree_u, S.degree_v, S.shape, S.dimension, S.is_rational, S.knots_u.tobytes(), S.knots_v.tobytes())
+
+    def __len__(self) -> int:
+        return len(self.surfaces)
+
+    def derivatives(self, which: np.ndarray, u: np.ndarray, v: np.ndarray, order: int = 1) -> np.ndarray:
+        """Mixed partials ``(m, order+1, order+1, d)`` of surface ``which[i]`` at ``(u[i], v[i])``.
+
+        Parameters
+        ----------
+        which : (m,) int, indices into the stack
+        u, v : (m,) float64, inside the (common) domain: not checked or clamped (the caller's
+            parameters come from its own geometry; see :meth:`NurbsSurface.derivatives` for the
+            checked form)
+        order : int >= 0
+        """
+        which = np.asarray(which, dtype=np.int64)
+        u = np.asarray(u, dtype=np.float64)
+        v = np.asarray(v, dtype=np.float64)
+        m, d = u.shape[0], self.dimension
+        out = np.empty((m, order + 1, order + 1, d))
+        binom = binomials(order)
+        for s in range(0, m, _CHUNK):
+            sl = slice(s, s + _CHUNK)
+            A = _contract(self.knots_u, self.degree_u, self.knots_v, self.degree_v, self._nv, self._planes,
+                          u[sl], v[sl], order, which[sl] * self._size, self._last)
+            if self.rational:
+                A = _rational_partials(A, binom, d)
+            blk = out[sl]
+            for k in range(order + 1):
+                for l in range(order + 1):
+                    for c in range(d):
+                        blk[:, k, l, c] = A[k][l][c]
+        return out
+
+
+def evaluate_surfaces(surfaces, index, u, v, tol: Tolerance | None = None) -> np.ndarray:
+    """Points of many surfaces at once: ``surfaces[index[i]]`` at ``(u[i], v[i])``, ``(m, 3)``.
+
+    For callers that evaluate a few points on each of many faces (checking, tessellating or
+    projecting a model's edges): the :class:`NurbsSurface` entries are grouped by structure
+    (:meth:`NurbsSurfaceStack.key`) and each group is evaluated in one batch; any other surface
+    type (anything with ``evaluate(u, v)``) is called once per distinct surface.  Parameters are
+    checked and clamped as :meth:`NurbsSurface.evaluate` does.
+
+    Parameters
+    ----------
+    surfaces : sequence of surfaces
+    index : (m,) int, into ``surfaces``
+    u, v : (m,) float
+
+    Raises
+    ------
+    InvalidInputError
+        An index out of range, or parameters outside a surface's domain (beyond round-off) or
+        not finite.
+    """
+    index = np.asarray(index, dtype=np.int64).ravel()
+    u = np.asarray(u, dtype=np.float64).ravel()
+    v = np.asarray(v, dtype=np.float64).ravel()
+    m = index.size
+    if u.size != m or v.size != m:
+        raise InvalidInputError(f"evaluate_surfaces: index, u and v must have one size, got {m}, {u.size}, {v.size}")
+    if m and (index.min() < 0 or index.max() >= len(surfaces)):
+        raise InvalidInputError(f"evaluate_surfaces: surface index out of range [0, {len(surfaces)})")
+    out = np.empty((m, 3))
+    if m == 0:
+        return out
+    t = resolve(tol)
+    ids, inverse = np.unique(index, return_inverse=True)
+    groups: dict = {}
+    for k, si in enumerate(ids.tolist()):
+        S = surfaces[si]
+        key = NurbsSurfaceStack.key(S) if isinstance(S, NurbsSurface) and S.dimension == 3 else ("single", k)
+        groups.setdefault(key, []).append(k)
+    slot = np.empty(ids.size, dtype=np.int64)
+    gid = np.empty(ids.size, dtype=np.int64)
+    for g, members in enumerate(groups.values()):
+        gid[members] = g
+    point_group = gid[inverse]
+    order = np.argsort(point_group, kind="stable")
+    bounds = np.searchsorted(point_group[order], np.arange(len(groups) + 1))
+    for g, members in enumerate(groups.values()):
+        rows = order[bounds[g] : bounds[g + 1]]
+        first = surfaces[int(ids[members[0]])]
+        if len(members) == 1 or not isinstance(first, NurbsSurface):
+            out[rows] = np.asarray(first.evaluate(u[rows], v[rows], t) if isinstance(first, NurbsSurface)
+                                   else first.evaluate(u[rows], v[rows]), dtype=np.float64).reshape(-1, 3)
+            continue
+        stack = NurbsSurfaceStack([surfaces[int(ids[k])] for k in members])
+        slot[members] = np.arange(len(members))
+        uu = _b.check_parameters(u[rows], stack.domain[0], t, what="u")
+        vv = _b.check_parameters(v[rows], stack.domain[1], t, what="v")
+        out[rows] = stack.derivatives(slot[inverse[rows]], uu, vv, 0)[:, 0, 0]
+    return out

@@ -599,3 +599,19 @@ def test_branch_crossing_a_box_corner_within_one_cell_is_found():
     lengths = sorted(c.curve.length() for c in r.curves)
     assert len(lengths) == 2 and 0.1 < lengths[0] < 0.3
     _assert_ends_on_boundaries(r, a, b, box_a, box_b)
+
+
+def test_branch_passing_next_to_a_sphere_pole_keeps_its_p_curve_in_the_domain():
+    """The branch passes 0.012 from the sphere's south pole (a Boolean's chain of 20 solids): Newton's
+    refinement points went over the pole (latitude < -π/2) and turns away in longitude; the p-curve
+    jumped between them and the branch came back with tol 0.17."""
+    cyl = CylindricalSurface([-4.540198973164249, 2.506442686317463, -3.9602271003246567], [1, 0, 0], [0, 1, 0], 1.2)
+    sphere = SphericalSurface([1.0697481342871509, 1.5793852479522137, -3.2370476147348457], [0, 0, 1], [1, 0, 0], 1.5)
+    box_a = ((-0.041897055921502654, 4.231591988467847), (-0.09540208973164256, 9.635601062895898))
+    box_b = ((-0.03141602653589794, 3.173008680125691), (-PI / 2, PI / 2))
+    r = march_intersection(cyl, sphere, box_a, box_b)
+    assert len(r.curves) >= 1
+    _check_branches(r, cyl, sphere, box_a, box_b)
+    south = sphere.center - 1.5 * np.array([0, 0, 1.0])
+    near_pole = min(np.linalg.norm(_samples(c) - south, axis=1).min() for c in r.curves)
+    assert near_pole < 0.02

@@ -89,8 +89,14 @@ accurate computation of polyhedral mass properties", 1996):
    forms with cancellation on fitted p-curves), not truncation error: the face is accepted if
    that floor is within ``_ROUNDOFF_SLACK`` (1e3) times the target.
    ``ConvergenceError`` if a face needs more than ``MAX_BISECTIONS`` halvings, or stalls above that.
-6. *Polygonal faces* (implicit planes ``face_surface = -1`` or :class:`PlanarSurface` faces,
-   bounded only by straight edges: no curve or a :class:`Line`) use closed forms over all
+   Surfaces of one structure (degrees, knots, net shape: :class:`~coons.kernel.surface.NurbsSurfaceStack`)
+   are integrated in one adaptive run, each point on its own face's surface, so a model of many
+   small patches costs a few numpy passes per round rather than a few calls per surface; the
+   convergence tests stay per face and per inner integral.
+6. *Polygonal faces* (implicit planes ``face_surface = -1``, :class:`PlanarSurface` faces, or
+   :class:`NurbsSurface` faces whose control net is flat to the round-off of its coordinates —
+   the surface lies in the net's convex hull, so in its plane —, bounded only by straight
+   edges: no curve or a :class:`Line`) use closed forms over all
    their coedges at once, whatever their sense: each coedge ``(a, b)`` of a face with
    reference vertex ``r`` spans the tetrahedron ``(x0, r, a, b)``, whose signed volume, first
    moment and second moment ``V/20 (r rᵀ + a aᵀ + b bᵀ + s sᵀ)``, ``s = r + a + b`` (Tonon,
@@ -113,6 +119,7 @@ edge or vertex tolerances.
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from dataclasses import dataclass
@@ -134,7 +141,7 @@ from coons.kernel.analytic import (
 from coons.kernel.conics import perpendicular_direction
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
-from coons.kernel.surface import NurbsSurface
+from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 
@@ -195,6 +202,9 @@ _STALL_FACTOR = 0.7
 #: an overestimate: the noise of the G7 estimates largely cancels in the K15 sums).
 _STALL_ROUNDS = 3
 _ROUNDOFF_SLACK = 1e3
+#: A NURBS control net whose points lie within this many ulps of their largest coordinate from
+#: one plane is flat (:func:`_flat_nets`): the rounding of the coordinates of a plane's points.
+_FLAT_ULPS = 64.0
 #: Most pieces alive at once in one adaptive integration (memory bound; ConvergenceError beyond).
 _MAX_PIECES = 1 << 20
 
@@ -446,11 +456,11 @@ def _face_integrals(b: BRep, x0: np.ndarray, L: float, ncols: int, rtol: float) 
     code = T.surface_code.take(fs)  # the sentinel row (face_surface = -1) is a plane
     face_has_curve = None
     if T.has_planes:
-        # Planar faces (implicit or PlanarSurface) bounded only by straight edges are polygons:
-        # closed forms from their vertices, whatever the face's sense.
+        # Planar faces (implicit, PlanarSurface or a flat NURBS net) bounded only by straight
+        # edges are polygons: closed forms from their vertices, whatever the face's sense.
         face_has_curve = np.zeros(nf, dtype=bool)
         face_has_curve[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
-        poly = (code == _C_PLANE) & ~face_has_curve
+        poly = ((code == _C_PLANE) | ((code == _C_NURBS) & T.flat_nurbs.take(fs))) & ~face_has_curve
         n_poly = int(np.count_nonzero(poly))
         if n_poly:
             _polyhedral_integrals(b, poly, x0, ncols, out)
@@ -555,6 +565,7 @@ class _Tables:
 
     surface_code: np.ndarray  # (S + 1,) int8
     surface_rows: np.ndarray  # (S + 1, 17)
+    flat_nurbs: np.ndarray  # (S + 1,) bool: a NURBS surface lying in a plane (_flat_nets)
     has_planes: bool  # some face is (or may be) planar
     curved_edge: np.ndarray  # (E,) bool
     implicit_curved: bool  # some implicit plane (face_surface = -1) has a curved edge
@@ -608,11 +619,39 @@ def _tables(b: BRep) -> _Tables:
     curved = np.array([not isinstance(c, Line) for c in b.curves] + [False]).take(b.edge_curve)
     fs = b.face_surface
     implicit = fs.size > 0 and int(fs.min()) < 0
-    has_planes = implicit or _C_PLANE in codes[:-1]
+    flat = np.zeros(code.size, dtype=bool)
+    nurbs = (code[:-1] == _C_NURBS).nonzero()[0]
+    if nurbs.size:
+        flat[nurbs] = _flat_nets([b.surfaces[i].control_points for i in nurbs])
+    has_planes = implicit or _C_PLANE in codes[:-1] or bool(flat.any())
     implicit_curved = (implicit and bool(curved.any())
                        and bool((fs.take(b.coedge_face.reshape(-1, 2)[curved]) < 0).any()))
-    T = cache["tables"] = _Tables(code, np.array(rows), has_planes, curved, implicit_curved, shape, coef)
+    T = cache["tables"] = _Tables(code, np.array(rows), flat, has_planes, curved, implicit_curved, shape, coef)
     return T
+
+
+def _flat_nets(nets: list) -> np.ndarray:
+    """Whether each control net ``(nu, nv, 3)`` lies in one plane to the round-off of its coordinates.
+
+    A NURBS surface lies in the convex hull of its control points (positive weights), so a flat
+    net makes a planar surface, whose faces bounded by straight edges are polygons
+    (:func:`_polyhedral_integrals`, exact).  Nets of one size are tested together: the smallest
+    singular value of the centred points bounds every point's distance from their best plane;
+    it must be within ``_FLAT_ULPS`` ulps of the largest coordinate (coordinates are only
+    known to that: such a net is the rounded image of a plane).
+    """
+    out = np.zeros(len(nets), dtype=bool)
+    by_size: dict[tuple, list[int]] = {}
+    for i, P in enumerate(nets):
+        if P.shape[-1] == 3:
+            by_size.setdefault(P.shape, []).append(i)
+    for rows in by_size.values():
+        P = np.stack([nets[i] for i in rows]).reshape(len(rows), -1, 3)
+        Q = P - P.mean(axis=1, keepdims=True)
+        smallest = np.linalg.svd(Q, compute_uv=False)[:, -1]
+        scale = np.abs(P).max(axis=(1, 2))
+        out[rows] = smallest <= _FLAT_ULPS * _EPS * scale
+    return out
 
 
 _ZEROS2, _ZEROS4, _ZEROS8 = [0.0] * 2, [0.0] * 4, [0.0] * 8
@@ -1138,16 +1177,27 @@ def _initial_pieces(paths: _Paths, pids: np.ndarray, breaks: list) -> tuple[np.n
 def _nurbs_integrals(b: BRep, paths: _Paths, nurbs: np.ndarray, uref: np.ndarray, x0: np.ndarray, ncols: int,
                      rtol: float, scale: np.ndarray, out: np.ndarray) -> None:
     """Contributions of the faces on NURBS surfaces (``nurbs`` ``(F,)``): adaptive outer and inner
-    integrals, per surface."""
+    integrals, per group of surfaces of one structure.
+
+    Surfaces sharing degrees, knots and net shape (:meth:`NurbsSurfaceStack.key`: the patches of a
+    sewn spline model, say) are integrated as one batch, each point evaluated on its own face's
+    surface: the convergence test stays per face (outer) and per inner integral, so the results
+    are those of one batch per surface; only the number of numpy calls drops.
+    """
     nf = out.shape[0]
     pf = paths.face
     fs = b.face_surface
     on_nurbs = paths.block == _B_NURBS
+    groups: dict[tuple, list[int]] = {}
     for si in np.unique(fs[nurbs]):
-        S = b.surfaces[int(si)]
-        (u0, u1), (v0, v1) = S.domain
-        ku, kv = _interior_knots(S.knots_u, u0, u1), _interior_knots(S.knots_v, v0, v1)
-        pids = (on_nurbs & (fs.take(pf) == si)).nonzero()[0]
+        groups.setdefault(NurbsSurfaceStack.key(b.surfaces[int(si)]), []).append(int(si))
+    slot = np.zeros(len(b.surfaces) + 1, dtype=np.int64)  # surface -> index in its stack (-1 reads the last)
+    for members in groups.values():
+        stack = NurbsSurfaceStack([b.surfaces[si] for si in members])
+        slot[members] = np.arange(len(members))
+        (u0, u1), (v0, v1) = stack.domain
+        ku, kv = _interior_knots(stack.knots_u, u0, u1), _interior_knots(stack.knots_v, v0, v1)
+        pids = (on_nurbs & np.isin(fs.take(pf), members)).nonzero()[0]
         if pids.size == 0:
             continue
         breaks = []
@@ -1157,26 +1207,29 @@ def _nurbs_integrals(b: BRep, paths: _Paths, nurbs: np.ndarray, uref: np.ndarray
             if paths.shape[p] == _P_TRIG:
                 n = max(1, math.ceil((t1 - t0) / ANGLE_STEP - 1e-9))  # as in _block_nodes
                 br += list(np.linspace(t0, t1, n + 1)[1:-1])
-            n = 64 * (1 + len(br))
-            br += _crossings(paths, int(p), ku, 0, n) + _crossings(paths, int(p), kv, 1, n)
+            if ku.size or kv.size:
+                n = 64 * (1 + len(br))
+                br += _crossings(paths, int(p), ku, 0, n) + _crossings(paths, int(p), kv, 1, n)
             breaks.append(br)
         item, lo, hi = _initial_pieces(paths, pids, breaks)
         ur = np.clip(uref, u0, u1)
+        face_slot = slot.take(fs)
 
-        def integrand(it: np.ndarray, t: np.ndarray, S=S, ku=ku, dom=((u0, u1), (v0, v1))) -> np.ndarray:
+        def integrand(it: np.ndarray, t: np.ndarray, stack=stack, ku=ku, dom=((u0, u1), (v0, v1))) -> np.ndarray:
             uv, duv = paths.evaluate(it, t)
             u = np.clip(uv[:, 0], *dom[0])
             v = np.clip(uv[:, 1], *dom[1])
-            F = _nurbs_F(S, ku, x0, ncols, rtol, scale, u, v, ur[pf[it]], pf[it])
-            return F * (duv[:, 1] * paths.sign[it])[:, None]
+            f = pf.take(it)
+            F = _nurbs_F(stack, face_slot.take(f), ku, x0, ncols, rtol, scale, u, v, ur.take(f), f)
+            return F * (duv[:, 1] * paths.sign.take(it))[:, None]
 
         out += _adaptive(item, lo, hi, pf[item], nf, integrand, ncols, rtol, scale, np.arange(nf))
 
 
-def _nurbs_F(S: NurbsSurface, ku: np.ndarray, x0: np.ndarray, ncols: int, rtol: float, scale: np.ndarray,
-             u: np.ndarray, v: np.ndarray, uref: np.ndarray, face: np.ndarray) -> np.ndarray:
-    """``F(u, v) = ∫_{u_ref}^{u} f(s, v) ds`` on a NURBS surface, ``(n, ncols)``: adaptive G7/K15
-    over ``[u_ref, u]`` cut at the interior ``u`` knots ``ku``, each integral to ``rtol``."""
+def _nurbs_F(stack: NurbsSurfaceStack, which: np.ndarray, ku: np.ndarray, x0: np.ndarray, ncols: int, rtol: float,
+             scale: np.ndarray, u: np.ndarray, v: np.ndarray, uref: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """``F(u, v) = ∫_{u_ref}^{u} f(s, v) ds`` on surface ``which`` of ``stack``, ``(n, ncols)``:
+    adaptive G7/K15 over ``[u_ref, u]`` cut at the interior ``u`` knots ``ku``, each integral to ``rtol``."""
     n = u.size
     lo, hi = np.minimum(uref, u), np.maximum(uref, u)
     bounds = np.concatenate([[-np.inf], ku, [np.inf]])
@@ -1189,15 +1242,16 @@ def _nurbs_F(S: NurbsSurface, ku: np.ndarray, x0: np.ndarray, ncols: int, rtol: 
     node = np.repeat(node, _INITIAL_PIECES)
 
     def integrand(it: np.ndarray, s: np.ndarray) -> np.ndarray:
-        return _nurbs_integrand(S, s, v[it], x0, ncols)
+        return _nurbs_integrand(functools.partial(stack.derivatives, which.take(it)), s, v.take(it), x0, ncols)
 
     F = _adaptive(node, edges[:, :-1].ravel(), edges[:, 1:].ravel(), node, n, integrand, ncols, rtol, scale, face)
     return F * np.where(u >= uref, 1.0, -1.0)[:, None]
 
 
-def _nurbs_integrand(S, u: np.ndarray, v: np.ndarray, x0: np.ndarray, ncols: int) -> np.ndarray:
-    """``f(u, v)`` columns ``(n, ncols)`` of the module docstring from ``S.derivatives``."""
-    D = S.derivatives(u, v, 1)
+def _nurbs_integrand(derivatives: Callable, u: np.ndarray, v: np.ndarray, x0: np.ndarray, ncols: int) -> np.ndarray:
+    """``f(u, v)`` columns ``(n, ncols)`` of the module docstring from ``derivatives(u, v, 1)``
+    (first partials ``(n, 2, 2, 3)``, as :meth:`NurbsSurface.derivatives`)."""
+    D = derivatives(u, v, 1)
     P = D[:, 0, 0, :] - x0
     N = np.cross(D[:, 1, 0, :], D[:, 0, 1, :])
     w = np.einsum("ni,ni->n", P, N)

@@ -14,6 +14,9 @@ meet, which edges are shared — is recovered from geometry:
 3. **Edges**: edge uses joining the same two vertices whose 3-D curves agree at their
    midpoints (the parametric midpoint of one within tolerance of the other curve, restricted to
    its range) are one edge.  Every edge must be used exactly twice, in opposite directions.
+   The common case — two uses between two vertices with coincident midpoints, running opposite
+   ways — is decided for all groups at once; other groups (arcs sharing both vertices, as the
+   halves of a hole) go through union–find, the sampled curve of each use computed once.
 4. **Same parameter**: the first use's curve becomes the edge curve; the other use's p-curve is
    re-expressed in that parameter when its curve is a different object, through the affine
    parameter map fixed by the shared end points (verified on samples): ``Line2D``, ``Trig2D``
@@ -318,18 +321,31 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     key = lo[order] * (int(hi.max()) + 1) + hi[order]
     start = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
     stop = np.append(start[1:], key.size)
-    pairs = []
-    for s, e in zip(start, stop):
+    # The common case at once: two uses between two distinct vertices, running opposite ways,
+    # with coincident midpoints (one curve shared by both faces) are one edge, exactly as the
+    # general path below would find; every other group goes through it.
+    two = (stop - start) == 2
+    i2, j2 = order[start[two]], order[start[two] + 1]
+    fast = ((np.linalg.norm(uses.mid[i2] - uses.mid[j2], axis=1) <= np.maximum(uses.tol[i2], uses.tol[j2]))
+            & ~closed[i2] & (vs[i2] == ve[j2]))
+    pairs = [np.stack([i2[fast], j2[fast]], axis=1)]
+    samples: dict = {}  # first-round samples of _distance_to_curve, shared by the uses of one curve
+    slow = np.ones(start.size, dtype=bool)
+    slow[two.nonzero()[0][fast]] = False
+    for s, e in zip(start[slow], stop[slow]):
         group = [int(x) for x in order[s:e]]
-        for comp in _agreeing_components(uses, group):
+        for comp in _agreeing_components(uses, group, samples):
             _require_pair(uses, comp, vertex)
-            pairs.append(comp)
-    out = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+            pairs.append(np.asarray([comp], dtype=np.int64))
+    out = np.concatenate(pairs).astype(np.int64, copy=False).reshape(-1, 2)
     return out[np.argsort(out[:, 0], kind="stable")]
 
 
-def _agreeing_components(uses: _Uses, group: list[int]) -> list[list[int]]:
-    """Partition uses joining the same vertices into sets whose curves agree (union–find)."""
+def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = None) -> list[list[int]]:
+    """Partition uses joining the same vertices into sets whose curves agree (union–find).
+
+    ``samples`` caches the first sampling round of :func:`_distance_to_curve` per curve and range.
+    """
     parent = list(range(len(group)))
 
     def find(a: int) -> int:
@@ -340,7 +356,7 @@ def _agreeing_components(uses: _Uses, group: list[int]) -> list[list[int]]:
 
     for x in range(len(group)):
         for y in range(x + 1, len(group)):
-            if find(x) != find(y) and _curves_agree(uses, group[x], group[y]):
+            if find(x) != find(y) and _curves_agree(uses, group[x], group[y], samples):
                 parent[find(x)] = find(y)
     comps: dict[int, list[int]] = {}
     for x in range(len(group)):
@@ -348,16 +364,17 @@ def _agreeing_components(uses: _Uses, group: list[int]) -> list[list[int]]:
     return sorted(comps.values(), key=lambda c: c[0])
 
 
-def _curves_agree(uses: _Uses, i: int, j: int) -> bool:
+def _curves_agree(uses: _Uses, i: int, j: int, samples: dict | None = None) -> bool:
     """Whether uses ``i`` and ``j`` lie on one curve: each midpoint within tolerance of the other curve."""
     thr = max(uses.tol[i], uses.tol[j])
     if np.linalg.norm(uses.mid[i] - uses.mid[j]) <= thr:
         return True  # same parametric midpoint (the common case: a shared curve object)
-    return (_distance_to_curve(uses.mid[i], uses.spec[j], stop=thr) <= thr
-            and _distance_to_curve(uses.mid[j], uses.spec[i], stop=thr) <= thr)
+    return (_distance_to_curve(uses.mid[i], uses.spec[j], stop=thr, samples=samples) <= thr
+            and _distance_to_curve(uses.mid[j], uses.spec[i], stop=thr, samples=samples) <= thr)
 
 
-def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int = 8, stop: float | None = None) -> float:
+def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int = 8, stop: float | None = None,
+                       samples: dict | None = None) -> float:
     """Distance from ``p`` to ``spec.curve`` over its range: dense samples, then zooming on the nearest.
 
     Each round samples ``n`` parameters and shrinks the bracket around the nearest sample to two
@@ -367,24 +384,36 @@ def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int =
     ``range · 16⁻⁸ / 32 ≈ 7e-12 range``, below any tolerance.  Only evaluation is needed, so any
     curve type works.  With ``stop``, a point farther from the first samples than ``stop`` plus
     the largest sample spacing returns that first estimate at once (only "is it within stop"
-    matters to the caller).
+    matters to the caller).  ``samples``, a dict, caches the first round's samples and spacing
+    per curve object and range (the uses of one edge share both; a group of uses between two
+    vertices probes each curve several times).
     """
     lo, hi = min(spec.t0, spec.t1), max(spec.t0, spec.t1)
     best = math.inf
     for r in range(rounds):
-        tt = np.linspace(lo, hi, n)
-        X = np.asarray(spec.curve.evaluate(tt))
-        d = np.linalg.norm(X - p, axis=-1)
-        k = int(np.argmin(d))
+        key = (id(spec.curve), lo, hi, n) if r == 0 and samples is not None else None
+        hit = samples.get(key) if key is not None else None
+        if hit is None:
+            tt = np.linspace(lo, hi, n)
+            X = np.asarray(spec.curve.evaluate(tt))
+            gap = None
+        else:
+            X, gap = hit
+        d = np.sqrt(np.square(X - p).sum(axis=-1))
+        k = int(d.argmin())
         best = min(best, float(d[k]))
         if r == 0 and stop is not None:
             # Farther from every sample than the sample spacing allows the curve to come back
             # (the same resolution assumption as the zoom itself): no closer than ``stop``.
-            gap = float(np.max(np.linalg.norm(np.diff(X, axis=0), axis=-1), initial=0.0))
+            if gap is None:
+                gap = float(np.max(np.linalg.norm(np.diff(X, axis=0), axis=-1), initial=0.0))
+            if key is not None and hit is None:
+                samples[key] = (X, gap)  # the uses keep their curves alive while the dict lives: ids stay unique
             if best - gap > stop:
                 return best
         step = (hi - lo) / (n - 1)
-        lo, hi = max(lo, tt[k] - step), min(hi, tt[k] + step)
+        tk = lo + k * step if k < n - 1 else hi  # tt[k] of np.linspace(lo, hi, n)
+        lo, hi = max(lo, tk - step), min(hi, tk + step)
     return best
 
 

@@ -20,7 +20,7 @@ import trimesh
 
 import coons.topology.check as check_module
 from coons.kernel.analytic import PlanarSurface
-from coons.kernel.pcurve import Line2D
+from coons.kernel.pcurve import Line2D, Trig2D
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
 from coons.topology.check import CheckReport, Problem, check
@@ -420,6 +420,45 @@ def test_crossing_trims_with_surfaces_and_pcurves_are_found():
         sew_faces(planar(face_specs(plate_with_hole((3, 1), (5, 2)))))
 
 
+def disc_with_hole(gap: float) -> list[FaceSpec]:
+    """Face specs of a disc of radius 2 and height 1 with a round hole of radius 0.5 whose rim
+    comes within ``gap`` of the disc's rim (negative: the hole crosses it), towards the angle
+    π/16 where the disc's 9-sample polyline cuts the corner deepest (sagitta 0.038)."""
+    R, r, th = 2.0, 0.5, math.pi / 16
+    d = R - r - gap
+    outer = face_specs(Cylinder(R, 1.0))
+    inner = face_specs(Cylinder(r, 1.0).translate((d * math.cos(th), d * math.sin(th), 0.0)))
+
+    def holed(face, hole):
+        S = face.surface
+        F = np.asarray(S.frame)[:2]
+        uses = []
+        for e in reversed(hole.loops[0]):
+            X, Y, _ = e.curve.frame
+            pc = Trig2D(F @ (e.curve.center - S.origin), e.curve.radius * (F @ X), e.curve.radius * (F @ Y))
+            uses.append(EdgeSpec(e.curve, e.t1, e.t0, pc, e.tol))
+        return FaceSpec(S, face.sense, [face.loops[0], uses])
+
+    walls = [FaceSpec(f.surface, not f.sense, [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol)
+                                                 for e in reversed(f.loops[0])]]) for f in inner[2:]]
+    return [holed(outer[0], inner[0]), holed(outer[1], inner[1])] + outer[2:] + walls
+
+
+def test_hole_grazing_a_curved_rim_is_not_a_crossing(monkeypatch):
+    """A hole 0.01 inside the rim: the coarse chords cross (the sagitta is 0.038), the curves do not."""
+    solid = sew_faces(disc_with_hole(0.01))
+    assert check(solid).ok
+    assert math.isclose(solid.volume, math.pi * (4.0 - 0.25), rel_tol=1e-12)
+    # Without the refinement the coarse polylines report the false crossing (the case is a real test).
+    monkeypatch.setattr(check_module, "_REFINE_LEVELS", 0)
+    assert {p.index for p in check(solid).problems if p.code == "self-intersecting-trim"} == {0, 1}
+
+
+def test_hole_crossing_a_curved_rim_is_found():
+    with pytest.raises(TopologyError, match=r"self-intersecting-trim \[face 0\]: edge \d+ of loop \d+ crosses"):
+        sew_faces(disc_with_hole(-0.02))
+
+
 def test_report_api():
     report = check(Box(1, 2, 3))
     assert isinstance(report, CheckReport) and report.ok and bool(report) and report.summary() == "valid"
@@ -468,3 +507,17 @@ def test_implicit_faces_with_curved_edges_are_sampled():
     A, B, face, nxt, coedge, eps = _face_segments(solid.brep, f, 9, DEFAULT_TOLERANCE)
     assert A.shape == (16, 2) and np.all(face == f) and np.all(eps == DEFAULT_TOLERANCE.linear)
     np.testing.assert_allclose(np.linalg.norm(A - A.mean(axis=0), axis=1), 1.0, rtol=1e-12)  # on the unit circle
+
+
+def test_cycle_lengths_of_random_permutations():
+    """Pointer doubling against the components of the permutation graph (scipy)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 3, 17, 1000):
+        for _ in range(5):
+            p = rng.permutation(n)
+            g = coo_matrix((np.ones(n), (np.arange(n), p)), shape=(n, n))
+            _, label = connected_components(g, directed=True, connection="weak")
+            np.testing.assert_array_equal(check_module._cycle_lengths(p), np.bincount(label)[label])

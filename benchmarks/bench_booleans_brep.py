@@ -13,6 +13,10 @@ Cases, each run by both peers in the same process on operands made beforehand:
   cuts; ``plate − 20×20 holes``: the same with 400 cylinders on a 210 × 210 plate, one call;
 * ``chain of 20``: a box to which 20 cylinders and spheres are alternately added and removed.
 
+``COONS_BENCH_CASES`` (comma-separated, case-insensitive substrings of the case names, e.g.
+``box,sphere``) restricts a run to the matching cases; the plate and chain rows take most of the
+time.
+
 Both peers are called as a user calls them: coons ``a - b`` (which returns a checked solid with
 faces on one surface merged), build123d ``a - b`` (BRepAlgoAPI plus its default clean-up by
 ``ShapeUpgrade_UnifySameDomain``).  Before a time is reported the two volumes must agree to
@@ -25,6 +29,7 @@ from __future__ import annotations
 import cProfile
 import io
 import math
+import os
 import pstats
 import time
 
@@ -145,7 +150,10 @@ def run() -> Report:
     import coons  # noqa: F401  (registers the operators)
 
     rows, failed, profile_case = [], False, None
+    only = [w.strip().lower() for w in os.environ.get("COONS_BENCH_CASES", "").split(",") if w.strip()]
     for name, (cfn, ofn, reps) in _cases().items():
+        if only and not any(w in name.lower() for w in only):
+            continue
         try:
             tc, rc = _best(cfn, reps)
         except Exception as exc:  # a failing case is a row of the report, not a crash of the run

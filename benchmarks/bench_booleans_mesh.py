@@ -106,9 +106,12 @@ def _phases(a, b, op: str) -> list[tuple[str, float]]:
 
     A, B = poly._meshes(a, "A", t), poly._meshes(b, "B", t)
     lap("1 meshes (exact triangulations of both operands)")
-    ex = Exact(A.P, B.P)
     I, J = poly._broad_phase(A, B)
-    lap(f"2 broad phase ({I.size} candidate pairs)")
+    A, B, snapped = poly.snap(A, B, I, J, t.linear)
+    if snapped:
+        I, J = poly._broad_phase(A, B)
+    ex = Exact(A.P, B.P)
+    lap(f"2 broad phase and snapping ({I.size} candidate pairs)")
     inter = poly._intersect(A, B, I, J, ex)
     table = PointTable(A, B, inter, ex)
     lap(f"3–4 narrow phase and exact points ({inter.n_points} points, {inter.seg_a.shape[0]} segments)")

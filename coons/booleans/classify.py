@@ -53,7 +53,8 @@ Limitations
   radii of curvature (the band is ``2 d`` with ``d`` the deflection, small against them for the
   default ``d``).
 * Cost: one tessellation per solid, then ``O(n · faces)`` projections and a winding-number sum
-  over the far points only for points inside the solid's box (``O(n_far · triangles)``).
+  over the far points, each against the triangles of the shells whose box holds it (a closed
+  shell's winding number is 0 outside its box), ``O(n_far · triangles)`` at worst.
 """
 
 from __future__ import annotations
@@ -207,6 +208,18 @@ class Classifier:
         lo[~np.isfinite(lo)], hi[~np.isfinite(hi)] = -np.inf, np.inf  # a face without triangles: always near
         self._face_lo, self._face_hi = lo - d, hi + d
         self._faces: list[_Face | None] = [None] * F
+        # Triangles grouped by shell, with the shells' boxes: a closed shell contributes a winding
+        # number of 0 at a point outside its box, so only the shells whose box holds a point are
+        # summed (a tool gathered from many disjoint solids is many small shells).
+        tri_shell = np.asarray(b.face_shell, dtype=np.int64)[mesh.face_ids]
+        order = np.argsort(tri_shell, kind="stable")
+        self._tri_by_shell = self.tri[order]
+        self._shell_ptr = np.searchsorted(tri_shell[order], np.arange(b.n_shells + 1))
+        S = b.n_shells
+        slo, shi = np.full((S, 3), np.inf), np.full((S, 3), -np.inf)
+        np.minimum.at(slo, tri_shell, self.tri.min(axis=1))
+        np.maximum.at(shi, tri_shell, self.tri.max(axis=1))
+        self._shell_lo, self._shell_hi = slo, shi
 
     @property
     def faces(self) -> list[_Face]:
@@ -354,9 +367,18 @@ class Classifier:
         cls[far & outside_box] = OUTSIDE
         far &= ~outside_box
         if np.any(far):
-            w = winding_numbers(P[far], self.tri)
+            w = self._winding(P[far])
             cls[far] = np.where(np.abs(w) > 0.5, INSIDE, OUTSIDE)
         return cls, normal
+
+    def _winding(self, Q: np.ndarray) -> np.ndarray:
+        """Winding numbers ``(k,)`` of the mesh at ``Q (k, 3)``, summed over the shells whose box holds each point."""
+        hit = np.all((Q[:, None] >= self._shell_lo[None]) & (Q[:, None] <= self._shell_hi[None]), axis=2)  # (k, S)
+        w = np.zeros(Q.shape[0])
+        for sh in np.flatnonzero(np.any(hit, axis=0)).tolist():  # shells near some point (few per point)
+            k = np.flatnonzero(hit[:, sh])
+            w[k] += winding_numbers(Q[k], self._tri_by_shell[self._shell_ptr[sh]:self._shell_ptr[sh + 1]])
+        return w
 
     # ------------------------------------------------------------------ edges
     def _inside_trim(self, f: int, X: np.ndarray) -> np.ndarray:
@@ -549,16 +571,25 @@ def _in_polygon(uv: np.ndarray, seg: np.ndarray) -> np.ndarray:
 
 
 def _segment_distance(Q: np.ndarray, seg: np.ndarray) -> np.ndarray:
-    """Distance of points ``(k, 3)`` to the nearest of segments ``(s, 2, 3)``, chunked."""
+    """Distance of points ``(k, d)`` to the nearest of segments ``(s, 2, d)``, chunked.
+
+    Coordinate by coordinate on ``(k, s)`` arrays (the same arithmetic as on ``(k, s, d)`` ones,
+    with fewer temporaries); the square root is taken of the ``k`` minima only.
+    """
     out = np.full(Q.shape[0], np.inf)
+    if seg.shape[0] == 0:
+        return out
     a = seg[:, 0]
     d = seg[:, 1] - a
     dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
     step = max(1, _CHUNK // max(1, seg.shape[0]))
+    dims = range(Q.shape[1])
     for s in range(0, Q.shape[0], step):
-        R = Q[s : s + step, None, :] - a[None]
-        lam = np.clip(np.einsum("kij,ij->ki", R, d) / dd, 0.0, 1.0)
-        out[s : s + step] = np.min(np.linalg.norm(R - lam[..., None] * d, axis=-1), axis=1)
+        R = [Q[s : s + step, i, None] - a[None, :, i] for i in dims]  # (k, s) per coordinate
+        lam = sum(R[i] * d[None, :, i] for i in dims) / dd
+        np.clip(lam, 0.0, 1.0, out=lam)
+        d2 = sum(np.square(R[i] - lam * d[None, :, i]) for i in dims)
+        out[s : s + step] = np.sqrt(np.min(d2, axis=1))
     return out
 
 

@@ -43,7 +43,9 @@ Phases (each a private function raising ``BooleanError(stage=...)`` with ids and
 2. ``_broad_phase``: candidate pairs from :func:`._broad_phase.triangle_pairs`: a vertex cull and a
    box cull on uniform grids drop the triangles far from the other surface, then the survivors'
    overlapping boxes come from a grid (or two implicit bounding-volume hierarchies), no Python
-   loop over triangles.
+   loop over triangles.  Then :func:`._mesh_arrangement.snap` makes near-coincidences of
+   near-coplanar candidate pairs (within ``tol.linear``) exact before the exact phases (the broad
+   phase is redone only when it changed the operands).
 3. + 4. ``_intersect`` (stage ``"intersect"``): exact narrow phase and intersection points and
    segments (:func:`._mesh_arrangement.intersect`).
 5. ``_imprint`` (stage ``"imprint"``): every triangle split along its segments; triangles crossed
@@ -52,7 +54,9 @@ Phases (each a private function raising ``BooleanError(stage=...)`` with ids and
    (:func:`._mesh_arrangement.imprint`).
 6. ``_classify`` (stage ``"classify"``): patches are the connected components of the piece
    adjacency cut at intersection edges (``scipy.sparse.csgraph``; whole triangles are joined
-   through the operand's edge table, only the pieces of split triangles are paired by sorting).
+   through the operand's edge table, only the pieces of split triangles are paired by sorting;
+   an edge between two whole triangles is looked up among the intersection edges only when both
+   its vertices lie on the other surface).
    A patch is ``ON`` when one of its pieces lies in a coplanar triangle of the other mesh (exact
    test of the piece's centroid);
    otherwise one point of the patch is classified by **ray parity**: the ray ``q + λ (1, 0, 0)``,
@@ -141,7 +145,11 @@ Status and limitations
   segments does not describe (Python, exact integers when the float filters cannot decide).
   ``benchmarks/bench_booleans_mesh.py`` measures coons against manifold3d in the same run
   (``benchmarks/results/booleans_mesh.md``); at 1.6e5 input triangles the sewing of the result
-  (half-edge pairing, tables, coplanar merging, the topological checks) is the largest phase.
+  (half-edge pairing, tables, coplanar merging, the topological checks) is the largest phase
+  (about 70 of ~180 ms CPU, a third of it the topological check), then imprint, the broad phase,
+  the operands' meshes and boxes, and classification.  Row gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times
+  faster than ``A[idx]`` with numpy 2.4).  Triangles crossed by two chains of segments (the
+  side faces of prisms through a plate) still take the per-triangle Python split.
 * Bit-identical rounded points that are not joined by an edge stay distinct vertices (the exact
   points are distinct); identical input vertices of A and B are one point (keyed exactly).
 * n-ary calls fold left: ``union(a, b, c) = (a ∪ b) ∪ c``.
@@ -155,7 +163,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from coons.booleans._broad_phase import box_pairs, triangle_boxes, triangle_pairs
+from coons.booleans._broad_phase import _CULL_MIN, _vertex_cull, box_pairs, triangle_boxes, triangle_pairs
 from coons.booleans._mesh_arrangement import (
     Exact,
     Imprint,
@@ -166,6 +174,7 @@ from coons.booleans._mesh_arrangement import (
     imprint,
     intersect,
     operand,
+    snap,
 )
 from coons.errors import BooleanError, InvalidInputError, TopologyError
 from coons.kernel.analytic import Line, PlanarSurface
@@ -296,8 +305,13 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
         if op == "intersection":
             return Solid.empty()
         return Solid.empty() if A is None else a
-    ex = Exact(A.P, B.P)
     I, J = _broad_phase(A, B)
+    # Faces that coincide only up to rounding are made to coincide exactly (features within
+    # tol.linear become one feature) before the exact phases; see _mesh_arrangement.snap.
+    A, B, snapped = snap(A, B, I, J, t.linear)
+    if snapped:
+        I, J = _broad_phase(A, B)
+    ex = Exact(A.P, B.P)
     inter = _intersect(A, B, I, J, ex)
     table = PointTable(A, B, inter, ex)
     imp_a = _imprint(A, 0, inter, table)
@@ -384,7 +398,8 @@ def _triangle_faces(b) -> tuple[np.ndarray, tuple] | None:
         return None
     T = np.stack([b.coedge_origin[c0], b.coedge_origin[c1], b.coedge_origin[c2]], axis=1)
     ev = b.edge_vertex
-    edges = np.sort(ev, axis=1)
+    e0, e1 = ev[:, 0], ev[:, 1]
+    edges = np.stack([np.minimum(e0, e1), np.maximum(e0, e1)], axis=1)  # np.sort(axis=1) is slower on pairs
     # One loop per face: the triangle (face) of each side of an edge.
     face_of_loop = np.empty(b.n_loops, dtype=np.int64)
     face_of_loop[b.face_loops] = np.arange(b.n_faces)
@@ -394,8 +409,20 @@ def _triangle_faces(b) -> tuple[np.ndarray, tuple] | None:
 
 
 def _broad_phase(A: Operand, B: Operand) -> tuple[np.ndarray, np.ndarray]:
-    """Phase 2: candidate triangle pairs whose closed boxes overlap."""
-    return triangle_pairs(A.P, A.T, B.P, B.T)
+    """Phase 2: candidate triangle pairs whose closed boxes overlap.
+
+    :func:`._broad_phase.triangle_pairs` on the triangle boxes the operands already hold (it
+    would compute them again: a tenth of the phase at 1e5 triangles).
+    """
+    if A.lo is None or B.lo is None:
+        return triangle_pairs(A.P, A.T, B.P, B.T)
+    ka, kb = np.arange(A.m), np.arange(B.m)
+    if A.m + B.m >= _CULL_MIN:
+        kept = _vertex_cull(A.P, A.T, A.lo, A.hi, B.P, B.T, B.lo, B.hi)
+        if kept is not None:
+            ka, kb = kept
+    I, J = box_pairs(*(np.take(x, k, axis=0) for x, k in ((A.lo, ka), (A.hi, ka), (B.lo, kb), (B.hi, kb))))
+    return ka[I], kb[J]
 
 
 def _intersect(A: Operand, B: Operand, I: np.ndarray, J: np.ndarray, ex: Exact) -> Intersections:
@@ -421,7 +448,8 @@ def _classify(imp: Imprint, X: Operand, Y: Operand, which: int, inter: Intersect
     """
     tris = imp.tris
     k = tris.shape[0]
-    n_patch, patch = _patches(imp, X, table.float.shape[0])
+    touch = _touching(X, which, inter)
+    n_patch, patch = _patches(imp, X, table.float.shape[0], touch)
     rep = np.empty(n_patch, dtype=np.int64)
     rep[patch[::-1]] = np.arange(k - 1, -1, -1)  # a piece of each patch (any one will do)
     status = np.full(n_patch, -1, dtype=np.int8)
@@ -436,15 +464,26 @@ def _classify(imp: Imprint, X: Operand, Y: Operand, which: int, inter: Intersect
     # --- the rest by ray parity from one point per patch.
     todo = np.flatnonzero(status < 0)
     if todo.size:
-        status[todo] = _ray_status(todo, patch, tris, X, Y, which, inter, table, ex)
+        status[todo] = _ray_status(todo, patch, tris, X, Y, which, inter, table, ex, touch)
     return _Classified(patch, status)
 
 
-def _patches(imp: Imprint, X: Operand, n_ids: int) -> tuple[int, np.ndarray]:
+def _touching(X: Operand, which: int, inter: Intersections) -> np.ndarray:
+    """``(n,)`` bool: the original vertices of X that lie on the other surface (named as vertices of X in a
+    keyed point)."""
+    codes = inter.code_a if which == 0 else inter.code_b
+    touch = np.zeros(X.n, dtype=bool)
+    touch[codes[(codes & 3) == 0] >> 2] = True
+    return touch
+
+
+def _patches(imp: Imprint, X: Operand, n_ids: int, touch: np.ndarray) -> tuple[int, np.ndarray]:
     """Connected components of the pieces joined across piece edges not on the other surface.
 
     Whole (unsplit) triangles are joined through the operand's own edge table (no sort); only the
-    pieces of split triangles and the edges around them are paired by sorting their keys.
+    pieces of split triangles and the edges around them are paired by sorting their keys.  An
+    edge between two whole triangles can lie on the other surface only when both its vertices do
+    (``touch (n,)`` bool, X's vertices named in a keyed point): only those edges are looked up.
     """
     tris = imp.tris
     k = tris.shape[0]
@@ -472,15 +511,20 @@ def _patches(imp: Imprint, X: Operand, n_ids: int) -> tuple[int, np.ndarray]:
         row = np.full(X.m, -1, dtype=np.int64)
         row[imp.source[:nw]] = np.arange(nw)
         r = row[X.edge_tris]  # (E, 2) piece rows of the two triangles of each edge (-1: split)
-        ev = imp.vid[X.edges]
-        ekey = np.minimum(ev[:, 0], ev[:, 1]) * n + np.maximum(ev[:, 0], ev[:, 1])
-        both = np.flatnonzero((r[:, 0] >= 0) & (r[:, 1] >= 0))
-        both = both[off_surface(ekey[both])]
+
+        def ekey(e: np.ndarray) -> np.ndarray:  # point-id keys of X's edges e
+            ev = imp.vid[np.take(X.edges, e, axis=0)]
+            return np.minimum(ev[:, 0], ev[:, 1]) * n + np.maximum(ev[:, 0], ev[:, 1])
+
+        whole = (r[:, 0] >= 0) & (r[:, 1] >= 0)
+        maybe = np.flatnonzero(whole & touch[X.edges[:, 0]] & touch[X.edges[:, 1]])
+        whole[maybe[~off_surface(ekey(maybe))]] = False
+        both = np.flatnonzero(whole)
         # The small part: the split triangles' pieces and the whole triangles next to them.
         one = np.flatnonzero((r[:, 0] >= 0) != (r[:, 1] >= 0))
         pieces = tris[nw:]
         pa, pb = pieces.ravel(), pieces[:, [1, 2, 0]].ravel()
-        keys = np.concatenate([np.minimum(pa, pb) * n + np.maximum(pa, pb), ekey[one]])
+        keys = np.concatenate([np.minimum(pa, pb) * n + np.maximum(pa, pb), ekey(one)])
         node = np.concatenate([nw + np.repeat(np.arange(pieces.shape[0]), 3), np.maximum(r[one, 0], r[one, 1])])
         order = np.argsort(keys, kind="stable")
         ks = keys[order]
@@ -543,13 +587,10 @@ def _on_status(pieces: np.ndarray, src: np.ndarray, own: np.ndarray, other: np.n
 
 
 def _ray_status(todo: np.ndarray, patch: np.ndarray, tris: np.ndarray, X: Operand, Y: Operand, which: int,
-                inter: Intersections, table: PointTable, ex: Exact) -> np.ndarray:
-    """``IN`` / ``OUT`` of the patches ``todo`` by exact ray parity (module docstring, phase 6)."""
+                inter: Intersections, table: PointTable, ex: Exact, touch: np.ndarray) -> np.ndarray:
+    """``IN`` / ``OUT`` of the patches ``todo`` by exact ray parity (module docstring, phase 6);
+    ``touch (n,)`` bool: X's original vertices that lie on Y."""
     nA, nB = table.nA, table.nB
-    # Original vertices of X that touch Y: those named as vertices of X in a keyed point.
-    codes = inter.code_a if which == 0 else inter.code_b
-    touch = np.zeros(X.n, dtype=bool)
-    touch[codes[(codes & 3) == 0] >> 2] = True
     if which == 0:
         free_id = np.flatnonzero(~touch)
     else:
@@ -580,19 +621,46 @@ def _ray_status(todo: np.ndarray, patch: np.ndarray, tris: np.ndarray, X: Operan
     return np.where(result % 2 == 1, IN, OUT).astype(np.int8)[todo]
 
 
-#: Query–triangle tests done by brute force before the ray boxes go to the broad phase.
-_RAY_BRUTE = 1 << 22
+#: Queries tested one by one against every triangle box; more go to the broad phase (a Python loop over
+#: queries pays only for a few).
+_RAY_FEW = 8
+#: Candidate pairs the sweep of :func:`_ray_candidates` may list (memory: a few hundred MB at most).
+_RAY_SWEEP_MAX = 1 << 24
 
 
 def _ray_candidates(lo: np.ndarray, hi: np.ndarray, Y: Operand) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (query, triangle of Y) whose boxes meet the ray boxes ``[lo, hi]``.
 
-    Few queries (the usual case: one per patch) are tested against every triangle box directly,
-    one query at a time over contiguous columns; many go to :func:`box_pairs`.
+    Few queries (the usual case: a handful of patches) are tested against every triangle box
+    directly, one query at a time over contiguous columns.  Many are swept: the ray boxes are
+    (nearly) points in ``yz`` but reach across the mesh in ``x`` (a 3-D grid would put every ray in
+    a whole row of cells), so the queries are sorted on ``y`` or ``z`` (the axis giving fewer
+    candidates), each triangle box takes the queries of its range on that axis (two
+    ``searchsorted``), and the full box overlap filters the candidates exactly.
     """
     Ylo, Yhi = (Y.lo, Y.hi) if Y.lo is not None else triangle_boxes(Y.P, Y.T)
-    if lo.shape[0] * Y.m > _RAY_BRUTE:
-        return box_pairs(lo, hi, Ylo, Yhi)
+    if lo.shape[0] > _RAY_FEW:
+        best = None
+        for c in (1, 2):
+            order = np.argsort(lo[:, c], kind="stable")
+            qs = lo[order, c]
+            # A query box [lo, hi] meets [Ylo, Yhi] on axis c iff lo <= Yhi and hi >= Ylo; lo >= Ylo - width
+            # is implied by the second (width: the widest query box on c), so the range is a superset.
+            width = float(np.max(hi[:, c] - lo[:, c]))
+            first = np.searchsorted(qs, Ylo[:, c] - width, side="left")
+            count = np.searchsorted(qs, Yhi[:, c], side="right") - first
+            total = int(count.sum())
+            if best is None or total < best[0]:
+                best = (total, order, first, count)
+        total, order, first, count = best
+        if total > _RAY_SWEEP_MAX:  # queries crowded on both axes: the grid bounds its own work
+            return box_pairs(lo, hi, Ylo, Yhi)
+        J = np.repeat(np.arange(Y.m), count)
+        I = order[np.repeat(first, count) + np.arange(total) - np.repeat(np.cumsum(count) - count, count)]
+        keep = np.ones(total, dtype=bool)
+        for c in range(3):
+            keep &= (lo[I, c] <= Yhi[J, c]) & (Ylo[J, c] <= hi[I, c])
+        return I[keep], J[keep]
     cols = [(np.ascontiguousarray(Ylo[:, c]), np.ascontiguousarray(Yhi[:, c])) for c in range(3)]
     I, J = [], []
     for q in range(lo.shape[0]):
@@ -624,7 +692,7 @@ def _parity_float(q: np.ndarray, Y: Operand) -> np.ndarray:
     I, J = _ray_candidates(lo, hi, Y)
     if I.size == 0:
         return np.zeros(q.shape[0], dtype=np.int8)
-    C = Y.P[Y.T[J]]
+    C = np.take(Y.P, np.take(Y.T, J, axis=0), axis=0)
     Q = q[I]
     yz = C[:, :, 1:]
     qz = Q[:, 1:]
@@ -672,7 +740,7 @@ def _parity_exact(H: np.ndarray, Y: Operand, ex: Exact) -> np.ndarray:
     I, J = _ray_candidates(lo, hi, Y)
     if I.size == 0:
         return np.zeros(H.shape[0], dtype=np.int8)
-    Cf = Y.P[Y.T[J]]
+    Cf = np.take(Y.P, np.take(Y.T, J, axis=0), axis=0)
     Q = qf[I]
     delta = 2.0 * u * np.abs(Q) + 1e-300  # |q - q̃| per coordinate (half an ulp, doubled)
     s = np.zeros((I.size, 3), dtype=np.int8)
@@ -735,8 +803,9 @@ def _select(op: str, imp_a: Imprint, ca: _Classified, imp_b: Imprint, cb: _Class
     if np.any(sa < 0) or np.any(sb < 0):
         raise BooleanError("a patch was left unclassified", stage="select",
                            diagnostics={"unclassified_a": int((sa < 0).sum()), "unclassified_b": int((sb < 0).sum())})
-    ta = imp_a.tris[np.isin(sa, list(keep_a))]
-    tb = imp_b.tris[np.isin(sb, list(keep_b))]
+    # np.compress / np.take: row selections several times faster than boolean or integer indexing.
+    ta = np.compress(np.isin(sa, list(keep_a)), imp_a.tris, axis=0)
+    tb = np.compress(np.isin(sb, list(keep_b)), imp_b.tris, axis=0)
     if reverse_b:
         tb = tb[:, ::-1]
     return np.concatenate([ta, tb])
@@ -760,13 +829,13 @@ def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
     inb = (tris >= nA) & (tris < nA + nB)
     active = ~(lo_all | (inb[:, 0] & inb[:, 1] & inb[:, 2]))
     used, T = _compact(tris, table.float.shape[0])
-    P = table.float[used]
+    P = np.take(table.float, used, axis=0)
     original = used < nA + nB
     T = _clean(P, T, original, t.linear, active)
     if T.shape[0] == 0:
         return Solid.empty()
     used, T = _compact(T, P.shape[0])
-    P = P[used]
+    P = np.take(P, used, axis=0)
     try:
         return _build(P, T, t)
     except BooleanError:
@@ -859,10 +928,10 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
         changed = False
         rows = np.flatnonzero(active) if active is not None else None
         # 1. short edges and identical points.
-        Ts = T if rows is None else T[rows]
+        Ts = T if rows is None else np.take(T, rows, axis=0)
         a = Ts.ravel()
         b = Ts[:, [1, 2, 0]].ravel()
-        L = np.linalg.norm(P[a] - P[b], axis=1)
+        L = np.linalg.norm(np.take(P, a, axis=0) - np.take(P, b, axis=0), axis=1)
         short = L <= eps
         if np.any(short):
             active = None
@@ -936,7 +1005,7 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
             active = None
         rows = np.flatnonzero(active) if active is not None else np.arange(T.shape[0])
         if rows.size:
-            C = P[T[rows]]
+            C = np.take(P, np.take(T, rows, axis=0), axis=0)
             e = np.stack([C[:, 1] - C[:, 0], C[:, 2] - C[:, 1], C[:, 0] - C[:, 2]], axis=1)
             el = np.linalg.norm(e, axis=2)
             longest = np.argmax(el, axis=1)

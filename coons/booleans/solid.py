@@ -18,8 +18,9 @@ face pair ``(i, j)``
     Face ``i`` of A and face ``j`` of B whose bounding boxes (from a tessellation, enlarged by
     its deflection) overlap.
 parameter box
-    The bounding box of a face's trim loops in its surface's parameter plane, enlarged by 1 %:
-    the region :func:`~coons.kernel.intersect.intersect_surfaces` must search.
+    The bounding box of a face's trim loops in its surface's parameter plane, enlarged by 1 %
+    but never past a sphere's pole or a cone's apex (beyond them the parametrisation covers the
+    same points again): the region :func:`~coons.kernel.intersect.intersect_surfaces` must search.
 cut
     An :class:`~coons.topology.sew.EdgeSpec` lying inside a face along which the face is split:
     a piece of an intersection curve (the SAME curve object on X and on Y, each with its own
@@ -40,9 +41,11 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    parameter plane (sampled p-curves).
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
-   every branch is clipped to both trimmed faces (``clip_to_face``; answered at once by
-   ``_clip`` when the sampled p-curve's box meets no loop segment's box: the branch is then
-   wholly inside or outside) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
+   a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
+   3-D curve rebuilt by ``pcurve_on`` (``_refitted``: a fit gone wrong near a pole must not
+   widen the cut's tolerance to the size of the face); every branch is clipped to both
+   trimmed faces (``clip_to_face``; answered at once by ``_clip`` when the sampled p-curve's
+   box meets no loop segment's box: the branch is then wholly inside or outside) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
    Coincident surfaces imprint each face's boundary edges onto the other (``pcurve_on`` of the
    edge curve on the other surface, ``clip_to_face``).  Isolated tangent points split nothing.
    Cuts repeated by several pairs (a curve along an edge of the other operand meets both faces of
@@ -86,7 +89,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
 9. ``_fuse_edges``: at a vertex where exactly two edges meet and continue one curve (the same
    curve object over adjacent ranges, or collinear lines), the two edges become one.
 10. ``_sew`` (stage ``"sew"``): :func:`~coons.topology.sew.sew_faces`, which runs the checker.
-   An empty selection is :meth:`Solid.empty() <coons.topology.shape.Solid.empty>`.
+   An empty selection is :meth:`Solid.empty() <coons.topology.shape.Solid.empty>`.  A result
+   touching itself at a point raises naming the point (``_pinch``, see below).
 
 Status and limitations
 ----------------------
@@ -104,7 +108,12 @@ Status and limitations
   far slower than OCCT (``benchmarks/results/booleans_brep.md``).
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
-  wall).  Touching in a point gives separate lumps or shells meeting there.
+  wall).  Lumps touching at a point inside their faces (two spheres) stay separate shells.  An
+  isolated tangent point cuts nothing; where the result then touches itself at that
+  point (a pinch: a box face tangent to a torus tube at a saddle point, whose section is a
+  lemniscate with its two lobes meeting there) it is not a manifold and raises at ``"sew"``
+  with the point and the number of fans, as the polyhedral Booleans do (OCCT returns the
+  pinched solid).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
@@ -117,6 +126,7 @@ Status and limitations
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -379,7 +389,7 @@ class _Operand:
             U = np.concatenate(rings)
             (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
             mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
-            self.uv_box.append(((float(u0 - mu), float(u1 + mu)), (float(v0 - mv), float(v1 + mv))))
+            self.uv_box.append(_within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1)))
         self.segments, self.seg_lo, self.seg_hi = [], [], []
         for spec, rings in zip(self.specs, self.polygons):
             seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
@@ -405,6 +415,34 @@ class _Operand:
         if self._classifier is None:
             self._classifier = Classifier(self.solid, self.t, mesh=self.mesh)  # the same tessellation
         return self._classifier
+
+
+def _within_domain(S, ub: tuple, vb: tuple, v_face: tuple) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The enlarged parameter box ``(ub, vb)`` clipped to where ``S`` is one-to-one.
+
+    The margin must not carry a box past a sphere's pole (latitudes beyond ``±π/2`` are the
+    points across the pole again, so the marching would find a mirrored copy of a branch that
+    passes near the pole and join the two across it) or past a cone's apex onto the other nappe
+    (``v_face`` is the face's own ``v`` range, which says which nappe).  Periodic and infinite
+    directions are not clipped.
+    """
+    from coons.kernel.analytic import ConicalSurface
+
+    (u0, u1), (v0, v1) = ub, vb
+    dom = getattr(S, "domain", None)
+    if dom is not None:
+        (du0, du1), (dv0, dv1) = dom
+        if not getattr(S, "periodic_u", False):
+            u0, u1 = max(u0, du0), min(u1, du1)
+        if not getattr(S, "periodic_v", False):
+            v0, v1 = max(v0, dv0), min(v1, dv1)
+    if isinstance(S, ConicalSurface):
+        v_apex = -S.radius / math.sin(S.semi_angle)
+        if v_face[0] >= v_apex:
+            v0 = max(v0, v_apex)
+        elif v_face[1] <= v_apex:
+            v1 = min(v1, v_apex)
+    return (float(u0), float(u1)), (float(v0), float(v1))
 
 
 def _with_pcurve(S, e: EdgeSpec, t: Tolerance) -> EdgeSpec:
@@ -462,6 +500,8 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                 _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
                 continue
             for c in si.curves:
+                if c.tol > _REFIT_FACTOR * t.linear:
+                    c = _refitted(c, X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
                 ra = _clip(A, i, c.pcurve_a, c.t0, c.t1, t, c.curve)
                 if not ra:
                     continue
@@ -491,6 +531,50 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                 continue
             _check_cut_ends(X, f, cuts[f], B if X is A else A, t)
     return cuts_a, cuts_b
+
+
+#: A branch whose recorded deviation exceeds this many ``tol.linear`` gets its p-curves rebuilt
+#: from its 3-D curve (the intersector promises fitted p-curves within ``tol.linear``; far above
+#: it a fit has gone wrong, e.g. across a sphere pole, while the 3-D curve is usually exact).
+_REFIT_FACTOR = 10.0
+
+
+def _refitted(c, Sa, Sb, box_a, box_b, t: Tolerance):
+    """Branch ``c`` with a p-curve far from its 3-D curve recomputed from it by ``pcurve_on``.
+
+    Each p-curve's deviation is measured on :data:`_REFIT_SAMPLES` parameters; only one that
+    exceeds ``_REFIT_FACTOR · tol.linear`` is rebuilt (``pcurve_on`` also verifies that the 3-D
+    curve lies on the surface within ``tol.linear``).  When the rebuild fails or does not
+    deviate less, the old p-curve stays (its large tolerance then shows downstream).
+    """
+    from dataclasses import replace
+
+    from coons.kernel.onsurface import pcurve_on
+
+    tt = np.linspace(c.t0, c.t1, _REFIT_SAMPLES)
+    P = np.asarray(c.curve.evaluate(tt), dtype=np.float64)
+    new, devs = {}, []
+    for key, S, box in (("pcurve_a", Sa, box_a), ("pcurve_b", Sb, box_b)):
+        pc = getattr(c, key)
+        uv = np.asarray(pc.evaluate(tt), dtype=np.float64)
+        dev = float(np.max(np.linalg.norm(np.asarray(S.evaluate(uv[:, 0], uv[:, 1])).reshape(-1, 3) - P, axis=1)))
+        if dev > _REFIT_FACTOR * t.linear:
+            try:
+                pc2, dev2 = pcurve_on(S, c.curve, c.t0, c.t1, box=box, tol=t)
+            except CoonsError as exc:
+                _log.debug("p-curve deviating %.3g kept: it cannot be rebuilt (%s)", dev, exc)
+            else:
+                if dev2 < dev:
+                    new[key], dev = pc2, dev2
+        devs.append(dev)
+    if not new:
+        return c
+    _log.debug("branch p-curves %s rebuilt from its 3-D curve: deviation %.3g -> %.3g", sorted(new), c.tol, max(devs))
+    return replace(c, tol=max(max(devs), t.linear), **new)
+
+
+#: Samples on which a suspicious branch's p-curves are measured against its 3-D curve.
+_REFIT_SAMPLES = 129
 
 
 #: Samples of a branch's p-curve for the quick test that it stays clear of a face's boundary.
@@ -1476,13 +1560,75 @@ def _joined(a: EdgeSpec, b: EdgeSpec, t: Tolerance) -> EdgeSpec | None:
 
 # ---------------------------------------------------------------------- sew
 def _sew(faces: list[FaceSpec], t: Tolerance, stage: str = "sew", what: str | None = None) -> Solid:
-    """``sew_faces`` with its failure reported as ``BooleanError(stage=stage)``, saying ``what`` was sewn."""
+    """``sew_faces`` with its failure reported as ``BooleanError(stage=stage)``, saying ``what`` was sewn.
+
+    A result that touches itself at a point (a pinch: separate fans of faces around one vertex,
+    e.g. a box face tangent to a torus at a saddle point of the tube) is not a manifold; coons
+    solids are (as in :mod:`coons.booleans.polyhedral`), so it raises with the point named.
+    """
     try:
         return sew_faces(faces, t)
     except CoonsError as exc:
         what = what or f"sewing {len(faces)} selected faces"
+        pinch = _pinch(faces, t) if "non-manifold-vertex" in str(exc) else None
+        if pinch is not None:
+            P, fans = pinch
+            raise BooleanError(
+                f"{what} failed: the result is not a manifold: {fans} separate fans of faces meet at the vertex "
+                f"{P.tolist()} (the result touches itself at a point); coons solids are manifold (expected 1)",
+                stage=stage, diagnostics={"faces": len(faces), "vertex": P.tolist(), "fans": fans,
+                                          "error": str(exc)}) from exc
         raise BooleanError(f"{what} failed: {type(exc).__name__}: {exc}",
                            stage=stage, diagnostics={"faces": len(faces), "error": str(exc)}) from exc
+
+
+def _pinch(faces: list[FaceSpec], t: Tolerance) -> tuple[np.ndarray, int] | None:
+    """A vertex of the faces around which they form more than one fan: ``(point (3,), fans)``, or None.
+
+    Edge-use ends within their tolerance are one vertex (as ``sew_faces`` merges them); two uses
+    are the two sides of one edge when they join the same vertices the opposite way and their
+    midpoints agree.  A *corner* is an incoming use and the next use of its loop; the corner at
+    the end of use ``k`` and the corner at the end of the mate of ``next(k)`` are neighbours
+    around the vertex.  A vertex whose corners fall into several connected groups is a pinch.
+    Only run after sewing failed (it evaluates every use once more).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    uses, nxt = [], []
+    for f in faces:
+        for loop in f.loops:
+            n = len(loop)
+            nxt.append(len(uses) + (np.arange(n) + 1) % n)
+            uses.extend(loop)
+    nxt = np.concatenate(nxt).astype(np.int64)
+    P = np.array([np.asarray(e.curve.evaluate(np.array([e.t0, e.t1, 0.5 * (e.t0 + e.t1)])), dtype=np.float64)
+                  for e in uses])  # (k, 3, 3): start, end, mid
+    k = len(uses)
+    r = max([t.linear] + [e.tol or 0.0 for e in uses])
+    X = np.concatenate([P[:, 0], P[:, 1]])
+    pairs = cKDTree(X).query_pairs(r=r, output_type="ndarray")
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(2 * k, 2 * k))
+    _, label = connected_components(g, directed=False)
+    vs, ve = label[:k], label[k:]
+    mate = np.full(k, -1, dtype=np.int64)
+    mp = cKDTree(P[:, 2]).query_pairs(r=r, output_type="ndarray")
+    if mp.size:
+        a, b = mp[:, 0], mp[:, 1]
+        ok = (vs[a] == ve[b]) & (ve[a] == vs[b])
+        mate[a[ok]], mate[b[ok]] = b[ok], a[ok]
+    m = mate[nxt]
+    have = m >= 0
+    cg = coo_matrix((np.ones(int(have.sum())), (np.flatnonzero(have), m[have])), shape=(k, k))
+    _, corner = connected_components(cg, directed=False)
+    groups = np.unique(np.stack([ve, corner], axis=1), axis=0)
+    fans = np.bincount(groups[:, 0], minlength=int(label.max()) + 1)
+    bad = np.flatnonzero(fans > 1)
+    if bad.size == 0:
+        return None
+    v = int(bad[0])
+    return X[label == v].mean(axis=0), int(fans[v])
 
 
 def _kind(spec: FaceSpec) -> str:

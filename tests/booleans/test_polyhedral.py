@@ -237,12 +237,15 @@ def test_integer_grid_boxes_against_closed_forms(g1, g2):
         np.testing.assert_allclose(u.volume, va + vb - vi, rtol=EXACT_RTOL)
 
 
-@settings(max_examples=25)
+@settings(max_examples=60)
 @given(grid_boxes, grid_boxes, quats, shifts)
 def test_rotated_coincidences_never_give_a_broken_solid(g1, g2, q, t):
     """The same rigid motion applied to grid boxes: faces that coincide in exact arithmetic only
-    agree up to rounding.  The result is valid and within the tolerance of the closed form, or a
-    BooleanError at the sew stage (non-manifold contact); never a broken solid."""
+    agree up to rounding (issue 4).  The result is valid and within the tolerance of the closed
+    form, or a BooleanError at the sew stage: by design for the union of boxes touching only along
+    an edge or at a corner, and still for about 0.4 % of the other Booleans (where the snap of
+    near-coincidences does not settle, see ``_mesh_arrangement.snap``; a fixed batch that must
+    succeed is in test_polyhedral_coincident.py); never a broken solid."""
     M = motion(q, t)
     l1, h1 = np.array(g1[:3]), np.array(g1[:3]) + np.array(g1[3:])
     l2, h2 = np.array(g2[:3]), np.array(g2[:3]) + np.array(g2[3:])
@@ -256,7 +259,8 @@ def test_rotated_coincidences_never_give_a_broken_solid(g1, g2, q, t):
             assert exc.stage == "sew" and "not a manifold" in str(exc)
             continue
         assert_valid(r)
-        np.testing.assert_allclose(r.volume, v, rtol=ROTATED_RTOL, atol=ROTATED_RTOL * (va + vb))
+        np.testing.assert_allclose(0.0 if r.is_empty else r.volume, v, rtol=ROTATED_RTOL,
+                                   atol=ROTATED_RTOL * (va + vb))
 
 
 # ---------------------------------------------------------------------- peers

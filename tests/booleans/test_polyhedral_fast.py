@@ -183,16 +183,64 @@ def test_chain_templates_are_splits_for_every_configuration():
 
 
 # ---------------------------------------------------------------------- classification and clean-up
+@settings(max_examples=10)
+@given(st.integers(0, 2**32 - 1), st.integers(9, 400))
+def test_ray_candidates_sweep_matches_brute_force(seed, q):
+    """Many ray boxes (the sweep on y or z) give the pairs of the brute-force box test; some queries sit
+    exactly on triangle box faces (vertex coordinates), some are widened by an ulp as the exact queries are."""
+    rng = np.random.default_rng(seed)
+    (V, F), _ = _icospheres(2)
+    Y = arrangement.operand(V, F, np.arange(F.shape[0]), "B")
+    pts = rng.uniform(-1.2, 1.2, (q, 3))
+    on = rng.random(q) < 0.3
+    pts[on] = V[rng.integers(0, V.shape[0], int(on.sum()))]  # on box faces in every coordinate
+    lo, hi = pts.copy(), pts.copy()
+    wide = rng.random(q) < 0.5
+    lo[wide], hi[wide] = np.nextafter(pts[wide], -np.inf), np.nextafter(pts[wide], np.inf)
+    hi[:, 0] = np.maximum(float(V[:, 0].max()), hi[:, 0])
+    assert q > poly._RAY_FEW
+    I, J = poly._ray_candidates(lo, hi, Y)
+    assert np.array_equal(np.sort(I * Y.m + J), _brute(lo, hi, Y.lo, Y.hi))
+    I1, J1 = poly._ray_candidates(lo[:3], hi[:3], Y)  # the per-query loop
+    assert np.array_equal(np.sort(I1 * Y.m + J1), _brute(lo[:3], hi[:3], Y.lo, Y.hi))
+
+
+def test_ray_candidates_fall_back_to_the_grid_when_the_sweep_is_crowded(monkeypatch):
+    (V, F), _ = _icospheres(2)
+    Y = arrangement.operand(V, F, np.arange(F.shape[0]), "B")
+    pts = np.random.default_rng(5).uniform(-1, 1, (50, 3))
+    lo, hi = pts.copy(), pts.copy()
+    hi[:, 0] = float(V[:, 0].max())
+    want = _brute(lo, hi, Y.lo, Y.hi)
+    monkeypatch.setattr(poly, "_RAY_SWEEP_MAX", 0)
+    I, J = poly._ray_candidates(lo, hi, Y)
+    assert want.size and np.array_equal(np.sort(I * Y.m + J), want)
+
+
+def test_packed_stable_sort_equals_stable_argsort():
+    from coons.topology.from_mesh import _stable_sort
+
+    rng = np.random.default_rng(7)
+    for key in (rng.integers(0, 40, 5000), rng.integers(0, 2**40, 3000), rng.integers(0, 2**61, 300),
+                np.zeros(0, np.int64), np.array([5])):
+        order, ks = _stable_sort(key)
+        want = np.argsort(key, kind="stable")
+        assert np.array_equal(order, want) and np.array_equal(ks, key[want])
+
+
 def test_adjacency_patches_equal_sorted_patches():
     a = poly.union(coons.Box(2, 2, 2), coons.Box(2, 2, 2).translate((1, 1, 1)))  # polygon faces
     (V, F), _ = _icospheres(2)
     b = from_mesh(V * 1.3 + np.array([0.9, 0.3, 0.2]), F)  # crosses both boxes' faces
-    for x, y in ((a, b), (b, a)):
+    # touching boxes: whole triangles of each meet across edges lying on the other's face
+    c, d = coons.Box(2, 2, 2), coons.Box(2, 3, 2).translate((2, -0.5, 0))
+    for x, y in ((a, b), (b, a), (c, d), (d, c)):
         A, B, inter, table, _ = _arrangement(x, y)
         for X, which in ((A, 0), (B, 1)):
             imp = poly._imprint(X, which, inter, table)
-            n1, p1 = poly._patches(imp, X, table.float.shape[0])
-            n2, p2 = poly._patches(dataclasses.replace(imp, vid=None), X, table.float.shape[0])
+            touch = poly._touching(X, which, inter)
+            n1, p1 = poly._patches(imp, X, table.float.shape[0], touch)
+            n2, p2 = poly._patches(dataclasses.replace(imp, vid=None), X, table.float.shape[0], touch)
             assert n1 == n2 >= 2
             # the same partition: the labels map one to one
             pairs = np.unique(np.stack([p1, p2], axis=1), axis=0)
@@ -262,6 +310,26 @@ def test_vertices_on_straight_edges_are_removed(shift, counts):
         assert np.bincount(br.edge_vertex.ravel()).min() >= 3
         if counts is not None:
             assert (br.n_vertices, br.n_edges, br.n_faces) == counts[op]
+
+
+@pytest.mark.parametrize("shuffle", [False, True])
+def test_straight_vertex_chains_are_removed_from_a_subdivided_cube(shuffle):
+    """A cube whose faces are 16 x 16 grids: merging leaves chains of 15 straight vertices on every edge,
+    removed over several rounds (independent sets), whatever the vertex numbering: 8 vertices, 12
+    edges, 6 faces, volume 1, check clean."""
+    import trimesh
+
+    m = trimesh.creation.box(extents=(1, 1, 1))
+    for _ in range(4):
+        m = m.subdivide()
+    V, F = np.asarray(m.vertices), np.asarray(m.faces)
+    if shuffle:
+        perm = np.random.default_rng(3).permutation(V.shape[0])
+        V, F = V[perm], np.argsort(perm)[F]
+    r = _solid_from_clean_triangles(V, F, coons.DEFAULT_TOLERANCE, merge_coplanar=True, straighten=True)
+    assert (r.brep.n_vertices, r.brep.n_edges, r.brep.n_faces) == (8, 12, 6)
+    np.testing.assert_allclose(r.volume, 1.0, rtol=VOL_RTOL)
+    assert r.check().ok
 
 
 def test_straight_vertex_removal_keeps_bent_corners():

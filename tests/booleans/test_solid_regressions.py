@@ -1,0 +1,209 @@
+"""Regressions of the curved B-rep Booleans (coons.booleans.solid): configurations that once failed.
+
+Each case is a configuration found by the random hunt over ``tests/booleans/occt_cases.py``
+(``draw_pair(kind_a, kind_b, index, seed=4242)``) or by a chain of Booleans, with its diagnosis.
+Per pair the three Booleans must pass ``check`` and obey the algebra
+``vol(A ∪ B) + vol(A ∩ B) = vol(A) + vol(B)`` and ``vol(A − B) = vol(A) − vol(A ∩ B)`` to
+``1e-9`` relative, and agree with OCCT's own Booleans (``BRepAlgoAPI_Fuse / Common / Cut`` on the
+exactly converted operands) to ``1e-6`` relative in volume.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from coons.booleans import solid as S
+from coons.errors import BooleanError
+from coons.topology.primitives import Box, Cylinder, Sphere, Torus
+from coons.topology.sew import face_specs
+from coons.tolerance import resolve
+from tests.booleans.occt_cases import draw_pair
+
+#: Relative tolerance of the algebra identities (coons alone).
+RTOL_ALGEBRA = 1e-9
+#: Relative agreement of volumes with OCCT (OCCT's own precision on B-spline-trimmed faces).
+RTOL_OCCT = 1e-6
+#: Seed of the hunt that found the pairs.
+SEED = 4242
+
+#: pair name -> diagnosis.
+HUNTED = {
+    # An ellipse hole 0.011 inside a cap's circular rim: the checker's 9-sample chords of the rim
+    # (sagitta 0.053) crossed the hole's; check now resamples such faces before reporting.
+    "cyl-cyl-4": "false self-intersecting-trim of the checker (coarse chords)",
+    # Open shell at sew: a plane-plane line and a plane-cylinder ellipse ending on the same two
+    # points; fixed by the curve-curve intersection (coons.kernel.curve_intersect).
+    "cyl-cyl-16": "an open shell at sew",
+    "cyl-tor-16": "false self-intersecting-trim of the checker (coarse chords)",
+    "cyl-sph-17": "false self-intersecting-trim of the checker near a sphere pole (coarse chords)",
+}
+
+
+@functools.lru_cache(maxsize=None)
+def _operands(name: str):
+    ka, kb, i = name.split("-")
+    return draw_pair(ka, kb, int(i), seed=SEED).operands()
+
+
+@functools.lru_cache(maxsize=None)
+def _results(name: str) -> dict:
+    a, b = _operands(name)
+    return {op: getattr(S, op)(a, b) for op in ("union", "intersection", "difference")}
+
+
+@pytest.mark.parametrize("name", sorted(HUNTED))
+def test_hunted_pair_is_valid_and_obeys_the_algebra(name):
+    a, b = _operands(name)
+    r = _results(name)
+    for op, res in r.items():
+        rep = res.check()
+        assert rep.ok, f"{name} {op}: {rep.summary()}"
+    u, i, d = (r[op].volume for op in ("union", "intersection", "difference"))
+    assert abs(u + i - a.volume - b.volume) <= RTOL_ALGEBRA * (a.volume + b.volume)
+    assert abs(d - a.volume + i) <= RTOL_ALGEBRA * a.volume
+
+
+@pytest.mark.occt
+@pytest.mark.parametrize("name", sorted(HUNTED))
+def test_hunted_pair_agrees_with_occt(name):
+    from coons.io.ocp import to_build123d
+    from tests.booleans.test_solid_vs_occt import _occt_ops, occt_volume_area
+
+    a, b = _operands(name)
+    ref = _occt_ops(to_build123d(a), to_build123d(b))
+    for op, res in _results(name).items():
+        expected = occt_volume_area(ref[op])[0]
+        assert res.volume == pytest.approx(expected, rel=RTOL_OCCT), op
+
+
+def test_torus_minus_tangent_box_names_the_pinch():
+    """coons.validation.cases torus_minus_box: the box face x = 4 is tangent to the tube at the saddle
+    point (4, 0, 0); its section is a lemniscate whose two lobes touch there, so the result touches
+    itself at that point (OCCT returns that pinched solid).  coons solids are manifold: the Boolean
+    raises at sew and names the point, and the tangent point (8, 0, 0) of the face x = 8 cuts nothing."""
+    with pytest.raises(BooleanError, match=r"not a manifold: 2 separate fans of faces meet at the vertex") as info:
+        S.difference(Torus(6, 2), Box(4, 20, 8).translate((6, 0, 0)))
+    assert info.value.stage == "sew"
+    np.testing.assert_allclose(info.value.diagnostics["vertex"], [4, 0, 0], rtol=0, atol=1e-7)
+
+
+def test_pinch_finder_is_quiet_on_manifold_faces():
+    t = resolve(None)
+    for solid in (Box(1, 2, 3), Cylinder(1, 2), Sphere(1), Torus(3, 1)):
+        assert S._pinch(face_specs(solid), t) is None
+
+
+def test_branch_with_a_pcurve_across_a_sphere_pole_is_rebuilt():
+    """A p-curve far from its exact 3-D curve (chain of 20 below: a marched branch near a sphere pole
+    whose sphere p-curve ran past the pole, deviation 0.17) is rebuilt from the 3-D curve instead of
+    widening the cut's tolerance to the size of the face (which made split_face drop the cut)."""
+    from coons.kernel.analytic import Circle, SphericalSurface
+    from coons.kernel.intersect import IntersectionCurve
+    from coons.kernel.pcurve import Line2D
+
+    t = resolve(None)
+    sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    lat = -1.5
+    circle = Circle([0, 0, np.sin(lat)], [0, 0, 1], [1, 0, 0], np.cos(lat))  # a parallel near the south pole
+    good = Line2D([0.0, lat], [1.0, 0.0])
+    bad = Line2D([0.0, lat - 0.05], [1.0, 0.0])  # 0.05 off in latitude: a fit gone wrong
+    c = IntersectionCurve(circle, 0.0, np.pi, good, bad, False, 0.2)
+    box = ((-0.1, np.pi + 0.1), (-np.pi / 2, np.pi / 2))
+    fixed = S._refitted(c, sphere, sphere, box, box, t)
+    assert fixed.pcurve_a is good  # within tolerance: kept as it was
+    assert fixed.tol <= 10 * t.linear
+    tt = np.linspace(0.0, np.pi, 101)
+    uv = fixed.pcurve_b.evaluate(tt)
+    P = sphere.evaluate(uv[:, 0], uv[:, 1])
+    assert np.max(np.linalg.norm(P - circle.evaluate(tt), axis=1)) <= 10 * t.linear
+
+
+# ====================================================================== a chain of Booleans
+#: Steps of the chain where OCCT's own Boolean (on coons's previous result, converted exactly) is
+#: wrong; coons is checked there against a Monte Carlo estimate by OCCT's point classifier instead.
+CHAIN_OCCT_WRONG = {
+    10: "BRepAlgoAPI_Fuse leaves the volume unchanged (sphere taken as inside); 25000 classified points give "
+        "vol(prev ∩ sphere) = 12.20 ± 0.03, not the sphere's 14.137 (coons: 12.221)",
+    15: "BRepAlgoAPI_Cut removes nothing; 25000 classified points give vol(prev ∩ sphere) = 1.959 ± 0.031 "
+        "(coons removes 1.947)",
+}
+
+
+def _chain_steps() -> list[tuple[str, object]]:
+    """A 10×10×10 box to which 20 cylinders and spheres are alternately added and removed (seeded).
+
+    Step 15 once raised at split: its sphere's pole lies 0.01 from the wall of the hole drilled at
+    step 13, and the marched branch passing near the pole had a sphere p-curve running past it."""
+    rng = np.random.default_rng(20)
+    out = []
+    for k in range(20):
+        at = tuple(rng.uniform(-4, 4, 3))
+        d = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}["xyz"[int(abs(at[0] * 10)) % 3]]
+        tool = Cylinder(1.2, 14, direction=d).translate(at) if k % 4 < 2 else Sphere(1.5).translate(at)
+        out.append(("-" if k % 2 else "+", tool))
+    return out
+
+
+def _common_by_sampling(solid, tool, n: int = 4000) -> tuple[float, float]:
+    """``vol(solid ∩ tool)`` for a sphere ``tool`` estimated by OCCT's classifier on ``n`` points: (value, σ)."""
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_IN
+
+    from coons.io.ocp import to_build123d
+
+    lo, hi = tool.bounding_box()
+    c, r = 0.5 * (lo + hi), 0.5 * float(hi[0] - lo[0])
+    rng = np.random.default_rng(5)
+    P = rng.uniform(-1.0, 1.0, (3 * n, 3))
+    P = P[np.linalg.norm(P, axis=1) <= 1.0][:n] * r + c
+    cl = BRepClass3d_SolidClassifier(to_build123d(solid).wrapped)
+    inside = np.zeros(P.shape[0], dtype=bool)
+    for k, p in enumerate(P):  # OCCT classifies one point per call
+        cl.Perform(gp_Pnt(*map(float, p)), 1e-7)
+        inside[k] = cl.State() == TopAbs_IN
+    f = float(inside.mean())
+    return f * tool.volume, float(np.sqrt(f * (1.0 - f) / P.shape[0])) * tool.volume
+
+
+@pytest.mark.slow
+@pytest.mark.occt
+def test_chain_of_twenty_booleans_agrees_with_occt_step_by_step():
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
+
+    from coons.io.ocp import to_build123d
+    from tests.booleans.test_solid_vs_occt import occt_volume_area
+
+    s = Box(10, 10, 10)
+    for k, (op, tool) in enumerate(_chain_steps()):
+        prev = s
+        s = prev - tool if op == "-" else prev + tool
+        rep = s.check()
+        assert rep.ok, f"step {k}: {rep.summary()}"
+        if k in CHAIN_OCCT_WRONG:
+            common, sigma = _common_by_sampling(prev, tool)
+            expected = prev.volume - common if op == "-" else prev.volume + tool.volume - common
+            assert abs(s.volume - expected) <= 4.0 * sigma, f"step {k}: {s.volume} vs {expected} ± {sigma}"
+            continue
+        cls = BRepAlgoAPI_Cut if op == "-" else BRepAlgoAPI_Fuse
+        algo = cls(to_build123d(prev).wrapped, to_build123d(tool).wrapped)
+        algo.Build()
+        assert algo.IsDone()
+        assert s.volume == pytest.approx(occt_volume_area(algo.Shape())[0], rel=RTOL_OCCT), f"step {k}"
+
+
+def test_chain_step_with_a_sphere_pole_near_a_hole_wall():
+    """Step 15 of the chain alone (its operand built by steps 0-14 is too slow for the default run, so the
+    same configuration is rebuilt small): a sphere whose pole lies 0.0096 from the wall of a drilled hole."""
+    plate = Box(6, 6, 6) - Cylinder(1.2, 8, direction=(1, 0, 0)).translate((0.0, 2.50644269 - 1.57938525,
+                                                                              -3.9602271 + 3.23704761))
+    r = {op: getattr(S, op)(plate, Sphere(1.5)) for op in ("union", "intersection", "difference")}
+    for op, res in r.items():
+        assert res.check().ok, op
+    u, i, d = (r[op].volume for op in ("union", "intersection", "difference"))
+    sphere = 4.0 / 3.0 * np.pi * 1.5**3
+    assert abs(u + i - plate.volume - sphere) <= RTOL_ALGEBRA * (plate.volume + sphere)
+    assert abs(d - plate.volume + i) <= RTOL_ALGEBRA * plate.volume

@@ -20,16 +20,22 @@ coons B-rep rules of ``docs/brep.md`` and sews them:
    branches, the one where the loop turns the right way); planar faces carry no p-curves (their
    mass properties project the 3-D curves);
 4. faces with a **seam** (an edge used twice by one face, on an iso-line of a periodic direction
-   of an analytic surface) are unwrapped — each use of the seam on its side of the parameter box,
-   by the direction it is walked — and split with :func:`coons.topology.split.split_face` along
-   the iso-line half a period away (cylinders and cones in two, tori in four); a sphere given
-   as one face without edges (OCCT's vertex-loop sphere) becomes two hemispheres; faces covering a
-   full period without a seam are refused;
+   of an analytic surface, or of a closed direction of a NURBS surface — a revolved or swept
+   closed profile, whose "period" is its domain, :func:`coons.kernel.onsurface.surface_periods`)
+   are unwrapped — each use of the seam on its side of the parameter box, by the direction it is
+   walked — and split with :func:`coons.topology.split.split_face` along the iso-line half a
+   period away (cylinders and cones in two, tori in four; a NURBS at the middle of its domain,
+   along its exact iso-curve); a sphere given as one face without edges (OCCT's vertex-loop
+   sphere) becomes two hemispheres; a **band without a seam** (a cylinder face bounded by its two
+   circles only, as some writers leave it; a closed NURBS between two closed curves) gets one
+   (:func:`_insert_seam`: the iso-line through a vertex of one loop, or a closed NURBS's domain
+   start, to where it crosses the other) and is then split like the rest;
 5. **imprint**: edges that splitting cut in two are cut at the same points in the neighbouring
    faces (uses of one curve object are split where other uses of it end);
 6. :func:`coons.topology.sew.sew_faces` recovers the shared vertices and edges and checks.
 
-Seams on NURBS surfaces are not split (a closed NURBS face with a seam edge raises).
+Not handled (a :class:`~coons.errors.TopologyError` naming the face): a seamless face covering
+a whole period other than a band of two winding loops (e.g. a torus face without edges).
 
 The module does not heal: a face whose boundary is not closed, whose curves are farther from
 its surface than the file's precision, or that sewing rejects raises a typed error naming the
@@ -192,10 +198,22 @@ def edge_parameters(curve: Any, start, end, same_sense: bool, tol: Tolerance | N
 
 
 # ---------------------------------------------------------------------- faces
-def _periods(surface: Any) -> tuple[float | None, float | None]:
-    pu = getattr(surface, "period_u", None) if getattr(surface, "periodic_u", False) else None
-    pv = getattr(surface, "period_v", None) if getattr(surface, "periodic_v", False) else None
-    return pu, pv
+def _periods(surface: Any, t: Tolerance) -> tuple[float | None, float | None]:
+    """Periods of the surface's parameters; a closed NURBS direction has its domain length as period.
+
+    (:func:`coons.kernel.onsurface.surface_periods`: a NURBS whose boundary curves ``u = u0`` and
+    ``u = u1`` coincide, e.g. a revolved or extruded closed profile, is closed in ``u``.)
+    """
+    from coons.kernel.onsurface import surface_periods
+
+    return surface_periods(surface, t)
+
+
+def _period_start(surface: Any, k: int) -> float:
+    """Where parameter ``k``'s period is counted from: the domain start of a NURBS, 0 for analytic surfaces."""
+    if isinstance(surface, NurbsSurface):
+        return float(surface.domain[k][0])
+    return 0.0
 
 
 def _face_box(face: RawFace, loops: list, t: Tolerance, fixed: dict | None = None):
@@ -217,7 +235,7 @@ def _face_box(face: RawFace, loops: list, t: Tolerance, fixed: dict | None = Non
         # domain when the box says nothing, and an open one needs no box.
         return ((-math.inf, math.inf), (-math.inf, math.inf))
     fixed = fixed or {}
-    periods = _periods(face.surface)
+    periods = _periods(face.surface, t)
     if all(per is None or k in fixed for k, per in enumerate(periods)):
         # nothing to choose (a plane, or every period fixed by a seam): no samples needed
         return tuple((fixed[k], fixed[k] + per) if per is not None else (-math.inf, math.inf)
@@ -247,13 +265,116 @@ def _face_box(face: RawFace, loops: list, t: Tolerance, fixed: dict | None = Non
         g = int(np.argmax(gaps))
         # adjacent samples of one edge are < period / 16 apart: a largest gap below that means full coverage
         if gaps[g] <= per / (_SAMPLES - 1) * 1.01:
-            raise TopologyError(
+            raise _FullPeriod(
                 f"{face.name}: its boundary covers the whole period of the surface's "
-                f"{'uv'[k]} parameter without a seam edge; such faces are not supported"
+                f"{'uv'[k]} parameter without a seam edge", k
             )
         lo = float(a[(g + 1) % a.size])
         box.append((lo, lo + per - float(gaps[g])))
     return box[0], box[1]
+
+
+class _FullPeriod(TopologyError):
+    """A face whose boundary covers the whole period of parameter ``k`` without a seam edge."""
+
+    def __init__(self, message: str, k: int) -> None:
+        super().__init__(message)
+        self.k = k
+
+
+def _winding_loops(face: RawFace, loops: list, k: int, per: float, t: Tolerance) -> tuple[list[int], list]:
+    """Indices of the loops winding once around the period of parameter ``k``, and every loop's
+    parameter-``k`` samples per coedge (``_SAMPLES`` each)."""
+    from coons.kernel.onsurface import project_on_surface
+
+    winding, samples = [], []
+    for i, loop in enumerate(loops):
+        X = [np.asarray(c.edge.curve.evaluate(np.linspace(*c.t_range, _SAMPLES))) for c in loop]
+        uv = [project_on_surface(face.surface, x, t)[:, k] for x in X]
+        steps = np.diff(np.concatenate(uv))
+        if abs(float(np.sum(np.remainder(steps + 0.5 * per, per) - 0.5 * per))) > 0.5 * per:
+            winding.append(i)
+        samples.append(uv)
+    return winding, samples
+
+
+def _cut_loop(face: RawFace, loop: list, samples: list, k: int, a: float, per: float, t: Tolerance) -> tuple[list, np.ndarray]:
+    """The winding ``loop`` rotated to start where it crosses the iso-line ``k = a`` (the crossing
+    coedge cut there, its own edge object: the imprint step cuts the neighbour's use), and that point.
+
+    The crossing is where the wrapped offset ``k - a`` changes sign between samples (not at the
+    wrap-around jump of ±per/2), refined by bisection on the coedge's curve parameter.
+    """
+    from coons.kernel.onsurface import project_on_surface
+
+    S = face.surface
+    for j, (c, u) in enumerate(zip(loop, samples)):
+        d = np.remainder(u - a + 0.5 * per, per) - 0.5 * per
+        if abs(d[0]) <= 1e-12 * per:  # a vertex on the line (round-off of the projection)
+            P = np.asarray(c.edge.curve.evaluate(np.array([c.t_range[0]])))[0]
+            return loop[j:] + loop[:j], P
+        cross = np.nonzero((np.sign(d[:-1]) != np.sign(d[1:])) & (np.abs(d[:-1] - d[1:]) < 0.5 * per))[0]
+        if not cross.size:
+            continue
+        ts = np.linspace(*c.t_range, _SAMPLES)
+        lo, hi, dlo = float(ts[cross[0]]), float(ts[cross[0] + 1]), float(d[cross[0]])
+        for _ in range(60):  # bisection to round-off of the curve parameter (2^-60 of a sample step)
+            mid = 0.5 * (lo + hi)
+            um = project_on_surface(S, np.asarray(c.edge.curve.evaluate(np.array([mid]))), t)[0, k]
+            dm = math.remainder(float(um) - a, per)
+            if (dm < 0.0) == (dlo < 0.0):
+                lo, dlo = mid, dm
+            else:
+                hi = mid
+        tc = 0.5 * (lo + hi)
+        s0, s1 = c.t_range
+        E = np.asarray(c.edge.curve.evaluate(np.array([s0, tc, s1])))
+        # a crossing within the tolerance of a vertex is that vertex (no sliver edge): a vertex on the
+        # seam line of a closed NURBS may project to the far side of the domain by round-off
+        if float(np.linalg.norm(E[1] - E[0])) <= t.linear:
+            return loop[j:] + loop[:j], E[0]
+        if float(np.linalg.norm(E[1] - E[2])) <= t.linear:
+            return loop[j + 1:] + loop[:j + 1], E[2]
+        e0 = RawEdge(c.edge.curve, s0, tc, E[0], E[1], c.edge.tol, c.edge.name)
+        e1 = RawEdge(c.edge.curve, tc, s1, E[1], E[2], c.edge.tol, c.edge.name)
+        return [RawCoedge(e1, True)] + loop[j + 1:] + loop[:j] + [RawCoedge(e0, True)], E[1]
+    raise TopologyError(f"{face.name}: the inserted seam {'uv'[k]} = {a:.9g} does not cross one of its loops")
+
+
+def _insert_seam(face: RawFace, loops: list, k: int, per: float, t: Tolerance, a: float | None = None) -> tuple[list, RawEdge]:
+    """Join the two loops of a seamless band face by a seam edge along an iso-line of parameter ``k``.
+
+    The band's two loops each wind once around the period (a cylinder, cone or sphere zone
+    between two circles, a closed NURBS between two closed curves); loops that do not wind
+    (holes) are kept.  The seam is the iso-curve ``k = a`` (:func:`_iso_cut`, exact and
+    same-parameter), by default through the first vertex ``P1`` of the first winding loop (a
+    NURBS gives its domain start: it is not periodic); it meets the loops at ``P1`` and ``P2``
+    (:func:`_cut_loop`).  The new outer loop is ``loop1 (from P1), seam P1 -> P2, loop2 (from
+    P2), seam P2 -> P1``: the face as a seam face, split like the others.
+
+    Raises
+    ------
+    TopologyError
+        Not exactly two winding loops, or the seam line does not cross a loop.
+    """
+    from coons.kernel.onsurface import project_on_surface
+
+    S = face.surface
+    bands, samples = _winding_loops(face, loops, k, per, t)
+    if len(bands) != 2:
+        raise TopologyError(f"{face.name}: covers the whole period of its {'uv'[k]} parameter without a seam edge "
+                            f"and has {len(bands)} loops winding around it (only bands of two are supported)")
+    if a is None:
+        first = loops[bands[0]][0]
+        P = np.asarray(first.edge.curve.evaluate(np.array([first.t_range[0]])))
+        a = float(project_on_surface(S, P, t)[0, k])
+    first, P1 = _cut_loop(face, loops[bands[0]], samples[bands[0]], k, a, per, t)
+    second, P2 = _cut_loop(face, loops[bands[1]], samples[bands[1]], k, a, per, t)
+    uv = project_on_surface(S, np.stack([P1, P2]), t)
+    curve, _ = _iso_cut(S, k, a)
+    seam = RawEdge(curve, float(uv[0, 1 - k]), float(uv[1, 1 - k]), P1, P2, 0.0, f"seam inserted at {'uv'[k]} = {a:.9g}")
+    joined = first + [RawCoedge(seam, True)] + second + [RawCoedge(seam, False)]
+    return [joined] + [lp for i, lp in enumerate(loops) if i not in bands], seam
 
 
 def _shifted(pc: Any, du: float, dv: float) -> Any:
@@ -281,6 +402,8 @@ def _iso_cut(surface: Any, k: int, c: float) -> tuple[Any, Any]:
     from coons.kernel.analytic import Circle, ConicalSurface, CylindricalSurface, Line, SphericalSurface, ToroidalSurface
     from coons.kernel.pcurve import Line2D
 
+    if isinstance(surface, NurbsSurface):  # the iso-curve keeps the surface's other parameter
+        return surface.iso_curve("uv"[k], c), (Line2D([c, 0.0], [0.0, 1.0]) if k == 0 else Line2D([0.0, c], [1.0, 0.0]))
     X, Z = surface.x_dir, surface.axis
     Y = np.cross(Z, X)
     e = math.cos(c) * X + math.sin(c) * Y
@@ -391,11 +514,32 @@ def _face_spec(face: RawFace, t: Tolerance) -> list[FaceSpec]:
     seam_ids = {k for k, n in count.items() if n == 2}
     if any(n > 2 for n in count.values()):
         raise TopologyError(f"{face.name}: an edge is used more than twice by the face")
-    periods = _periods(face.surface)
+    periods = _periods(face.surface, t)
     fixed: dict[int, float] = {}
     if seam_ids:
         fixed = _seam_values(face, loops, seam_ids, periods, t)
-    box = _face_box(face, loops, t, fixed)
+    inserted: tuple[int, float | None] | None = None
+    if not seam_ids and isinstance(face.surface, NurbsSurface):
+        # a NURBS has no full-period test in _face_box (its box is the domain): loops winding
+        # around a closed direction need a seam at the domain start
+        for k, per in enumerate(periods):
+            if per is not None and _winding_loops(face, loops, k, per, t)[0]:
+                inserted = (k, _period_start(face.surface, k))
+                break
+    try:
+        box = None if inserted else _face_box(face, loops, t, fixed)
+    except _FullPeriod as full:
+        if seam_ids:
+            raise
+        inserted = (full.k, None)
+    if inserted:
+        # a band without a seam edge (a cylinder between two circles): insert the seam, then as above
+        k, a = inserted
+        loops, seam = _insert_seam(face, loops, k, periods[k], t, a)
+        face = RawFace(face.surface, face.sense, loops, None, face.poles, face.name)
+        seam_ids = {id(seam)}
+        fixed = _seam_values(face, loops, seam_ids, periods, t)
+        box = _face_box(face, loops, t, fixed)
     specs, pcs_all = _loop_specs(face, loops, box, seam_ids, fixed, periods, t)
     if len(loops) == 1 and not fixed and not isinstance(face.surface, (PlanarSurface, NurbsSurface)):
         # A boundary through poles (two meridians of a sphere) leaves the branch ambiguous: the
@@ -470,7 +614,11 @@ def _seam_values(face: RawFace, loops: list, seam_ids: set, periods, t: Toleranc
             if per is None or not span[k] <= 1e-9 * per:  # an iso-line: its constant parameter varies by round-off only
                 raise TopologyError(f"{face.name}: seam edge {c.edge.name} is not an iso-curve of a periodic parameter "
                                     f"of the {type(face.surface).__name__}")
-            value = float(np.mod(E[0, k], per))
+            base = _period_start(face.surface, k)
+            value = float(np.mod(E[0, k] - base, per))
+            if per - value <= 1e-9 * per:  # the far side of the period (a NURBS seam at u1) is its start
+                value = 0.0
+            value += base
             if k in fixed and abs(math.remainder(fixed[k] - value, per)) > 1e-9 * per:
                 raise TopologyError(f"{face.name}: two seams in the {'uv'[k]} direction "
                                     f"({fixed[k]:.9g} and {value:.9g})")
@@ -517,6 +665,9 @@ def _split_at_half_period(face: RawFace, spec: FaceSpec, fixed: dict, periods, b
             lo, hi = lo - pad, hi + pad
         if isinstance(face.surface, SphericalSurface):  # a meridian ends at the poles
             lo, hi = max(lo, -0.5 * math.pi), min(hi, 0.5 * math.pi)
+        if isinstance(face.surface, NurbsSurface):  # a NURBS is not evaluated outside its domain
+            d0, d1 = face.surface.domain[other]
+            lo, hi = max(lo, d0), min(hi, d1)
         band = _band_range(spec, fixed, other)
         if band is not None:
             cuts.append(EdgeSpec(curve, band[0], band[1], pc))
@@ -543,19 +694,19 @@ def _band_range(spec: FaceSpec, fixed: dict, other: int) -> tuple[float, float] 
     cylinder or cone between two circles, the common case): the split line then runs from the
     lowest to the highest of those constants.  Anything else goes through ``clip_to_face``.
     """
-    from coons.kernel.pcurve import Line2D
-
     if len(spec.loops) != 1 or len(fixed) != 1:
         return None
     k = 1 - other
     levels = []
     for e in spec.loops[0]:
-        pc = e.pcurve
-        if not isinstance(pc, Line2D):
-            return None
-        if pc.direction[other] == 0.0:
-            levels.append(float(pc.origin[other]))
-        elif pc.direction[k] != 0.0:
+        E = np.asarray(e.pcurve.evaluate(np.linspace(e.t0, e.t1, 5)))
+        span = np.ptp(E, axis=0)
+        scale = max(1.0, float(np.abs(E).max()))
+        # an iso-line varies by round-off only (as in _seam_values): exact ones (Line2D) by nothing,
+        # fitted ones (a circle's p-curve on a revolved NURBS) by the fit's round-off
+        if span[other] <= 1e-9 * scale:
+            levels.append(float(E[0, other]))
+        elif span[k] > 1e-9 * scale:
             return None
     if len(levels) < 2:
         return None

@@ -6,8 +6,10 @@ each edge's curve come from ``BRepAdaptor_Surface`` / ``BRepAdaptor_Curve`` (loc
 and become the coons analytic type of the same parametrisation (``gp_Pln`` -> PlanarSurface,
 ``gp_Cylinder`` -> CylindricalSurface, ... ``gp_Lin`` -> Line, ``gp_Circ`` -> Circle,
 ``gp_Elips`` -> Ellipse) or a NURBS (``Geom_BSplineCurve`` / ``Geom_BSplineSurface``, periodic
-ones made non-periodic; Bezier, revolution and extrusion surfaces and other curves are converted
-exactly with ``GeomConvert``).  Edge ranges are OCCT's own parameters; degenerate edges are
+ones made non-periodic; Bezier surfaces and other curves are converted exactly with
+``GeomConvert``, revolution and extrusion surfaces too after trimming them to the face's
+parameter box; a face turning a whole period is then a closed NURBS with a seam, split by
+:mod:`coons.io._faces`).  Edge ranges are OCCT's own parameters; degenerate edges are
 skipped.  The neutral faces then go through :func:`coons.io._faces.faces_to_solid` — seams split,
 p-curves recomputed, faces sewn and checked — exactly as STEP import does.
 :func:`from_build123d` accepts a build123d ``Solid``, ``Part`` or ``Compound``.
@@ -112,8 +114,17 @@ def _surface(face, name: str) -> tuple[Any, bool]:
         return an.ToroidalSurface(o, z, x, c.MajorRadius(), c.MinorRadius()), c.Position().Direct()
     if kind == S.GeomAbs_BSplineSurface:
         return _bspline_surface(ad.BSpline()), True
-    if kind in (S.GeomAbs_BezierSurface, S.GeomAbs_SurfaceOfRevolution, S.GeomAbs_SurfaceOfExtrusion):
+    if kind == S.GeomAbs_BezierSurface:
         return _bspline_surface(GeomConvert.SurfaceToBSplineSurface_s(BRep_Tool.Surface_s(face))), True
+    if kind in (S.GeomAbs_SurfaceOfRevolution, S.GeomAbs_SurfaceOfExtrusion):
+        # unbounded (an extrusion's v, a swept line): trimmed to the face's parameter box first,
+        # which GeomConvert then makes an exact NURBS (closed when the face turns a whole period)
+        from OCP.BRepTools import BRepTools
+        from OCP.Geom import Geom_RectangularTrimmedSurface
+
+        u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
+        trimmed = Geom_RectangularTrimmedSurface(BRep_Tool.Surface_s(face), u0, u1, v0, v1)
+        return _bspline_surface(GeomConvert.SurfaceToBSplineSurface_s(trimmed)), True
     raise InvalidInputError(f"{name}: OCCT surface type {kind.name} is not supported by from_ocp")
 
 

@@ -108,6 +108,10 @@ _GRID_JITTER = 0.173
 _NEWTON_ITERATIONS = 24
 #: Gauss–Newton iterations for singular points (linear convergence near a double point is possible).
 _SINGULAR_ITERATIONS = 60
+#: A singular-point candidate is dropped when its residual has not fallen below this fraction of
+#: its best for this many Gauss–Newton steps (a solver strategy: the acceptance test decides).
+_SINGULAR_GAIN = 0.9
+_SINGULAR_PATIENCE = 5
 #: Chain vertices whose normals make a sine below this start a singular-point search (a cheap
 #: filter only: the Gauss–Newton solve decides).
 _SINGULAR_SINE = 0.5
@@ -366,7 +370,8 @@ def _solve(J: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def _singular_points(g, f, x0: np.ndarray, t: Tolerance) -> np.ndarray:
-    """Gauss–Newton on ``G - F = 0, n_G · F_u = n_G · F_v = 0`` from ``x0`` ``(m, 4)``; converged rows.
+    """Gauss–Newton on ``G - F = 0, n_G · F_u = n_G · F_v = 0`` from ``x0`` ``(m, 4)``: the iterate of
+    lowest residual of each row that reached ``0.1 tol.linear``.
 
     Central differences give the Jacobian (a step of ``sqrt(tol.solver)`` relative: truncation and
     round-off errors balance near ``tol.solver``).
@@ -384,11 +389,32 @@ def _singular_points(g, f, x0: np.ndarray, t: Tolerance) -> np.ndarray:
 
     h = math.sqrt(t.solver)
     active = np.arange(x.shape[0])
+    best = np.full(x.shape[0], np.inf)
+    since = np.zeros(x.shape[0], dtype=np.int64)
+    # The lowest-residual iterate of each row is the answer: at a pole of a parametrisation (a
+    # sphere touching a plane at its pole) the steps can alternate between two states.
+    lowest, x_low = np.full(x.shape[0], np.inf), x.copy()
     for _ in range(_SINGULAR_ITERATIONS):
         if active.size == 0:
             break
         xa = x[active]
         r = residual(xa)
+        # A candidate that is no singular point (a mere local minimum of the normals' sine) sends
+        # Gauss–Newton to a positive least-squares minimum: its residual stops shrinking.  Rows
+        # whose residual has not fallen by _SINGULAR_GAIN for _SINGULAR_PATIENCE steps are
+        # dropped (convergence to a true point, even linear, keeps shrinking it; a converged row
+        # has its answer in x_low already).
+        res = np.max(np.abs(r), axis=1)
+        lower = res < lowest[active]
+        lowest[active[lower]], x_low[active[lower]] = res[lower], xa[lower]
+        gained = res < _SINGULAR_GAIN * best[active]
+        best[active] = np.where(gained, res, best[active])
+        since[active] = np.where(gained, 0, since[active] + 1)
+        keep = since[active] < _SINGULAR_PATIENCE
+        if not np.all(keep):
+            active, xa, r = active[keep], xa[keep], r[keep]
+            if active.size == 0:
+                break
         J = np.empty((active.size, 5, 4))
         for k in range(4):
             hk = h * np.maximum(1.0, np.abs(xa[:, k]))
@@ -399,9 +425,10 @@ def _singular_points(g, f, x0: np.ndarray, t: Tolerance) -> np.ndarray:
         step = np.einsum("mij,mj->mi", np.linalg.pinv(J), r)
         x[active] = xa - step
         active = active[np.any(np.abs(step) > t.solver * np.maximum(1.0, np.abs(xa)), axis=1)]
-    r = residual(x)
-    ok = np.max(np.abs(r), axis=1) <= 0.1 * t.linear
-    return x[ok]
+    res = np.max(np.abs(residual(x)), axis=1)
+    lower = res < lowest
+    lowest[lower], x_low[lower] = res[lower], x[lower]
+    return x_low[lowest <= 0.1 * t.linear]
 
 
 # ---------------------------------------------------------------------------- sampling

@@ -55,7 +55,7 @@ import numpy as np
 
 from coons.errors import InvalidInputError
 
-__all__ = ["BRep", "Vertex", "Edge", "Coedge", "Loop", "Face", "Shell", "Lump"]
+__all__ = ["BRep", "Vertex", "Edge", "Coedge", "Loop", "Face", "Shell", "Lump", "same_geometry"]
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -534,3 +534,21 @@ class Lump(_View):
 
     def faces(self) -> list[Face]:
         return [f for s in self.shells() for f in s.faces()]
+
+
+def same_geometry(src: BRep, dst: BRep) -> bool:
+    """Whether two B-reps have the same vertices, faces, edges and geometry objects, row for row.
+
+    True for a B-rep and its rebuild after regrouping shells into solids (void nesting): what is
+    computed per face or vertex of one (meshes, integrals, boxes) then holds for the other.
+    """
+    return (src.n_faces == dst.n_faces and src.n_vertices == dst.n_vertices and src.n_edges == dst.n_edges
+            and np.array_equal(src.vertex_point, dst.vertex_point)
+            and np.array_equal(src.face_surface, dst.face_surface) and np.array_equal(src.face_sense, dst.face_sense)
+            and np.array_equal(src.edge_vertex, dst.edge_vertex) and np.array_equal(src.edge_range, dst.edge_range)
+            and np.array_equal(src.edge_curve, dst.edge_curve) and np.array_equal(src.edge_pcurve, dst.edge_pcurve)
+            and np.array_equal(src.face_loop_ptr, dst.face_loop_ptr) and np.array_equal(src.face_loops, dst.face_loops)
+            and np.array_equal(src.loop_coedge, dst.loop_coedge)
+            and len(src.pcurves) == len(dst.pcurves) and all(x is y for x, y in zip(src.pcurves, dst.pcurves))
+            and len(src.surfaces) == len(dst.surfaces) and all(x is y for x, y in zip(src.surfaces, dst.surfaces))
+            and len(src.curves) == len(dst.curves) and all(x is y for x, y in zip(src.curves, dst.curves)))

@@ -720,8 +720,12 @@ class BRepBuilder:
         self.ssolid[void_shell] = self.ssolid[outer_shell]
 
     # ================================================================ build
-    def build(self, *, check: bool = True) -> BRep:
+    def build(self, *, check: bool = True, caches_from: BRep | None = None) -> BRep:
         """Compact killed entities and return an immutable :class:`BRep`.
+
+        ``caches_from``: an earlier build of this builder that differs from this one only in how
+        shells are grouped into solids (:meth:`nest_shells` since); its meshes and mass integrals
+        are shared with the new B-rep before the check (which then reuses them).
 
         Raises
         ------
@@ -796,6 +800,12 @@ class BRepBuilder:
             curves=tuple(self.curves),
             pcurves=tuple(self.pcurves),
         )
+        if caches_from is not None:
+            from coons.topology.mass import share_mass_caches
+            from coons.topology.tessellate import share_tessellations
+
+            share_mass_caches(caches_from, brep)
+            share_tessellations(caches_from, brep)
         if check:
             from coons.topology.check import check as _check
 

@@ -143,7 +143,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology.brep import BRep
+from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
     "MassProperties",
@@ -305,6 +305,19 @@ def _as_brep(shape) -> BRep:
     if isinstance(b, BRep):
         return b
     raise InvalidInputError(f"expected a BRep or a shape with a .brep, got {type(shape).__name__}")
+
+
+def share_mass_caches(src: BRep, dst: BRep) -> None:
+    """Let ``dst`` reuse the per-face integrals, tables and box computed for ``src``.
+
+    Only for two B-reps with the same vertices, faces and geometry in the same order, differing at
+    most in how shells are grouped into solids (every cached entry is a sum or table over faces).
+    """
+    if not same_geometry(src, dst):
+        raise InvalidInputError("share_mass_caches needs B-reps with the same vertices, faces and geometry")
+    got = _CACHE.get(src)
+    if got:
+        _cache(dst).update(got)
 
 
 def _cache(b: BRep) -> dict:
@@ -1444,6 +1457,16 @@ def bounding_box(brep) -> np.ndarray:
     b = _as_brep(brep)
     if b.n_vertices == 0:
         raise TopologyError("the B-rep has no vertices: its bounding box is undefined")
+    cache = _cache(b)
+    box = cache.get("box")
+    if box is None:
+        box = cache["box"] = _bounding_box(b)
+        box.setflags(write=False)
+    return box.copy()
+
+
+def _bounding_box(b: BRep) -> np.ndarray:
+    """:func:`bounding_box`, uncached."""
     lo = b.vertex_point.min(axis=0)
     hi = b.vertex_point.max(axis=0)
     pts = []

@@ -559,16 +559,17 @@ def _assemble(
         side_p = 0 if fwd[e] else 1
         b.set_pcurve(2 * e + side_p, sp.pcurve)
         b.set_pcurve(2 * e + (1 - side_p), _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})"))
-    if len(b.ssolid) > 1:
-        _nest_voids(b, t)
-    return Solid(b.build())
+    pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
+    return Solid(b.build(caches_from=pre))
 
 
-def _nest_voids(b: BRepBuilder, t: Tolerance) -> None:
+def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
     """Make every shell enclosing negative volume a void of the smallest positive shell around it.
 
     Containment is decided by the generalised winding number of one vertex of the void with
     respect to the tessellation of each candidate shell (:func:`coons.topology.tessellate.tessellate`).
+    Returns the B-rep built before nesting, whose shell volumes and mesh the final build shares
+    (the next Boolean on the result tessellates it with the same default).
 
     Raises
     ------
@@ -583,7 +584,7 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> None:
     vol = shell_volumes(brep)
     neg = np.flatnonzero(vol < 0)
     if neg.size == 0:
-        return
+        return brep
     pos = np.flatnonzero(vol > 0)
     mesh = tessellate(brep, tol=t)
     tri_shell = brep.face_shell[mesh.face_ids]
@@ -602,6 +603,7 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> None:
             )
         outer = int(containers[np.argmin(vol[containers])])
         b.nest_shells(outer, s)
+    return brep
 
 
 # ====================================================================== B-rep -> specs

@@ -141,6 +141,7 @@ bounded by Qhull in the constrained triangulator (about 10 µs per boundary poin
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -159,7 +160,7 @@ from coons.kernel.analytic import (
 from coons.kernel.pcurve import Line2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._cdt import ConstrainedDelaunay
-from coons.topology.brep import BRep
+from coons.topology.brep import BRep, same_geometry
 from coons.topology.mesh import TriangleMesh
 
 __all__ = ["tessellate", "edge_parameters", "MAX_REFINEMENTS"]
@@ -247,6 +248,37 @@ def tessellate(
     a = _as_float(angular_deflection, "angular_deflection")
     if not (math.isfinite(a) and 0.0 < a <= math.pi):
         raise InvalidInputError(f"angular_deflection must lie in (0, π], got {angular_deflection!r}")
+    meshes = _MESHES.get(b)
+    if meshes is None:
+        meshes = _MESHES[b] = {}
+    key = (d, a, t)
+    if key not in meshes:
+        meshes[key] = _tessellate(b, d, a, t)
+    return meshes[key]
+
+
+#: Meshes per B-rep and ``(deflection, angular deflection, tolerance)``: B-reps and meshes are
+#: immutable, and a Boolean tessellates its operands, which are often the results of the previous
+#: Boolean, tessellated there already (void nesting) — see :func:`share_tessellations`.
+_MESHES: "weakref.WeakKeyDictionary[BRep, dict]" = weakref.WeakKeyDictionary()
+
+
+def share_tessellations(src: BRep, dst: BRep) -> None:
+    """Let ``dst`` reuse the meshes computed for ``src``.
+
+    Only for two B-reps with the same vertices, faces and geometry in the same order, differing at
+    most in how shells are grouped into solids (a B-rep rebuilt after nesting its voids): the mesh
+    of each face, and so of the whole, is then the same.
+    """
+    if not same_geometry(src, dst):
+        raise InvalidInputError("share_tessellations needs B-reps with the same vertices, faces and geometry")
+    meshes = _MESHES.get(src)
+    if meshes:
+        _MESHES.setdefault(dst, {}).update(meshes)
+
+
+def _tessellate(b: BRep, d: float, a: float, t: Tolerance) -> TriangleMesh:
+    """:func:`tessellate` with resolved arguments, uncached."""
     ctx = _Builder(b, d, a, t)
     ctx.plan_revolved_faces()
     ctx.discretise_edges()

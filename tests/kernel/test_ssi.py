@@ -615,3 +615,23 @@ def test_branch_passing_next_to_a_sphere_pole_keeps_its_p_curve_in_the_domain():
     south = sphere.center - 1.5 * np.array([0, 0, 1.0])
     near_pole = min(np.linalg.norm(_samples(c) - south, axis=1).min() for c in r.curves)
     assert near_pole < 0.02
+
+
+def test_singular_point_search_abandons_a_transversal_crossing_quickly(monkeypatch):
+    """A seed on a transversal crossing (a sphere cut by a plane at a small angle: the normals' sine is
+    below the candidate filter) is no singular point: Gauss–Newton stalls at a positive residual and
+    the row is dropped after _SINGULAR_PATIENCE stalled steps instead of running all iterations."""
+    from coons.kernel import ssi
+
+    sphere = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    plane = PlanarSurface([0, 0, 0.9], [0, 0, 1], [1, 0, 0])
+    lat = math.asin(0.9)
+    u = np.linspace(0.1, 6.0, 7)
+    r = math.cos(lat)
+    x0 = np.stack([u, np.full_like(u, lat), r * np.cos(u), r * np.sin(u)], axis=1)
+    calls = []
+    frame = ssi._frame
+    monkeypatch.setattr(ssi, "_frame", lambda s, a, b: (calls.append(1), frame(s, a, b))[1])
+    assert ssi._singular_points(sphere, plane, x0, TOL).shape == (0, 4)
+    # Each step evaluates the residual 9 times (2 frames each); all iterations would be 60 steps.
+    assert len(calls) <= 2 * 9 * (ssi._SINGULAR_PATIENCE + 3) + 2

@@ -881,3 +881,49 @@ def test_chord_conflicts_are_repaired(monkeypatch):
     s = Sphere(1.0)
     m = tessellate(s, deflection=0.5 * scale_of(s.brep), angular_deflection=PI)
     assert repairs and m.is_closed and vertex_links_are_cycles(m) and m.euler_characteristic == 2
+
+
+# ============================================================================ caching
+def test_meshes_are_cached_per_brep_and_arguments():
+    """The same B-rep and arguments give the same (immutable) mesh object, equal to a fresh tessellation."""
+    s = Cylinder(1.0, 2.0)
+    m1 = tessellate(s)
+    assert tessellate(s) is m1 and tessellate(s.brep) is m1
+    m2 = tessellate(s, deflection=1e-2)
+    assert m2 is not m1 and m2.triangles.shape[0] < m1.triangles.shape[0]
+    fresh = tess._tessellate(s.brep, 1e-3 * float(np.linalg.norm(np.ptp(bounding_box(s.brep), axis=0))), 0.5,
+                             Tolerance())
+    np.testing.assert_array_equal(fresh.triangles, m1.triangles)
+    np.testing.assert_array_equal(fresh.vertices, m1.vertices)
+
+
+def test_a_boolean_result_with_a_void_reuses_the_mesh_of_its_void_nesting():
+    """Sewing a shell and a void tessellates them to nest the void; the final B-rep shares that mesh
+    (and the face integrals), so the next Boolean on the result does not tessellate it again."""
+    outer, inner = Box(10, 10, 10), Sphere(2.0)
+    r = outer - inner  # the sphere becomes a void
+    assert r.brep.n_shells == 2
+    cached = tess._MESHES.get(r.brep)
+    assert cached, "the void nesting's mesh was not shared with the result"
+    mesh = tessellate(r)
+    assert any(mesh is m for m in cached.values())
+    fresh = tess._tessellate(r.brep, *next(iter(k for k, m in cached.items() if m is mesh)))
+    np.testing.assert_array_equal(fresh.triangles, mesh.triangles)
+    np.testing.assert_allclose(mesh.volume, r.volume, rtol=1e-3)
+
+
+def test_sharing_needs_the_same_geometry():
+    from coons.topology.mass import share_mass_caches
+
+    a, b = Box(1, 1, 1), Box(1, 1, 2)
+    with pytest.raises(InvalidInputError, match="same vertices, faces and geometry"):
+        tess.share_tessellations(a.brep, b.brep)
+    with pytest.raises(InvalidInputError, match="same vertices, faces and geometry"):
+        share_mass_caches(a.brep, b.brep)
+
+
+def test_cached_bounding_box_cannot_be_corrupted_by_the_caller():
+    s = Sphere(1.0)
+    box = bounding_box(s.brep)
+    box[:] = 0.0
+    np.testing.assert_allclose(bounding_box(s.brep), [[-1, -1, -1], [1, 1, 1]], atol=1e-12)

@@ -182,6 +182,10 @@ _CURVATURE_SAMPLES = 9
 #: Relative parameter distance below which two p-curve ends are the same point (round-off of
 #: the p-curve evaluation, far below any real pole gap).
 _SAME_UV = 1e-10
+#: Fraction of the deflection refinement aims at: its deviation estimate (centroid and edge
+#: midpoints in the quadratic model) is exact to second order only, and third-order terms (a cone
+#: near its apex) put the true worst point of a triangle up to a few tenths of a percent above it.
+_REFINE_MARGIN = 0.98
 #: Fraction of the deflection the interior grid aims at: a grid cell split by either diagonal
 #: meets exactly its target in the quadratic model, so a margin keeps round-off and the
 #: model's error from sending every grid triangle to refinement.
@@ -1477,7 +1481,8 @@ class _Builder:
                 nxt = pieces[(i + 1) % len(cs)][0]
                 loop_uv.append(uv_i[:-1])
                 loop_ids.append(id_i[:-1])
-                if np.linalg.norm(uv_i[-1] - nxt) > _SAME_UV * extent and self._pole_gap(S, int(cs[i]), uv_i[-1], nxt):
+                if np.linalg.norm(uv_i[-1] - nxt) > _SAME_UV * extent and self._pole_gap(
+                        S, int(cs[i]), int(cs[(i + 1) % len(cs)]), uv_i[-1], nxt):
                     # A pole or apex: the loop jumps in (u, v) at one vertex; keep both ends.
                     loop_uv.append(uv_i[-1:])
                     loop_ids.append(id_i[-1:])
@@ -1496,18 +1501,20 @@ class _Builder:
         uv, ids, seg = _merge_touching(f, uv, ids, seg)
         return _Boundary(uv, ids, seg)
 
-    def _pole_gap(self, S, c: int, p: np.ndarray, q: np.ndarray) -> bool:
-        """Whether the parameter jump from ``p`` to ``q`` at the vertex ending coedge ``c`` is a pole or apex.
+    def _pole_gap(self, S, c: int, c_next: int, p: np.ndarray, q: np.ndarray) -> bool:
+        """Whether the parameter jump from ``p`` (end of coedge ``c``) to ``q`` (start of ``c_next``) is a pole or apex.
 
-        Two p-curves meeting at one vertex end at slightly different parameters when one of them
-        is fitted (within its edge tolerance); at a pole they end far apart along the collapsed
+        Two p-curves meeting at one vertex end at slightly different parameters when they are
+        fitted (each within its edge tolerance); at a pole they end far apart along the collapsed
         side.  The jump measured with the surface's largest first derivative at ``p`` tells them
-        apart: a fitting mismatch maps to at most the edge tolerance in space, a pole's jump
-        (``|Su| = 0`` but ``|Sv|`` of the order of the radius) to much more.
+        apart: a fitting mismatch maps to at most the sum of the two edges' tolerances in space
+        (each end may be off by its own), a pole's jump (``|Su| = 0`` but ``|Sv|`` of the order of
+        the radius) to much more.
         """
         D = S.derivatives(p[0], p[1], 1)
         stretch = max(float(np.linalg.norm(D[1, 0])), float(np.linalg.norm(D[0, 1])))
-        allowed = max(self.tol.linear, float(self.b.edge_tol[c >> 1]))
+        et = self.b.edge_tol
+        allowed = max(self.tol.linear, float(et[c >> 1]) + float(et[c_next >> 1]))
         return float(np.linalg.norm(p - q)) * stretch > allowed
 
     def _grid(self, S, bd: _Boundary, X_b: np.ndarray, scale: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
@@ -2020,7 +2027,7 @@ def _refinement_points(
         dev_e = np.zeros((m, 3))
         dev_e[interior] = dist[m:]
         dev = np.maximum(dev, dev_e.max(axis=1))
-    bad = dev > d
+    bad = dev > _REFINE_MARGIN * d
     if not np.any(bad):
         return none
     length = np.linalg.norm(X[ea] - X[eb], axis=2)

@@ -75,12 +75,7 @@ _BREPMESH_CONE = ("OCCT's BRepMesh of OCCT's own result leaves the cone face by 
 _MARCHED = ("marched intersection curves (solid.py status: 1e-8) leave the algebra at 1.6e-9..2e-9 relative, "
             "above RTOL_ALGEBRA = 1e-9; coons agrees with OCCT to 5e-9 on every op of this pair")
 KNOWN_FAILURES: dict[tuple[str, str, str], str] = {
-    ("box-cone-0", "union", "hausdorff"): ("coons.topology.tessellate raises TopologyError 'face 9: its boundary "
-                                           "cannot be triangulated in parameter space: constraint segments (0, 1) and "
-                                           "(3, 2) cross': two p-curve ends meant to meet at one vertex are 4e-7 "
-                                           "apart in the scaled parameter plane; the result is check-clean and "
-                                           "agrees with OCCT (volume, area, topology, to_ocp mesh)"),
-    # the rest are in the extended (slow) set
+    # in the extended (slow) set
     **{("tor-tor-2", op, "*"): _OCCT_TORI for op in OPS},
     **{("box-cone-2", op, "exact-hausdorff"): ("BRepMesh leaves one cone face (one loop of 6 edges) of the converted "
                                                "result untriangulated ('1 face has been skipped due to null "

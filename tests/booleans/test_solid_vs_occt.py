@@ -85,9 +85,6 @@ KNOWN_FAILURES: dict[tuple[str, str, str], str] = {
        for op in ("intersection", "difference")},
     **{("cone-sph-2", op, chk): _BREPMESH_CONE for op in ("union", "difference")
        for chk in ("hausdorff", "exact-hausdorff")},
-    ("box-tor-1", "union", "exact-hausdorff"): ("BRepMesh of the converted result (to_ocp) is 1.06 off OCCT's result "
-                                                "while coons's own tessellation agrees with it to 3 x deflection and "
-                                                "volume/area to 1e-9: a meshing artefact of the converted torus faces"),
     **{("cone-cone-1", op, "exact-hausdorff"): ("BRepMesh of the converted result (to_ocp) is 0.20-0.22 off OCCT's "
                                                 "result (3 x deflection = 0.14) while coons's own tessellation agrees "
                                                 "with it and volume/area agree to 1e-8: BRepMesh on converted cone "

@@ -127,7 +127,16 @@ their plane.  A mesh-derived polyhedron therefore tessellates in numpy time.
 
 Closedness is verified, not assumed: one sort of the edge keys ``2 (min · n + max) + [a > b]``
 finds chords used twice (step 7) and checks that every edge is used exactly once each way;
-a result that is not closed raises.  Nothing is cached between calls.
+a result that is not closed raises.
+
+*Caching.*  B-reps and meshes are immutable, so :func:`tessellate` keeps its result per B-rep and
+``(deflection, angular deflection, tolerance)`` (weakly: the meshes go with the B-rep).  A Boolean
+tessellates both operands (classification) and, when its result has voids, the result (void
+nesting in :func:`coons.topology.sew.sew_faces`); the final B-rep, rebuilt after nesting, shares
+that mesh (:func:`share_tessellations`, guarded by :func:`coons.topology.brep.same_geometry`), so
+the next Boolean of a chain does not tessellate its operand again.  Meshes are not reused per
+face across different B-reps: edge sampling and chord repairs are global, and a face kept
+unchanged by a Boolean is meshed again with the rest.
 
 Speed (``benchmarks/bench_topology.py``, results in ``benchmarks/results/topology-tessellate.md``):
 the strips make the revolved primitives 3× (coarse) to 60×+ (fine) faster than OCCT's

@@ -154,7 +154,7 @@ def from_mesh(
 
 
 def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, merge_coplanar: bool = True,
-                                straighten: bool = False) -> Solid:
+                                straighten: bool = False, no_sheets: bool = False) -> Solid:
     """:func:`from_mesh` for callers that guarantee their mesh is clean (the polyhedral Booleans).
 
     Preconditions, not re-verified: ``P (n, 3)`` finite float64 with every vertex used by ``T``;
@@ -170,6 +170,8 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     deviate), merged faces are verified planar within ``t.linear`` here, and shell orientation is
     the volume test above.  ``straighten`` (with ``merge_coplanar``) also removes the vertices
     left on straight boundaries between merged faces (:func:`_remove_straight_vertices`).
+    ``no_sheets`` also rejects components thinner than ``t.linear`` on average (``|volume| <=
+    t.linear · area``: two facing triangulations of one patch left by touching operands).
 
     Raises
     ------
@@ -181,7 +183,7 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     a, b = _pair_half_edges(P, T, orig)
     labels, n_comp = _components(T.shape[0], a // 3, b // 3)
     depth, parent = _nesting(P, T, labels, n_comp)
-    flip = _orientation(P, T, labels, n_comp, depth)
+    flip = _orientation(P, T, labels, n_comp, depth, thin=t.linear if no_sheets else 0.0)
     if np.any(flip):
         k = int(np.flatnonzero(flip)[0])
         raise TopologyError(
@@ -388,7 +390,10 @@ def _components(m: int, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, int
 
 # ====================================================================== orientation and nesting
 def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Signed volume of each triangle's tetrahedron with the centre of the vertex box, and its magnitude."""
+    """Signed volume of each triangle's tetrahedron with the centre of the vertex box, and the bound
+    of its round-off: the determinant's permanent (the sum of the magnitudes of its six products),
+    to which the rounding error of the float determinant is proportional whatever the value is (a
+    flat tetrahedron has a tiny value and a large permanent)."""
     x0 = 0.5 * (P.min(axis=0) + P.max(axis=0))
     Q = [np.ascontiguousarray(P[:, k]) - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
     t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
@@ -396,21 +401,36 @@ def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
     bx, by, bz = (q[t1] for q in Q)
     cx, cy, cz = (q[t2] for q in Q)
     v = (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)) / 6.0
-    return v, np.abs(v)
+    perm = (np.abs(ax) * (np.abs(by * cz) + np.abs(bz * cy)) + np.abs(ay) * (np.abs(bz * cx) + np.abs(bx * cz))
+            + np.abs(az) * (np.abs(bx * cy) + np.abs(by * cx))) / 6.0
+    return v, perm
 
 
-def _orientation(P: np.ndarray, T: np.ndarray, labels: np.ndarray, n_comp: int, depth: np.ndarray) -> np.ndarray:
+def _orientation(P: np.ndarray, T: np.ndarray, labels: np.ndarray, n_comp: int, depth: np.ndarray,
+                 thin: float = 0.0) -> np.ndarray:
     """Components to reverse: the sign of the enclosed volume must be ``(-1) ** depth``.
 
     Raises
     ------
     TopologyError
-        A component whose volume is indistinguishable from zero (round-off of its terms).
+        A component whose volume is indistinguishable from zero (round-off of its terms), or with
+        ``thin > 0`` one whose mean thickness ``|volume| / area`` is at most ``thin``.
     """
     v, av = _signed_volumes(P, T)
     vol = np.bincount(labels, weights=v, minlength=n_comp)
-    # The volume is a sum of exactly computed terms: a total within a few ulps of their summed
-    # magnitude is indistinguishable from zero (a flat, doubly covered component).
+    if thin > 0.0:
+        E1, E2 = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
+        area = np.bincount(labels, weights=0.5 * np.linalg.norm(np.cross(E1, E2), axis=1), minlength=n_comp)
+        sheet = np.flatnonzero(np.abs(vol) <= thin * area)
+        if sheet.size:
+            k = int(sheet[0])
+            raise TopologyError(
+                f"component {k} encloses volume {vol[k]:.3g} over area {area[k]:.3g}: thinner than the tolerance "
+                f"{thin:g} (expected a component bounding a solid)"
+            )
+    # Each term is a float determinant whose error is a few ulps of its permanent: a total within
+    # that of the summed permanents is indistinguishable from zero (a flat, doubly covered
+    # component, e.g. the sheet left by two faces that touch, whose terms are all tiny).
     noise = 64.0 * np.finfo(np.float64).eps * np.bincount(labels, weights=av, minlength=n_comp)
     flat = np.flatnonzero(np.abs(vol) <= noise)
     if flat.size:

@@ -151,6 +151,11 @@ REGRESSIONS = [
     ([1, 1, 2, 2, 1, 3], [1, 1, 1, 1, 1, 1],
      [-0.7356461681010071, -0.38984969478325304, -0.18445088553019806, 0.5450569115372192],
      [0.373369443422676, 0.073460684809171, -0.24628241246953708], "union"),
+    # Boxes touching in a face: the intersection used to come back as the doubly covered touching
+    # square (a flat tetrahedron of volume 3e-17 that passed the round-off test of from_mesh).
+    ([3, 2, 2, 3, 2, 3], [1, 1, 0, 3, 1, 3],
+     [0.9942776443266228, 0.11906511254254037, -0.6428864095588331, 0.2190815556544452],
+     [-0.4254064126470216, 0.025878112441974244, -0.08135335261403909], "intersection"),
 ]
 
 

@@ -381,3 +381,20 @@ def test_tables_equal_those_of_assemble(case):
             np.testing.assert_array_equal(a, b, err_msg=f.name)
         else:
             assert len(a) == len(b) == 0, f.name
+
+
+def test_a_flat_tetrahedron_is_rejected_whatever_its_rounded_volume():
+    """Four nearly coplanar points (the doubly covered square left by two touching boxes, rotated):
+    the float volume 3e-17 is round-off of determinants whose permanents are ~0.1, not a solid."""
+    from coons.errors import TopologyError
+    from coons.topology.from_mesh import from_mesh
+
+    P = np.array([[-0.14417636, -2.70056864, -3.16151533], [-0.56570152, -3.13338301, -4.44018192],
+                  [0.27186095, -2.73125141, -4.07034508], [-0.98173883, -3.10270023, -3.53135216]])
+    # Put the fourth point exactly on the plane of the first three, then one ulp-scale nudge off it.
+    n = np.cross(P[1] - P[0], P[2] - P[0])
+    P[3] -= (P[3] - P[0]) @ n / (n @ n) * n
+    P[3] += 1e-16 * n / np.linalg.norm(n)
+    T = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [3, 2, 0]])
+    with pytest.raises(TopologyError, match="indistinguishable from 0"):
+        from_mesh(P, T)

@@ -696,6 +696,10 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec
     for F in faces:
         for loop in F.loops:
             for e in loop:
+                reach = 10.0 * max(base, e.tol or 0.0)
+                box = _curve_box(e)
+                if box is not None and np.all(np.any((P < box[0] - reach) | (P > box[1] + reach), axis=1)):
+                    continue  # both ends far from this edge (a face with many holes has many edges)
                 lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
                 te = np.clip(_curve_closest(e.curve, P, lo, t), lo, hi)
                 De = np.asarray(e.curve.derivatives(te, 1), dtype=np.float64)
@@ -706,6 +710,26 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec
                 if np.any(near):
                     worst = max(worst, float(np.max(max(base, e.tol or 0.0) / sine[near])))
     return worst
+
+
+def _curve_box(e: EdgeSpec) -> tuple[np.ndarray, np.ndarray] | None:
+    """A box ``(lo, hi)`` containing the edge's curve over its range, or None when there is no cheap one.
+
+    A line's segment is its own box; a circle or ellipse lies in ``C ± sqrt((a X_k)² + (b Y_k)²)``
+    per coordinate (the whole conic, so any arc of it).
+    """
+    from coons.kernel.analytic import Circle, Ellipse, Line
+
+    c = e.curve
+    if isinstance(c, Line):
+        P = np.asarray(c.evaluate(np.array([e.t0, e.t1])), dtype=np.float64)
+        return P.min(axis=0), P.max(axis=0)
+    if isinstance(c, (Circle, Ellipse)):
+        a, b = (c.radius, c.radius) if isinstance(c, Circle) else (c.major_radius, c.minor_radius)
+        X, Y = c.frame[0], c.frame[1]
+        half = np.sqrt((a * X) ** 2 + (b * Y) ** 2)
+        return c.center - half, c.center + half
+    return None
 
 
 def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance) -> None:

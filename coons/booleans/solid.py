@@ -1182,6 +1182,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     changed_any = False
     for f in faces:
         info = orig.get(id(f))
+        foreign = None
         if info is not None:
             g, lo, hi = info
             other = group != g
@@ -1189,12 +1190,22 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
             if not np.any(inside):
                 out.append(f)  # no foreign vertex near this face
                 continue
+            foreign = starts[inside], start_tol[inside]
         loops = []
         face_changed = False
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
                 thr = max(t.linear, e.tol or 0.0)
+                if foreign is not None:
+                    # An unchanged face's edge can only be split by a foreign vertex: none near the
+                    # edge's box (a plate face with many holes has many edges), nothing to do.
+                    box = _curve_box(e)
+                    if box is not None:
+                        pad = (foreign[1] + thr)[:, None]
+                        if not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1)):
+                            new.append(e)
+                            continue
                 tt = np.linspace(e.t0, e.t1, 17)
                 X = np.asarray(e.curve.evaluate(tt), dtype=np.float64)
                 c = X.mean(axis=0)

@@ -105,7 +105,10 @@ Status and limitations
 * Cost: a Boolean still costs about the whole of both operands in ``_Operand`` (face specs,
   one tessellation), the T-junction and merge passes and ``sew_faces`` (with its check), so
   sequential cuts into a large part cost its size each time; the plate of the benchmark is
-  far slower than OCCT (``benchmarks/results/booleans_brep.md``).
+  far slower than OCCT (``benchmarks/results/booleans_brep.md``).  Reused: an operand's mesh
+  when it was tessellated before (meshes are cached per B-rep; a result with voids shares the
+  mesh its void nesting made).  Local: the end tolerance of a cut and the T-junction pass only
+  look at boundary edges whose box is near the points in question (lines and conics).
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
   wall).  Lumps touching at a point inside their faces (two spheres) stay separate shells.  An

@@ -41,20 +41,11 @@ import time
 
 import numpy as np
 
-from _harness import Report, markdown_table, register
+from _harness import Report, forget_coons_caches, markdown_table, register
 
 AGREE_RTOL = 1e-6
 #: A peer more than this many standard errors from the Monte Carlo referee is wrong.
 REFEREE_SIGMAS = 4.0
-
-
-def _cold() -> None:
-    """Forget coons's per-B-rep caches (meshes, boxes, mass integrals) so every repetition starts cold:
-    the operands are reused across repetitions, and a warm cache would time a reuse, not a Boolean."""
-    from coons.topology import mass, tessellate
-
-    tessellate._MESHES.clear()
-    mass._CACHE.clear()
 
 
 def _best(fn, reps: int, budget: float = 20.0, cold: bool = False):
@@ -62,7 +53,7 @@ def _best(fn, reps: int, budget: float = 20.0, cold: bool = False):
     start = time.perf_counter()
     for _ in range(reps):
         if cold:
-            _cold()
+            forget_coons_caches()
         t0 = time.perf_counter()
         out = fn()
         best = min(best, time.perf_counter() - t0)
@@ -281,7 +272,7 @@ def run() -> Report:
     table = markdown_table(["case", "coons ms", "OCCT ms", "coons / OCCT", "faces coons / OCCT"], rows)
     sections = [table] + (["\n".join(f"- {n}" for n in notes)] if notes else [])
     if profile_case is not None:
-        _cold()
+        forget_coons_caches()
         pr = cProfile.Profile()
         pr.enable()
         profile_case()

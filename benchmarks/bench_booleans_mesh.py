@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from _harness import Report, markdown_table, measure, register
+from _harness import Report, forget_coons_caches, markdown_table, measure, register
 
 LEVELS = (2, 3, 4, 5, 6, 7, 8)
 OFFSET = np.array([0.3, 0.2, 0.1])
@@ -70,13 +70,10 @@ def _manifold_op(op: str):
 
 
 def _cold(op):
-    """``op`` called with coons's per-B-rep caches (meshes, mass integrals) forgotten first: the operands
-    are reused across repetitions, and a warm cache would time a reuse of their tessellations."""
-    from coons.topology import mass, tessellate
+    """``op`` called with coons's per-B-rep caches forgotten first (:func:`_harness.forget_coons_caches`)."""
 
     def run(a, b):
-        tessellate._MESHES.clear()
-        mass._CACHE.clear()
+        forget_coons_caches()
         return op(a, b)
 
     return run

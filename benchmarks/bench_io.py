@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _harness import Report, markdown_table, register
+from _harness import Report, forget_coons_caches, markdown_table, register
 
 #: Smallest total timing effort per case and side (seconds), and repetition bounds.
 TIME_BUDGET = 1.0
@@ -95,14 +95,6 @@ def _bspline_box(n: int = 13):
 
 
 # ---------------------------------------------------------------------------- timing
-def _forget_meshes() -> None:
-    """Forget coons's cached meshes (kept per B-rep): each STL repetition meshes the solid afresh,
-    as OCCT's does on a fresh shape."""
-    from coons.topology import tessellate
-
-    tessellate._MESHES.clear()
-
-
 def _best(run, setup=None) -> tuple[float, object, int]:
     """Best wall time of ``run(setup())`` (``setup`` untimed), its last result and the repetitions."""
     best, total, reps, out = math.inf, 0.0, 0, None
@@ -202,7 +194,8 @@ def run() -> Report:
 
         # STL export at the same deflection (meshing included on both sides)
         stl_c, stl_o = tmp / "coons.stl", tmp / "occt.stl"
-        tc, _, rc = _best(lambda _: export_stl(solid, stl_c, deflection=DEFLECTION), setup=_forget_meshes)
+        # coons meshes afresh each repetition, as OCCT does on a fresh shape.
+        tc, _, rc = _best(lambda _: export_stl(solid, stl_c, deflection=DEFLECTION), setup=forget_coons_caches)
 
         def occt_stl(shape):
             BRepMesh_IncrementalMesh(shape, DEFLECTION, False, ANGULAR, False)

@@ -63,35 +63,19 @@ def _plate():
 
 def _bspline_box(n: int = 13):
     """The cube [-1, 1]³, each side an n × n grid of bilinear NURBS faces sewn into one solid."""
-    from coons.kernel.analytic import Line
-    from coons.kernel.pcurve import Line2D
-    from coons.kernel.surface import NurbsSurface
-    from coons.topology.sew import EdgeSpec, FaceSpec, sew_faces
+    from coons.topology.sew import bilinear_patch_faces, sew_faces
 
     I = np.eye(3)
     g = np.linspace(-1.0, 1.0, n + 1)
-    faces = []
-    corners_uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    nets = []
     for k in range(3):
         for s in (-1.0, 1.0):
-            a, b = (k + 1) % 3, (k + 2) % 3
-            ea, eb = I[a], I[b]
+            ea, eb = I[(k + 1) % 3], I[(k + 2) % 3]
             if s < 0:  # keep Su x Sv outward: e_a x e_b = e_k, so swap for the -k side
                 ea, eb = eb, ea
-            for i in range(n):
-                for j in range(n):
-                    base = s * I[k]
-                    cp = np.array([[base + g[i + di] * ea + g[j + dj] * eb for dj in (0, 1)] for di in (0, 1)])
-                    surf = NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
-                    P = surf.evaluate(corners_uv[:, 0], corners_uv[:, 1])
-                    loop = []
-                    for q in range(4):
-                        p0, p1 = P[q], P[(q + 1) % 4]
-                        L = float(np.linalg.norm(p1 - p0))
-                        uv0, uv1 = corners_uv[q], corners_uv[(q + 1) % 4]
-                        loop.append(EdgeSpec(Line(p0, p1 - p0), 0.0, L, Line2D(uv0, (uv1 - uv0) / L)))
-                    faces.append(FaceSpec(surf, True, [loop]))
-    return sew_faces(faces)
+            nets += [[[s * I[k] + g[i + di] * ea + g[j + dj] * eb for dj in (0, 1)] for di in (0, 1)]
+                     for i in range(n) for j in range(n)]
+    return sew_faces(bilinear_patch_faces(nets))
 
 
 # ---------------------------------------------------------------------------- timing

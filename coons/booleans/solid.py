@@ -108,7 +108,8 @@ Status and limitations
   far slower than OCCT (``benchmarks/results/booleans_brep.md``).  Reused: an operand's mesh
   when it was tessellated before (meshes are cached per B-rep; a result with voids shares the
   mesh its void nesting made).  Local: the end tolerance of a cut and the T-junction pass only
-  look at boundary edges whose box is near the points in question (lines and conics).
+  look at boundary edges whose box (:func:`~coons.kernel.curve_intersect.curve_box`) is near the
+  points in question.
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
   wall).  Lumps touching at a point inside their faces (two spheres) stay separate shells.  An
@@ -490,7 +491,6 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
         (stage ``"intersect"``) a surface intersection or a clip failed; the pair is named.
     """
     from coons.kernel.intersect import intersect_surfaces
-    from coons.topology.split import clip_to_face
 
     cuts_a: dict[int, list[EdgeSpec]] = {}
     cuts_b: dict[int, list[EdgeSpec]] = {}
@@ -700,7 +700,7 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec
         for loop in F.loops:
             for e in loop:
                 reach = 10.0 * max(base, e.tol or 0.0)
-                box = _curve_box(e)
+                box = _edge_box(e)
                 if box is not None and np.all(np.any((P < box[0] - reach) | (P > box[1] + reach), axis=1)):
                     continue  # both ends far from this edge (a face with many holes has many edges)
                 lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
@@ -715,24 +715,16 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec
     return worst
 
 
-def _curve_box(e: EdgeSpec) -> tuple[np.ndarray, np.ndarray] | None:
-    """A box ``(lo, hi)`` containing the edge's curve over its range, or None when there is no cheap one.
-
-    A line's segment is its own box; a circle or ellipse lies in ``C ± sqrt((a X_k)² + (b Y_k)²)``
-    per coordinate (the whole conic, so any arc of it).
-    """
+def _edge_box(e: EdgeSpec):
+    """A proven box ``(2, 3)`` around the edge's curve over its range (lines, conics and NURBS, by
+    :func:`~coons.kernel.curve_intersect.curve_box`), or None for other curve types."""
     from coons.kernel.analytic import Circle, Ellipse, Line
+    from coons.kernel.curve import NurbsCurve
+    from coons.kernel.curve_intersect import curve_box
 
-    c = e.curve
-    if isinstance(c, Line):
-        P = np.asarray(c.evaluate(np.array([e.t0, e.t1])), dtype=np.float64)
-        return P.min(axis=0), P.max(axis=0)
-    if isinstance(c, (Circle, Ellipse)):
-        a, b = (c.radius, c.radius) if isinstance(c, Circle) else (c.major_radius, c.minor_radius)
-        X, Y = c.frame[0], c.frame[1]
-        half = np.sqrt((a * X) ** 2 + (b * Y) ** 2)
-        return c.center - half, c.center + half
-    return None
+    if not isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)):
+        return None
+    return curve_box(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)))
 
 
 def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance) -> None:
@@ -1203,7 +1195,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 if foreign is not None:
                     # An unchanged face's edge can only be split by a foreign vertex: none near the
                     # edge's box (a plate face with many holes has many edges), nothing to do.
-                    box = _curve_box(e)
+                    box = _edge_box(e)
                     if box is not None:
                         pad = (foreign[1] + thr)[:, None]
                         if not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1)):

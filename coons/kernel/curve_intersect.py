@@ -376,8 +376,30 @@ def curve_box(curve: Any, t_range, tol: Tolerance | None = None) -> np.ndarray:
     t_ = resolve(tol)
     _dimension(curve, "curve")
     r = _range(t_range, curve, "t_range", t_)
+    if isinstance(curve, (Circle, Ellipse, Trig2D)):
+        return _trig_box(curve, *r)
     _, _, lo, hi = _pieces(curve, *r)
     return np.stack([lo.min(axis=0), hi.max(axis=0)])
+
+
+def _trig_box(curve: Any, lo: float, hi: float) -> np.ndarray:
+    """The exact box ``(2, d)`` of the arc ``C + A cos t + B sin t``, ``t ∈ [lo, hi]``.
+
+    Coordinate ``k`` peaks at ``C_k + hypot(A_k, B_k)`` where ``t = atan2(B_k, A_k)`` (mod 2π) and
+    bottoms out ``π`` later; an extremum inside the range replaces the end points' value.  Scalar
+    arithmetic per coordinate: one call boxes one arc, where numpy's per-call cost would dominate.
+    """
+    C, A, B = _trig_form(curve)
+    c0, s0, c1, s1 = math.cos(lo), math.sin(lo), math.cos(hi), math.sin(hi)
+    box = np.empty((2, C.size))
+    for k, (ck, ak, bk) in enumerate(zip(C.tolist(), A.tolist(), B.tolist())):
+        e0, e1 = ck + ak * c0 + bk * s0, ck + ak * c1 + bk * s1
+        amp, peak = math.hypot(ak, bk), math.atan2(bk, ak)
+        top = peak + _TWO_PI * math.ceil((lo - peak) / _TWO_PI)  # the first maximum at or after lo
+        bottom = peak + math.pi + _TWO_PI * math.ceil((lo - peak - math.pi) / _TWO_PI)
+        box[0, k] = ck - amp if bottom <= hi else min(e0, e1)
+        box[1, k] = ck + amp if top <= hi else max(e0, e1)
+    return box
 
 
 def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Tolerance | None = None

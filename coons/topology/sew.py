@@ -51,7 +51,7 @@ from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
 from coons.topology.shape import Solid
 
-__all__ = ["EdgeSpec", "FaceSpec", "sew_faces", "face_specs"]
+__all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs"]
 
 #: Parameters (fractions of an edge's range) at which two curves are compared point by point.
 _PROBE = np.linspace(0.0, 1.0, 7)
@@ -143,6 +143,47 @@ class FaceSpec:
 
 
 # ====================================================================== sewing
+#: Corners of the unit parameter square, counter-clockwise.
+_UNIT_CORNERS = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+
+
+def bilinear_patch_faces(nets, sense: bool = True) -> list[FaceSpec]:
+    """Face specifications of bilinear NURBS patches, one per control net, bounded by their four sides.
+
+    Each side is a :class:`~coons.kernel.analytic.Line` parametrised by length with its exact
+    :class:`~coons.kernel.pcurve.Line2D` p-curve on ``[0, 1]²``.  With ``sense`` the loop runs
+    counter-clockwise in ``(u, v)`` and the face normal is ``Su × Sv``; without, clockwise and
+    ``-Su × Sv``.  Neighbouring patches that share corner points sew into one shell
+    (:func:`sew_faces`): a quad mesh as an exact B-rep.
+
+    Parameters
+    ----------
+    nets : (f, 2, 2, 3) array_like, the control points ``P[i, j]`` of each patch
+
+    Raises
+    ------
+    InvalidInputError
+        ``nets`` not of shape ``(f, 2, 2, 3)`` or not finite.
+    """
+    from coons.kernel.surface import NurbsSurface
+
+    N = np.asarray(nets, dtype=np.float64)
+    if N.ndim != 4 or N.shape[1:] != (2, 2, 3) or not np.all(np.isfinite(N)):
+        raise InvalidInputError(f"bilinear_patch_faces needs finite control nets of shape (f, 2, 2, 3), got {N.shape}")
+    uv = _UNIT_CORNERS if sense else _UNIT_CORNERS[[0, 3, 2, 1]]
+    nxt = np.roll(uv, -1, axis=0)
+    # Corners in loop order: S(u, v) of a bilinear patch at a corner of the square is that control point.
+    P = N[:, uv[:, 0].astype(int), uv[:, 1].astype(int)]  # (f, 4, 3)
+    D = np.roll(P, -1, axis=1) - P
+    L = np.linalg.norm(D, axis=2)
+    faces = []
+    for cp, Pf, Df, Lf in zip(N, P, D, L):
+        loop = [EdgeSpec(Line(Pf[q], Df[q]), 0.0, float(Lf[q]), Line2D(uv[q], (nxt[q] - uv[q]) / Lf[q]))
+                for q in range(4)]
+        faces.append(FaceSpec(NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1), sense, [loop]))
+    return faces
+
+
 def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     """Sew a closed set of trimmed faces into a checked solid (see the module docstring).
 

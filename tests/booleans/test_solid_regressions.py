@@ -208,21 +208,3 @@ def test_chain_step_with_a_sphere_pole_near_a_hole_wall():
     assert abs(u + i - plate.volume - sphere) <= RTOL_ALGEBRA * (plate.volume + sphere)
     assert abs(d - plate.volume + i) <= RTOL_ALGEBRA * plate.volume
 
-
-def test_edge_boxes_of_the_end_tolerance_contain_their_curves():
-    """_end_tolerance skips boundary edges whose box is far from a cut's ends: the boxes of lines,
-    circles and ellipses (any arc of them) must contain dense samples of the curve."""
-    from coons.kernel.analytic import Circle, Ellipse, Line
-    from coons.topology.sew import EdgeSpec
-
-    rng = np.random.default_rng(5)
-    for _ in range(20):
-        axis, x = rng.normal(size=3), rng.normal(size=3)
-        centre = rng.uniform(-5, 5, 3)
-        t0 = rng.uniform(-7, 7)
-        t1 = t0 + rng.uniform(0.1, 6.0)
-        for c in (Line(centre, x), Circle(centre, axis, x, rng.uniform(0.1, 3)),
-                  Ellipse(centre, axis, x, 3.0, rng.uniform(0.1, 3.0))):
-            lo, hi = S._curve_box(EdgeSpec(c, t0, t1, None, 0.0))
-            P = np.asarray(c.evaluate(np.linspace(t0, t1, 2001)))
-            assert np.all(P >= lo - 1e-12) and np.all(P <= hi + 1e-12)

@@ -281,32 +281,9 @@ def test_hand_written_boxes_any_size_place_and_unit(size, corner, unit):
 
 def _bspline_box(n: int):
     """The cube [-1, 1]³, each side an n × n grid of bilinear NURBS faces (benchmarks/bench_io.py)."""
-    from coons.kernel.analytic import Line
-    from coons.kernel.pcurve import Line2D
-    from coons.kernel.surface import NurbsSurface
-    from coons.topology.sew import EdgeSpec, FaceSpec, sew_faces
+    from tests.topology.test_tessellate_nurbs import grid_solid
 
-    I = np.eye(3)
-    g = np.linspace(-1.0, 1.0, n + 1)
-    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    faces = []
-    for k in range(3):
-        for s in (-1.0, 1.0):
-            ea, eb = I[(k + 1) % 3], I[(k + 2) % 3]
-            if s < 0:
-                ea, eb = eb, ea
-            for i in range(n):
-                for j in range(n):
-                    cp = np.array([[s * I[k] + g[i + di] * ea + g[j + dj] * eb for dj in (0, 1)] for di in (0, 1)])
-                    surf = NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
-                    P = surf.evaluate(corners[:, 0], corners[:, 1])
-                    loop = []
-                    for q in range(4):
-                        p0, p1 = P[q], P[(q + 1) % 4]
-                        L = float(np.linalg.norm(p1 - p0))
-                        loop.append(EdgeSpec(Line(p0, p1 - p0), 0.0, L, Line2D(corners[q], (corners[(q + 1) % 4] - corners[q]) / L)))
-                    faces.append(FaceSpec(surf, True, [loop]))
-    return sew_faces(faces)
+    return grid_solid(n)
 
 
 def test_nurbs_faces_get_exact_boundary_pcurves(tmp_path):

@@ -453,3 +453,19 @@ def test_closed_form_derivatives_match_the_curves(curve):
 
     t = np.linspace(-7.0, 9.0, 101)
     np.testing.assert_allclose(_derivs(curve, t, 3), curve.derivatives(t, 3), rtol=0, atol=1e-14)
+
+
+def test_curve_boxes_of_line_and_conic_arcs_contain_them():
+    """curve_box of lines, circles and ellipses over arbitrary ranges (arcs longer and shorter than a
+    turn) contains dense samples: the Booleans skip boundary edges by these boxes."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        axis, x = rng.normal(size=3), rng.normal(size=3)
+        centre = rng.uniform(-5, 5, 3)
+        t0 = rng.uniform(-7, 7)
+        t1 = t0 + rng.uniform(0.1, 9.0)
+        for c in (Line(centre, x), Circle(centre, axis, x, rng.uniform(0.1, 3)),
+                  Ellipse(centre, axis, x, 3.0, rng.uniform(0.1, 3.0))):
+            lo, hi = curve_box(c, (t0, t1))
+            P = np.asarray(c.evaluate(np.linspace(t0, t1, 2001)))
+            assert np.all(P >= lo - 1e-12) and np.all(P <= hi + 1e-12)

@@ -12,13 +12,13 @@ import pytest
 
 from coons.errors import InvalidInputError
 from coons.kernel import basis as _b
-from coons.kernel.analytic import Line
-from coons.kernel.pcurve import Line2D
 from coons.kernel.surface import _SMALL, NurbsSurface, NurbsSurfaceStack
 from coons.topology import mass
 from coons.topology.check import check
 from coons.topology.mass import face_areas, mass_properties
-from coons.topology.sew import EdgeSpec, FaceSpec, sew_faces
+from coons.topology.sew import bilinear_patch_faces, sew_faces
+
+from .test_tessellate_nurbs import grid_patches
 
 RNG_SEED = 20261122
 
@@ -43,33 +43,17 @@ def patch_box(n: int, bump: float = 0.0):
     (the solid is still closed) and the patches become non-planar hyperbolic paraboloids with
     straight edges.
     """
-    I = np.eye(3)
-    g = np.linspace(-1.0, 1.0, n + 1)
-    corners_uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-    faces = []
-    for k in range(3):
-        for s in (-1.0, 1.0):
-            a, b = (k + 1) % 3, (k + 2) % 3
-            ea, eb = I[a], I[b]
-            if s < 0:  # keep Su × Sv outward: e_a × e_b = e_k, so swap for the -k side
-                ea, eb = eb, ea
 
-            def point(x, y, base=s * I[k], ea=ea, eb=eb, out=s * I[k]):
-                return base + x * ea + y * eb + bump * (1 - x * x) * (1 - y * y) * out
+    def bumped(cp):
+        # The side of a point is its coordinate of magnitude 1 (on an edge of the cube the bump is 0).
+        k = np.argmax(np.abs(cp), axis=-1)[..., None]
+        f = 1.0 - cp * cp
+        np.put_along_axis(f, k, 1.0, axis=-1)  # (1 - a²)(1 - b²) over the side's own coordinates
+        out = np.zeros_like(cp)
+        np.put_along_axis(out, k, np.sign(np.take_along_axis(cp, k, axis=-1)), axis=-1)
+        return cp + bump * f.prod(axis=-1, keepdims=True) * out
 
-            for i in range(n):
-                for j in range(n):
-                    cp = np.array([[point(g[i + di], g[j + dj]) for dj in (0, 1)] for di in (0, 1)])
-                    surf = NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
-                    P = surf.evaluate(corners_uv[:, 0], corners_uv[:, 1])
-                    loop = []
-                    for q in range(4):
-                        p0, p1 = P[q], P[(q + 1) % 4]
-                        L = float(np.linalg.norm(p1 - p0))
-                        uv0, uv1 = corners_uv[q], corners_uv[(q + 1) % 4]
-                        loop.append(EdgeSpec(Line(p0, p1 - p0), 0.0, L, Line2D(uv0, (uv1 - uv0) / L)))
-                    faces.append(FaceSpec(surf, True, [loop]))
-    return sew_faces(faces)
+    return sew_faces(bilinear_patch_faces(grid_patches(n, bumped if bump else None)))
 
 
 def tensor_gauss(b, n: int = 8) -> tuple[float, float]:

@@ -365,3 +365,19 @@ def test_face_specs_refuses_a_lone_vertex_loop():
     b.mvfs([0.0, 0.0, 0.0])
     with pytest.raises(TopologyError, match="face 0: loop 0 is a lone vertex; a FaceSpec loop needs edges"):
         face_specs(b.build(check=False))
+
+
+def test_bilinear_patch_faces_sew_a_closed_solid_and_reject_bad_nets():
+    """Six unit-square patches of a cube, outward and (reversed nets, sense False) inward-parametrised."""
+    from coons.topology.sew import bilinear_patch_faces
+
+    c = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)]).reshape(2, 2, 2, 3)
+    # Each side as P[i, j] with Su x Sv outward.
+    nets = [c[0].transpose(1, 0, 2), c[1], c[:, 0], c[:, 1].transpose(1, 0, 2),
+            c[:, :, 0].transpose(1, 0, 2), c[:, :, 1]]
+    for sense, N in ((True, nets), (False, [n.transpose(1, 0, 2) for n in nets])):
+        s = sew_faces(bilinear_patch_faces(N, sense=sense))
+        assert s.check().ok and s.brep.n_faces == 6
+        np.testing.assert_allclose(s.volume, 1.0, rtol=1e-14)
+    with pytest.raises(InvalidInputError, match=r"shape \(f, 2, 2, 3\)"):
+        bilinear_patch_faces(np.zeros((2, 3, 2, 3)))

@@ -9,19 +9,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coons.kernel.analytic import Line, PlanarSurface
-from coons.kernel.pcurve import Line2D
+from coons.kernel.analytic import PlanarSurface
 from coons.kernel.surface import NurbsSurface
 from coons.topology import tessellate as tess
 from coons.topology.check import check
 from coons.topology.mass import face_areas
 from coons.topology.primitives import Cylinder, Sphere
-from coons.topology.sew import EdgeSpec, FaceSpec, sew_faces
+from coons.topology.sew import bilinear_patch_faces, sew_faces
 from coons.topology.tessellate import tessellate
 
 from .test_tessellate import barycentric, nurbs_sided, vertex_links_are_cycles
 
-CORNERS_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 #: Gauss–Legendre nodes and weights on [0, 1]: 3 points integrate the degree-(2, 2) flux integrand exactly.
 _GX, _GW = np.polynomial.legendre.leggauss(3)
 GX, GW = 0.5 * (_GX + 1.0), 0.5 * _GW
@@ -48,19 +46,7 @@ def grid_patches(n: int, phi=None, swap: bool = False) -> list[np.ndarray]:
 def grid_solid(n: int, phi=None, swap: bool = False):
     """The solid of :func:`grid_patches` sewn from bilinear NURBS faces (straight edges, Line2D p-curves); with
     ``swap`` every surface points inward and the faces are reversed (``sense`` False, loops clockwise in (u, v))."""
-    faces = []
-    for cp in grid_patches(n, phi, swap):
-        surf = NurbsSurface(cp, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
-        order = [0, 3, 2, 1] if swap else [0, 1, 2, 3]
-        uv = CORNERS_UV[order]
-        P = surf.evaluate(uv[:, 0], uv[:, 1])
-        loop = []
-        for q in range(4):
-            p0, p1 = P[q], P[(q + 1) % 4]
-            L = float(np.linalg.norm(p1 - p0))
-            loop.append(EdgeSpec(Line(p0, p1 - p0), 0.0, L, Line2D(uv[q], (uv[(q + 1) % 4] - uv[q]) / L)))
-        faces.append(FaceSpec(surf, not swap, [loop]))
-    return sew_faces(faces)
+    return sew_faces(bilinear_patch_faces(grid_patches(n, phi, swap), sense=not swap))
 
 
 def bilinear_volume(patches: list[np.ndarray]) -> float:

@@ -11,8 +11,8 @@ coons B-rep rules of ``docs/brep.md`` and sews them:
    the checker accepts;
 2. **outer loop first**: when the foreign face does not say which loop is outer, it is the loop
    whose signed area in the parameter plane (oriented by the face sense) is positive and largest;
-3. **p-curves** are computed with :func:`coons.kernel.onsurface.pcurves_on` (all edges of a face
-   at once through its verified cheap exact path, the rest through ``pcurve_on``: exact ``Line2D`` /
+3. **p-curves** are computed with :func:`coons.kernel.onsurface.cheap_pcurves_many` (the edges of
+   all faces at once through the verified cheap exact paths, the rest through ``pcurve_on``: exact ``Line2D`` /
    ``Trig2D`` for the iso-curves of analytic surfaces, fitted 2-D NURBS otherwise; the foreign
    system's own p-curves are not used), placed on the branch of the face's periodic parameters
    found from the face's boundary (the face occupies an arc of the period; the largest gap in the
@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from coons.errors import CoonsError, InvalidGeometryError, TopologyError
-from coons.kernel.analytic import PlanarSurface
+from coons.kernel.analytic import Circle, Line, PlanarSurface
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
@@ -172,6 +172,11 @@ def edge_parameters(curve: Any, start, end, same_sense: bool, tol: Tolerance | N
         The edge runs the wrong way along a non-periodic curve, or has zero length.
     """
     t = resolve(tol)
+    fast = _LINE_CIRCLE.get(type(curve))
+    if fast is not None:
+        # lines and circles (most edges of a model) in Python floats: the same formulas as their
+        # closest_parameters / evaluate, without the numpy overhead on two points
+        return fast(curve, start, end, same_sense, t)
     P = np.stack([np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)])
     ta, tb = (float(x) for x in _project_on_curve(curve, P, t))
     closed_edge = float(np.linalg.norm(P[0] - P[1])) <= t.linear
@@ -188,13 +193,70 @@ def edge_parameters(curve: Any, start, end, same_sense: bool, tol: Tolerance | N
             raise InvalidGeometryError(f"a closed edge (start = end) on an open NURBS curve (ends {ends.tolist()})")
         ta, tb = (d0, d1) if same_sense else (d1, d0)
     if ta == tb or (tb > ta) != bool(same_sense):
-        raise InvalidGeometryError(
-            f"edge vertices project to curve parameters {ta:.9g} -> {tb:.9g}, expected "
-            f"{'increasing' if same_sense else 'decreasing'} parameters (same_sense={same_sense})"
-        )
+        raise _wrong_way(ta, tb, same_sense)
     Q = np.asarray(curve.evaluate(np.array([ta, tb])))
     dev = float(np.max(np.linalg.norm(Q - P, axis=-1)))
     return ta, tb, dev
+
+
+def _wrong_way(ta: float, tb: float, same_sense: bool) -> InvalidGeometryError:
+    return InvalidGeometryError(
+        f"edge vertices project to curve parameters {ta:.9g} -> {tb:.9g}, expected "
+        f"{'increasing' if same_sense else 'decreasing'} parameters (same_sense={same_sense})"
+    )
+
+
+def _line_parameters(curve, start, end, same_sense: bool, t: Tolerance) -> tuple[float, float, float]:
+    """:func:`edge_parameters` of a :class:`~coons.kernel.analytic.Line`: ``t = (P - O)·D``."""
+    O, D = curve.origin.tolist(), curve.direction.tolist()
+    out = []
+    dev = 0.0
+    for P in (np.asarray(start, dtype=np.float64).tolist(), np.asarray(end, dtype=np.float64).tolist()):
+        r = [P[0] - O[0], P[1] - O[1], P[2] - O[2]]
+        s = r[0] * D[0] + r[1] * D[1] + r[2] * D[2]
+        # the point at s is O + s D (Line.evaluate): its distance from P
+        dev = max(dev, math.hypot(O[0] + s * D[0] - P[0], O[1] + s * D[1] - P[1], O[2] + s * D[2] - P[2]))
+        out.append(s)
+    ta, tb = out
+    if ta == tb or (tb > ta) != bool(same_sense):
+        raise _wrong_way(ta, tb, same_sense)
+    return ta, tb, dev
+
+
+def _circle_parameters(curve, start, end, same_sense: bool, t: Tolerance) -> tuple[float, float, float]:
+    """:func:`edge_parameters` of a :class:`~coons.kernel.analytic.Circle`: the angle in its frame (``[0, 2π)``)."""
+    C = curve.center.tolist()
+    X, Y, _ = curve.frame.tolist()
+    R = float(curve.radius)
+    Ps = [np.asarray(start, dtype=np.float64).tolist(), np.asarray(end, dtype=np.float64).tolist()]
+    ang = []
+    for P in Ps:
+        r = [P[0] - C[0], P[1] - C[1], P[2] - C[2]]
+        x = r[0] * X[0] + r[1] * X[1] + r[2] * X[2]
+        y = r[0] * Y[0] + r[1] * Y[1] + r[2] * Y[2]
+        a = math.atan2(y, x)  # as analytic._angle: [0, 2π), 0 on the axis
+        if a < 0.0:
+            a += 2.0 * math.pi
+        if a >= 2.0 * math.pi or (x == 0.0 and y == 0.0):
+            a = 0.0
+        ang.append(a)
+    ta, tb = ang
+    period = 2.0 * math.pi
+    closed_edge = math.dist(Ps[0], Ps[1]) <= t.linear
+    d = (tb - ta) % period if same_sense else (ta - tb) % period
+    if closed_edge or d == 0.0:
+        d = period
+    tb = ta + d if same_sense else ta - d
+    if ta == tb or (tb > ta) != bool(same_sense):
+        raise _wrong_way(ta, tb, same_sense)
+    dev = 0.0
+    for P, a in zip(Ps, (ta, tb)):
+        c, s = math.cos(a) * R, math.sin(a) * R
+        dev = max(dev, math.dist(P, [C[k] + c * X[k] + s * Y[k] for k in range(3)]))
+    return ta, tb, dev
+
+
+_LINE_CIRCLE = {Line: _line_parameters, Circle: _circle_parameters}
 
 
 # ---------------------------------------------------------------------- faces
@@ -464,19 +526,6 @@ def _pcurve(face: RawFace, c: RawCoedge, box, t: Tolerance) -> tuple[Any, float]
     return pcurve_on(face.surface, c.edge.curve, lo, hi, box, loose)
 
 
-def _cheap_pcurves(face: RawFace, loops: list, box, t: Tolerance) -> dict[int, tuple[Any, float]]:
-    """P-curves found at once for a face's coedges by :func:`coons.kernel.onsurface.pcurves_on`'s
-    cheap exact paths, keyed by ``id(coedge)``; the coedges it leaves take the general path (``_pcurve``).
-    """
-    if isinstance(face.surface, PlanarSurface):
-        return {}
-    from coons.kernel.onsurface import pcurves_on
-
-    coedges = [c for loop in loops for c in loop]
-    out = pcurves_on(face.surface, [(c.edge.curve, *sorted(c.t_range)) for c in coedges], box, t, general=False)
-    return {id(c): r for c, r in zip(coedges, out) if r is not None}
-
-
 def _sphere_halves(face: RawFace, t: Tolerance) -> list[FaceSpec]:
     """A whole sphere (a face bounded only by vertex loops) as two hemispheres split along meridians."""
     from coons.kernel.analytic import SphericalSurface
@@ -497,7 +546,14 @@ def _sphere_halves(face: RawFace, t: Tolerance) -> list[FaceSpec]:
     return [FaceSpec(S, face.sense, [loop]) for loop in halves]
 
 
-def _face_spec(face: RawFace, t: Tolerance) -> list[FaceSpec]:
+def _face_spec(face: RawFace, t: Tolerance):
+    """Normalise one face (steps 1-4 of the module docstring): a generator, driven by :func:`face_specs_from_raw`.
+
+    Each time it needs the cheap p-curves of a face's edges it yields the request
+    ``(surface, items, box)`` of :func:`coons.kernel.onsurface.cheap_pcurves_many` and is sent
+    the answer, so that the requests of all faces are answered in one batch; it returns the
+    face's :class:`FaceSpec` list.
+    """
     loops = []
     for loop in face.loops:
         kept = [c for c in loop if not c.edge.degenerate]
@@ -540,7 +596,7 @@ def _face_spec(face: RawFace, t: Tolerance) -> list[FaceSpec]:
         seam_ids = {id(seam)}
         fixed = _seam_values(face, loops, seam_ids, periods, t)
         box = _face_box(face, loops, t, fixed)
-    specs, pcs_all = _loop_specs(face, loops, box, seam_ids, fixed, periods, t)
+    specs, pcs_all = yield from _loop_specs(face, loops, box, seam_ids, fixed, periods, t)
     if len(loops) == 1 and not fixed and not isinstance(face.surface, (PlanarSurface, NurbsSurface)):
         # A boundary through poles (two meridians of a sphere) leaves the branch ambiguous: the
         # face is on the branch where its loop turns the right way (counter-clockwise in the
@@ -548,7 +604,7 @@ def _face_spec(face: RawFace, t: Tolerance) -> list[FaceSpec]:
         sign = 1.0 if face.sense else -1.0
         if sign * _loop_area(face, loops[0], pcs_all[0], t) < 0.0:
             other = tuple((hi, lo + per) if per is not None else (lo, hi) for (lo, hi), per in zip(box, periods))
-            specs2, pcs2 = _loop_specs(face, loops, other, seam_ids, fixed, periods, t)
+            specs2, pcs2 = yield from _loop_specs(face, loops, other, seam_ids, fixed, periods, t)
             if sign * _loop_area(face, loops[0], pcs2[0], t) > 0.0:
                 specs, pcs_all = specs2, pcs2
     if len(specs) > 1:
@@ -566,9 +622,18 @@ def _face_spec(face: RawFace, t: Tolerance) -> list[FaceSpec]:
 
 
 def _loop_specs(face: RawFace, loops: list, box, seam_ids: set, fixed: dict, periods, t: Tolerance):
-    """EdgeSpecs (with p-curves on the branch ``box``) and the p-curves of every loop."""
+    """EdgeSpecs (with p-curves on the branch ``box``) and the p-curves of every loop (a generator, as :func:`_face_spec`).
+
+    The p-curves of the cheap exact paths are asked for all coedges at once (one yielded
+    request); the coedges they leave take the general path (:func:`_pcurve`).  Planar faces
+    carry no p-curves.
+    """
     specs, pcs_all = [], []
-    cheap = _cheap_pcurves(face, loops, box, t)
+    cheap: dict = {}
+    if not isinstance(face.surface, PlanarSurface):
+        coedges = [c for loop in loops for c in loop]
+        out = yield (face.surface, [(c.edge.curve, *sorted(c.t_range)) for c in coedges], box)
+        cheap = {id(c): r for c, r in zip(coedges, out) if r is not None}
     for loop in loops:
         pcs, es = [], []
         for c in loop:
@@ -783,12 +848,30 @@ def face_specs_from_raw(faces: list[RawFace], tol: Tolerance | None = None) -> l
         An edge lying off its face's surface by more than the accepted precision.
     """
     t = resolve(tol)
-    out: list[FaceSpec] = []
-    split = False
-    for f in faces:
-        pieces = _face_spec(f, t)
-        split |= len(pieces) > 1
-        out.extend(pieces)
+    from coons.kernel.onsurface import cheap_pcurves_many
+
+    # Every face runs as a generator up to its request for cheap p-curves; the requests of all
+    # faces are answered in one batch (a thousand small faces cost a few batched passes), and the
+    # faces go on to their next request or their result.
+    steps = [_face_spec(f, t) for f in faces]
+    results: list = [None] * len(faces)
+    pending: dict[int, tuple] = {}
+
+    def advance(i: int, value) -> None:
+        try:
+            pending[i] = steps[i].send(value)
+        except StopIteration as done:
+            results[i] = done.value
+
+    for i in range(len(faces)):
+        advance(i, None)
+    while pending:
+        asked = sorted(pending)
+        answers = cheap_pcurves_many([pending.pop(i) for i in asked], t)
+        for i, answer in zip(asked, answers):
+            advance(i, answer)
+    out: list[FaceSpec] = [spec for pieces in results for spec in pieces]
+    split = any(len(pieces) > 1 for pieces in results)
     return _imprint(out, t) if split else out
 
 

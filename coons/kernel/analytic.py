@@ -105,7 +105,7 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 
 def _curve_params(t) -> np.ndarray:
     t = np.asarray(t, dtype=np.float64)
-    if not np.all(np.isfinite(t)):
+    if not np.isfinite(t).all():
         raise InvalidInputError("parameters must be finite, got NaN or inf")
     return t
 

@@ -86,7 +86,9 @@ def _vector(value, what: str, dims: tuple[int, ...] = (2, 3)) -> np.ndarray:
     if a.ndim != 1 or a.shape[0] not in dims:
         allowed = " or ".join(str(d) for d in dims)
         raise InvalidInputError(f"{what}: expected a vector of {allowed} coordinates, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
+    # Python floats: a few coordinates are tested faster than by a numpy reduction (hot in
+    # constructors: STEP import and the Booleans build thousands of frames).
+    if not all(map(math.isfinite, a.tolist())):
         raise InvalidInputError(f"{what}: coordinates must be finite, got {a.tolist()}")
     return a
 
@@ -98,12 +100,18 @@ def _unit(value, what: str, dims: tuple[int, ...] = (2, 3)) -> np.ndarray:
     zero vector is rejected.  Dividing by the largest component first keeps huge or tiny
     vectors from overflowing or underflowing in the norm.
     """
-    a = _vector(value, what, dims)
-    big = float(np.max(np.abs(a)))
+    return np.array(_unit_tuple(value, what, dims))
+
+
+def _unit_tuple(value, what: str, dims: tuple[int, ...] = (2, 3)) -> tuple[float, ...]:
+    """:func:`_unit` as a tuple of Python floats (the arithmetic of a few coordinates in Python is cheaper)."""
+    vals = _vector(value, what, dims).tolist()
+    big = max(map(abs, vals))
     if big == 0.0:
-        raise InvalidGeometryError(f"{what}: expected a non-zero direction, got {a.tolist()}")
-    a = a / big
-    return a / np.linalg.norm(a)
+        raise InvalidGeometryError(f"{what}: expected a non-zero direction, got {vals}")
+    vals = [x / big for x in vals]
+    n = math.hypot(*vals)
+    return tuple(x / n for x in vals)
 
 
 def _scalar(value, what: str) -> float:
@@ -174,7 +182,11 @@ def perpendicular_direction(axis) -> np.ndarray:
     InvalidGeometryError
         The zero vector.
     """
-    a, b, c = _unit(axis, "axis", (3,))
+    return np.array(_perpendicular_tuple(_unit_tuple(axis, "axis", (3,))))
+
+
+def _perpendicular_tuple(axis: tuple[float, float, float]) -> tuple[float, float, float]:
+    a, b, c = axis
     A, B, C = abs(a), abs(b), abs(c)
     if B <= A and B <= C:
         d = (-c, 0.0, a) if A > C else (c, 0.0, -a)
@@ -182,8 +194,8 @@ def perpendicular_direction(axis) -> np.ndarray:
         d = (0.0, -c, b) if B > C else (0.0, c, -b)
     else:
         d = (-b, a, 0.0) if A > B else (b, -a, 0.0)
-    d = np.array(d)
-    return d / np.linalg.norm(d)
+    n = math.hypot(*d)
+    return (d[0] / n, d[1] / n, d[2] / n)
 
 
 def orthonormal_frame(axis, x_dir=None, tol: Tolerance | None = None) -> np.ndarray:
@@ -213,20 +225,22 @@ def orthonormal_frame(axis, x_dir=None, tol: Tolerance | None = None) -> np.ndar
         A zero vector, or ``x_dir`` parallel to the axis.
     """
     t = resolve(tol)
-    Z = _unit(axis, "axis", (3,))
+    Z = _unit_tuple(axis, "axis", (3,))
     if x_dir is None:
-        X = perpendicular_direction(Z)
+        X = _perpendicular_tuple(Z)
     else:
-        x = _unit(x_dir, "x_dir", (3,))
-        xp = x - (x @ Z) * Z
-        sine = float(np.linalg.norm(xp))
+        x = _unit_tuple(x_dir, "x_dir", (3,))
+        d = x[0] * Z[0] + x[1] * Z[1] + x[2] * Z[2]
+        xp = (x[0] - d * Z[0], x[1] - d * Z[1], x[2] - d * Z[2])
+        sine = math.hypot(*xp)
         if sine <= t.angular:
             raise InvalidGeometryError(
-                f"x_dir {x.tolist()} is parallel to the axis {Z.tolist()}: sine of their angle {sine:.3g} "
+                f"x_dir {list(x)} is parallel to the axis {list(Z)}: sine of their angle {sine:.3g} "
                 f"<= angular tolerance {t.angular:g}"
             )
-        X = xp / sine
-    return np.stack([X, np.cross(Z, X), Z])
+        X = (xp[0] / sine, xp[1] / sine, xp[2] / sine)
+    Y = (Z[1] * X[2] - Z[2] * X[1], Z[2] * X[0] - Z[0] * X[2], Z[0] * X[1] - Z[1] * X[0])
+    return np.array((X, Y, Z))
 
 
 def _plane_axes(x_axis, y_axis, dim: int, tol: Tolerance, what: str) -> tuple[np.ndarray, np.ndarray]:

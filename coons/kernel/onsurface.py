@@ -47,14 +47,14 @@ import numpy as np
 
 from coons.errors import CoonsError, ConvergenceError, InvalidGeometryError, InvalidInputError
 from coons.kernel import projection
-from coons.kernel.analytic import Circle, CylindricalSurface, Ellipse
+from coons.kernel.analytic import Circle, CylindricalSurface, Ellipse, Line
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.fitting import interpolate_curve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
 
-__all__ = ["pcurve_on", "pcurves_on"]
+__all__ = ["cheap_pcurves_many", "pcurve_on", "pcurves_on"]
 
 _log = logging.getLogger("coons")
 
@@ -101,7 +101,8 @@ _PERIODS_CACHE: "weakref.WeakKeyDictionary[NurbsSurface, dict]" = weakref.WeakKe
 
 
 def _clamped(knots: np.ndarray, p: int) -> bool:
-    return bool(np.all(knots[:p + 1] == knots[0]) and np.all(knots[-p - 1:] == knots[-1]))
+    k = knots.tolist()
+    return all(x == k[0] for x in k[:p + 1]) and all(x == k[-1] for x in k[-p - 1:])
 
 
 def _nurbs_periods(surface: NurbsSurface, tol: Tolerance) -> tuple[float | None, float | None]:
@@ -460,13 +461,20 @@ _NEWTON_STEPS = 8
 
 
 def _invert_nurbs(surface: NurbsSurface, P: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
-    """Parameters of points ``P`` ``(m, 3)`` on a NURBS surface: nearest control point, then Gauss–Newton.
+    """Parameters of points ``P`` ``(m, 3)`` on a NURBS surface; :func:`_invert_nurbs_many` for one surface."""
+    return _invert_nurbs_many([surface], np.zeros(P.shape[0], dtype=np.int64), P, t)
+
+
+def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters of points ``P`` ``(m, 3)`` on NURBS surfaces ``surfaces[which[i]]``: nearest control point, then Gauss–Newton.
 
     The seed of each point is the Greville abscissa pair of its nearest control point (the
     parameter a control point "belongs to"; exact at the corners of a clamped surface), then the
     local inversion of The NURBS Book §6.1 (eq. 6.6, first-order form), vectorised over the
-    points, parameters clipped to the domain at every step.  No global guarantee: callers verify
-    what they build from the result.
+    points of all surfaces (one :func:`~coons.kernel.surface.derivatives_surfaces` call per
+    step: surfaces of one structure are evaluated as one batch), parameters clipped to each
+    point's domain at every step.  No global guarantee: callers verify what they build from
+    the result.
 
     Returns
     -------
@@ -474,37 +482,54 @@ def _invert_nurbs(surface: NurbsSurface, P: np.ndarray, t: Tolerance) -> tuple[n
     speed : (m, 2) float64
         ``|S_u|, |S_v|`` at the last Newton iterate (for detecting undetermined parameters).
     """
-    (u0, u1), (v0, v1) = surface.domain
+    from coons.kernel.surface import derivatives_surfaces
 
     def greville(knots, p, n):
         idx = np.arange(n)[:, None] + np.arange(1, p + 1)[None, :]
         return np.asarray(knots, dtype=np.float64)[idx].mean(axis=1)
 
-    C = np.asarray(surface.control_points, dtype=np.float64)
-    nu, nv = C.shape[:2]
-    gu = np.clip(greville(surface.knots_u, surface.degree_u, nu), u0, u1)
-    gv = np.clip(greville(surface.knots_v, surface.degree_v, nv), v0, v1)
-    G = C.reshape(-1, C.shape[-1])
-    d2 = np.einsum("mj,mj->m", G, G)[None, :] - 2.0 * P @ G.T
-    idx = np.argmin(d2, axis=1)
-    uv = np.stack([gu[idx // nv], gv[idx % nv]], axis=1)
-    lo, hi = np.array([u0, v0]), np.array([u1, v1])
+    which = np.asarray(which, dtype=np.int64)
+    m = P.shape[0]
+    uv = np.empty((m, 2))
+    lo, hi = np.empty((m, 2)), np.empty((m, 2))
+    speed = np.zeros((m, 2))
+    for si in np.unique(which).tolist():
+        surface = surfaces[si]
+        rows = np.flatnonzero(which == si)
+        (u0, u1), (v0, v1) = surface.domain
+        C = np.asarray(surface.control_points, dtype=np.float64)
+        nu, nv = C.shape[:2]
+        gu = np.clip(greville(surface.knots_u, surface.degree_u, nu), u0, u1)
+        gv = np.clip(greville(surface.knots_v, surface.degree_v, nv), v0, v1)
+        G = C.reshape(-1, C.shape[-1])
+        Q = P[rows]
+        d2 = np.einsum("mj,mj->m", G, G)[None, :] - 2.0 * Q @ G.T
+        idx = np.argmin(d2, axis=1)
+        uv[rows, 0], uv[rows, 1] = gu[idx // nv], gv[idx % nv]
+        lo[rows], hi[rows] = (u0, v0), (u1, v1)
+    todo = np.arange(m)
     for _ in range(_NEWTON_STEPS):
-        D = np.asarray(surface.derivatives(uv[:, 0], uv[:, 1], 1))
-        r = P - D[:, 0, 0]
+        if todo.size == 0:
+            break
+        x = uv[todo]
+        D = derivatives_surfaces(surfaces, which[todo], x[:, 0], x[:, 1], 1)
+        r = P[todo] - D[:, 0, 0]
         Su, Sv = D[:, 1, 0], D[:, 0, 1]
-        speed = np.stack([np.linalg.norm(Su, axis=-1), np.linalg.norm(Sv, axis=-1)], axis=1)
+        speed[todo] = np.stack([np.linalg.norm(Su, axis=-1), np.linalg.norm(Sv, axis=-1)], axis=1)
         a, bb, c = np.einsum("mj,mj->m", Su, Su), np.einsum("mj,mj->m", Su, Sv), np.einsum("mj,mj->m", Sv, Sv)
         g0, g1 = np.einsum("mj,mj->m", Su, r), np.einsum("mj,mj->m", Sv, r)
         det = a * c - bb * bb
         ok = det > 1e-300  # a singular Jacobian (pole, collapsed edge): no step; verification decides
         safe = np.where(ok, det, 1.0)
         step = np.where(ok[:, None], np.stack([(c * g0 - bb * g1) / safe, (a * g1 - bb * g0) / safe], axis=1), 0.0)
-        new = np.clip(uv + step, lo, hi)
-        moved = np.abs(new - uv)
-        uv = new
-        if np.all(moved <= t.solver * np.maximum(1.0, hi - lo)):
-            break  # the speeds of the last step are those at uv to round-off
+        l, h = lo[todo], hi[todo]
+        new = np.clip(x + step, l, h)
+        moved = np.abs(new - x)
+        uv[todo] = new
+        # a surface's points are done together (as when each surface was inverted alone): the
+        # speeds of their last step are those at uv to round-off
+        still = np.any(moved > t.solver * np.maximum(1.0, h - l), axis=1)
+        todo = todo[np.isin(which[todo], np.unique(which[todo[still]]))]
     return uv, speed
 
 
@@ -531,42 +556,94 @@ def pcurves_on(surface, items, box=None, tol: Tolerance | None = None, general: 
     """
     t = resolve(tol)
     items = list(items)
-    out: list = [None] * len(items)
-    if items and isinstance(surface, NurbsSurface):
-        if surface.dimension == 3 and surface_periods(surface, t) == (None, None):
-            _cheap_lines(surface, items, out, t)
-    elif items and hasattr(surface, "implicit") and hasattr(surface, "closest_parameters"):
-        _cheap_analytic(surface, items, _check_box(box), out, t)
+    out = cheap_pcurves_many([(surface, items, box)], t)[0]
     if not general:
         return out
     return [r if r is not None else pcurve_on(surface, c, a, b, box, t) for r, (c, a, b) in zip(out, items)]
 
 
-def _cheap_lines(surface: NurbsSurface, items: list, out: list, t: Tolerance) -> None:
-    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve is affine in ``t``."""
-    got = _samples(items)
-    if got is None:
+def cheap_pcurves_many(requests, tol: Tolerance | None = None) -> list[list]:
+    """The cheap exact paths of :func:`pcurves_on` (``general=False``) for many faces at once.
+
+    ``requests`` is a sequence of ``(surface, items, box)`` as the arguments of
+    :func:`pcurves_on`; the result holds, per request, ``[(pcurve, deviation) or None, ...]``
+    per item.  The items on open NURBS surfaces of all requests are inverted and verified
+    together (one batch per Newton step for all surfaces, see :func:`_invert_nurbs_many`), and
+    so are those on analytic surfaces (:func:`_cheap_analytic_many`: three closed-form calls per
+    surface, the rest over all items).  Raises only for a malformed ``box``
+    (``InvalidInputError``); what the cheap paths cannot decide is None.
+    """
+    t = resolve(tol)
+    outs, nurbs, analytic = [], [], []
+    for surface, items, box in requests:
+        items = list(items)
+        out: list = [None] * len(items)
+        outs.append(out)
+        if items and isinstance(surface, NurbsSurface):
+            if surface.dimension == 3 and surface_periods(surface, t) == (None, None):
+                nurbs.append((surface, items, out))
+        elif items and hasattr(surface, "implicit") and hasattr(surface, "closest_parameters"):
+            analytic.append((surface, items, _check_box(box), out))
+    if nurbs:
+        _cheap_lines_many(nurbs, t)
+    if analytic:
+        _cheap_analytic_many(analytic, t)
+    return outs
+
+
+def _cheap_lines_many(requests: list, t: Tolerance) -> None:
+    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve is affine in ``t``, for many ``(surface, items, out)``.
+
+    The curves are sampled per request; the inversion of the end points and the verification
+    of the candidate lines run over the items of all requests together (surfaces of one
+    structure evaluated as one batch), so a model of a thousand small patches costs a few
+    batched passes rather than a thousand small ones.
+    """
+    from coons.kernel.surface import evaluate_surfaces
+
+    got, owners = [], []
+    for r, (surface, items, out) in enumerate(requests):
+        g = _samples(items)
+        if g is not None:
+            got.append(g)
+            owners.append(r)
+    if not got:
         return
-    ab, ts, X = got
+    surfaces = [requests[r][0] for r in owners]
+    counts = np.array([g[0].shape[0] for g in got])
+    item_surface = np.repeat(np.arange(len(got)), counts)
+    ab = np.concatenate([g[0] for g in got])
+    ts = np.concatenate([g[1] for g in got])
+    X = np.concatenate([g[2] for g in got])
     ends = X[:, [0, -1]].reshape(-1, 3)
-    uv, speed = _invert_nurbs(surface, ends, t)
+    uv, speed = _invert_nurbs_many(surfaces, np.repeat(item_surface, 2), ends, t)
     uv, speed = uv.reshape(-1, 2, 2), speed.reshape(-1, 2, 2)
-    (u0, u1), (v0, v1) = surface.domain
-    lengths = np.array([u1 - u0, v1 - v0])
+    dom = np.array([[S.domain[0][0], S.domain[0][1], S.domain[1][0], S.domain[1][1]] for S in surfaces])[item_surface]
+    u0, u1, v0, v1 = dom.T
+    lengths = np.stack([u1 - u0, v1 - v0], axis=1)
     # both ends must fix both parameters (not a pole or collapsed edge: see singular_parameters)
-    determined = np.all(speed * lengths > t.linear, axis=(1, 2))
+    determined = np.all(speed * lengths[:, None, :] > t.linear, axis=(1, 2))
     span = ab[:, 1] - ab[:, 0]
     d = (uv[:, 1] - uv[:, 0]) / span[:, None]
     scale = np.maximum(1.0, np.abs(uv).max(axis=(1, 2)))
     d[np.abs(d) * span[:, None] <= t.solver * scale[:, None]] = 0.0  # an iso-line: its constant parameter is exact
     o = uv[:, 0] - ab[:, :1] * d
     Q = o[:, None, :] + ts[..., None] * d[:, None, :]
-    dev = np.linalg.norm(evaluate_on_surface(surface, Q.reshape(-1, 2)).reshape(X.shape) - X, axis=-1).max(axis=1)
-    inside = np.all((Q[:, [0, -1]] >= [u0, v0]) & (Q[:, [0, -1]] <= [u1, v1]), axis=(1, 2))
+    n = ts.shape[1]
+    Qc = np.stack([np.clip(Q[..., 0], u0[:, None], u1[:, None]), np.clip(Q[..., 1], v0[:, None], v1[:, None])], axis=-1)
+    img = evaluate_surfaces(surfaces, np.repeat(item_surface, n), Qc[..., 0].ravel(), Qc[..., 1].ravel()).reshape(X.shape)
+    dev = np.linalg.norm(img - X, axis=-1).max(axis=1)
+    E = Q[:, [0, -1]]
+    inside = np.all((E[..., 0] >= u0[:, None]) & (E[..., 0] <= u1[:, None])
+                    & (E[..., 1] >= v0[:, None]) & (E[..., 1] <= v1[:, None]), axis=1)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
     for i in np.flatnonzero(determined & (dev <= t.linear) & np.any(d != 0.0, axis=1)):
-        c, a, b = items[i]
+        g = int(item_surface[i])
+        surface, items, out = requests[owners[g]]
+        j = int(i - first[g])
+        c, a, b = items[j]
         pc = Line2D(o[i], d[i])
-        out[i] = (pc, float(dev[i])) if inside[i] else _into_domain(surface, c, pc, float(dev[i]), float(a), float(b), t)
+        out[j] = (pc, float(dev[i])) if inside[i] else _into_domain(surface, c, pc, float(dev[i]), float(a), float(b), t)
 
 
 def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -581,34 +658,70 @@ def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         return None  # pcurve_on reports malformed ranges
     ts = ab[:, :1] + s[None, :] * (ab[:, 1:] - ab[:, :1])
     ts[:, -1] = ab[:, 1]
+    line = np.array([type(c) is Line for c, _, _ in items])
     try:
-        X = np.stack([np.asarray(c.evaluate(row), dtype=np.float64) for (c, _, _), row in zip(items, ts)])
+        X = np.empty(ts.shape + (3,))
+        if line.any():  # lines in one expression (Line.evaluate's own)
+            L = np.flatnonzero(line)
+            O = np.array([items[i][0].origin for i in L])
+            D = np.array([items[i][0].direction for i in L])
+            X[L] = O[:, None, :] + ts[L][..., None] * D[:, None, :]
+        for i in np.flatnonzero(~line):
+            X[i] = np.asarray(items[i][0].evaluate(ts[i]), dtype=np.float64)
     except (AttributeError, TypeError, ValueError, CoonsError):
         return None  # pcurve_on reports unusable curves
-    if X.ndim != 3 or X.shape[-1] != 3:
-        return None
     return ab, ts, X
 
 
-def _cheap_analytic(surface, items: list, box, out: list, t: Tolerance) -> None:
-    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve on an analytic surface is affine in ``t``."""
-    got = _samples(items)
-    if got is None:
+
+def _cheap_analytic_many(requests: list, t: Tolerance) -> None:
+    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve on an analytic surface is affine in ``t``.
+
+    ``requests`` holds ``(surface, items, box, out)``.  Per surface the samples are projected
+    (closed form), tested for undetermined parameters and the candidate lines evaluated, one
+    call each; unwrapping, the shift towards ``box``, the least-squares lines and the
+    deviations run over the items of all requests at once.
+    """
+    got, owners = [], []
+    for r, (surface, items, box, out) in enumerate(requests):
+        g = _samples(items)
+        if g is not None:
+            got.append(g)
+            owners.append(r)
+    if not got:
         return
-    ab, ts, X = got
+    counts = np.array([g[0].shape[0] for g in got])
+    ab = np.concatenate([g[0] for g in got])
+    ts = np.concatenate([g[1] for g in got])
+    X = np.concatenate([g[2] for g in got])
     k, n = ts.shape
-    uv = np.asarray(surface.closest_parameters(X.reshape(-1, 3)), dtype=np.float64)
-    free = singular_parameters(surface, uv, box, t).reshape(k, n, 2)
-    uv = uv.reshape(k, n, 2)
-    for j, per in enumerate(surface_periods(surface, t)):
-        if per is None:
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    uv = np.empty((k, n, 2))
+    free = np.empty((k, n, 2), dtype=bool)
+    period = np.full((k, 2), np.nan)
+    mid = np.full((k, 2), np.nan)  # the box's middle where it is finite
+    for g, r in enumerate(owners):
+        surface, _, box, _ = requests[r]
+        sl = slice(int(first[g]), int(first[g] + counts[g]))
+        q = np.asarray(surface.closest_parameters(X[sl].reshape(-1, 3)), dtype=np.float64)
+        free[sl] = singular_parameters(surface, q, box, t).reshape(-1, n, 2)
+        uv[sl] = q.reshape(-1, n, 2)
+        for j, per in enumerate(surface_periods(surface, t)):
+            if per is not None:
+                period[sl, j] = per
+                if box is not None and np.all(np.isfinite(box[j])):
+                    mid[sl, j] = 0.5 * (box[j][0] + box[j][1])
+    for j in range(2):
+        rows = np.flatnonzero(np.isfinite(period[:, j]))
+        if rows.size == 0:
             continue
-        col = np.unwrap(uv[:, :, j], period=per, axis=1)
-        if box is not None and np.all(np.isfinite(box[j])):
-            mid = 0.5 * (box[j][0] + box[j][1])
-            have = 0.5 * (col.min(axis=1) + col.max(axis=1))
-            col = col + per * np.round((mid - have) / per)[:, None]
-        uv[:, :, j] = col
+        per = period[rows, j]
+        col = _unwrap_rows(uv[rows, :, j], per)
+        m = mid[rows, j]
+        shift = np.isfinite(m)
+        have = 0.5 * (col.min(axis=1) + col.max(axis=1))
+        col = col + np.where(shift, per * np.round((np.where(shift, m, 0.0) - have) / per), 0.0)[:, None]
+        uv[rows, :, j] = col
     # least-squares line in t per item (closed form of _exact_form's lstsq)
     tm = 0.5 * (ab[:, 0] + ab[:, 1])
     sc = ts - tm[:, None]
@@ -619,8 +732,26 @@ def _cheap_analytic(surface, items: list, box, out: list, t: Tolerance) -> None:
     d[np.abs(d) * reach[:, None] <= t.solver * scale[:, None]] = 0.0  # as _snap_small
     o = mean - tm[:, None] * d
     Q = o[:, None, :] + ts[..., None] * d[:, None, :]
-    S = np.asarray(surface.evaluate(Q[..., 0].ravel(), Q[..., 1].ravel())).reshape(X.shape)
+    S = np.empty_like(X)
+    for g, r in enumerate(owners):
+        sl = slice(int(first[g]), int(first[g] + counts[g]))
+        S[sl] = np.asarray(requests[r][0].evaluate(Q[sl, :, 0].ravel(), Q[sl, :, 1].ravel())).reshape(-1, n, 3)
     dev = np.linalg.norm(S - X, axis=-1).max(axis=1)
     good = ~free.any(axis=(1, 2)) & (dev <= t.linear) & np.any(d != 0.0, axis=1)
+    owner = np.repeat(np.arange(len(owners)), counts)
     for i in np.flatnonzero(good):
-        out[i] = (Line2D(o[i], d[i]), float(dev[i]))
+        g = int(owner[i])
+        requests[owners[g]][3][int(i - first[g])] = (Line2D(o[i], d[i]), float(dev[i]))
+
+
+def _unwrap_rows(col: np.ndarray, period: np.ndarray) -> np.ndarray:
+    """``np.unwrap(col, period=p, axis=1)`` with its own period ``p`` per row (numpy's algorithm)."""
+    dd = np.diff(col, axis=1)
+    half = (period / 2.0)[:, None]
+    p = period[:, None]
+    ddmod = np.mod(dd + half, p) - half
+    ddmod = np.where((ddmod == -half) & (dd > 0), half, ddmod)
+    correct = np.where(np.abs(dd) < half, 0.0, ddmod - dd)
+    out = col.copy()
+    out[:, 1:] += np.cumsum(correct, axis=1)
+    return out

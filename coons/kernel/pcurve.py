@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from coons.errors import InvalidGeometryError, InvalidInputError
@@ -27,7 +29,7 @@ __all__ = ["Line2D", "Trig2D"]
 
 def _vec2(value, what: str) -> np.ndarray:
     a = np.array(value, dtype=np.float64)
-    if a.shape != (2,) or not np.all(np.isfinite(a)):
+    if a.shape != (2,) or not all(map(math.isfinite, a.tolist())):
         raise InvalidGeometryError(f"{what} must be 2 finite numbers, got {value!r}")
     a.setflags(write=False)
     return a
@@ -35,7 +37,7 @@ def _vec2(value, what: str) -> np.ndarray:
 
 def _params(t) -> np.ndarray:
     t = np.asarray(t, dtype=np.float64)
-    if t.size and not np.all(np.isfinite(t)):
+    if t.size and not np.isfinite(t).all():
         raise InvalidInputError("p-curve parameters must be finite")
     return t
 

@@ -43,7 +43,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from coons.kernel.curve import NurbsCurve
     from coons.kernel.projection import ClosestPoints
 
-__all__ = ["NurbsSurface", "NurbsSurfaceStack", "evaluate_surfaces"]
+__all__ = ["NurbsSurface", "NurbsSurfaceStack", "derivatives_surfaces", "evaluate_surfaces"]
 
 #: Points per batch of the numpy scattered path.  Its temporaries are 1-D arrays of this
 #: length (128 KB), small enough to stay in cache and to be recycled by the allocator rather
@@ -858,33 +858,50 @@ class NurbsSurfaceStack:
 def evaluate_surfaces(surfaces, index, u, v, tol: Tolerance | None = None) -> np.ndarray:
     """Points of many surfaces at once: ``surfaces[index[i]]`` at ``(u[i], v[i])``, ``(m, 3)``.
 
+    :func:`derivatives_surfaces` of order 0; see there.
+
+    Raises
+    ------
+    InvalidInputError
+        As :func:`derivatives_surfaces`.
+    """
+    return derivatives_surfaces(surfaces, index, u, v, 0, tol)[:, 0, 0]
+
+
+def derivatives_surfaces(surfaces, index, u, v, order: int = 1, tol: Tolerance | None = None) -> np.ndarray:
+    """Partials of many surfaces at once: ``surfaces[index[i]]`` at ``(u[i], v[i])``, ``(m, order+1, order+1, 3)``.
+
     For callers that evaluate a few points on each of many faces (checking, tessellating or
     projecting a model's edges): the :class:`NurbsSurface` entries are grouped by structure
     (:meth:`NurbsSurfaceStack.key`) and each group is evaluated in one batch; any other surface
-    type (anything with ``evaluate(u, v)``) is called once per distinct surface.  Parameters are
-    checked and clamped as :meth:`NurbsSurface.evaluate` does.
+    type (anything with ``derivatives(u, v, order)``) is called once per distinct surface.
+    Parameters are checked and clamped as :meth:`NurbsSurface.derivatives` does.
 
     Parameters
     ----------
     surfaces : sequence of surfaces
     index : (m,) int, into ``surfaces``
     u, v : (m,) float
+    order : int >= 0
 
     Raises
     ------
     InvalidInputError
-        An index out of range, or parameters outside a surface's domain (beyond round-off) or
-        not finite.
+        An index out of range, a bad order, or parameters outside a surface's domain (beyond
+        round-off) or not finite.
     """
+    if not isinstance(order, (int, np.integer)) or order < 0:
+        raise InvalidInputError(f"order must be an integer >= 0, got {order!r}")
+    order = int(order)
     index = np.asarray(index, dtype=np.int64).ravel()
     u = np.asarray(u, dtype=np.float64).ravel()
     v = np.asarray(v, dtype=np.float64).ravel()
     m = index.size
     if u.size != m or v.size != m:
-        raise InvalidInputError(f"evaluate_surfaces: index, u and v must have one size, got {m}, {u.size}, {v.size}")
+        raise InvalidInputError(f"derivatives_surfaces: index, u and v must have one size, got {m}, {u.size}, {v.size}")
     if m and (index.min() < 0 or index.max() >= len(surfaces)):
-        raise InvalidInputError(f"evaluate_surfaces: surface index out of range [0, {len(surfaces)})")
-    out = np.empty((m, 3))
+        raise InvalidInputError(f"derivatives_surfaces: surface index out of range [0, {len(surfaces)})")
+    out = np.empty((m, order + 1, order + 1, 3))
     if m == 0:
         return out
     t = resolve(tol)
@@ -899,18 +916,19 @@ def evaluate_surfaces(surfaces, index, u, v, tol: Tolerance | None = None) -> np
     for g, members in enumerate(groups.values()):
         gid[members] = g
     point_group = gid[inverse]
-    order = np.argsort(point_group, kind="stable")
-    bounds = np.searchsorted(point_group[order], np.arange(len(groups) + 1))
+    order_ = np.argsort(point_group, kind="stable")
+    bounds = np.searchsorted(point_group[order_], np.arange(len(groups) + 1))
     for g, members in enumerate(groups.values()):
-        rows = order[bounds[g] : bounds[g + 1]]
+        rows = order_[bounds[g] : bounds[g + 1]]
         first = surfaces[int(ids[members[0]])]
         if len(members) == 1 or not isinstance(first, NurbsSurface):
-            out[rows] = np.asarray(first.evaluate(u[rows], v[rows], t) if isinstance(first, NurbsSurface)
-                                   else first.evaluate(u[rows], v[rows]), dtype=np.float64).reshape(-1, 3)
+            D = first.derivatives(u[rows], v[rows], order, t) if isinstance(first, NurbsSurface) \
+                else first.derivatives(u[rows], v[rows], order)
+            out[rows] = np.asarray(D, dtype=np.float64).reshape(-1, order + 1, order + 1, 3)
             continue
         stack = NurbsSurfaceStack([surfaces[int(ids[k])] for k in members])
         slot[members] = np.arange(len(members))
         uu = _b.check_parameters(u[rows], stack.domain[0], t, what="u")
         vv = _b.check_parameters(v[rows], stack.domain[1], t, what="v")
-        out[rows] = stack.derivatives(slot[inverse[rows]], uu, vv, 0)[:, 0, 0]
+        out[rows] = stack.derivatives(slot[inverse[rows]], uu, vv, order)
     return out

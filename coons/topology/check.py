@@ -9,7 +9,12 @@ polyhedral faces, self-intersecting trim loops, faces lying on the left of their
 shells enclose positive volume, voids negative).  It does not repair anything.
 
 Geometric checks sample each edge at a fixed number of parameters (``samples``); a sampled
-check can miss a deviation between samples, so tolerances are verified, not proven.
+check can miss a deviation between samples, so tolerances are verified, not proven.  The
+p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
+time, surfaces of one NURBS structure together through
+:func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
+orientation areas and segments are built for all faces on surfaces at once: the checker costs a
+few array passes, not a few numpy calls per coedge.
 """
 
 from __future__ import annotations
@@ -20,7 +25,8 @@ import numpy as np
 
 from coons.errors import CoonsError
 from coons.kernel.analytic import Line, PlanarSurface
-from coons.kernel.pcurve import Line2D
+from coons.kernel.pcurve import Line2D, Trig2D
+from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 
@@ -96,8 +102,8 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         _check_manifold(b, problems)
         _check_euler(b, problems)
     if geometry and topo_ok:
-        _check_geometry(b, t, samples, problems)
-        _check_trims(b, t, samples, problems)
+        table = _check_geometry(b, t, samples, problems)
+        _check_trims(b, t, samples, problems, table)
         if not problems:
             _check_orientation(b, t, problems)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
@@ -239,7 +245,46 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
     return T, P
 
 
-def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> None:
+@dataclass(frozen=True)
+class _PcurveSamples:
+    """The p-curve of every coedge that has one, sampled at the edge's check parameters.
+
+    Row ``k`` is coedge ``coedge[k]``: ``uv[k]`` its p-curve at the ``samples`` parameters of its
+    edge (in the edge's direction, whichever side the coedge is), ``speed[k]`` ``max(|Su|, |Sv|)``
+    there, ``line[k]`` whether the p-curve is a :class:`Line2D`; ``pos[c]`` is the row of coedge
+    ``c`` or -1.  Built once per check: the geometric and the trim checks share it.
+    """
+
+    coedge: np.ndarray
+    uv: np.ndarray
+    speed: np.ndarray
+    line: np.ndarray
+    pos: np.ndarray
+
+
+def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """``pcurves[which[k]]`` at the parameters ``T[k]``, ``(k, n, 2)``: lines and ellipses in array time."""
+    out = np.empty(T.shape + (2,))
+    kind = np.array([0 if isinstance(p, Line2D) else 1 if isinstance(p, Trig2D) else 2 for p in pcurves] + [2])
+    k = kind[which]
+    rows = np.flatnonzero(k == 0)
+    if rows.size:
+        O = np.array([pcurves[i].origin for i in which[rows]])
+        D = np.array([pcurves[i].direction for i in which[rows]])
+        out[rows] = O[:, None, :] + T[rows][..., None] * D[:, None, :]
+    rows = np.flatnonzero(k == 1)
+    if rows.size:
+        C = np.array([pcurves[i].center for i in which[rows]])
+        A = np.array([pcurves[i].a for i in which[rows]])
+        B = np.array([pcurves[i].b for i in which[rows]])
+        tt = T[rows][..., None]
+        out[rows] = C[:, None, :] + np.cos(tt) * A[:, None, :] + np.sin(tt) * B[:, None, :]
+    for r in np.flatnonzero(k == 2):
+        out[r] = pcurves[int(which[r])].evaluate(T[r])
+    return out
+
+
+def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> _PcurveSamples:
     # Only edges with a 3-D curve or a p-curve on a surface are sampled: a straight edge without
     # p-curves is the segment between its vertices, nothing about it can deviate.
     has_pc = (b.edge_pcurve >= 0) & (b.face_surface[b.edge_face] >= 0)  # (E, 2)
@@ -254,43 +299,50 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
         out.append(Problem("vertex-off-edge", "edge", int(rows[r]),
                            f"its {'start' if k == 0 else 'end'} is {gap[r, k]:.3g} from vertex {int(ev[r, k])} "
                            f"(allowed {allow[r, k]:.3g})"))
-    # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance.
-    uv_end = {}
-    for r, side in np.argwhere(has_pc[rows]):
-        e, side = int(rows[r]), int(side)
-        pi = int(b.edge_pcurve[e, side])
-        f = int(b.edge_face[e, side])
-        si = int(b.face_surface[f])
-        uv = b.pcurves[pi].evaluate(T[r])
-        Q = b.surfaces[si].evaluate(uv[:, 0], uv[:, 1])
-        dev = float(np.max(np.linalg.norm(Q - P[r], axis=-1)))
-        if dev > b.edge_tol[e] + t.linear:
-            out.append(Problem("pcurve-deviation", "edge", e,
-                               f"p-curve in face {f} is {dev:.3g} from the 3-D curve (edge tolerance {b.edge_tol[e]:.3g})"))
-        c = 2 * e + side
-        # Coedge start/end in parameter space (the right side runs backwards).
-        uv_end[c] = (uv[0], uv[-1]) if side == 0 else (uv[-1], uv[0])
+    # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance, every p-curve sample of
+    # the model in one batch (surfaces of one structure evaluated together).
+    rr, side = np.nonzero(has_pc[rows])
+    e = rows[rr]
+    pi = b.edge_pcurve[e, side]
+    f = b.edge_face[e, side]
+    n = rr.size
+    uv = _pcurves_at(b.pcurves, pi, T[rr])
+    D = derivatives_surfaces(b.surfaces, np.repeat(b.face_surface[f], samples), uv[..., 0].ravel(),
+                             uv[..., 1].ravel(), 1).reshape(n, samples, 2, 2, 3)
+    dev = np.linalg.norm(D[:, :, 0, 0] - P[rr], axis=-1).max(axis=1) if n else np.zeros(0)
+    speed = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
+    for k in np.flatnonzero(dev > b.edge_tol[e] + t.linear):
+        out.append(Problem("pcurve-deviation", "edge", int(e[k]),
+                           f"p-curve in face {int(f[k])} is {dev[k]:.3g} from the 3-D curve (edge tolerance "
+                           f"{b.edge_tol[e[k]]:.3g})"))
+    coedge = 2 * e + side
+    pos = np.full(2 * b.n_edges, -1, dtype=np.int64)
+    pos[coedge] = np.arange(n)
+    line = np.array([isinstance(p, Line2D) for p in b.pcurves] + [False], dtype=bool)[pi]
+    table = _PcurveSamples(coedge, uv, speed, line, pos)
+    # Coedge start/end in parameter space (the right side runs backwards).
+    fwd = (side == 0)[:, None]
+    start = np.where(fwd, uv[:, 0], uv[:, -1]) if n else np.zeros((0, 2))
+    end = np.where(fwd, uv[:, -1], uv[:, 0]) if n else np.zeros((0, 2))
     # Loops closed in parameter space, allowing a jump along a collapsed side (a pole).
-    nxt = b.coedge_next
-    for c, (_, end) in uv_end.items():
-        n = int(nxt[c])
-        if n not in uv_end:
-            continue
-        start = uv_end[n][0]
-        # Equal up to the round-off of evaluating two p-curves at their end parameters: closed.
-        # Anything larger is decided in 3-D below (a gap is allowed only where its whole segment
-        # maps onto the vertex, as at a pole), so no parameter-space length threshold is guessed.
-        if np.linalg.norm(end - start) <= t.solver * (1.0 + np.abs(end).max()):
-            continue
-        f = int(b.coedge_face[c])
-        S = b.surfaces[int(b.face_surface[f])]
-        seg = end[None, :] + np.linspace(0, 1, samples)[:, None] * (start - end)[None, :]
+    # Equal up to the round-off of evaluating two p-curves at their end parameters: closed.
+    # Anything larger is decided in 3-D below (a gap is allowed only where its whole segment
+    # maps onto the vertex, as at a pole), so no parameter-space length threshold is guessed.
+    j = pos[b.coedge_next[coedge]] if n else np.zeros(0, dtype=np.int64)
+    i = np.flatnonzero(j >= 0)
+    j = j[i]
+    far = np.linalg.norm(end[i] - start[j], axis=1) > t.solver * (1.0 + np.abs(end[i]).max(axis=1))
+    for k, kn in zip(i[far].tolist(), j[far].tolist()):
+        c = int(coedge[k])
+        fc = int(b.coedge_face[c])
+        S = b.surfaces[int(b.face_surface[fc])]
+        seg = end[k][None, :] + np.linspace(0, 1, samples)[:, None] * (start[kn] - end[k])[None, :]
         img = S.evaluate(seg[:, 0], seg[:, 1])
         v = b.vertex_point[int(b.coedge_target[c])]
         if np.max(np.linalg.norm(img - v, axis=-1)) > b.vertex_tol[int(b.coedge_target[c])] + t.linear:
             out.append(Problem("pcurve-loop-open", "coedge", c,
-                               f"in face {f} the p-curve ends at {end.round(9).tolist()} but the next starts at "
-                               f"{start.round(9).tolist()}"))
+                               f"in face {fc} the p-curve ends at {end[k].round(9).tolist()} but the next starts at "
+                               f"{start[kn].round(9).tolist()}"))
     # Polyhedral faces: vertices on one plane.
     # A face with at most three coedges has at most three vertices, always on one plane.
     n_coedges = np.bincount(b.coedge_face, minlength=b.n_faces)
@@ -301,10 +353,12 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
         dev = face_plane_deviation(b, implicit)
         for f, d in zip(implicit[dev > t.linear][:10], dev[dev > t.linear][:10]):
             out.append(Problem("non-planar-face", "face", int(f), f"vertices are up to {d:.3g} off the face's plane"))
+    return table
 
 
 # ---------------------------------------------------------------------- trims
-def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> None:
+def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem],
+                 table: _PcurveSamples | None = None) -> None:
     """Self-intersecting trim loops: two segments of a face's boundary polylines crossing properly.
 
     Every loop of a face is turned into a closed polyline in the face's parameter plane (its
@@ -344,17 +398,27 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> Non
     vec_faces = implicit & all_straight & ~simple
     if np.any(vec_faces):
         parts.append(_implicit_segments(b, vec_faces, t))
-    for f in np.flatnonzero(~simple & ~vec_faces):
+    on_surface = b.face_surface >= 0
+    if table is not None:
+        # Faces on surfaces: rings from the shared p-curve samples, all faces at once.
+        seg = _sampled_rings(b, np.flatnonzero(on_surface & ~simple), np.flatnonzero(on_surface & simple),
+                             table, samples, t, out)
+        if seg is not None:
+            parts.append(seg)
+        rest = np.flatnonzero(~simple & ~vec_faces & ~on_surface)
+    else:
+        rest = np.flatnonzero(~simple & ~vec_faces)
+        for f in np.flatnonzero(simple & on_surface):
+            found = _face_rings(b, int(f), samples)
+            if found is not None:
+                _check_face_sense(b, int(f), found[0], t, out)
+    for f in rest:
         found = _face_rings(b, int(f), samples) if b.face_surface[f] >= 0 else None
         if found is not None:
             _check_face_sense(b, int(f), found[0], t, out)
         seg = _face_segments(b, int(f), samples, t, found)
         if seg is not None:
             parts.append(seg)
-    for f in np.flatnonzero(simple & (b.face_surface >= 0)):
-        found = _face_rings(b, int(f), samples)
-        if found is not None:
-            _check_face_sense(b, int(f), found[0], t, out)
     if not parts:
         return
     hits = _crossings(parts)
@@ -373,6 +437,100 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> Non
         out.append(Problem("self-intersecting-trim", "face", f,
                            f"edge {ci >> 1} of loop {int(b.coedge_loop[ci])} crosses edge {cj >> 1} of loop "
                            f"{int(b.coedge_loop[cj])} near {np.round(x, 9).tolist()} in the face's parameter plane"))
+
+
+def _loop_ranks(b: BRep) -> np.ndarray:
+    """Position of every coedge in its loop, counted from the loop's first coedge (list ranking by pointer jumping)."""
+    nc = 2 * b.n_edges
+    first = np.zeros(nc, dtype=bool)
+    has = b.loop_coedge >= 0
+    first[b.loop_coedge[has]] = True
+    rank = np.where(first, 0, 1)
+    jump = b.coedge_prev.copy()
+    done = first.copy()
+    while not done.all():
+        todo = np.flatnonzero(~done)
+        nxt = jump[todo]
+        rank[todo] += rank[nxt]
+        done[todo] = done[nxt]
+        jump[todo] = jump[nxt]
+    return rank
+
+
+def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, table: _PcurveSamples, samples: int,
+                   t: Tolerance, out: list[Problem]) -> tuple[np.ndarray, ...] | None:
+    """:func:`_face_rings`, :func:`_check_face_sense` and :func:`_face_segments` for many faces on surfaces at once.
+
+    Every loop of ``cross_faces`` and ``sense_faces`` becomes its ring of p-curve samples (both
+    ends of a :class:`Line2D`, every sample of other p-curves, reversed on the right side) taken
+    from ``table``; faces with a coedge without p-curve are skipped, as there.  The orientation of
+    every face is checked (appending to ``out``); the segments of ``cross_faces`` are returned in
+    the form of :func:`_face_segments` (one part for all of them), or None when there are none.
+    """
+    faces = np.concatenate([cross_faces, sense_faces]).astype(np.int64)
+    if faces.size == 0 or b.n_edges == 0:
+        return None
+    want = np.zeros(b.n_faces, dtype=bool)
+    want[faces] = True
+    c = np.flatnonzero(want[b.coedge_face])
+    missing = np.zeros(b.n_faces, dtype=bool)
+    missing[b.coedge_face[c[table.pos[c] < 0]]] = True
+    c = c[~missing[b.coedge_face[c]]]
+    if c.size == 0:
+        return None
+    loop = b.coedge_loop[c]
+    c = c[np.lexsort((_loop_ranks(b)[c], loop))]  # loops of one face are contiguous: a face owns its loops
+    loop = b.coedge_loop[c]
+    k = table.pos[c]
+    S = samples
+    npts = np.where(table.line[k], 2, S)
+    rep = np.repeat(np.arange(c.size), npts)
+    local = np.arange(rep.size) - np.repeat(np.cumsum(npts) - npts, npts)
+    sidx = np.where(table.line[k][rep], local * (S - 1), local)
+    sidx = np.where((c[rep] & 1) == 1, S - 1 - sidx, sidx)  # the right side runs backwards
+    kr = k[rep]
+    pts = table.uv[kr, sidx]
+    owner = c[rep]
+    ring = loop[rep]
+    face = b.coedge_face[owner]
+    m = pts.shape[0]
+    starts = np.flatnonzero(np.concatenate([[True], ring[1:] != ring[:-1]]))
+    lengths = np.diff(np.append(starts, m))
+    ring_id = np.repeat(np.arange(starts.size), lengths)
+    nxt = np.arange(1, m + 1)
+    nxt[starts + lengths - 1] = starts
+    # Orientation: the shoelace area of each ring (relative to its first point), summed per face.
+    x = pts - pts[starts][ring_id]
+    area = 0.5 * np.bincount(face, weights=x[:, 0] * x[nxt, 1] - x[nxt, 0] * x[:, 1], minlength=b.n_faces)
+    ptp = np.maximum.reduceat(pts, starts, axis=0) - np.minimum.reduceat(pts, starts, axis=0)
+    scale = np.zeros(b.n_faces)
+    np.maximum.at(scale, face[starts], ptp[:, 0] * ptp[:, 1])
+    judged = np.zeros(b.n_faces, dtype=bool)
+    judged[face] = True
+    wrong = judged & (np.abs(area) > 1e-9 * scale) & ((area > 0) != b.face_sense.astype(bool))
+    for f in np.flatnonzero(wrong):
+        out.append(Problem("face-orientation", "face", int(f),
+                           f"its loops enclose signed area {area[f]:.6g} in the parameter plane but face_sense is "
+                           f"{bool(b.face_sense[f])} (the face lies on the wrong side of its boundary)"))
+    # Segments of the faces tested for crossings, consecutive repeats (closer than eps) dropped.
+    stretch = np.zeros(b.n_faces)
+    np.maximum.at(stretch, face, table.speed[kr, sidx])
+    eps_face = np.where(stretch > 0, t.linear / np.where(stretch > 0, stretch, 1.0), t.linear)
+    prv = np.empty(m, dtype=np.int64)
+    prv[nxt] = np.arange(m)
+    crossing = np.zeros(b.n_faces, dtype=bool)
+    crossing[cross_faces] = True
+    keep = crossing[face] & (np.linalg.norm(pts - pts[prv], axis=1) > eps_face[face])
+    idx = np.flatnonzero(keep)
+    if idx.size == 0:
+        return None
+    r2 = ring_id[idx]
+    st2 = np.flatnonzero(np.concatenate([[True], r2[1:] != r2[:-1]]))
+    ln2 = np.diff(np.append(st2, idx.size))
+    nxt2 = np.arange(1, idx.size + 1)
+    nxt2[st2 + ln2 - 1] = st2
+    A = pts[idx]
+    return A, A[nxt2], face[idx], nxt2, owner[idx], eps_face[face[idx]]
 
 
 def _crossings(parts: list[tuple[np.ndarray, ...]]) -> dict[int, tuple[int, int, np.ndarray]]:

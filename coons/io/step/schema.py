@@ -336,7 +336,7 @@ class StepModel:
                 P = np.array([self.number(x, e, "coordinate") for x in c]) * self.L
                 if dim == 3 and self._xf:
                     P = self.M @ P + self.b
-            if not np.all(np.isfinite(P)):
+            if not np.isfinite(P).all():
                 raise self.fail(e, f"coordinates overflow in millimetres ({self.L:g} mm per unit)")
             return P
         return self._memoised(f"point{dim}", ref, referrer, build)
@@ -348,12 +348,15 @@ class StepModel:
             c = self.seq(self.params(e, 2)[1], e, "direction ratios")
             if len(c) != dim:
                 raise self.fail(e, f"expected {dim} direction ratios, got {len(c)}")
-            d = np.array([self.number(x, e, "direction ratio") for x in c])
-            d = d / np.max(np.abs(d)) if np.any(d) else d  # scaled first: huge ratios must not overflow the norm
-            n = float(np.linalg.norm(d))
+            d = [self.number(x, e, "direction ratio") for x in c]
+            big = max(map(abs, d))
+            if big > 0.0:  # scaled first: huge ratios must not overflow the norm
+                d = [x / big for x in d]
+            n = math.hypot(*d)
             if not n > 0.0:
                 raise self.fail(e, "zero direction")
-            return self.M @ (d / n) if dim == 3 and self._xf else d / n
+            u = np.array([x / n for x in d])
+            return self.M @ u if dim == 3 and self._xf else u
         return self._memoised(f"dir{dim}", ref, referrer, build)
 
     def vector(self, ref: Any, referrer: Entity) -> np.ndarray:
@@ -374,8 +377,9 @@ class StepModel:
             ref_dir = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 1.0 - 1e-12 else np.array([0.0, 0.0, 1.0])
         else:
             ref_dir = self.direction(p[3], e)
-        x = ref_dir - np.dot(ref_dir, z) * z
-        n = float(np.linalg.norm(x))
+        rz = float(ref_dir @ z)
+        x = ref_dir - rz * z
+        n = math.hypot(*x.tolist())
         if not n > self.tol.angular:
             raise self.fail(e, "ref_direction is parallel to the axis")
         return o, z, x / n

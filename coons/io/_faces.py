@@ -302,12 +302,7 @@ def _face_box(face: RawFace, loops: list, t: Tolerance, fixed: dict | None = Non
         # nothing to choose (a plane, or every period fixed by a seam): no samples needed
         return tuple((fixed[k], fixed[k] + per) if per is not None else (-math.inf, math.inf)
                      for k, per in enumerate(periods))
-    pts = []
-    for loop in loops:
-        for c in loop:
-            a, b = c.t_range
-            pts.append(np.asarray(c.edge.curve.evaluate(np.linspace(a, b, _SAMPLES))))
-    X = np.concatenate(pts)
+    X = _coedge_samples([c for loop in loops for c in loop], _SAMPLES).reshape(-1, 3)
     uv = project_on_surface(face.surface, X, t)
     free = singular_parameters(face.surface, uv, None, t)
     box = []
@@ -486,17 +481,32 @@ def _iso_cut(surface: Any, k: int, c: float) -> tuple[Any, Any]:
     raise TopologyError(f"cannot split a {type(surface).__name__} along its {'uv'[k]} seam")
 
 
+def _coedge_samples(coedges: list, n: int) -> np.ndarray:
+    """``(k, n, 3)`` points of each coedge's curve at ``n`` uniform parameters in its direction of use."""
+    from coons.kernel.onsurface import evaluate_curves
+
+    s = np.linspace(0.0, 1.0, n)
+    r = np.array([c.t_range for c in coedges], dtype=np.float64).reshape(-1, 2)
+    T = r[:, :1] + (r[:, 1:] - r[:, :1]) * s  # np.linspace(a, b, n) per coedge, to round-off
+    T[:, 0], T[:, -1] = r[:, 0], r[:, 1]
+    return evaluate_curves([c.edge.curve for c in coedges], T)
+
+
 def _loop_area(face: RawFace, loop: list, pcs: list, t: Tolerance) -> float:
     """Signed area of a loop in the parameter plane (shoelace over sampled p-curves)."""
-    pts = []
-    for c, pc in zip(loop, pcs):
-        a, b = c.t_range
-        ts = np.linspace(a, b, _SAMPLES)[:-1]
-        if pc is None:  # planar face: the plane's own coordinates of the 3-D points
-            pts.append(np.asarray(face.surface.closest_parameters(np.asarray(c.edge.curve.evaluate(ts)))))
-        else:
-            pts.append(np.asarray(pc.evaluate(ts)))
-    P = np.concatenate(pts)
+    if all(pc is None for pc in pcs):  # planar face: the plane's own coordinates of the 3-D points
+        X = _coedge_samples(loop, _SAMPLES)[:, :-1].reshape(-1, 3)
+        P = np.asarray(face.surface.closest_parameters(X))
+    else:
+        pts = []
+        for c, pc in zip(loop, pcs):
+            a, b = c.t_range
+            ts = np.linspace(a, b, _SAMPLES)[:-1]
+            if pc is None:
+                pts.append(np.asarray(face.surface.closest_parameters(np.asarray(c.edge.curve.evaluate(ts)))))
+            else:
+                pts.append(np.asarray(pc.evaluate(ts)))
+        P = np.concatenate(pts)
     x, y = P[:, 0], P[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 

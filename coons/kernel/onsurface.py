@@ -54,7 +54,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
 
-__all__ = ["cheap_pcurves_many", "pcurve_on", "pcurves_on"]
+__all__ = ["cheap_pcurves_many", "evaluate_curves", "pcurve_on", "pcurves_on"]
 
 _log = logging.getLogger("coons")
 
@@ -658,19 +658,44 @@ def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         return None  # pcurve_on reports malformed ranges
     ts = ab[:, :1] + s[None, :] * (ab[:, 1:] - ab[:, :1])
     ts[:, -1] = ab[:, 1]
-    line = np.array([type(c) is Line for c, _, _ in items])
     try:
-        X = np.empty(ts.shape + (3,))
-        if line.any():  # lines in one expression (Line.evaluate's own)
-            L = np.flatnonzero(line)
-            O = np.array([items[i][0].origin for i in L])
-            D = np.array([items[i][0].direction for i in L])
-            X[L] = O[:, None, :] + ts[L][..., None] * D[:, None, :]
-        for i in np.flatnonzero(~line):
-            X[i] = np.asarray(items[i][0].evaluate(ts[i]), dtype=np.float64)
+        X = evaluate_curves([c for c, _, _ in items], ts)
     except (AttributeError, TypeError, ValueError, CoonsError):
         return None  # pcurve_on reports unusable curves
     return ab, ts, X
+
+
+def evaluate_curves(curves: list, T: np.ndarray) -> np.ndarray:
+    """Points of many 3-D curves at once: ``curves[k]`` at the parameters ``T[k]``, ``(k, n, 3)``.
+
+    Lines and circles (most edges of a model) are evaluated in one expression each, with the
+    formulas of their own ``evaluate``; any other curve is called once.
+
+    Raises
+    ------
+    InvalidInputError, ValueError
+        Non-finite parameters, or a curve whose points are not 3-D.
+    """
+    T = np.asarray(T, dtype=np.float64)
+    if not np.isfinite(T).all():
+        raise InvalidInputError("parameters must be finite, got NaN or inf")
+    X = np.empty(T.shape + (3,))
+    kind = np.array([1 if type(c) is Line else 2 if type(c) is Circle else 0 for c in curves], dtype=np.int64)
+    L = np.flatnonzero(kind == 1)
+    if L.size:
+        O = np.array([curves[i].origin for i in L])
+        D = np.array([curves[i].direction for i in L])
+        X[L] = O[:, None, :] + T[L][..., None] * D[:, None, :]
+    C = np.flatnonzero(kind == 2)
+    if C.size:
+        F = np.array([curves[i].frame for i in C])
+        R = np.array([float(curves[i].radius) for i in C])[:, None]
+        O = np.array([curves[i].center for i in C])
+        t = T[C]
+        X[C] = ((R * np.cos(t))[..., None] * F[:, None, 0, :] + (R * np.sin(t))[..., None] * F[:, None, 1, :]) + O[:, None, :]
+    for i in np.flatnonzero(kind == 0):
+        X[i] = np.asarray(curves[i].evaluate(T[i]), dtype=np.float64)
+    return X
 
 
 

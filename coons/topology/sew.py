@@ -43,7 +43,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
-from coons.kernel.analytic import Line
+from coons.kernel.analytic import TWO_PI, Circle, Line
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -427,9 +427,14 @@ def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int =
     the largest sample spacing returns that first estimate at once (only "is it within stop"
     matters to the caller).  ``samples``, a dict, caches the first round's samples and spacing
     per curve object and range (the uses of one edge share both; a group of uses between two
-    vertices probes each curve several times).
+    vertices probes each curve several times).  Lines and circles take their closed forms
+    instead (:data:`_EXACT_DISTANCE`: the projection clamped to the range; the split halves of
+    every hole's circles in a plate meet at the same two vertices, so sewing asks this often).
     """
     lo, hi = min(spec.t0, spec.t1), max(spec.t0, spec.t1)
+    exact = _EXACT_DISTANCE.get(type(spec.curve))
+    if exact is not None:
+        return exact(spec.curve, np.asarray(p, dtype=np.float64), lo, hi)
     best = math.inf
     for r in range(rounds):
         key = (id(spec.curve), lo, hi, n) if r == 0 and samples is not None else None
@@ -456,6 +461,36 @@ def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int =
         tk = lo + k * step if k < n - 1 else hi  # tt[k] of np.linspace(lo, hi, n)
         lo, hi = max(lo, tk - step), min(hi, tk + step)
     return best
+
+
+def _line_distance(curve: Line, p: np.ndarray, lo: float, hi: float) -> float:
+    """Distance from ``p`` to the segment ``curve([lo, hi])`` (the projection clamped to the range)."""
+    O, D, P = curve.origin.tolist(), curve.direction.tolist(), p.tolist()
+    s = min(max(sum((P[k] - O[k]) * D[k] for k in range(3)), lo), hi)
+    return math.dist(P, [O[k] + s * D[k] for k in range(3)])
+
+
+def _circle_distance(curve: Circle, p: np.ndarray, lo: float, hi: float) -> float:
+    """Distance from ``p`` to the arc ``curve([lo, hi])``: at the projection's angle when the arc holds it, else at an end.
+
+    The distance to the points of a circle falls monotonically from the angle opposite the
+    projection to the projection's angle, so on an arc it is least at that angle or at an end.
+    Python floats: two points do not pay for numpy calls.
+    """
+    C, P = curve.center.tolist(), p.tolist()
+    X, Y, _ = curve.frame.tolist()
+    R = float(curve.radius)
+    r = [P[k] - C[k] for k in range(3)]
+    x, y = sum(r[k] * X[k] for k in range(3)), sum(r[k] * Y[k] for k in range(3))
+    ts = [lo, hi]
+    a = math.atan2(y, x) if (x or y) else 0.0
+    if (a - lo) % TWO_PI <= hi - lo:
+        ts.append(lo + (a - lo) % TWO_PI)
+    return min(math.dist(P, [C[k] + R * math.cos(t) * X[k] + R * math.sin(t) * Y[k] for k in range(3)]) for t in ts)
+
+
+#: Curves whose distance from a point has a closed form (the sampled zoom serves the others).
+_EXACT_DISTANCE = {Line: _line_distance, Circle: _circle_distance}
 
 
 def _require_pair(uses: _Uses, comp: list[int], vertex: np.ndarray) -> None:

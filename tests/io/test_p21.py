@@ -183,6 +183,7 @@ MIXED = (
     "#10=X('\\X2\\00E9\\X0\\',$,*,\"0FF\",());\n"
     "#11=Y((1.,2.),3,'a,b');#12=Z();\n"
     "#13=W('multi\nline',#1);\n"
+    "#14=V(((#1),()),( (1.,2.) ),(#1,(2,3)),.T.);#15=U((((1))));\n"  # two levels deferred, three general
 )
 
 
@@ -201,6 +202,9 @@ def test_common_instances_are_deferred_until_used():
     assert f.entities[1]._raw is not None  # validated, not yet converted
     assert f.entities[1].params == ("", (0.0, 1.5, -2)) and f.entities[1]._raw is None
     assert f.entities[7]._raw is None and f.entities[6]._raw is None  # complex / escaped: parsed at once
+    assert f.entities[9]._raw is not None and f.entities[14]._raw is not None  # lists two levels deep
+    assert f.entities[15]._raw is None  # three levels: the general parser
+    assert f.entities[14].params == (((Ref(1),), ()), ((1.0, 2.0),), (Ref(1), (2, 3)), True)
     assert p21._DEFERRABLE.fullmatch("'',(#1,#2),.T.,$,*,-1.5E+3")
     assert not p21._DEFERRABLE.fullmatch("'',1 2")  # tokens side by side
     assert not p21._DEFERRABLE.fullmatch("'a''b'")  # an escaped quote

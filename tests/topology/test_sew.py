@@ -381,3 +381,25 @@ def test_bilinear_patch_faces_sew_a_closed_solid_and_reject_bad_nets():
         np.testing.assert_allclose(s.volume, 1.0, rtol=1e-14)
     with pytest.raises(InvalidInputError, match=r"shape \(f, 2, 2, 3\)"):
         bilinear_patch_faces(np.zeros((2, 3, 2, 3)))
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_closed_form_distances_to_arcs_and_segments_match_dense_sampling(seed):
+    """The exact point-to-arc and point-to-segment distances of the edge matching: never above the
+    minimum over 20001 samples, and within the samples' resolution of it."""
+    from coons.topology.sew import _circle_distance, _line_distance
+
+    rng = np.random.default_rng(seed)
+    c = Circle(rng.normal(size=3), rng.normal(size=3) + 0.1, rng.normal(size=3), float(rng.uniform(0.5, 3.0)))
+    lo = float(rng.uniform(-7.0, 7.0))
+    hi = lo + float(rng.uniform(0.1, 2.0 * math.pi))
+    p = rng.normal(size=3) * 3.0
+    tt = np.linspace(lo, hi, 20001)
+    d = _circle_distance(c, p, lo, hi)
+    sampled = float(np.linalg.norm(c.evaluate(tt) - p, axis=-1).min())
+    assert d <= sampled + 1e-12
+    assert sampled - d <= 3.0 * (hi - lo) / 20000  # the curve speed is the radius (<= 3)
+    L = Line(rng.normal(size=3), rng.normal(size=3) + 0.1)
+    sampled = float(np.linalg.norm(L.evaluate(tt) - p, axis=-1).min())
+    d = _line_distance(L, p, lo, hi)
+    assert d <= sampled + 1e-12 and sampled - d <= (hi - lo) / 20000

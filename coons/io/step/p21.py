@@ -27,7 +27,7 @@ Algorithm.  *Fast path* (files as CAD systems write them): the header goes throu
 parser; in the DATA sections one anchored regular expression matches each whole simple instance
 ``#id = NAME( args );`` at C speed, a second one validates the arguments when they have the
 common shapes (numbers, references, enumerations, ``$``, ``*``, plain strings, lists of those
-one level deep), and such instances keep their argument text until :attr:`Entity.params` is
+up to two levels deep), and such instances keep their argument text until :attr:`Entity.params` is
 first read (entities a reader never visits, such as the file's own p-curves, are never
 converted).  Every other instance (complex, typed or nested parameters, escaped strings,
 binaries) is parsed at once by the general parser, and anything the fast path cannot follow
@@ -567,9 +567,9 @@ class _Parser:
 # Well-formed files written by CAD systems are read without tokenising the DATA section: one
 # regular expression matches each whole instance ``#id = NAME( args );`` (C speed), a second one
 # (_DEFERRABLE) validates the arguments when they have the common shapes (atoms and lists of atoms
-# one level deep), and those are converted with str methods only when first read
+# up to two levels deep), and those are converted with str methods only when first read
 # (_deferred_args).  Anything else -- complex instances, typed parameters, strings with escapes,
-# nested lists, binaries -- is handed instance by instance to the general parser above, and a
+# lists nested three deep, binaries -- is handed instance by instance to the general parser above, and a
 # file the fast path cannot follow at all (a syntax error, an unusual section) is re-read by the
 # general parser from the start, which reports the error with its line.  Both paths produce the
 # same values (tests/io/test_p21.py compares them).
@@ -591,12 +591,18 @@ _NUM = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
 #: Items of validated arguments without strings or white space: a one-level list, or an atom.
 _LEVEL1_ITEMS = re.compile(r"\(([^()]*)\)|([^,()]+)")
 # The argument grammar the fast path defers: atoms (numbers, references, enumerations, $, *, plain
-# strings) and lists of atoms one level deep, comma separated, optional white space between tokens.
+# strings) and lists of atoms up to two levels deep, comma separated, optional white space between tokens.
 _STR = r"'[^'\\\r\n]*'(?!')"
 _ATOM = rf"(?:\#[0-9]+|{_NUM}|\.[A-Za-z_][A-Za-z0-9_]*\.|\$|\*|{_STR})"
 _LIST1 = rf"\(\s*(?:{_ATOM}(?:\s*,\s*{_ATOM})*)?\s*\)"
 _ARG1 = rf"(?:{_ATOM}|{_LIST1})"
-_DEFERRABLE = re.compile(rf"\s*(?:{_ARG1}(?:\s*,\s*{_ARG1})*)?\s*")
+#: Lists of atoms and one-level lists (a B-spline surface's control point grid, its weights).
+_LIST2 = rf"\(\s*(?:{_ARG1}(?:\s*,\s*{_ARG1})*)?\s*\)"
+_ARG2 = rf"(?:{_ATOM}|{_LIST1}|{_LIST2})"
+_DEFERRABLE = re.compile(rf"\s*(?:{_ARG2}(?:\s*,\s*{_ARG2})*)?\s*")
+#: An opening parenthesis inside a list: the arguments nest two levels deep.
+_NESTED = re.compile(r"\([^()]*\(")
+_NESTED_TOKENS = re.compile(r"[(),]|[^(),]+")
 
 
 def _deferred_args(raw: str, eid: int, line: int) -> tuple:
@@ -621,6 +627,8 @@ def _deferred_args(raw: str, eid: int, line: int) -> tuple:
         return head
     if "(" not in raw:
         return head + tuple(map(_valid_scalar, raw.split(",")))
+    if _NESTED.search(raw):
+        return head + _nested_args(raw)
     out = list(head)
     for inner, item in _LEVEL1_ITEMS.findall(raw):
         if item:
@@ -628,6 +636,20 @@ def _deferred_args(raw: str, eid: int, line: int) -> tuple:
         else:
             out.append(tuple(map(_valid_scalar, inner.split(","))) if inner else ())
     return tuple(out)
+
+
+def _nested_args(raw: str) -> tuple:
+    """Arguments without strings or white space nesting lists up to :data:`_LIST2` (validated: no checks)."""
+    stack: list[list] = [[]]
+    for tok in _NESTED_TOKENS.findall(raw):
+        if tok == "(":
+            stack.append([])
+        elif tok == ")":
+            done = tuple(stack.pop())
+            stack[-1].append(done)
+        elif tok != ",":
+            stack[-1].append(_valid_scalar(tok))
+    return tuple(stack[0])
 
 
 def _valid_scalar(s: str) -> Any:

@@ -43,9 +43,10 @@ Phases (each a private function raising ``BooleanError(stage=...)`` with ids and
 2. ``_broad_phase``: candidate pairs from :func:`._broad_phase.triangle_pairs`: a vertex cull and a
    box cull on uniform grids drop the triangles far from the other surface, then the survivors'
    overlapping boxes come from a grid (or two implicit bounding-volume hierarchies), no Python
-   loop over triangles.  Then :func:`._mesh_arrangement.snap` makes near-coincidences of
-   near-coplanar candidate pairs (within ``tol.linear``) exact before the exact phases (the broad
-   phase is redone only when it changed the operands).
+   loop over triangles.  Then :func:`._mesh_arrangement.snap` gives both operands one common
+   triangulation on every cluster of near-coplanar candidate pairs (within ``tol.linear``), so
+   that their near-coincidences are exact before the exact phases (the broad phase is redone
+   only when it changed the operands).
 3. + 4. ``_intersect`` (stage ``"intersect"``): exact narrow phase and intersection points and
    segments (:func:`._mesh_arrangement.intersect`).
 5. ``_imprint`` (stage ``"imprint"``): every triangle split along its segments; triangles crossed
@@ -136,10 +137,16 @@ Status and limitations
   input vertices and the nearest floats to the exact new points, except where the clean-up
   above acted (features below ``tol.linear``).
 * Inputs that coincide only up to rounding (rotated copies of coincident faces) give valid
-  results within the tolerance of the exact answer in most cases; a thin sheet left attached to
-  the rest of the result makes it non-manifold, which raises (stage ``"sew"``) rather than return
-  a broken solid (about 0.4 % of the Booleans of random rotated grid-box pairs: the snap of
-  :mod:`._mesh_arrangement` does not settle there).
+  results within the tolerance of the exact answer: the snap of :mod:`._mesh_arrangement` first
+  gives both operands one common triangulation on each near-coplanar cluster.  ``python
+  benchmarks/hunt_rotated_grid_boxes.py --pairs 1000 --seed S`` (random rotated grid-box pairs,
+  the three Booleans of each, volume against the closed form to 1e-9) finds no failure in
+  28 775 Booleans (seeds 1–5 and 11–15; the snap never gave up), against 30 of the 14 365 of
+  seeds 1–5 (0.21 %) with the former local snap rules, which cascaded there.  Where the snap
+  does give up (features between one and a few tolerances apart, as in a sphere mesh and its
+  copy turned by ``2e-7``; a cluster not near one plane) the raw operands are used, and a thin
+  sheet left attached to the rest of the result makes it non-manifold, which raises (stage
+  ``"sew"``) rather than return a broken solid.
 * Operands must be valid closed solids; self-intersecting operands are not detected.
 * Vertices left on a straight edge between two merged faces (where the tessellation's diagonals
   met the intersection curves) are removed when they lie within ``tol.linear`` of the segment

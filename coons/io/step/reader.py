@@ -13,6 +13,14 @@ a valid closed solid within tolerance (the sewing's or checker's
 ``__cause__``).  The reader does
 not heal files, does not read assemblies' placements, colours, layers or PMI, and does not use
 the file's p-curves (see :mod:`coons.io.step.schema`).
+
+Speed.  Every layer works in batches where the per-entity Python cost would dominate: the
+Part 21 fast path defers the conversion of common instances until they are read, the p-curves
+of all faces come from one batched call (:func:`coons.kernel.onsurface.cheap_pcurves_many`),
+and the checker evaluates every p-curve sample of the model at once.  On the benchmark models
+(``benchmarks/bench_io.py``: a plate with 400 holes, a box of 1014 bilinear B-spline faces)
+the import runs at about OCCT's speed (0.8-1.2x across runs on this machine); what is left is
+spread over parsing, schema objects, normalisation and sewing, a few hundred milliseconds each.
 """
 
 from __future__ import annotations

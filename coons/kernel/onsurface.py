@@ -460,11 +460,6 @@ def _into_domain(surface, curve, pc, dev: float, a: float, b: float, t: Toleranc
 _NEWTON_STEPS = 8
 
 
-def _invert_nurbs(surface: NurbsSurface, P: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
-    """Parameters of points ``P`` ``(m, 3)`` on a NURBS surface; :func:`_invert_nurbs_many` for one surface."""
-    return _invert_nurbs_many([surface], np.zeros(P.shape[0], dtype=np.int64), P, t)
-
-
 def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Parameters of points ``P`` ``(m, 3)`` on NURBS surfaces ``surfaces[which[i]]``: nearest control point, then Gauss–Newton.
 
@@ -542,7 +537,7 @@ def pcurves_on(surface, items, box=None, tol: Tolerance | None = None, general: 
     is accepted when it is within ``tol.linear`` at every sample (no sample at a pole or apex).
     On an open (not closed) NURBS surface the
     cheap exact candidate is tried first for all items at once: the curve's end points are
-    inverted (:func:`_invert_nurbs`) and the :class:`Line2D` through their parameters is accepted
+    inverted (:func:`_invert_nurbs_many`) and the :class:`Line2D` through their parameters is accepted
     when ``surface(line(t))`` is within ``tol.linear`` of ``curve(t)`` at the same
     ``2 × 33 - 1`` check samples as :func:`pcurve_on`'s exact forms, and neither end sits where a
     parameter is undetermined.  Everything else (and every item on other surfaces) goes through

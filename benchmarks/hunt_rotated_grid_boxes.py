@@ -30,24 +30,7 @@ sys.path.insert(0, str(ROOT / "tests" / "booleans"))
 
 import coons.booleans.polyhedral as poly  # noqa: E402
 from coons.errors import BooleanError  # noqa: E402
-from test_polyhedral_coincident import ROTATED_RTOL, grid_pair  # noqa: E402
-
-
-def draw(rng: np.random.Generator):
-    """One pair as drawn by the fixed-batch test: ``(g1, g2, q, t)``."""
-    q = rng.uniform(-1, 1, 4)
-    while np.linalg.norm(q) < 0.1:
-        q = rng.uniform(-1, 1, 4)
-    t = rng.uniform(-1, 1, 3)
-    g1 = np.r_[rng.integers(0, 4, 3), rng.integers(1, 4, 3)]
-    g2 = np.r_[rng.integers(0, 4, 3), rng.integers(1, 4, 3)]
-    return g1, g2, q, t
-
-
-def touch_only(g1, g2) -> bool:
-    """The boxes share only an edge or a corner (their union is not a manifold)."""
-    d = np.minimum(g1[:3] + g1[3:], g2[:3] + g2[3:]) - np.maximum(g1[:3], g2[:3])
-    return bool(np.all(d >= 0) and np.sum(d == 0) >= 2)
+from test_polyhedral_coincident import ROTATED_RTOL, draw_rotated_pair, grid_pair, touch_only  # noqa: E402
 
 
 def run_one(g1, g2, q, t, op) -> str | None:
@@ -99,7 +82,7 @@ def main(argv=None) -> int:
     failures = []
     t0 = time.perf_counter()
     for k in range(args.pairs):
-        g1, g2, q, t = draw(rng)
+        g1, g2, q, t = draw_rotated_pair(rng)
         for op in ("union", "intersection", "difference"):
             why = run_one(g1, g2, q, t, op)
             if op == "union" and touch_only(g1, g2):

@@ -1946,6 +1946,43 @@ def _chain(a: int, b: int, chains: dict, NG) -> list[int]:
     return [a, b] if pts is None else [a, *pts[::-1].tolist(), b]
 
 
+def _boundary_chains(tri: np.ndarray, chains: dict, NG) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closed boundary of each triangle ``tri (k, 3)`` through the points its edges gained, in array time.
+
+    Returns ``(owner, tail, head)``: one directed segment per row, in each triangle's order (its
+    corners, each followed by the points of ``chains`` on the edge to the next corner), ``owner``
+    its triangle.  ``chains`` maps ``min · NG + max`` of an edge to its inner points from the
+    smaller end (:func:`_chain` for one edge).
+    """
+    k = tri.shape[0]
+    a, b = tri.ravel(), tri[:, [1, 2, 0]].ravel()  # the directed edges, triangle by triangle
+    if not chains:
+        return np.repeat(np.arange(k), 3), a, b
+    keys = np.array(sorted(chains), dtype=np.int64)
+    vals = [np.asarray(chains[int(x)], dtype=np.int64) for x in keys.tolist()]
+    ptr = np.concatenate([[0], np.cumsum([v.size for v in vals], dtype=np.int64)])
+    flat = np.concatenate(vals) if vals else np.zeros(0, dtype=np.int64)
+    ek = np.minimum(a, b) * NG + np.maximum(a, b)
+    pos = np.searchsorted(keys, ek)
+    found = pos < keys.size
+    found[found] = keys[pos[found]] == ek[found]
+    pos = np.where(found, pos, 0)
+    count = np.where(found, ptr[pos + 1] - ptr[pos], 0)
+    n_out = 1 + count  # the tail corner, then the edge's inner points
+    e = np.repeat(np.arange(ek.size), n_out)
+    j = np.arange(e.size) - np.repeat(np.cumsum(n_out) - n_out, n_out)
+    tail = a[e]
+    m = np.flatnonzero(j > 0)  # inner points, in the edge's direction
+    em, jm = e[m], j[m]
+    tail[m] = flat[np.where(a[em] < b[em], ptr[pos[em]] + jm - 1, ptr[pos[em]] + count[em] - jm)]
+    owner = e // 3
+    per = np.bincount(owner, minlength=k)
+    first = np.cumsum(per) - per
+    nxt = np.arange(1, e.size + 1)
+    nxt[first + per - 1] = first
+    return owner, tail, tail[nxt]
+
+
 def _frame(C: np.ndarray) -> tuple[int, np.ndarray]:
     """Dominant axis of the normals of triangles ``C (k, 3, 3)`` and each triangle's orientation sign in the
     projection dropping it (coordinates ``axis + 1, axis + 2`` cyclically: counter-clockwise when the
@@ -1966,15 +2003,8 @@ def _common_triangulation(G, TA, ta, TB, tb, chains, NG):
 
     tri = np.concatenate([TA[ta], TB[tb]])
     axis, sign = _frame(G[tri])
-    # The directed boundary chain of every triangle, counter-clockwise in the projection (a Python loop
-    # over the cluster's triangles: the snapped ones).
-    loops = []
-    for row, sg in zip(tri.tolist(), sign.tolist()):
-        c = row if sg > 0 else row[::-1]
-        loops.append([p for k in range(3) for p in _chain(c[k], c[(k + 1) % 3], chains, NG)[:-1]])
-    owner = np.repeat(np.arange(len(loops)), [len(lp) for lp in loops])
-    tail = np.concatenate([np.asarray(lp) for lp in loops])
-    head = np.concatenate([np.roll(np.asarray(lp), -1) for lp in loops])
+    # The directed boundary chain of every triangle, counter-clockwise in the projection.
+    owner, tail, head = _boundary_chains(np.where((sign > 0)[:, None], tri, tri[:, ::-1]), chains, NG)
     ids, inv = np.unique(np.concatenate([tail, head]), return_inverse=True)
     tail, head = inv[:tail.size], inv[tail.size:]
     n = np.int64(ids.size)

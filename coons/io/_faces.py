@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from coons.errors import CoonsError, InvalidGeometryError, TopologyError
-from coons.kernel.analytic import Circle, Line, PlanarSurface
+from coons.kernel.analytic import SCALAR_CURVES, PlanarSurface, scalar_parameter, scalar_point
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
@@ -172,14 +172,15 @@ def edge_parameters(curve: Any, start, end, same_sense: bool, tol: Tolerance | N
         The edge runs the wrong way along a non-periodic curve, or has zero length.
     """
     t = resolve(tol)
-    fast = _LINE_CIRCLE.get(type(curve))
-    if fast is not None:
-        # lines and circles (most edges of a model) in Python floats: the same formulas as their
-        # closest_parameters / evaluate, without the numpy overhead on two points
-        return fast(curve, start, end, same_sense, t)
-    P = np.stack([np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)])
-    ta, tb = (float(x) for x in _project_on_curve(curve, P, t))
-    closed_edge = float(np.linalg.norm(P[0] - P[1])) <= t.linear
+    scalar = type(curve) in SCALAR_CURVES  # lines and circles (most edges): Python floats, no numpy calls
+    if scalar:
+        P = [np.asarray(start, dtype=np.float64).tolist(), np.asarray(end, dtype=np.float64).tolist()]
+        ta, tb = scalar_parameter(curve, P[0]), scalar_parameter(curve, P[1])
+        closed_edge = math.dist(P[0], P[1]) <= t.linear
+    else:
+        P = np.stack([np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)])
+        ta, tb = (float(x) for x in _project_on_curve(curve, P, t))
+        closed_edge = float(np.linalg.norm(P[0] - P[1])) <= t.linear
     period = getattr(curve, "period", None) if getattr(curve, "periodic", False) else None
     if period is not None:
         d = (tb - ta) % period if same_sense else (ta - tb) % period
@@ -193,70 +194,15 @@ def edge_parameters(curve: Any, start, end, same_sense: bool, tol: Tolerance | N
             raise InvalidGeometryError(f"a closed edge (start = end) on an open NURBS curve (ends {ends.tolist()})")
         ta, tb = (d0, d1) if same_sense else (d1, d0)
     if ta == tb or (tb > ta) != bool(same_sense):
-        raise _wrong_way(ta, tb, same_sense)
+        raise InvalidGeometryError(
+            f"edge vertices project to curve parameters {ta:.9g} -> {tb:.9g}, expected "
+            f"{'increasing' if same_sense else 'decreasing'} parameters (same_sense={same_sense})"
+        )
+    if scalar:
+        return ta, tb, max(math.dist(P[0], scalar_point(curve, ta)), math.dist(P[1], scalar_point(curve, tb)))
     Q = np.asarray(curve.evaluate(np.array([ta, tb])))
     dev = float(np.max(np.linalg.norm(Q - P, axis=-1)))
     return ta, tb, dev
-
-
-def _wrong_way(ta: float, tb: float, same_sense: bool) -> InvalidGeometryError:
-    return InvalidGeometryError(
-        f"edge vertices project to curve parameters {ta:.9g} -> {tb:.9g}, expected "
-        f"{'increasing' if same_sense else 'decreasing'} parameters (same_sense={same_sense})"
-    )
-
-
-def _line_parameters(curve, start, end, same_sense: bool, t: Tolerance) -> tuple[float, float, float]:
-    """:func:`edge_parameters` of a :class:`~coons.kernel.analytic.Line`: ``t = (P - O)·D``."""
-    O, D = curve.origin.tolist(), curve.direction.tolist()
-    out = []
-    dev = 0.0
-    for P in (np.asarray(start, dtype=np.float64).tolist(), np.asarray(end, dtype=np.float64).tolist()):
-        r = [P[0] - O[0], P[1] - O[1], P[2] - O[2]]
-        s = r[0] * D[0] + r[1] * D[1] + r[2] * D[2]
-        # the point at s is O + s D (Line.evaluate): its distance from P
-        dev = max(dev, math.hypot(O[0] + s * D[0] - P[0], O[1] + s * D[1] - P[1], O[2] + s * D[2] - P[2]))
-        out.append(s)
-    ta, tb = out
-    if ta == tb or (tb > ta) != bool(same_sense):
-        raise _wrong_way(ta, tb, same_sense)
-    return ta, tb, dev
-
-
-def _circle_parameters(curve, start, end, same_sense: bool, t: Tolerance) -> tuple[float, float, float]:
-    """:func:`edge_parameters` of a :class:`~coons.kernel.analytic.Circle`: the angle in its frame (``[0, 2π)``)."""
-    C = curve.center.tolist()
-    X, Y, _ = curve.frame.tolist()
-    R = float(curve.radius)
-    Ps = [np.asarray(start, dtype=np.float64).tolist(), np.asarray(end, dtype=np.float64).tolist()]
-    ang = []
-    for P in Ps:
-        r = [P[0] - C[0], P[1] - C[1], P[2] - C[2]]
-        x = r[0] * X[0] + r[1] * X[1] + r[2] * X[2]
-        y = r[0] * Y[0] + r[1] * Y[1] + r[2] * Y[2]
-        a = math.atan2(y, x)  # as analytic._angle: [0, 2π), 0 on the axis
-        if a < 0.0:
-            a += 2.0 * math.pi
-        if a >= 2.0 * math.pi or (x == 0.0 and y == 0.0):
-            a = 0.0
-        ang.append(a)
-    ta, tb = ang
-    period = 2.0 * math.pi
-    closed_edge = math.dist(Ps[0], Ps[1]) <= t.linear
-    d = (tb - ta) % period if same_sense else (ta - tb) % period
-    if closed_edge or d == 0.0:
-        d = period
-    tb = ta + d if same_sense else ta - d
-    if ta == tb or (tb > ta) != bool(same_sense):
-        raise _wrong_way(ta, tb, same_sense)
-    dev = 0.0
-    for P, a in zip(Ps, (ta, tb)):
-        c, s = math.cos(a) * R, math.sin(a) * R
-        dev = max(dev, math.dist(P, [C[k] + c * X[k] + s * Y[k] for k in range(3)]))
-    return ta, tb, dev
-
-
-_LINE_CIRCLE = {Line: _line_parameters, Circle: _circle_parameters}
 
 
 # ---------------------------------------------------------------------- faces
@@ -497,16 +443,8 @@ def _loop_area(face: RawFace, loop: list, pcs: list, t: Tolerance) -> float:
     if all(pc is None for pc in pcs):  # planar face: the plane's own coordinates of the 3-D points
         X = _coedge_samples(loop, _SAMPLES)[:, :-1].reshape(-1, 3)
         P = np.asarray(face.surface.closest_parameters(X))
-    else:
-        pts = []
-        for c, pc in zip(loop, pcs):
-            a, b = c.t_range
-            ts = np.linspace(a, b, _SAMPLES)[:-1]
-            if pc is None:
-                pts.append(np.asarray(face.surface.closest_parameters(np.asarray(c.edge.curve.evaluate(ts)))))
-            else:
-                pts.append(np.asarray(pc.evaluate(ts)))
-        P = np.concatenate(pts)
+    else:  # faces on other surfaces have a p-curve on every edge
+        P = np.concatenate([np.asarray(pc.evaluate(np.linspace(*c.t_range, _SAMPLES)[:-1])) for c, pc in zip(loop, pcs)])
     x, y = P[:, 0], P[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 

@@ -68,8 +68,11 @@ __all__ = [
     "ConicalSurface",
     "SphericalSurface",
     "ToroidalSurface",
+    "SCALAR_CURVES",
     "angle_to_nurbs_parameter",
     "nurbs_parameter_to_angle",
+    "scalar_parameter",
+    "scalar_point",
 ]
 
 TWO_PI = conics.TWO_PI
@@ -212,6 +215,57 @@ class _Framed:
                 "surface type with u reversed (u -> -u), build it explicitly"
             )
         return M @ self._origin + T[:3, 3], X, Y, (Z if keep_handedness else np.cross(X, Y)), s
+
+
+# ---------------------------------------------------------------------------- one point
+def scalar_parameter(curve: "Line | Circle", point) -> float:
+    """``curve.closest_parameters`` of one point, in Python floats (a few coordinates cost less
+    than a numpy call: edge matching and import ask this for thousands of single points).
+
+    Parameters
+    ----------
+    curve : Line or Circle
+    point : sequence of 3 floats
+
+    Raises
+    ------
+    InvalidInputError
+        Another curve type.
+    """
+    P = [float(x) for x in point]
+    if type(curve) is Line:
+        O, D = curve.origin.tolist(), curve.direction.tolist()
+        return (P[0] - O[0]) * D[0] + (P[1] - O[1]) * D[1] + (P[2] - O[2]) * D[2]
+    if type(curve) is Circle:
+        C = curve.center.tolist()
+        X, Y, _ = curve.frame.tolist()
+        r = (P[0] - C[0], P[1] - C[1], P[2] - C[2])
+        x = r[0] * X[0] + r[1] * X[1] + r[2] * X[2]
+        y = r[0] * Y[0] + r[1] * Y[1] + r[2] * Y[2]
+        a = math.atan2(y, x)  # as _angle: [0, 2π), 0 on the axis
+        if a < 0.0:
+            a += TWO_PI
+        return 0.0 if a >= TWO_PI or (x == 0.0 and y == 0.0) else a
+    raise InvalidInputError(f"scalar_parameter takes a Line or a Circle, got {type(curve).__name__}")
+
+
+def scalar_point(curve: "Line | Circle", t: float) -> list[float]:
+    """``curve.evaluate(t)`` of one parameter, in Python floats (the formula of ``evaluate``).
+
+    Raises
+    ------
+    InvalidInputError
+        Another curve type.
+    """
+    if type(curve) is Line:
+        O, D = curve.origin.tolist(), curve.direction.tolist()
+        return [O[k] + t * D[k] for k in range(3)]
+    if type(curve) is Circle:
+        C = curve.center.tolist()
+        X, Y, _ = curve.frame.tolist()
+        c, s = curve.radius * math.cos(t), curve.radius * math.sin(t)
+        return [(c * X[k] + s * Y[k]) + C[k] for k in range(3)]
+    raise InvalidInputError(f"scalar_point takes a Line or a Circle, got {type(curve).__name__}")
 
 
 # ---------------------------------------------------------------------------- curves
@@ -980,3 +1034,7 @@ class ToroidalSurface(_Revolved):
             self.center, self.axis, self.major_radius, self.minor_radius,
             x_dir=self.x_dir, u_range=u_range, v_range=v_range, tol=tol,
         )
+
+
+#: The curve types :func:`scalar_parameter` and :func:`scalar_point` serve.
+SCALAR_CURVES = (Line, Circle)

@@ -576,7 +576,7 @@ def cheap_pcurves_many(requests, tol: Tolerance | None = None) -> list[list]:
         outs.append(out)
         if items and isinstance(surface, NurbsSurface):
             if surface.dimension == 3 and surface_periods(surface, t) == (None, None):
-                nurbs.append((surface, items, out))
+                nurbs.append((surface, items, None, out))
         elif items and hasattr(surface, "implicit") and hasattr(surface, "closest_parameters"):
             analytic.append((surface, items, _check_box(box), out))
     if nurbs:
@@ -587,7 +587,8 @@ def cheap_pcurves_many(requests, tol: Tolerance | None = None) -> list[list]:
 
 
 def _cheap_lines_many(requests: list, t: Tolerance) -> None:
-    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve is affine in ``t``, for many ``(surface, items, out)``.
+    """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve is affine in ``t``, for many
+    ``(surface, items, box, out)`` on open NURBS surfaces (``box`` unused: the domain bounds the lines).
 
     The curves are sampled per request; the inversion of the end points and the verification
     of the candidate lines run over the items of all requests together (surfaces of one
@@ -596,20 +597,12 @@ def _cheap_lines_many(requests: list, t: Tolerance) -> None:
     """
     from coons.kernel.surface import evaluate_surfaces
 
-    got, owners = [], []
-    for r, (surface, items, out) in enumerate(requests):
-        g = _samples(items)
-        if g is not None:
-            got.append(g)
-            owners.append(r)
-    if not got:
+    got = _gathered(requests)
+    if got is None:
         return
+    owners, first, counts, ab, ts, X = got
     surfaces = [requests[r][0] for r in owners]
-    counts = np.array([g[0].shape[0] for g in got])
-    item_surface = np.repeat(np.arange(len(got)), counts)
-    ab = np.concatenate([g[0] for g in got])
-    ts = np.concatenate([g[1] for g in got])
-    X = np.concatenate([g[2] for g in got])
+    item_surface = np.repeat(np.arange(len(owners)), counts)
     ends = X[:, [0, -1]].reshape(-1, 3)
     uv, speed = _invert_nurbs_many(surfaces, np.repeat(item_surface, 2), ends, t)
     uv, speed = uv.reshape(-1, 2, 2), speed.reshape(-1, 2, 2)
@@ -631,14 +624,33 @@ def _cheap_lines_many(requests: list, t: Tolerance) -> None:
     E = Q[:, [0, -1]]
     inside = np.all((E[..., 0] >= u0[:, None]) & (E[..., 0] <= u1[:, None])
                     & (E[..., 1] >= v0[:, None]) & (E[..., 1] <= v1[:, None]), axis=1)
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
     for i in np.flatnonzero(determined & (dev <= t.linear) & np.any(d != 0.0, axis=1)):
         g = int(item_surface[i])
-        surface, items, out = requests[owners[g]]
+        surface, items, _, out = requests[owners[g]]
         j = int(i - first[g])
         c, a, b = items[j]
         pc = Line2D(o[i], d[i])
         out[j] = (pc, float(dev[i])) if inside[i] else _into_domain(surface, c, pc, float(dev[i]), float(a), float(b), t)
+
+
+def _gathered(requests: list):
+    """The samples of every item of ``(surface, items, box, out)`` requests, concatenated.
+
+    Returns ``(owners, first, counts, ab, ts, X)``: the requests whose curves could be sampled
+    (:func:`_samples`), the first row and number of rows of each, and the rows of all of them; or
+    None when no request could be.
+    """
+    got, owners = [], []
+    for r, (_, items, _, _) in enumerate(requests):
+        g = _samples(items)
+        if g is not None:
+            got.append(g)
+            owners.append(r)
+    if not got:
+        return None
+    counts = np.array([g[0].shape[0] for g in got])
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return (owners, first, counts, *(np.concatenate([g[i] for g in got]) for i in range(3)))
 
 
 def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -693,7 +705,6 @@ def evaluate_curves(curves: list, T: np.ndarray) -> np.ndarray:
     return X
 
 
-
 def _cheap_analytic_many(requests: list, t: Tolerance) -> None:
     """Fill ``out[i]`` with ``(Line2D, deviation)`` for the items whose p-curve on an analytic surface is affine in ``t``.
 
@@ -702,20 +713,11 @@ def _cheap_analytic_many(requests: list, t: Tolerance) -> None:
     call each; unwrapping, the shift towards ``box``, the least-squares lines and the
     deviations run over the items of all requests at once.
     """
-    got, owners = [], []
-    for r, (surface, items, box, out) in enumerate(requests):
-        g = _samples(items)
-        if g is not None:
-            got.append(g)
-            owners.append(r)
-    if not got:
+    got = _gathered(requests)
+    if got is None:
         return
-    counts = np.array([g[0].shape[0] for g in got])
-    ab = np.concatenate([g[0] for g in got])
-    ts = np.concatenate([g[1] for g in got])
-    X = np.concatenate([g[2] for g in got])
+    owners, first, counts, ab, ts, X = got
     k, n = ts.shape
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
     uv = np.empty((k, n, 2))
     free = np.empty((k, n, 2), dtype=bool)
     period = np.full((k, 2), np.nan)

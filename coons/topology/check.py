@@ -262,8 +262,9 @@ class _PcurveSamples:
     pos: np.ndarray
 
 
-def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """``pcurves[which[k]]`` at the parameters ``T[k]``, ``(k, n, 2)``: lines and ellipses in array time."""
+def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``pcurves[which[k]]`` at the parameters ``T[k]``, ``(k, n, 2)``, lines and ellipses in array time;
+    and whether each is a :class:`Line2D`, ``(k,)``."""
     out = np.empty(T.shape + (2,))
     kind = np.array([0 if isinstance(p, Line2D) else 1 if isinstance(p, Trig2D) else 2 for p in pcurves] + [2])
     k = kind[which]
@@ -281,7 +282,7 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> np.ndarray:
         out[rows] = C[:, None, :] + np.cos(tt) * A[:, None, :] + np.sin(tt) * B[:, None, :]
     for r in np.flatnonzero(k == 2):
         out[r] = pcurves[int(which[r])].evaluate(T[r])
-    return out
+    return out, k == 0
 
 
 def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> _PcurveSamples:
@@ -306,10 +307,10 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
     pi = b.edge_pcurve[e, side]
     f = b.edge_face[e, side]
     n = rr.size
-    uv = _pcurves_at(b.pcurves, pi, T[rr])
+    uv, line = _pcurves_at(b.pcurves, pi, T[rr])
     D = derivatives_surfaces(b.surfaces, np.repeat(b.face_surface[f], samples), uv[..., 0].ravel(),
                              uv[..., 1].ravel(), 1).reshape(n, samples, 2, 2, 3)
-    dev = np.linalg.norm(D[:, :, 0, 0] - P[rr], axis=-1).max(axis=1) if n else np.zeros(0)
+    dev = np.linalg.norm(D[:, :, 0, 0] - P[rr], axis=-1).max(axis=1)
     speed = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
     for k in np.flatnonzero(dev > b.edge_tol[e] + t.linear):
         out.append(Problem("pcurve-deviation", "edge", int(e[k]),
@@ -318,17 +319,16 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
     coedge = 2 * e + side
     pos = np.full(2 * b.n_edges, -1, dtype=np.int64)
     pos[coedge] = np.arange(n)
-    line = np.array([isinstance(p, Line2D) for p in b.pcurves] + [False], dtype=bool)[pi]
     table = _PcurveSamples(coedge, uv, speed, line, pos)
     # Coedge start/end in parameter space (the right side runs backwards).
     fwd = (side == 0)[:, None]
-    start = np.where(fwd, uv[:, 0], uv[:, -1]) if n else np.zeros((0, 2))
-    end = np.where(fwd, uv[:, -1], uv[:, 0]) if n else np.zeros((0, 2))
+    start = np.where(fwd, uv[:, 0], uv[:, -1])
+    end = np.where(fwd, uv[:, -1], uv[:, 0])
     # Loops closed in parameter space, allowing a jump along a collapsed side (a pole).
     # Equal up to the round-off of evaluating two p-curves at their end parameters: closed.
     # Anything larger is decided in 3-D below (a gap is allowed only where its whole segment
     # maps onto the vertex, as at a pole), so no parameter-space length threshold is guessed.
-    j = pos[b.coedge_next[coedge]] if n else np.zeros(0, dtype=np.int64)
+    j = pos[b.coedge_next[coedge]]
     i = np.flatnonzero(j >= 0)
     j = j[i]
     far = np.linalg.norm(end[i] - start[j], axis=1) > t.solver * (1.0 + np.abs(end[i]).max(axis=1))
@@ -357,8 +357,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
 
 
 # ---------------------------------------------------------------------- trims
-def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem],
-                 table: _PcurveSamples | None = None) -> None:
+def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table: _PcurveSamples) -> None:
     """Self-intersecting trim loops: two segments of a face's boundary polylines crossing properly.
 
     Every loop of a face is turned into a closed polyline in the face's parameter plane (its
@@ -399,24 +398,14 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     if np.any(vec_faces):
         parts.append(_implicit_segments(b, vec_faces, t))
     on_surface = b.face_surface >= 0
-    if table is not None:
-        # Faces on surfaces: rings from the shared p-curve samples, all faces at once.
-        seg = _sampled_rings(b, np.flatnonzero(on_surface & ~simple), np.flatnonzero(on_surface & simple),
-                             table, samples, t, out)
-        if seg is not None:
-            parts.append(seg)
-        rest = np.flatnonzero(~simple & ~vec_faces & ~on_surface)
-    else:
-        rest = np.flatnonzero(~simple & ~vec_faces)
-        for f in np.flatnonzero(simple & on_surface):
-            found = _face_rings(b, int(f), samples)
-            if found is not None:
-                _check_face_sense(b, int(f), found[0], t, out)
-    for f in rest:
-        found = _face_rings(b, int(f), samples) if b.face_surface[f] >= 0 else None
-        if found is not None:
-            _check_face_sense(b, int(f), found[0], t, out)
-        seg = _face_segments(b, int(f), samples, t, found)
+    # Faces on surfaces: rings from the p-curve samples of the geometric check, all faces at once
+    # (orientation of every one, segments of those that can cross); implicit planes face by face.
+    seg = _sampled_rings(b, np.flatnonzero(on_surface & ~simple), np.flatnonzero(on_surface & simple),
+                         table, samples, t, out)
+    if seg is not None:
+        parts.append(seg)
+    for f in np.flatnonzero(~simple & ~vec_faces & ~on_surface):
+        seg = _face_segments(b, int(f), samples, t)
         if seg is not None:
             parts.append(seg)
     if not parts:
@@ -448,7 +437,11 @@ def _loop_ranks(b: BRep) -> np.ndarray:
     rank = np.where(first, 0, 1)
     jump = b.coedge_prev.copy()
     done = first.copy()
-    while not done.all():
+    # Every loop is one cycle holding its first coedge (checked before): each round doubles the
+    # reach, so ceil(log2(nc)) + 1 rounds finish.
+    for _ in range(max(1, nc).bit_length() + 1):
+        if done.all():
+            break
         todo = np.flatnonzero(~done)
         nxt = jump[todo]
         rank[todo] += rank[nxt]
@@ -457,15 +450,32 @@ def _loop_ranks(b: BRep) -> np.ndarray:
     return rank
 
 
+def _ring_successors(ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rings as contiguous runs of equal labels ``ring (m,)``: the first index of each run, and each
+    point's successor in its ring (the last point's is the run's first)."""
+    m = ring.shape[0]
+    starts = np.flatnonzero(np.concatenate([[True], ring[1:] != ring[:-1]]))
+    nxt = np.arange(1, m + 1)
+    nxt[np.append(starts[1:], m) - 1] = starts
+    return starts, nxt
+
+
 def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, table: _PcurveSamples, samples: int,
                    t: Tolerance, out: list[Problem]) -> tuple[np.ndarray, ...] | None:
-    """:func:`_face_rings`, :func:`_check_face_sense` and :func:`_face_segments` for many faces on surfaces at once.
+    """:func:`_face_rings` and :func:`_face_segments` for many faces on surfaces at once, and their orientation.
 
     Every loop of ``cross_faces`` and ``sense_faces`` becomes its ring of p-curve samples (both
     ends of a :class:`Line2D`, every sample of other p-curves, reversed on the right side) taken
     from ``table``; faces with a coedge without p-curve are skipped, as there.  The orientation of
     every face is checked (appending to ``out``); the segments of ``cross_faces`` are returned in
     the form of :func:`_face_segments` (one part for all of them), or None when there are none.
+
+    Orientation: with ``face_sense`` True (outward normal ``Su × Sv``) the outer loop runs
+    counter-clockwise in the parameter plane and holes clockwise, so the loops' total signed area
+    (shoelace over the rings) is positive; with False it is negative.  A face whose loops run the
+    other way has its material on the wrong side: the shell's volume can still come out right when
+    another face compensates, so the sign is checked per face.  Areas within the sampling's
+    resolution of zero (``1e-9`` of the largest ring's parameter box) are not judged.
     """
     faces = np.concatenate([cross_faces, sense_faces]).astype(np.int64)
     if faces.size == 0 or b.n_edges == 0:
@@ -494,11 +504,8 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     ring = loop[rep]
     face = b.coedge_face[owner]
     m = pts.shape[0]
-    starts = np.flatnonzero(np.concatenate([[True], ring[1:] != ring[:-1]]))
-    lengths = np.diff(np.append(starts, m))
-    ring_id = np.repeat(np.arange(starts.size), lengths)
-    nxt = np.arange(1, m + 1)
-    nxt[starts + lengths - 1] = starts
+    starts, nxt = _ring_successors(ring)
+    ring_id = np.repeat(np.arange(starts.size), np.diff(np.append(starts, m)))
     # Orientation: the shoelace area of each ring (relative to its first point), summed per face.
     x = pts - pts[starts][ring_id]
     area = 0.5 * np.bincount(face, weights=x[:, 0] * x[nxt, 1] - x[nxt, 0] * x[:, 1], minlength=b.n_faces)
@@ -524,11 +531,7 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     idx = np.flatnonzero(keep)
     if idx.size == 0:
         return None
-    r2 = ring_id[idx]
-    st2 = np.flatnonzero(np.concatenate([[True], r2[1:] != r2[:-1]]))
-    ln2 = np.diff(np.append(st2, idx.size))
-    nxt2 = np.arange(1, idx.size + 1)
-    nxt2[st2 + ln2 - 1] = st2
+    _, nxt2 = _ring_successors(ring_id[idx])
     A = pts[idx]
     return A, A[nxt2], face[idx], nxt2, owner[idx], eps_face[face[idx]]
 
@@ -571,31 +574,6 @@ def _crossings(parts: list[tuple[np.ndarray, ...]]) -> dict[int, tuple[int, int,
         w = s1[k] / (s1[k] - s2[k])
         found[int(face[i[k]])] = (int(coedge[i[k]]), int(coedge[j[k]]), A[j[k]] + w * (B[j[k]] - A[j[k]]))
     return found
-
-
-def _check_face_sense(b: BRep, f: int, rings: list[np.ndarray], t: Tolerance, out: list[Problem]) -> None:
-    """The face lies on the left of its loops: their signed area in the parameter plane has the sign of the sense.
-
-    With ``face_sense`` True (outward normal ``Su × Sv``) the outer loop runs counter-clockwise in
-    the parameter plane and holes clockwise, so the loops' total signed area (shoelace over the
-    sampled rings, a pole's parameter-space jump closing its ring) is positive; with False it is
-    negative.  A face whose loops run the other way has its material on the wrong side: the
-    shell's volume can still come out right when another face compensates, so the sign is
-    checked per face.  Areas within the sampling's resolution of zero are not judged.
-    """
-    area = 0.0
-    scale = 0.0
-    for r in rings:
-        x, y = r[:, 0] - r[0, 0], r[:, 1] - r[0, 1]
-        area += 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-        scale = max(scale, float(np.ptp(r[:, 0])) * float(np.ptp(r[:, 1])))
-    # Relative to the loops' parameter box: chords of curved edges change the area by a fraction of it.
-    if abs(area) <= 1e-9 * scale:
-        return
-    if (area > 0) != bool(b.face_sense[f]):
-        out.append(Problem("face-orientation", "face", f,
-                           f"its loops enclose signed area {area:.6g} in the parameter plane but face_sense is "
-                           f"{bool(b.face_sense[f])} (the face lies on the wrong side of its boundary)"))
 
 
 def _implicit_segments(b: BRep, faces: np.ndarray, t: Tolerance) -> tuple[np.ndarray, ...]:
@@ -660,15 +638,15 @@ def _face_rings(b: BRep, f: int, samples: int) -> tuple[list[np.ndarray], list[n
     return rings, owners
 
 
-def _face_segments(b: BRep, f: int, samples: int, t: Tolerance,
-                   found: tuple[list[np.ndarray], list[np.ndarray]] | None = None) -> tuple[np.ndarray, ...] | None:
+def _face_segments(b: BRep, f: int, samples: int, t: Tolerance) -> tuple[np.ndarray, ...] | None:
     """Boundary polylines of one face in its parameter plane (or Newell plane), as segments.
 
-    ``found`` passes rings already sampled by :func:`_face_rings`.  Returns None when a coedge of a
+    For implicit planar faces and for sampling again finer where crossings were found (the
+    first pass of faces on surfaces is :func:`_sampled_rings`).  Returns None when a coedge of a
     face on a surface has no p-curve (nothing to sample).
     """
     si = int(b.face_surface[f])
-    found = found if found is not None else _face_rings(b, f, samples)
+    found = _face_rings(b, f, samples)
     if found is None:
         return None
     rings, owners = found

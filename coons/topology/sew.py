@@ -43,7 +43,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
-from coons.kernel.analytic import TWO_PI, Circle, Line
+from coons.kernel.analytic import TWO_PI, Circle, Line, scalar_parameter, scalar_point
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -465,9 +465,8 @@ def _distance_to_curve(p: np.ndarray, spec: EdgeSpec, n: int = 33, rounds: int =
 
 def _line_distance(curve: Line, p: np.ndarray, lo: float, hi: float) -> float:
     """Distance from ``p`` to the segment ``curve([lo, hi])`` (the projection clamped to the range)."""
-    O, D, P = curve.origin.tolist(), curve.direction.tolist(), p.tolist()
-    s = min(max(sum((P[k] - O[k]) * D[k] for k in range(3)), lo), hi)
-    return math.dist(P, [O[k] + s * D[k] for k in range(3)])
+    P = p.tolist()
+    return math.dist(P, scalar_point(curve, min(max(scalar_parameter(curve, P), lo), hi)))
 
 
 def _circle_distance(curve: Circle, p: np.ndarray, lo: float, hi: float) -> float:
@@ -475,18 +474,13 @@ def _circle_distance(curve: Circle, p: np.ndarray, lo: float, hi: float) -> floa
 
     The distance to the points of a circle falls monotonically from the angle opposite the
     projection to the projection's angle, so on an arc it is least at that angle or at an end.
-    Python floats: two points do not pay for numpy calls.
     """
-    C, P = curve.center.tolist(), p.tolist()
-    X, Y, _ = curve.frame.tolist()
-    R = float(curve.radius)
-    r = [P[k] - C[k] for k in range(3)]
-    x, y = sum(r[k] * X[k] for k in range(3)), sum(r[k] * Y[k] for k in range(3))
+    P = p.tolist()
     ts = [lo, hi]
-    a = math.atan2(y, x) if (x or y) else 0.0
+    a = scalar_parameter(curve, P)
     if (a - lo) % TWO_PI <= hi - lo:
         ts.append(lo + (a - lo) % TWO_PI)
-    return min(math.dist(P, [C[k] + R * math.cos(t) * X[k] + R * math.sin(t) * Y[k] for k in range(3)]) for t in ts)
+    return min(math.dist(P, scalar_point(curve, t)) for t in ts)
 
 
 #: Curves whose distance from a point has a closed form (the sampled zoom serves the others).

@@ -54,6 +54,24 @@ def grid_pair(g1, g2, q, t):
     return box(l1, h1).transformed(M), box(l2, h2).transformed(M), vols
 
 
+def draw_rotated_pair(rng: np.random.Generator):
+    """A random pair of grid boxes ``g = (lo, size)`` (integer corners in ``[0, 4)``, sizes in ``[1, 4)``)
+    and the rigid motion ``(q, t)`` that turns both: ``(g1, g2, q, t)`` for :func:`grid_pair`."""
+    q = rng.uniform(-1, 1, 4)
+    while np.linalg.norm(q) < 0.1:
+        q = rng.uniform(-1, 1, 4)
+    t = rng.uniform(-1, 1, 3)
+    g1 = np.r_[rng.integers(0, 4, 3), rng.integers(1, 4, 3)]
+    g2 = np.r_[rng.integers(0, 4, 3), rng.integers(1, 4, 3)]
+    return g1, g2, q, t
+
+
+def touch_only(g1, g2) -> bool:
+    """The grid boxes share only an edge or a corner (their union is not a manifold)."""
+    d = np.minimum(g1[:3] + g1[3:], g2[:3] + g2[3:]) - np.maximum(g1[:3], g2[:3])
+    return bool(np.all(d >= 0) and np.sum(d == 0) >= 2)
+
+
 def meshes(a: Solid, b: Solid):
     t = Tolerance()
     return poly._meshes(a, "A", t), poly._meshes(b, "B", t)
@@ -265,22 +283,36 @@ def test_a_fixed_batch_of_rotated_grid_boxes_all_succeed():
 
     rng = np.random.default_rng(1)
     for _ in range(30):
-        q = rng.uniform(-1, 1, 4)
-        while np.linalg.norm(q) < 0.1:
-            q = rng.uniform(-1, 1, 4)
-        t = rng.uniform(-1, 1, 3)
-        g1 = np.r_[rng.integers(0, 4, 3), rng.integers(1, 4, 3)]
-        g2 = np.r_[rng.integers(0, 4, 3), rng.integers(1, 4, 3)]
+        g1, g2, q, t = draw_rotated_pair(rng)
         a, b, vols = grid_pair(g1, g2, q, t)
-        d = np.minimum(g1[:3] + g1[3:], g2[:3] + g2[3:]) - np.maximum(g1[:3], g2[:3])
-        touch_only = bool(np.all(d >= 0) and np.sum(d == 0) >= 2)
+        touching = touch_only(g1, g2)
         for op, v in vols.items():
             try:
                 r = poly.boolean(a, b, op)
             except BooleanError as exc:
-                assert op == "union" and touch_only and "not a manifold" in str(exc), (g1, g2, op, str(exc))
+                assert op == "union" and touching and "not a manifold" in str(exc), (g1, g2, op, str(exc))
                 continue
             assert r.check().ok, (g1, g2, op)
             vol = 0.0 if r.is_empty else r.volume
             np.testing.assert_allclose(vol, v, rtol=0, atol=ROTATED_RTOL * sum(vols.values()),
                                        err_msg=str((g1, g2, op)))
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_boundary_chains_walk_each_triangle_through_its_edge_points(seed):
+    """The array form of the snap's triangle boundaries equals walking each triangle's edges one by one
+    (``_chain``: each corner, then the points its edge gained, in the edge's direction)."""
+    from coons.booleans._mesh_arrangement import _boundary_chains, _chain
+
+    rng = np.random.default_rng(seed)
+    NG = 50
+    tri = np.array([rng.choice(30, 3, replace=False) for _ in range(int(rng.integers(1, 20)))])
+    chains = {}
+    for _ in range(int(rng.integers(0, 10))):
+        u, v = sorted(rng.choice(30, 2, replace=False).tolist())
+        chains[u * NG + v] = rng.integers(30, 50, int(rng.integers(1, 4)))
+    loops = [[p for k in range(3) for p in _chain(r[k], r[(k + 1) % 3], chains, NG)[:-1]] for r in tri.tolist()]
+    owner, tail, head = _boundary_chains(tri, chains, NG)
+    np.testing.assert_array_equal(owner, np.repeat(np.arange(len(loops)), [len(lp) for lp in loops]))
+    np.testing.assert_array_equal(tail, np.concatenate(loops))
+    np.testing.assert_array_equal(head, np.concatenate([np.roll(lp, -1) for lp in loops]))

@@ -607,3 +607,25 @@ def test_default_to_nurbs_are_full_turns():
 def test_to_nurbs_rejects_bad_ranges(call, error, match):
     with pytest.raises(error, match=match):
         call()
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_scalar_parameter_and_point_agree_with_the_array_methods(seed):
+    """The Python-float forms used for single points (edge matching, STEP edges) give the array
+    methods' values to round-off, for lines and circles."""
+    from coons.errors import InvalidInputError
+    from coons.kernel.analytic import Circle, Line, scalar_parameter, scalar_point
+
+    rng = np.random.default_rng(seed)
+    c = Circle(rng.normal(size=3) * 10, rng.normal(size=3) + 0.1, rng.normal(size=3), float(rng.uniform(0.1, 10)))
+    L = Line(rng.normal(size=3) * 10, rng.normal(size=3) + 0.1)
+    P = rng.normal(size=(4, 3)) * 10
+    for curve in (c, L):
+        want = curve.closest_parameters(P)
+        got = np.array([scalar_parameter(curve, p) for p in P])
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * (1 + np.abs(want).max()))
+        ts = rng.uniform(-7.0, 7.0, 5)
+        np.testing.assert_allclose([scalar_point(curve, x) for x in ts], curve.evaluate(ts), rtol=0, atol=1e-12 * 100)
+    assert scalar_parameter(Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0), [0.0, 0.0, 2.0]) == 0.0  # on the axis
+    with pytest.raises(InvalidInputError, match="Line or a Circle"):
+        scalar_parameter(object(), P[0])

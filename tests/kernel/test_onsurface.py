@@ -388,3 +388,15 @@ def test_closed_nurbs_with_an_unbounded_box_is_finite():
     assert np.all(np.isfinite(pc.evaluate(s)))
     np.testing.assert_allclose(pc.evaluate(s), ref.evaluate(s), rtol=0, atol=1e-12)
     _check(nurbs, meridian, 0.1, PI / 2, pc, dev, 2 * TOL.linear)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_unwrap_rows_is_numpy_unwrap_with_a_period_per_row(seed):
+    from coons.kernel.onsurface import _unwrap_rows
+
+    rng = np.random.default_rng(seed)
+    col = rng.uniform(-20.0, 20.0, (12, 30))
+    col[:, 5] = col[:, 4] + math.pi  # a jump of exactly half of 2π: numpy's tie rule
+    per = rng.choice([2.0 * math.pi, 1.0, 3.0], 12)
+    want = np.stack([np.unwrap(col[i], period=per[i]) for i in range(12)])
+    np.testing.assert_array_equal(_unwrap_rows(col, per), want)

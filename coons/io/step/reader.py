@@ -19,7 +19,7 @@ Part 21 fast path defers the conversion of common instances until they are read,
 of all faces come from one batched call (:func:`coons.kernel.onsurface.cheap_pcurves_many`),
 and the checker evaluates every p-curve sample of the model at once.  On the benchmark models
 (``benchmarks/bench_io.py``: a plate with 400 holes, a box of 1014 bilinear B-spline faces)
-the import runs at about OCCT's speed (0.8-1.2x across runs on this machine); what is left is
+the import runs at about OCCT's speed (0.6-1.2x across runs on this machine); what is left is
 spread over parsing, schema objects, normalisation and sewing, a few hundred milliseconds each.
 """
 

@@ -333,8 +333,8 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     cuts_a, cuts_b = _intersect(A, B, I, J, t)
     pieces_a = _split(A, cuts_a, t)
     pieces_b = _split(B, cuts_b, t)
-    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I))
-    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J))
+    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I), cuts=cuts_a)
+    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J), cuts=cuts_b)
     faces = _select(op, pieces_a, status_a, pieces_b, status_b)
     if not faces:
         return Solid.empty()
@@ -1003,8 +1003,13 @@ def _unpaired(n: int, idx: np.ndarray) -> np.ndarray:
 
 
 def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: Tolerance,
-              free: np.ndarray | None = None) -> np.ndarray:
+              free: np.ndarray | None = None, cuts: dict[int, list[EdgeSpec]] | None = None) -> np.ndarray:
     """Status of every piece of X with respect to solid Y (``(k,)`` int8 of OUT/IN/ON_SAME/ON_OPPOSITE).
+
+    Each piece is classified by an interior point (:func:`_interior_point`) clear of its
+    boundary and of the cuts of its face (``cuts``, face -> cuts) that bound no piece: the
+    lines of tangent contact with Y that ``split_face`` dropped, on which the point would be
+    *on* Y.
 
     A piece of a face in ``free`` (no broad-phase pair: the face is farther from Y's boundary
     than the boxes' padding everywhere) is classified by any of its points, its first vertex,
@@ -1024,9 +1029,14 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
     N = np.empty((len(pieces), 3))
     quick = np.zeros(len(pieces), dtype=bool)
 
+    dangling = _dangling_cuts(pieces, cuts or {})
+
     def interior(k: int, f: int, spec: FaceSpec) -> None:
         try:
-            P[k], N[k] = _interior_point(spec)
+            avoid = None
+            if f in dangling:
+                avoid = np.concatenate([_polyline_segments(_edge_uv(c, spec.surface, _LOOP_SAMPLES)) for c in dangling[f]])
+            P[k], N[k] = _interior_point(spec, t, avoid)
         except CoonsError as exc:
             raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
                                diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
@@ -1060,17 +1070,55 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
     return status
 
 
-def _interior_point(spec: FaceSpec) -> tuple[np.ndarray, np.ndarray]:
+def _dangling_cuts(pieces: list[tuple[int, FaceSpec]], cuts: dict[int, list[EdgeSpec]]) -> dict[int, list[EdgeSpec]]:
+    """Per face, the cuts that no piece of it uses along any part of their range (dropped by the split)."""
+    spans: dict[tuple[int, int], list[tuple[float, float]]] = {}
+    for f, p in pieces:
+        if f in cuts:
+            for loop in p.loops:
+                for e in loop:
+                    spans.setdefault((f, id(e.curve)), []).append((min(e.t0, e.t1), max(e.t0, e.t1)))
+    out: dict[int, list[EdgeSpec]] = {}
+    for f, cs in cuts.items():
+        for c in cs:
+            lo, hi = min(c.t0, c.t1), max(c.t0, c.t1)
+            if not any(a < hi and b > lo for a, b in spans.get((f, id(c.curve)), ())):
+                out.setdefault(f, []).append(c)
+    return out
+
+
+def _polyline_segments(R: np.ndarray) -> np.ndarray:
+    """The segments ``(k - 1, 2, 2)`` of an open polyline ``(k, 2)``."""
+    return np.stack([R[:-1], R[1:]], axis=1)
+
+
+def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A point of the piece's interior away from its boundary, and the outward normal there.
 
-    The candidates are a grid over the parameter box of the trim polygon (refined once when
-    none lies inside); the one inside farthest from the polygon wins, distances measured with
-    the surface's first fundamental form at the box centre.
+    The candidates are a grid over the parameter box of the trim polygon, ``n × (n + 2)`` for
+    ``n`` = 16, 64, 256 in turn; the one inside farthest from the polygon and from the segments
+    ``avoid`` wins, distances measured with the surface's first fundamental form at the box
+    centre, provided it is more than ``_INTERIOR_CLEARANCE · tol.linear`` from them (else the
+    next grid is tried).  The two even counts keep grid points off the box's centre lines and
+    diagonals: a piece cut by a straight chord between two corners of its box (a circular
+    segment) has its chord on a diagonal, where an ``n × n`` grid would put candidates exactly
+    on it and the in-polygon test and the classifier that follows would be decided by rounding.
+
+    Parameters
+    ----------
+    spec : FaceSpec
+    t : Tolerance
+    avoid : (m, 2, 2) array of float, optional
+        Parameter-plane segments inside the piece to keep clear of as of its boundary: the
+        intersection curves that end inside the face (a line of tangent contact), along which
+        a point would be *on* the other solid.  On a periodic surface they are also taken one
+        period to either side.
 
     Raises
     ------
     InvalidInputError
-        No grid point lies inside the trim polygon (a sliver thinner than the finest grid).
+        No grid point lies inside the trim polygon clear of its boundary (a sliver thinner
+        than the finest grid).
     """
     from coons.booleans.classify import _in_polygon, _segment_distance
 
@@ -1083,20 +1131,41 @@ def _interior_point(spec: FaceSpec) -> tuple[np.ndarray, np.ndarray]:
     D = np.asarray(S.derivatives(c[0], c[1], 1))
     scale = np.array([np.linalg.norm(D[1, 0]), np.linalg.norm(D[0, 1])])
     scale = np.where(scale > 0, scale, 1.0)
+    clearance = _INTERIOR_CLEARANCE * t.linear
+    near = seg
+    if avoid is not None and len(avoid):
+        shifts = [np.array([du, dv]) for du in _period_steps(S, "period_u") for dv in _period_steps(S, "period_v")]
+        near = np.concatenate([seg] + [avoid + d for d in shifts])
     for n in (16, 64, 256):
-        g = (np.arange(n) + 0.5) / n
-        G = np.stack(np.meshgrid(lo[0] + g * (hi[0] - lo[0]), lo[1] + g * (hi[1] - lo[1]), indexing="ij"), -1).reshape(-1, 2)
+        gu = (np.arange(n) + 0.5) / n
+        gv = (np.arange(n + 2) + 0.5) / (n + 2)
+        G = np.stack(np.meshgrid(lo[0] + gu * (hi[0] - lo[0]), lo[1] + gv * (hi[1] - lo[1]), indexing="ij"), -1).reshape(-1, 2)
         G = G[_in_polygon(G, seg)]
         if G.shape[0]:
-            if G.shape[0] * seg.shape[0] > _EXACT_DISTANCES:
-                d = _boundary_distance(G * scale, seg * scale, n)
+            if G.shape[0] * near.shape[0] > _EXACT_DISTANCES:
+                d = _boundary_distance(G * scale, near * scale, n)
             else:
-                d = _segment_distance(G * scale, seg * scale)
-            uv = G[int(np.argmax(d))]
+                d = _segment_distance(G * scale, near * scale)
+            best = int(np.argmax(d))
+            if d[best] <= clearance:
+                continue
+            uv = G[best]
             P = np.asarray(S.evaluate(uv[0], uv[1]), dtype=np.float64).reshape(3)
             nrm = np.asarray(S.normal(uv[0], uv[1]), dtype=np.float64).reshape(3)
             return P, (nrm if spec.sense else -nrm)
-    raise InvalidInputError(f"no interior point found in a {_kind(spec)} piece with parameter box {lo.tolist()}–{hi.tolist()}")
+    raise InvalidInputError(f"no interior point found in a {_kind(spec)} piece with parameter box {lo.tolist()}–{hi.tolist()} "
+                            f"farther than {clearance:.3g} from its boundary")
+
+
+def _period_steps(S, name: str) -> tuple[float, ...]:
+    """``(0,)``, or ``(-p, 0, p)`` when S has the period ``p`` in that parameter."""
+    per = getattr(S, name, None)
+    return (-per, 0.0, per) if per else (0.0,)
+
+
+#: An interior point must be this many linear tolerances from its piece's boundary: nearer, the
+#: classifier would call it *on* the other solid wherever the boundary is an intersection curve.
+_INTERIOR_CLEARANCE = 10.0
 
 
 #: Above this many point–segment pairs, the interior point's distances to the boundary are
@@ -1374,7 +1443,7 @@ def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
     from coons.kernel.onsurface import pcurve_on
 
     try:
-        P, N = _interior_point(B)
+        P, N = _interior_point(B, t)
         uv = np.asarray(S.closest_parameters(P[None]), dtype=np.float64).reshape(2)
         if np.linalg.norm(np.asarray(S.evaluate(uv[0], uv[1])).reshape(3) - P) > t.linear:
             return None

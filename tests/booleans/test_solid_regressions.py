@@ -208,3 +208,68 @@ def test_chain_step_with_a_sphere_pole_near_a_hole_wall():
     assert abs(u + i - plate.volume - sphere) <= RTOL_ALGEBRA * (plate.volume + sphere)
     assert abs(d - plate.volume + i) <= RTOL_ALGEBRA * plate.volume
 
+
+
+@pytest.mark.parametrize("span", [0.05, 0.15, 0.4])
+def test_interior_point_of_a_circular_segment_keeps_off_its_chord(span):
+    """A piece cut from a disc by a chord (cyl-cyl-16's cap: a segment 0.007 thick) has its chord on
+    the diagonal of its parameter box.  The interior point must lie clear of the chord, the
+    intersection curve along which the other solid's face passes: a point on it is classified
+    *on* that solid and the piece is dropped (the union then came out open, depending on the
+    rounding of the BLAS kernel)."""
+    from coons.kernel.analytic import Circle, Line, PlanarSurface
+    from coons.topology.sew import EdgeSpec, FaceSpec
+
+    t = resolve(None)
+    R = 2.668662185533757
+    plane = PlanarSurface([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    circle = Circle([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], R)
+    clearance = S._INTERIOR_CLEARANCE * t.linear
+    for a0 in np.linspace(0.05, np.pi / 2 - span - 0.05, 23):
+        p0, p1 = circle.evaluate(a0), circle.evaluate(a0 + span)
+        chord = Line(p1, (p0 - p1) / np.linalg.norm(p0 - p1))
+        spec = FaceSpec(plane, True, [[EdgeSpec(circle, a0, a0 + span, None),
+                                       EdgeSpec(chord, 0.0, float(np.linalg.norm(p0 - p1)), None)]])
+        P, N = S._interior_point(spec, t)
+        off_chord = abs(float(np.cross(p1 - p0, P - p0)[2])) / np.linalg.norm(p1 - p0)
+        assert off_chord > clearance, a0
+        assert np.linalg.norm(P) < R - clearance, a0
+        np.testing.assert_allclose(N, [0.0, 0.0, 1.0])
+
+
+def test_interior_point_keeps_clear_of_dangling_cuts():
+    """A line of tangent contact that ends inside a face does not split it (split_face drops it),
+    but a piece's interior point on it would be *on* the other solid: the point keeps clear of
+    such cuts (``avoid``), here a segment laid through the point chosen without it."""
+    t = resolve(None)
+    def outward(s):
+        n = np.asarray(s.surface.normal(0.0, 0.0)).reshape(3)
+        return n if s.sense else -n
+
+    top = next(s for s in face_specs(Box(10, 10, 10)) if np.allclose(outward(s), [0, 0, 1]))
+    P0, _ = S._interior_point(top, t)
+    uv0 = np.asarray(top.surface.closest_parameters(P0[None])).reshape(2)
+    avoid = np.array([[uv0 - [3.0, 1.0], uv0 + [3.0, 1.0]]])
+    P1, _ = S._interior_point(top, t, avoid)
+    uv1 = np.asarray(top.surface.closest_parameters(P1[None])).reshape(2)
+    d = avoid[0, 1] - avoid[0, 0]
+    assert abs(float(np.cross(d, uv1 - avoid[0, 0]))) / np.linalg.norm(d) > S._INTERIOR_CLEARANCE * t.linear
+
+
+def test_tangent_line_of_contact_is_a_dangling_cut_of_the_face():
+    """A cylinder lying on a box's top face: the contact line is a cut of the top face that bounds
+    no piece, and it is the one the classification keeps clear of."""
+    t = resolve(None)
+    A = S._Operand(Box(10, 10, 10), "A", t)
+    B = S._Operand(Cylinder(1.0, 4.0, direction=(1, 0, 0)).translate((0, 0, 6.0)), "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, _ = S._intersect(A, B, I, J, t)
+    pieces = S._split(A, cuts_a, t)
+    dangling = S._dangling_cuts(pieces, cuts_a)
+    assert sorted(dangling) == sorted(cuts_a) and all(len(v) == len(cuts_a[f]) for f, v in dangling.items())
+    (f,) = dangling
+    ends = np.asarray([c.curve.evaluate(np.array([c.t0, c.t1])) for c in dangling[f]]).reshape(-1, 3)
+    np.testing.assert_allclose(np.sort(ends[:, 0]), [-2.0, 2.0], atol=1e-9)
+    np.testing.assert_allclose(ends[:, 1:], [[0.0, 5.0], [0.0, 5.0]], atol=1e-9)
+    status = S._classify(pieces, A, B, t, free=S._unpaired(len(A.specs), I), cuts=cuts_a)
+    assert (status == S.OUT).all()

@@ -460,6 +460,10 @@ def _into_domain(surface, curve, pc, dev: float, a: float, b: float, t: Toleranc
 _NEWTON_STEPS = 8
 
 
+#: Point–control-point pairs held at once by the seeding of :func:`_invert_nurbs_many`.
+_SEED_PAIRS = 1 << 18
+
+
 def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """Parameters of points ``P`` ``(m, 3)`` on NURBS surfaces ``surfaces[which[i]]``: nearest control point, then Gauss–Newton.
 
@@ -477,7 +481,7 @@ def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tole
     speed : (m, 2) float64
         ``|S_u|, |S_v|`` at the last Newton iterate (for detecting undetermined parameters).
     """
-    from coons.kernel.surface import derivatives_surfaces
+    from coons.kernel.surface import NurbsSurfaceStack, derivatives_surfaces
 
     def greville(knots, p, n):
         idx = np.arange(n)[:, None] + np.arange(1, p + 1)[None, :]
@@ -488,18 +492,30 @@ def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tole
     uv = np.empty((m, 2))
     lo, hi = np.empty((m, 2)), np.empty((m, 2))
     speed = np.zeros((m, 2))
-    for si in np.unique(which).tolist():
-        surface = surfaces[si]
-        rows = np.flatnonzero(which == si)
-        (u0, u1), (v0, v1) = surface.domain
-        C = np.asarray(surface.control_points, dtype=np.float64)
-        nu, nv = C.shape[:2]
-        gu = np.clip(greville(surface.knots_u, surface.degree_u, nu), u0, u1)
-        gv = np.clip(greville(surface.knots_v, surface.degree_v, nv), v0, v1)
-        G = C.reshape(-1, C.shape[-1])
-        Q = P[rows]
-        d2 = np.einsum("mj,mj->m", G, G)[None, :] - 2.0 * Q @ G.T
-        idx = np.argmin(d2, axis=1)
+    ids, inverse = np.unique(which, return_inverse=True)
+    groups: dict = {}
+    for k, si in enumerate(ids.tolist()):
+        groups.setdefault(NurbsSurfaceStack.key(surfaces[si]), []).append(k)
+    order = np.argsort(inverse, kind="stable")
+    starts = np.searchsorted(inverse[order], np.arange(ids.size + 1))
+    for members in groups.values():
+        # surfaces of one structure share knots, hence Greville abscissae: their seeds are one batch
+        # (the points' own nets gathered, nearest control point by squared distance)
+        S0 = surfaces[int(ids[members[0]])]
+        (u0, u1), (v0, v1) = S0.domain
+        C = np.stack([np.asarray(surfaces[int(ids[k])].control_points, dtype=np.float64) for k in members])
+        nu, nv = C.shape[1:3]
+        gu = np.clip(greville(S0.knots_u, S0.degree_u, nu), u0, u1)
+        gv = np.clip(greville(S0.knots_v, S0.degree_v, nv), v0, v1)
+        G = C.reshape(len(members), nu * nv, -1)
+        rows = np.concatenate([order[starts[k]:starts[k + 1]] for k in members])
+        local = np.repeat(np.arange(len(members)), [starts[k + 1] - starts[k] for k in members])
+        idx = np.empty(rows.size, dtype=np.int64)
+        step = max(1, _SEED_PAIRS // (nu * nv))
+        for s0 in range(0, rows.size, step):  # bounded memory for large nets
+            sl = slice(s0, s0 + step)
+            diff = G[local[sl]] - P[rows[sl]][:, None, :]
+            idx[sl] = np.argmin(np.einsum("mcj,mcj->mc", diff, diff), axis=1)
         uv[rows, 0], uv[rows, 1] = gu[idx // nv], gv[idx % nv]
         lo[rows], hi[rows] = (u0, v0), (u1, v1)
     todo = np.arange(m)
@@ -624,12 +640,12 @@ def _cheap_lines_many(requests: list, t: Tolerance) -> None:
     E = Q[:, [0, -1]]
     inside = np.all((E[..., 0] >= u0[:, None]) & (E[..., 0] <= u1[:, None])
                     & (E[..., 1] >= v0[:, None]) & (E[..., 1] <= v1[:, None]), axis=1)
-    for i in np.flatnonzero(determined & (dev <= t.linear) & np.any(d != 0.0, axis=1)):
+    good = np.flatnonzero(determined & (dev <= t.linear) & np.any(d != 0.0, axis=1))
+    for i, pc in zip(good.tolist(), Line2D.many(o[good], d[good])):
         g = int(item_surface[i])
         surface, items, _, out = requests[owners[g]]
         j = int(i - first[g])
         c, a, b = items[j]
-        pc = Line2D(o[i], d[i])
         out[j] = (pc, float(dev[i])) if inside[i] else _into_domain(surface, c, pc, float(dev[i]), float(a), float(b), t)
 
 
@@ -640,6 +656,11 @@ def _gathered(requests: list):
     (:func:`_samples`), the first row and number of rows of each, and the rows of all of them; or
     None when no request could be.
     """
+    counts = np.array([len(items) for _, items, _, _ in requests], dtype=np.int64)
+    whole = _samples([it for _, items, _, _ in requests for it in items]) if counts.all() else None
+    if whole is not None:  # the common case: every curve of every request could be sampled, in one call
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        return (list(range(len(requests))), first, counts, *whole)
     got, owners = [], []
     for r, (_, items, _, _) in enumerate(requests):
         g = _samples(items)
@@ -761,9 +782,10 @@ def _cheap_analytic_many(requests: list, t: Tolerance) -> None:
     dev = np.linalg.norm(S - X, axis=-1).max(axis=1)
     good = ~free.any(axis=(1, 2)) & (dev <= t.linear) & np.any(d != 0.0, axis=1)
     owner = np.repeat(np.arange(len(owners)), counts)
-    for i in np.flatnonzero(good):
+    idx = np.flatnonzero(good)
+    for i, pc in zip(idx.tolist(), Line2D.many(o[idx], d[idx])):
         g = int(owner[i])
-        requests[owners[g]][3][int(i - first[g])] = (Line2D(o[i], d[i]), float(dev[i]))
+        requests[owners[g]][3][int(i - first[g])] = (pc, float(dev[i]))
 
 
 def _unwrap_rows(col: np.ndarray, period: np.ndarray) -> np.ndarray:

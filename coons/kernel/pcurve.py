@@ -80,6 +80,37 @@ class Line2D:
         if not np.any(self.direction):
             raise InvalidGeometryError("Line2D direction must be non-zero")
 
+    @classmethod
+    def many(cls, origins, directions) -> list["Line2D"]:
+        """One line per row of ``origins`` and ``directions`` (``(k, 2)`` each), checked in one pass.
+
+        For the callers that build thousands of p-curves at once (the STEP import): the same
+        checks as the constructor, on whole arrays; each line holds read-only rows of them.
+
+        Raises
+        ------
+        InvalidGeometryError
+            Shapes other than ``(k, 2)``, non-finite values or a zero direction (the first bad row is named).
+        """
+        O = np.array(origins, dtype=np.float64)
+        D = np.array(directions, dtype=np.float64)
+        if O.ndim != 2 or O.shape[1:] != (2,) or D.shape != O.shape:
+            raise InvalidGeometryError(f"Line2D.many needs two (k, 2) arrays, got shapes {O.shape} and {D.shape}")
+        bad = np.flatnonzero(~np.isfinite(O).all(axis=1) | ~np.isfinite(D).all(axis=1) | ~D.any(axis=1))
+        if bad.size:
+            k = int(bad[0])
+            raise InvalidGeometryError(f"Line2D.many: row {k} (origin {O[k].tolist()}, direction {D[k].tolist()}) "
+                                       "is not finite or has a zero direction")
+        O.setflags(write=False)
+        D.setflags(write=False)
+        out = []
+        for o, d in zip(O, D):
+            line = object.__new__(cls)
+            object.__setattr__(line, "origin", o)
+            object.__setattr__(line, "direction", d)
+            out.append(line)
+        return out
+
     def evaluate(self, t) -> np.ndarray:
         t = _params(t)
         return self.origin + t[..., None] * self.direction

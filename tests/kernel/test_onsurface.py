@@ -400,3 +400,47 @@ def test_unwrap_rows_is_numpy_unwrap_with_a_period_per_row(seed):
     per = rng.choice([2.0 * math.pi, 1.0, 3.0], 12)
     want = np.stack([np.unwrap(col[i], period=per[i]) for i in range(12)])
     np.testing.assert_array_equal(_unwrap_rows(col, per), want)
+
+
+def test_cheap_pcurves_many_over_mixed_structures_matches_one_surface_at_a_time():
+    # Bilinear patches (one structure, seeded as one batch) and a bicubic bump (another), with the
+    # bump's iso-curve and boundary lines: the batch gives each request what pcurves_on gives it alone.
+    from coons.kernel.onsurface import cheap_pcurves_many
+
+    patches = [_bilinear(z) for z in (0.0, 0.5, -0.7)]
+    requests = []
+    for S in patches:
+        P = S.evaluate(np.array([0.0, 1.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0, 1.0]))
+        requests.append((S, [(Line(P[q], P[(q + 1) % 4] - P[q]), 0.0, float(np.linalg.norm(P[(q + 1) % 4] - P[q])))
+                             for q in range(4)], None))
+    bump = _bump()
+    iso = bump.iso_curve("v", 0.3)
+    requests.insert(1, (bump, [(iso, *iso.domain)], None))
+    got = cheap_pcurves_many(requests)
+    for (S, items, box), out in zip(requests, got):
+        alone = pcurves_on(S, items, box, general=False)
+        assert len(out) == len(alone) == len(items)
+        for (curve, t0, t1), (pc, dev), (ref, ref_dev) in zip(items, out, alone):
+            assert isinstance(pc, Line2D)
+            s = np.linspace(t0, t1, 17)
+            np.testing.assert_allclose(pc.evaluate(s), ref.evaluate(s), rtol=0, atol=1e-12)
+            _check(S, curve, t0, t1, pc, dev, 2 * TOL.linear)
+
+
+def test_line2d_many_is_the_constructor_row_by_row():
+    O = np.array([[0.0, 1.0], [2.5, -3.0]])
+    D = np.array([[1.0, 0.0], [0.5, 0.25]])
+    lines = Line2D.many(O, D)
+    for o, d, ln in zip(O, D, lines):
+        ref = Line2D(o, d)
+        np.testing.assert_array_equal(ln.evaluate([0.0, 2.0]), ref.evaluate([0.0, 2.0]))
+        assert not ln.origin.flags.writeable and not ln.direction.flags.writeable
+    O[0, 0] = 99.0  # the lines hold copies
+    assert lines[0].origin[0] == 0.0
+    assert Line2D.many(np.empty((0, 2)), np.empty((0, 2))) == []
+    with pytest.raises(InvalidGeometryError, match="row 1"):
+        Line2D.many(O, [[1.0, 0.0], [0.0, 0.0]])
+    with pytest.raises(InvalidGeometryError, match="row 0"):
+        Line2D.many([[math.nan, 0.0]], [[1.0, 0.0]])
+    with pytest.raises(InvalidGeometryError, match="shapes"):
+        Line2D.many(np.zeros((2, 3)), np.zeros((2, 3)))

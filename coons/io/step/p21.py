@@ -162,20 +162,14 @@ class Entity:
 
     __slots__ = ("id", "name", "_params", "_raw", "parts", "line")
 
-    def __init__(self, id: int, name: str, params: tuple, parts: dict | None, line: int) -> None:
+    def __init__(self, id: int, name: str, params: tuple, parts: dict | None, line: int, raw: str | None = None) -> None:
+        # raw: the argument text of a simple instance (already validated) parsed on first use
         self.id = id
         self.name = name
         self._params = params
-        self._raw = None
+        self._raw = raw
         self.parts = parts
         self.line = line
-
-    @classmethod
-    def _deferred(cls, id: int, name: str, raw: str, line: int) -> "Entity":
-        """A simple instance whose argument text ``raw`` (already validated) is parsed on first use."""
-        e = cls(id, name, (), None, line)
-        e._raw = raw
-        return e
 
     @property
     def params(self) -> tuple:
@@ -565,9 +559,9 @@ class _Parser:
 
 # ---------------------------------------------------------------------- fast path
 # Well-formed files written by CAD systems are read without tokenising the DATA section: one
-# regular expression matches each whole instance ``#id = NAME( args );`` (C speed), a second one
-# (_DEFERRABLE) validates the arguments when they have the common shapes (atoms and lists of atoms
-# up to two levels deep), and those are converted with str methods only when first read
+# regular expression (_FAST_DEFERRED) matches each whole instance ``#id = NAME( args );`` whose
+# arguments have the common shapes (atoms and lists of atoms up to two levels deep, the grammar
+# _DEFERRABLE) at C speed, and those are converted with str methods only when first read
 # (_deferred_args).  Anything else -- complex instances, typed parameters, strings with escapes,
 # lists nested three deep, binaries -- is handed instance by instance to the general parser above, and a
 # file the fast path cannot follow at all (a syntax error, an unusual section) is re-read by the
@@ -579,9 +573,6 @@ class _Irregular(Exception):
 
 
 _WS = re.compile(r"\s")
-#: One whole simple instance; strings without quotes inside, backslashes or line breaks; no comments.
-_FAST_ENTITY = re.compile(
-    r"""\s*(\#([0-9]+)\s*=\s*([A-Za-z_][A-Za-z0-9_]*)\s*\(((?:[^;'/"\\]|'[^'\\\r\n]*')*)\)\s*;)""")
 #: The extent of any instance (strings may hold anything but unpaired quotes); parsed by the general parser.
 _ANY_ENTITY = re.compile(r"""\s*(\#[0-9]+\s*=(?:[^;'/]|'[^']*')*;)""")
 _DATA_OPEN = re.compile(r"\s*DATA\s*;")
@@ -600,6 +591,12 @@ _ARG1 = rf"(?:{_ATOM}|{_LIST1})"
 _LIST2 = rf"\(\s*(?:{_ARG1}(?:\s*,\s*{_ARG1})*)?\s*\)"
 _ARG2 = rf"(?:{_ATOM}|{_LIST1}|{_LIST2})"
 _DEFERRABLE = re.compile(rf"\s*(?:{_ARG2}(?:\s*,\s*{_ARG2})*)?\s*")
+#: A whole simple instance whose arguments match :data:`_DEFERRABLE`: one match finds and
+#: validates it.  It ends where :data:`_ANY_ENTITY` would (at the first ``;`` outside strings,
+#: which neither grammar admits elsewhere), so an instance it does not match goes whole to the
+#: general parser.
+_FAST_DEFERRED = re.compile(
+    rf"""\s*(\#([0-9]+)\s*=\s*([A-Za-z_][A-Za-z0-9_]*)\s*\(({_DEFERRABLE.pattern})\)\s*;)""")
 #: An opening parenthesis inside a list: the arguments nest two levels deep.
 _NESTED = re.compile(r"\([^()]*\(")
 _NESTED_TOKENS = re.compile(r"[(),]|[^(),]+")
@@ -700,6 +697,7 @@ def _parse_fast(text: str) -> P21File | None:
         raise _Irregular("header")
     entities: dict[int, Entity] = {}
     count = text.count
+    deferred = _FAST_DEFERRED.match
     n_data = 0
     while True:
         m = _DATA_OPEN.match(text, pos)
@@ -709,20 +707,16 @@ def _parse_fast(text: str) -> P21File | None:
         pos = m.end()
         n_data += 1
         while True:
-            m = _FAST_ENTITY.match(text, pos)
-            if m is not None:
-                start = m.start(1)
+            m = deferred(text, pos)
+            if m is not None:  # valid: parsed when first used
+                start, end = m.start(1), m.end()
                 line += count("\n", pos, start)
                 eid = int(m.group(2))
                 if eid in entities:
                     raise _Irregular("duplicate id")
-                raw = m.group(4)
-                if _DEFERRABLE.fullmatch(raw):  # valid: parsed when first used
-                    entities[eid] = Entity._deferred(eid, m.group(3), raw, line)
-                else:
-                    _general_instance(text, start, m.end(), line, entities)
-                line += count("\n", start, m.end())
-                pos = m.end()
+                entities[eid] = Entity(eid, m.group(3), (), None, line, m.group(4))
+                line += count("\n", start, end)
+                pos = end
                 continue
             m = _ANY_ENTITY.match(text, pos)
             if m is not None:

@@ -187,6 +187,7 @@ from coons.booleans._mesh_arrangement import (
     snap,
 )
 from coons.errors import BooleanError, InvalidInputError, TopologyError
+from coons.kernel._common import next_corners
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.predicates import orient2d, orient3d
 from coons.tolerance import Tolerance, resolve
@@ -509,7 +510,7 @@ def _patches(imp: Imprint, X: Operand, n_ids: int, touch: np.ndarray) -> tuple[i
 
     if imp.vid is None:  # generic: pair every piece edge by sorting
         a = tris.ravel()
-        b = tris[:, [1, 2, 0]].ravel()
+        b = next_corners(tris)
         und = np.minimum(a, b) * n + np.maximum(a, b)
         order = np.argsort(und, kind="stable")
         piece = np.repeat(np.arange(k), 3)
@@ -533,7 +534,7 @@ def _patches(imp: Imprint, X: Operand, n_ids: int, touch: np.ndarray) -> tuple[i
         # The small part: the split triangles' pieces and the whole triangles next to them.
         one = np.flatnonzero((r[:, 0] >= 0) != (r[:, 1] >= 0))
         pieces = tris[nw:]
-        pa, pb = pieces.ravel(), pieces[:, [1, 2, 0]].ravel()
+        pa, pb = pieces.ravel(), next_corners(pieces)
         keys = np.concatenate([np.minimum(pa, pb) * n + np.maximum(pa, pb), ekey(one)])
         node = np.concatenate([nw + np.repeat(np.arange(pieces.shape[0]), 3), np.maximum(r[one, 0], r[one, 1])])
         order = np.argsort(keys, kind="stable")
@@ -940,7 +941,7 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
         # 1. short edges and identical points.
         Ts = T if rows is None else np.take(T, rows, axis=0)
         a = Ts.ravel()
-        b = Ts[:, [1, 2, 0]].ravel()
+        b = next_corners(Ts)
         L = np.linalg.norm(np.take(P, a, axis=0) - np.take(P, b, axis=0), axis=1)
         short = L <= eps
         if np.any(short):
@@ -1041,7 +1042,7 @@ def _drop_thin_components(P: np.ndarray, T: np.ndarray, eps: float) -> np.ndarra
     m = T.shape[0]
     n = np.int64(T.max() + 1)
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     und = np.minimum(a, b) * n + np.maximum(a, b)
     order = np.argsort(und, kind="stable")
     same = und[order[1:]] == und[order[:-1]]
@@ -1059,7 +1060,7 @@ def _drop_thin_components(P: np.ndarray, T: np.ndarray, eps: float) -> np.ndarra
 def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> np.ndarray:
     """Insert each cap's apex into its longest edge (one cap per edge and per neighbour each round)."""
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     n = np.int64(T.max() + 1)
     dkey = a * n + b
     order = np.argsort(dkey)
@@ -1105,7 +1106,7 @@ def _manifold(T: np.ndarray, P: np.ndarray) -> None:
     n = np.int64(P.shape[0])
     m = T.shape[0]
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     und = np.minimum(a, b) * n + np.maximum(a, b)
     order = np.argsort(und, kind="stable")
     us = und[order]

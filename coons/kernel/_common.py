@@ -127,3 +127,17 @@ def binomials(n: int) -> np.ndarray:
         for i in range(1, k + 1):
             C[k, i] = C[k - 1, i - 1] + (C[k - 1, i] if i <= k - 1 else 0.0)
     return C
+
+
+def next_corners(T: np.ndarray) -> np.ndarray:
+    """``T[:, [1, 2, 0]].ravel()`` for a C-contiguous ``(m, 3)`` array: the end of each directed edge
+    ``3 t + k`` (from ``T[t, k]`` to ``T[t, (k + 1) % 3]``), as a new ``(3 m,)`` array.
+
+    The fancy-indexed form returns a Fortran-ordered array whose ``ravel`` is a strided copy: 20 to
+    30 times slower at 1e5 rows (numpy 2.4) than these two contiguous slice copies.
+    """
+    r = np.ascontiguousarray(T).ravel()
+    d = np.empty_like(r)
+    d[:-1] = r[1:]
+    d[2::3] = r[0::3]
+    return d

@@ -47,6 +47,7 @@ import warnings
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
+from coons.kernel._common import next_corners
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 from coons.topology.shape import Solid
@@ -183,7 +184,8 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     a, b = _pair_half_edges(P, T, orig)
     labels, n_comp = _components(T.shape[0], a // 3, b // 3)
     depth, parent = _nesting(P, T, labels, n_comp)
-    flip = _orientation(P, T, labels, n_comp, depth, thin=t.linear if no_sheets else 0.0)
+    columns = _columns(P, T)
+    flip = _orientation(P, T, labels, n_comp, depth, thin=t.linear if no_sheets else 0.0, columns=columns)
     if np.any(flip):
         k = int(np.flatnonzero(flip)[0])
         raise TopologyError(
@@ -193,12 +195,12 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     if merge_coplanar:
         # _merge_coplanar needs only these columns of the triangle tables; the full tables are made
         # only when nothing merges.
-        org, dst = T.ravel(), T[:, [1, 2, 0]].ravel()
+        org, dst = T.ravel(), next_corners(T)
         h0 = np.where(org[a] < dst[a], a, b)
         shell_solid, solid_ptr, solid_shells = _solids(n_comp, depth, parent)
         few = dict(edge_vertex=np.stack([org[h0], dst[h0]], axis=1), face_shell=labels, shell_solid=shell_solid,
                    solid_shell_ptr=solid_ptr, solid_shells=solid_shells)
-        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten)
+        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten, columns=columns)
         if cols is few:
             cols = _tables(P, T, a, b, labels, n_comp, depth, parent, t)
     else:
@@ -328,7 +330,7 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np
     """
     n = P.shape[0]
     org = T.ravel()
-    dst = T[:, [1, 2, 0]].ravel()
+    dst = next_corners(T)
     key = np.minimum(org, dst) * n + np.maximum(org, dst)
     order, ks = _stable_sort(key)
     start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
@@ -389,14 +391,31 @@ def _components(m: int, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, int
 
 
 # ====================================================================== orientation and nesting
-def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _columns(P: np.ndarray, T: np.ndarray) -> tuple[list, tuple, list]:
+    """Coordinate columns ``X[k] (n,)``, corner columns ``(t0, t1, t2)`` of ``T`` and the unnormalised
+    triangle normals ``N[k] = ((P[t1] - P[t0]) × (P[t2] - P[t0]))[k] (m,)``, gathered once for the
+    orientation test and the coplanar merge (contiguous 1-D gathers: no ``(m, 3)`` temporaries)."""
+    X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
+    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    e1 = [x[t1] - x[t0] for x in X]
+    e2 = [x[t2] - x[t0] for x in X]
+    N = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+    return X, (t0, t1, t2), N
+
+
+def _signed_volumes(P: np.ndarray, T: np.ndarray, columns: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Signed volume of each triangle's tetrahedron with the centre of the vertex box, and the bound
     of its round-off: the determinant's permanent (the sum of the magnitudes of its six products),
     to which the rounding error of the float determinant is proportional whatever the value is (a
-    flat tetrahedron has a tiny value and a large permanent)."""
+    flat tetrahedron has a tiny value and a large permanent).  ``columns``: :func:`_columns` of
+    ``P, T`` when the caller has them."""
     x0 = 0.5 * (P.min(axis=0) + P.max(axis=0))
-    Q = [np.ascontiguousarray(P[:, k]) - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
-    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    if columns is None:
+        X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
+        t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    else:
+        X, (t0, t1, t2) = columns[0], columns[1]
+    Q = [X[k] - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
     ax, ay, az = (q[t0] for q in Q)
     bx, by, bz = (q[t1] for q in Q)
     cx, cy, cz = (q[t2] for q in Q)
@@ -407,8 +426,11 @@ def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _orientation(P: np.ndarray, T: np.ndarray, labels: np.ndarray, n_comp: int, depth: np.ndarray,
-                 thin: float = 0.0) -> np.ndarray:
+                 thin: float = 0.0, columns: tuple | None = None) -> np.ndarray:
     """Components to reverse: the sign of the enclosed volume must be ``(-1) ** depth``.
+
+    ``columns``: :func:`_columns` of ``P, T`` when the caller has them (the triangle areas of the
+    ``thin`` test are half the lengths of its normals).
 
     Raises
     ------
@@ -416,11 +438,13 @@ def _orientation(P: np.ndarray, T: np.ndarray, labels: np.ndarray, n_comp: int, 
         A component whose volume is indistinguishable from zero (round-off of its terms), or with
         ``thin > 0`` one whose mean thickness ``|volume| / area`` is at most ``thin``.
     """
-    v, av = _signed_volumes(P, T)
+    if thin > 0.0 and columns is None:
+        columns = _columns(P, T)
+    v, av = _signed_volumes(P, T, columns)
     vol = np.bincount(labels, weights=v, minlength=n_comp)
     if thin > 0.0:
-        E1, E2 = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
-        area = np.bincount(labels, weights=0.5 * np.linalg.norm(np.cross(E1, E2), axis=1), minlength=n_comp)
+        N = columns[2]
+        area = np.bincount(labels, weights=0.5 * np.sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]), minlength=n_comp)
         sheet = np.flatnonzero(np.abs(vol) <= thin * area)
         if sheet.size:
             k = int(sheet[0])
@@ -545,7 +569,7 @@ def _tables(
     m, n = T.shape[0], P.shape[0]
     E = a.size
     org = T.ravel()
-    dst = T[:, [1, 2, 0]].ravel()
+    dst = next_corners(T)
     a_fwd = org[a] < dst[a]
     h0 = np.where(a_fwd, a, b)  # runs start -> end (left side)
     h1 = np.where(a_fwd, b, a)
@@ -618,9 +642,11 @@ def _solids(n_comp: int, depth: np.ndarray, parent: np.ndarray) -> tuple[np.ndar
 # ====================================================================== coplanar merging
 def _merge_coplanar(
     cols: dict[str, np.ndarray], P: np.ndarray, T: np.ndarray, a: np.ndarray, b: np.ndarray, t: Tolerance,
-    straighten: bool = False,
+    straighten: bool = False, columns: tuple | None = None,
 ) -> dict[str, np.ndarray]:
     """Merge neighbouring coplanar triangles into polygon faces (outer loop first, then holes).
+
+    ``columns``: :func:`_columns` of ``P, T`` when the caller has them.
 
     Coplanarity of the two triangles on an edge is decided **exactly** when every coordinate
     is an integer of magnitude below 2**15 (the orientation determinant of one triangle and
@@ -639,17 +665,12 @@ def _merge_coplanar(
     """
     m = T.shape[0]
     org = T.ravel()
-    dst = T[:, [1, 2, 0]].ravel()
+    dst = next_corners(T)
     ta, tb = a // 3, b // 3
     far_a = org[3 * ta + (a - 3 * ta + 2) % 3]  # vertex of ta opposite the shared edge (1-D gathers)
     far_b = org[3 * tb + (b - 3 * tb + 2) % 3]
     # Column arrays: gathers of contiguous 1-D columns, no (E, 3) temporaries.
-    X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
-    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
-    e1 = [x[t1] - x[t0] for x in X]
-    e2 = [x[t2] - x[t0] for x in X]
-    Nc = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
-    N = np.stack(Nc, axis=1)
+    X, (t0, t1, t2), Nc = _columns(P, T) if columns is None else columns
 
     def dot_far(n: list, tri: np.ndarray, far: np.ndarray) -> np.ndarray:
         q = t0[tri]
@@ -679,7 +700,7 @@ def _merge_coplanar(
     local[rt] = np.arange(rt.size)
     region, n_reg = _components(rt.size, local[ta[coplanar]], local[tb[coplanar]])
     # Verify each region's planarity against its Newell plane (guards against drift).
-    Nr = np.take(N, rt, axis=0)  # np.take: row gathers several times faster than N[rt]
+    Nr = np.stack([n[rt] for n in Nc], axis=1)  # region triangles only (1-D gathers)
     normal = np.stack([np.bincount(region, weights=Nr[:, k], minlength=n_reg) for k in range(3)], axis=1)
     unit = normal / np.linalg.norm(normal, axis=1)[:, None]
     size = np.bincount(region, minlength=n_reg)
@@ -771,7 +792,7 @@ def _merge_coplanar(
     # Single triangles: their three coedges in a cycle, loop = face = their rank.
     Cs = np.take(C.reshape(m, 3), single, axis=0)
     flat = Cs.ravel()  # one scatter of each column over all three corners (contiguous rows)
-    nxt[flat] = Cs[:, [1, 2, 0]].ravel()
+    nxt[flat] = next_corners(Cs)
     cloop[flat] = np.repeat(np.arange(n_single), 3)
     loop_first[:n_single] = Cs[:, 0]
     # Region loops.

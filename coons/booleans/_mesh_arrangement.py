@@ -124,7 +124,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from coons.errors import BooleanError, ConvergenceError, InvalidInputError
-from coons.kernel._common import next_corners
+from coons.kernel._common import next_corners, sorted_contains
 from coons.kernel.predicates import SegmentRelation, classify_segments, orient2d, orient3d
 from coons.topology._cdt import triangulate
 
@@ -1014,11 +1014,11 @@ def _verify_closed(tris: np.ndarray, on: np.ndarray, which: int, boundary_ok: np
     d = a * n + b
     ds = np.sort(d)
     dupl = ds[1:] == ds[:-1]
-    missing = ~np.isin(b * n + a, ds)
+    missing = ~sorted_contains(ds, b * n + a)
     if np.any(missing):
         ev = vid[X.edges[boundary_ok]]
-        ok_keys = np.concatenate([ev[:, 0] * n + ev[:, 1], ev[:, 1] * n + ev[:, 0]])
-        missing &= ~np.isin(d, ok_keys)
+        ok_keys = np.sort(np.concatenate([ev[:, 0] * n + ev[:, 1], ev[:, 1] * n + ev[:, 0]]))
+        missing[missing] = ~sorted_contains(ok_keys, d[missing])
     if np.any(dupl) or np.any(missing):
         g = int(ds[1:][dupl][0]) if np.any(dupl) else int(d[np.argmax(missing)])
         raise BooleanError(
@@ -1028,7 +1028,7 @@ def _verify_closed(tris: np.ndarray, on: np.ndarray, which: int, boundary_ok: np
     if on.size:
         k = on[:, 0] * n + on[:, 1]
         und = np.minimum(a, b) * n + np.maximum(a, b)
-        miss = ~np.isin(k, und)
+        miss = ~sorted_contains(np.sort(und), k)
         if np.any(miss):
             p, q = on[int(np.argmax(miss))]
             raise BooleanError(

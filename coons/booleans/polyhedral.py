@@ -330,7 +330,7 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     status_a = _classify(imp_a, A, B, 0, inter, table, ex)
     status_b = _classify(imp_b, B, A, 1, inter, table, ex)
     tris = _select(op, imp_a, status_a, imp_b, status_b)
-    return _sew(tris, table, t)
+    return _sew(tris, table, t, _known_twins(op, tris, imp_a, status_a, A, imp_b, status_b, B, table))
 
 
 @dataclass
@@ -822,8 +822,69 @@ def _select(op: str, imp_a: Imprint, ca: _Classified, imp_b: Imprint, cb: _Class
     return np.concatenate([ta, tb])
 
 
-def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
+def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: Operand, imp_b: Imprint,
+                 cb: _Classified, B: Operand, table: PointTable) -> np.ndarray:
+    """``(3 k,)`` int64: the twin of each half-edge of :func:`_select`'s triangles ``tris (k, 3)`` where the operands'
+    edge tables already know it, else -1 (half-edge ``3 r + j`` runs from ``tris[r, j]`` to
+    ``tris[r, (j + 1) % 3]``).
+
+    An edge of an operand between two whole (unsplit) triangles that are both selected is an edge
+    of the result with these two half-edges, read from ``edge_tris`` / ``tri_edge`` without a sort.
+    No other selected half-edge can join the same two points: a piece or whole triangle of the same
+    (valid, manifold) operand with both points as vertices would be a third triangle on that
+    edge, and a triangle of the other operand uses both ids only if both are used by both
+    operands — such edges are left to the sort (-1) so that :func:`_pair_half_edges` still finds
+    an edge used more than twice.  Every other half-edge (pieces, the rims of split regions) is -1.
+    """
+    keep_a, keep_b, reverse_b = _TABLE[op]
+    parts = []
+    for imp, c, X, keep, rev in ((imp_a, ca, A, keep_a, False), (imp_b, cb, B, keep_b, reverse_b)):
+        sel = np.flatnonzero(np.isin(c.status[c.patch], list(keep)))
+        parts.append((sel, int(np.searchsorted(sel, imp.n_whole)), imp, X, rev))
+    k_a = parts[0][0].size
+    k = k_a + parts[1][0].size
+    if k != tris.shape[0]:
+        raise BooleanError(f"internal: {tris.shape[0]} selected triangles, the statuses keep {k}", stage="select")
+    twin = np.full(3 * k, -1, dtype=np.int64)
+    # Corner j of a kept row holds the half-edge of the source triangle's edge k (j = k, or
+    # (1 - k) % 3 for B's triangles reversed by the difference: (v2, v1, v0) runs v1 -> v2 second).
+    for (sel, n_ws, imp, X, rev), row0 in zip(parts, (0, k_a)):
+        if n_ws == 0:
+            continue
+        src = imp.source[sel[:n_ws]]  # the whole triangles kept, as rows row0 + i
+        row_of = np.full(X.m, -1, dtype=np.int64)
+        row_of[src] = row0 + np.arange(n_ws)
+        te = np.take(X.tri_edge, src, axis=0)  # (w, 3) the edge of each corner
+        et = np.take(X.edge_tris, te.ravel(), axis=0)  # (3 w, 2) its two triangles
+        s3 = np.repeat(src, 3)
+        other = np.where(et[:, 0] == s3, et[:, 1], et[:, 0])
+        r_other = row_of[other]
+        known = np.flatnonzero(r_other >= 0)
+        e, o = te.ravel()[known], other[known]
+        to = X.tri_edge  # the corner of the other triangle holding the same edge
+        k_other = (to[o, 1] == e).astype(np.int64) + 2 * (to[o, 2] == e)
+        k_own = known % 3
+        if rev:
+            k_own, k_other = (1 - k_own) % 3, (1 - k_other) % 3
+        twin[3 * (row0 + known // 3) + k_own] = 3 * r_other[known] + k_other
+    # Edges whose two points are both used by both operands' rows go to the sort.
+    n_ids = table.float.shape[0]
+    used_a, used_b = np.zeros(n_ids, dtype=bool), np.zeros(n_ids, dtype=bool)
+    used_a[tris[:k_a].ravel()] = True
+    used_b[tris[k_a:].ravel()] = True
+    shared = used_a & used_b
+    if np.any(shared):
+        org, dst = tris.ravel(), next_corners(tris)
+        twin[shared[org] & shared[dst]] = -1
+    return twin
+
+
+def _sew(tris: np.ndarray, table: PointTable, t: Tolerance, twin: np.ndarray | None = None) -> Solid:
     """Phases 8–9: round, clean features below the tolerance, check the result is manifold, build and check it.
+
+    ``twin (3 k,)``, optional: the half-edge twins :func:`_known_twins` read from the operands (-1
+    where unknown); used when the clean-up leaves the triangles unchanged, so that only the other
+    half-edges are paired by sorting.
 
     Raises
     ------
@@ -842,13 +903,16 @@ def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
     used, T = _compact(tris, table.float.shape[0])
     P = np.take(table.float, used, axis=0)
     original = used < nA + nB
+    T_raw = T
     T = _clean(P, T, original, t.linear, active)
+    if T is not T_raw:  # the clean-up changed the triangles: their twins are found again
+        twin = None
     if T.shape[0] == 0:
         return Solid.empty()
     used, T = _compact(T, P.shape[0])
     P = np.take(P, used, axis=0)
     try:
-        return _build(P, T, t)
+        return _build(P, T, t, twin)
     except BooleanError:
         # Diagnose: a non-manifold result gets a clear message; a closed component thinner than the
         # tolerance (two facing triangulations of one flat patch) is removed and the build retried.
@@ -877,13 +941,13 @@ def _compact(T: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return used, new[T]
 
 
-def _build(P: np.ndarray, T: np.ndarray, t: Tolerance) -> Solid:
+def _build(P: np.ndarray, T: np.ndarray, t: Tolerance, twin: np.ndarray | None = None) -> Solid:
     """The checked solid of the cleaned result mesh (``from_mesh``'s construction with coplanar merging,
     through its fast path for clean meshes); errors become ``BooleanError`` (stage ``"sew"`` or ``"check"``)."""
     from coons.topology.from_mesh import _solid_from_clean_triangles
 
     try:
-        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True, no_sheets=True)
+        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True, no_sheets=True, twin=twin)
     except TopologyError as exc:
         msg = str(exc)
         if "wrong sign" in msg:

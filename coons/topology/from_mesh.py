@@ -47,7 +47,7 @@ import warnings
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
-from coons.kernel._common import next_corners
+from coons.kernel._common import column_max, column_min, next_corners
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 from coons.topology.shape import Solid
@@ -155,7 +155,8 @@ def from_mesh(
 
 
 def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, merge_coplanar: bool = True,
-                                straighten: bool = False, no_sheets: bool = False) -> Solid:
+                                straighten: bool = False, no_sheets: bool = False,
+                                twin: np.ndarray | None = None) -> Solid:
     """:func:`from_mesh` for callers that guarantee their mesh is clean (the polyhedral Booleans).
 
     Preconditions, not re-verified: ``P (n, 3)`` finite float64 with every vertex used by ``T``;
@@ -173,6 +174,8 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     left on straight boundaries between merged faces (:func:`_remove_straight_vertices`).
     ``no_sheets`` also rejects components thinner than ``t.linear`` on average (``|volume| <=
     t.linear · area``: two facing triangulations of one patch left by touching operands).
+    ``twin (3 m,)`` int64, optional: the twin of each half-edge where the caller knows it, -1
+    elsewhere (:func:`_pair_known_half_edges`: the known pairs are verified, the others sorted).
 
     Raises
     ------
@@ -181,7 +184,7 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
         orientation disagrees with its nesting.
     """
     orig = np.arange(P.shape[0])
-    a, b = _pair_half_edges(P, T, orig)
+    a, b = _pair_half_edges(P, T, orig) if twin is None else _pair_known_half_edges(P, T, twin)
     labels, n_comp = _components(T.shape[0], a // 3, b // 3)
     depth, parent = _nesting(P, T, labels, n_comp)
     columns = _columns(P, T)
@@ -311,8 +314,12 @@ def _reject_degenerate(P: np.ndarray, T: np.ndarray, orig: np.ndarray, t: Tolera
 
 
 # ====================================================================== half-edges
-def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray,
+                     subset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Twin half-edges: half-edge ``h = 3 t + k`` runs from ``T[t, k]`` to ``T[t, (k + 1) % 3]``.
+
+    ``subset``, optional: increasing half-edge ids to pair among themselves (every other half-edge
+    is left out).
 
     Half-edges are sorted by their undirected key ``min · n + max`` (stable, :func:`_stable_sort`, so each group
     lists its half-edges in triangle order); every group must hold exactly two half-edges
@@ -331,8 +338,15 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np
     n = P.shape[0]
     org = T.ravel()
     dst = next_corners(T)
-    key = np.minimum(org, dst) * n + np.maximum(org, dst)
-    order, ks = _stable_sort(key)
+    if subset is None:
+        key = np.minimum(org, dst) * n + np.maximum(org, dst)
+        order, ks = _stable_sort(key)
+    else:
+        o, d = org[subset], dst[subset]
+        order, ks = _stable_sort(np.minimum(o, d) * n + np.maximum(o, d))
+        order = subset[order]  # subset is increasing: the order stays stable
+    if ks.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
     count = np.diff(np.append(start, ks.size))
     a = order[start]
@@ -360,6 +374,42 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np
             f"{int(orig[v0])} to {int(orig[v1])}; neighbours must run a shared edge in opposite directions"
         )
     return a, b
+
+
+def _pair_known_half_edges(P: np.ndarray, T: np.ndarray, twin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_pair_half_edges` when the caller knows most twins: ``twin (3 m,)`` int64, -1 where unknown.
+
+    The known pairs are verified in array time — an involution without fixed points whose pairs
+    run between the same two vertices in opposite directions — and the unknown half-edges are
+    paired by sorting, with :func:`_pair_half_edges`'s checks and messages.  That no known pair
+    shares its two vertices with another edge is the caller's guarantee (the polyhedral Booleans:
+    :func:`coons.booleans.polyhedral._known_twins`).
+
+    Returns
+    -------
+    a, b : (E,) int64, the two half-edges of each edge, ``a < b``, edges in increasing ``a``.
+
+    Raises
+    ------
+    TopologyError
+        As :func:`_pair_half_edges`; a known pair that is not a pair of opposite half-edges.
+    """
+    org = T.ravel()
+    dst = next_corners(T)
+    h = np.flatnonzero(twin >= 0)
+    g = twin[h]
+    bad = (g == h) | (twin[g] != h) | (org[g] != dst[h]) | (dst[g] != org[h])
+    if np.any(bad):
+        i = int(h[np.argmax(bad)])
+        raise TopologyError(
+            f"internal: half-edge {i} (triangle {i // 3}) was given twin {int(twin[i])}, which does not run the "
+            "same edge the other way"
+        )
+    a1, b1 = _pair_half_edges(P, T, np.arange(P.shape[0]), subset=np.flatnonzero(twin < 0))
+    full = twin.copy()
+    full[a1], full[b1] = b1, a1
+    a = np.flatnonzero(full > np.arange(full.size))
+    return a, full[a]
 
 
 def _stable_sort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -409,7 +459,7 @@ def _signed_volumes(P: np.ndarray, T: np.ndarray, columns: tuple | None = None) 
     to which the rounding error of the float determinant is proportional whatever the value is (a
     flat tetrahedron has a tiny value and a large permanent).  ``columns``: :func:`_columns` of
     ``P, T`` when the caller has them."""
-    x0 = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    x0 = 0.5 * (column_min(P) + column_max(P))
     if columns is None:
         X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
         t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))

@@ -815,8 +815,8 @@ def _select(op: str, imp_a: Imprint, ca: _Classified, imp_b: Imprint, cb: _Class
         raise BooleanError("a patch was left unclassified", stage="select",
                            diagnostics={"unclassified_a": int((sa < 0).sum()), "unclassified_b": int((sb < 0).sum())})
     # np.compress / np.take: row selections several times faster than boolean or integer indexing.
-    ta = np.compress(np.isin(sa, list(keep_a)), imp_a.tris, axis=0)
-    tb = np.compress(np.isin(sb, list(keep_b)), imp_b.tris, axis=0)
+    ta = np.compress(_kept(ca, keep_a), imp_a.tris, axis=0)
+    tb = np.compress(_kept(cb, keep_b), imp_b.tris, axis=0)
     if reverse_b:
         tb = tb[:, ::-1]
     return np.concatenate([ta, tb])
@@ -839,7 +839,7 @@ def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: 
     keep_a, keep_b, reverse_b = _TABLE[op]
     parts = []
     for imp, c, X, keep, rev in ((imp_a, ca, A, keep_a, False), (imp_b, cb, B, keep_b, reverse_b)):
-        sel = np.flatnonzero(np.isin(c.status[c.patch], list(keep)))
+        sel = np.flatnonzero(_kept(c, keep))
         parts.append((sel, int(np.searchsorted(sel, imp.n_whole)), imp, X, rev))
     k_a = parts[0][0].size
     k = k_a + parts[1][0].size
@@ -848,25 +848,21 @@ def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: 
     twin = np.full(3 * k, -1, dtype=np.int64)
     # Corner j of a kept row holds the half-edge of the source triangle's edge k (j = k, or
     # (1 - k) % 3 for B's triangles reversed by the difference: (v2, v1, v0) runs v1 -> v2 second).
+    # Each kept whole triangle writes its half-edge into its side of the operand edge (side 0 when
+    # it is edge_tris[e, 0]); edges with both sides written are pairs.
     for (sel, n_ws, imp, X, rev), row0 in zip(parts, (0, k_a)):
         if n_ws == 0:
             continue
         src = imp.source[sel[:n_ws]]  # the whole triangles kept, as rows row0 + i
-        row_of = np.full(X.m, -1, dtype=np.int64)
-        row_of[src] = row0 + np.arange(n_ws)
-        te = np.take(X.tri_edge, src, axis=0)  # (w, 3) the edge of each corner
-        et = np.take(X.edge_tris, te.ravel(), axis=0)  # (3 w, 2) its two triangles
-        s3 = np.repeat(src, 3)
-        other = np.where(et[:, 0] == s3, et[:, 1], et[:, 0])
-        r_other = row_of[other]
-        known = np.flatnonzero(r_other >= 0)
-        e, o = te.ravel()[known], other[known]
-        to = X.tri_edge  # the corner of the other triangle holding the same edge
-        k_other = (to[o, 1] == e).astype(np.int64) + 2 * (to[o, 2] == e)
-        k_own = known % 3
-        if rev:
-            k_own, k_other = (1 - k_own) % 3, (1 - k_other) % 3
-        twin[3 * (row0 + known // 3) + k_own] = 3 * r_other[known] + k_other
+        e = np.take(X.tri_edge, src, axis=0).ravel()  # (3 w,) the edge of each corner
+        side = (X.edge_tris[:, 0][e] != np.repeat(src, 3)).astype(np.int64)
+        j = np.tile(np.array([1, 0, 2] if rev else [0, 1, 2], dtype=np.int64), n_ws)
+        he = np.full(2 * X.n_edges, -1, dtype=np.int64)
+        he[2 * e + side] = 3 * row0 + 3 * np.repeat(np.arange(n_ws), 3) + j
+        h0, h1 = he[0::2], he[1::2]
+        both = np.flatnonzero((h0 >= 0) & (h1 >= 0))
+        h0, h1 = h0[both], h1[both]
+        twin[h0], twin[h1] = h1, h0
     # Edges whose two points are both used by both operands' rows go to the sort.
     n_ids = table.float.shape[0]
     used_a, used_b = np.zeros(n_ids, dtype=bool), np.zeros(n_ids, dtype=bool)
@@ -877,6 +873,13 @@ def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: 
         org, dst = tris.ravel(), next_corners(tris)
         twin[shared[org] & shared[dst]] = -1
     return twin
+
+
+def _kept(c: _Classified, keep: set) -> np.ndarray:
+    """``(k,)`` bool: the pieces whose patch status is in ``keep`` (a lookup table over the four statuses)."""
+    table = np.zeros(len(_STATUS_NAMES), dtype=bool)
+    table[list(keep)] = True
+    return table[c.status][c.patch]
 
 
 def _sew(tris: np.ndarray, table: PointTable, t: Tolerance, twin: np.ndarray | None = None) -> Solid:

@@ -156,8 +156,11 @@ Status and limitations
   ``benchmarks/bench_booleans_mesh.py`` measures coons against manifold3d in the same run
   (``benchmarks/results/booleans_mesh.md``); at 1.6e5 input triangles the sewing of the result
   (half-edge pairing, tables, coplanar merging, the topological checks) is the largest phase
-  (about 95 of ~280 ms wall in the last run, 4-5x manifold3d), then imprint, the broad phase with
-  the snap, the narrow phase, classification and the operands' meshes.  Row gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times
+  (85-95 of ~200-260 ms wall, on a machine busy with other work; interleaved runs put the union
+  near 3.5-4x manifold3d on a quiet machine and 2-2.5x when both are slowed by other load), then
+  imprint, the broad phase with the snap, the narrow phase, classification and the operands'
+  meshes.  About 95 % of the result's half-edges get their twins from the operands' edge tables
+  (:func:`_known_twins`); only the rest are paired by sorting.  Row gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times
   faster than ``A[idx]`` with numpy 2.4).  Triangles crossed by two chains of segments (the
   side faces of prisms through a plate) still take the per-triangle Python split.
 * Bit-identical rounded points that are not joined by an edge stay distinct vertices (the exact

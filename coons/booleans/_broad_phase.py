@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from coons.kernel._common import column_max, column_min
+
 __all__ = ["box_pairs", "triangle_boxes", "triangle_pairs"]
 
 #: Bits of the Morton code per axis (3 × 21 = 63 bits fit an int64).
@@ -88,8 +90,8 @@ def _overlap(la: np.ndarray, ha: np.ndarray, lb: np.ndarray, hb: np.ndarray) -> 
 
 def triangle_boxes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Closed boxes ``lo, hi (m, 3)`` of triangles ``T (m, 3)`` over points ``P (n, 3)`` (three gathers,
-    no reduction over a middle axis)."""
-    c0, c1, c2 = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
+    no reduction over a middle axis; ``np.take`` row gathers are several times faster than ``P[idx]``)."""
+    c0, c1, c2 = (np.take(P, T[:, k], axis=0) for k in range(3))
     return np.minimum(np.minimum(c0, c1), c2), np.maximum(np.maximum(c0, c1), c2)
 
 
@@ -121,8 +123,8 @@ def _cells(i0: np.ndarray, i1: np.ndarray, dims: np.ndarray, limit: int):
 def _grid(lo_a, hi_a, lo_b, hi_b):
     """Grid over the common part of the two sets: ``origin, h, dims`` and the boxes of each set
     meeting that part (None when it is empty)."""
-    f_lo = np.maximum(lo_a.min(axis=0), lo_b.min(axis=0))
-    f_hi = np.minimum(hi_a.max(axis=0), hi_b.max(axis=0))
+    f_lo = np.maximum(column_min(lo_a), column_min(lo_b))
+    f_hi = np.minimum(column_max(hi_a), column_max(hi_b))
     if np.any(f_lo > f_hi):
         return None
     in_a = (lo_a <= f_hi) & (hi_a >= f_lo)
@@ -133,7 +135,11 @@ def _grid(lo_a, hi_a, lo_b, hi_b):
         return None
     # Cell size: the median of the boxes' extents (most boxes span two or three cells per axis),
     # large enough for the grid to stay below _MAX_CELLS.
-    ext = np.concatenate([(hi_a[ka] - lo_a[ka]).max(axis=1), (hi_b[kb] - lo_b[kb]).max(axis=1)])
+    def longest(lo, hi, k):  # largest extent of each box k (columns: no reduction over rows of three)
+        d = np.take(hi, k, axis=0) - np.take(lo, k, axis=0)
+        return np.maximum(np.maximum(d[:, 0], d[:, 1]), d[:, 2])
+
+    ext = np.concatenate([longest(lo_a, hi_a, ka), longest(lo_b, hi_b, kb)])
     size = f_hi - f_lo
     floor_h = (float(np.prod(np.maximum(size, size.max() * 1e-3))) / _MAX_CELLS) ** (1 / 3) * 1.01
     h = max(float(np.percentile(ext, 50)), floor_h, float(size.max()) / 4096, np.finfo(float).tiny)
@@ -255,8 +261,8 @@ def triangle_pairs(P_a: np.ndarray, T_a: np.ndarray, P_b: np.ndarray, T_b: np.nd
 def _vertex_cull(P_a, T_a, lo_a, hi_a, P_b, T_b, lo_b, hi_b):
     """Triangles of each mesh with a vertex within two cells of the other mesh's vertices (see
     :func:`triangle_pairs`), or None when the grid would be too coarse to pay."""
-    f_lo = np.maximum(P_a.min(axis=0), P_b.min(axis=0))
-    f_hi = np.minimum(P_a.max(axis=0), P_b.max(axis=0))
+    f_lo = np.maximum(column_min(P_a), column_min(P_b))
+    f_hi = np.minimum(column_max(P_a), column_max(P_b))
     ext = max(float((hi_a - lo_a).max()), float((hi_b - lo_b).max()))
     size = f_hi - f_lo
     if np.any(size < -2 * ext):  # the meshes' boxes (widened by a triangle) do not meet
@@ -325,8 +331,8 @@ def _vertex_cull(P_a, T_a, lo_a, hi_a, P_b, T_b, lo_b, hi_b):
 def _tree_pairs(lo_a, hi_a, lo_b, hi_b) -> tuple[np.ndarray, np.ndarray]:
     """All overlapping pairs by the simultaneous descent of the two trees (module docstring)."""
     empty = np.zeros(0, dtype=np.int64)
-    frame_lo = np.minimum(lo_a.min(axis=0), lo_b.min(axis=0))
-    frame_hi = np.maximum(hi_a.max(axis=0), hi_b.max(axis=0))
+    frame_lo = np.minimum(column_min(lo_a), column_min(lo_b))
+    frame_hi = np.maximum(column_max(hi_a), column_max(hi_b))
     A = _Tree(lo_a, hi_a, frame_lo, frame_hi)
     B = _Tree(lo_b, hi_b, frame_lo, frame_hi)
     la, lb = A.top, B.top

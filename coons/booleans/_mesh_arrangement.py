@@ -124,6 +124,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from coons.errors import BooleanError, ConvergenceError, InvalidInputError
+from coons.kernel._common import next_corners, sorted_contains
 from coons.kernel.predicates import SegmentRelation, classify_segments, orient2d, orient3d
 from coons.topology._cdt import triangulate
 
@@ -194,7 +195,7 @@ def operand(P: np.ndarray, T: np.ndarray, face: np.ndarray, name: str, tables=No
         return Operand(P, T, np.asarray(face, dtype=np.int64), edges, tri_edge, edge_tris, lo, hi)
     n, m = P.shape[0], T.shape[0]
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
     uniq, inv, count = np.unique(key, return_inverse=True, return_counts=True)
     if np.any(count != 2):
@@ -1008,16 +1009,16 @@ def _verify_closed(tris: np.ndarray, on: np.ndarray, which: int, boundary_ok: np
     if tris.shape[0] == 0:
         return
     a = tris.ravel()
-    b = tris[:, [1, 2, 0]].ravel()
+    b = next_corners(tris)
     n = np.int64(max(int(tris.max()) + 1, int(vid.max(initial=0)) + 1, 1))
     d = a * n + b
     ds = np.sort(d)
     dupl = ds[1:] == ds[:-1]
-    missing = ~np.isin(b * n + a, ds)
+    missing = ~sorted_contains(ds, b * n + a)
     if np.any(missing):
         ev = vid[X.edges[boundary_ok]]
-        ok_keys = np.concatenate([ev[:, 0] * n + ev[:, 1], ev[:, 1] * n + ev[:, 0]])
-        missing &= ~np.isin(d, ok_keys)
+        ok_keys = np.sort(np.concatenate([ev[:, 0] * n + ev[:, 1], ev[:, 1] * n + ev[:, 0]]))
+        missing[missing] = ~sorted_contains(ok_keys, d[missing])
     if np.any(dupl) or np.any(missing):
         g = int(ds[1:][dupl][0]) if np.any(dupl) else int(d[np.argmax(missing)])
         raise BooleanError(
@@ -1027,7 +1028,7 @@ def _verify_closed(tris: np.ndarray, on: np.ndarray, which: int, boundary_ok: np
     if on.size:
         k = on[:, 0] * n + on[:, 1]
         und = np.minimum(a, b) * n + np.maximum(a, b)
-        miss = ~np.isin(k, und)
+        miss = ~sorted_contains(np.sort(und), k)
         if np.any(miss):
             p, q = on[int(np.argmax(miss))]
             raise BooleanError(
@@ -1595,7 +1596,7 @@ def _verify_small(small: list, table: "PointTable", which: int, strict: bool = T
                 failed[src[sel[o <= 0]]] = True
     # Boundary of each split: directed piece edges whose reverse (same split) is absent, against the loop.
     a = G.ravel()
-    b = G[:, [1, 2, 0]].ravel()
+    b = next_corners(G)
     s3 = np.repeat(src, 3)
     N = np.int64(max(int(G.max()) + 1, 1))
     if len(small) * int(N) * int(N) >= 2**62:  # pragma: no cover - beyond a billion points
@@ -1955,7 +1956,7 @@ def _boundary_chains(tri: np.ndarray, chains: dict, NG) -> tuple[np.ndarray, np.
     smaller end (:func:`_chain` for one edge).
     """
     k = tri.shape[0]
-    a, b = tri.ravel(), tri[:, [1, 2, 0]].ravel()  # the directed edges, triangle by triangle
+    a, b = tri.ravel(), next_corners(tri)  # the directed edges, triangle by triangle
     if not chains:
         return np.repeat(np.arange(k), 3), a, b
     keys = np.array(sorted(chains), dtype=np.int64)

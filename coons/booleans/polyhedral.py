@@ -156,8 +156,11 @@ Status and limitations
   ``benchmarks/bench_booleans_mesh.py`` measures coons against manifold3d in the same run
   (``benchmarks/results/booleans_mesh.md``); at 1.6e5 input triangles the sewing of the result
   (half-edge pairing, tables, coplanar merging, the topological checks) is the largest phase
-  (about 95 of ~280 ms wall in the last run, 4-5x manifold3d), then imprint, the broad phase with
-  the snap, the narrow phase, classification and the operands' meshes.  Row gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times
+  (85-95 of ~200-260 ms wall, on a machine busy with other work; interleaved runs put the union
+  near 3.5-4x manifold3d on a quiet machine and 2-2.5x when both are slowed by other load), then
+  imprint, the broad phase with the snap, the narrow phase, classification and the operands'
+  meshes.  About 95 % of the result's half-edges get their twins from the operands' edge tables
+  (:func:`_known_twins`); only the rest are paired by sorting.  Row gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times
   faster than ``A[idx]`` with numpy 2.4).  Triangles crossed by two chains of segments (the
   side faces of prisms through a plate) still take the per-triangle Python split.
 * Bit-identical rounded points that are not joined by an edge stay distinct vertices (the exact
@@ -187,6 +190,7 @@ from coons.booleans._mesh_arrangement import (
     snap,
 )
 from coons.errors import BooleanError, InvalidInputError, TopologyError
+from coons.kernel._common import next_corners
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.predicates import orient2d, orient3d
 from coons.tolerance import Tolerance, resolve
@@ -329,7 +333,7 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     status_a = _classify(imp_a, A, B, 0, inter, table, ex)
     status_b = _classify(imp_b, B, A, 1, inter, table, ex)
     tris = _select(op, imp_a, status_a, imp_b, status_b)
-    return _sew(tris, table, t)
+    return _sew(tris, table, t, _known_twins(op, tris, imp_a, status_a, A, imp_b, status_b, B, table))
 
 
 @dataclass
@@ -509,7 +513,7 @@ def _patches(imp: Imprint, X: Operand, n_ids: int, touch: np.ndarray) -> tuple[i
 
     if imp.vid is None:  # generic: pair every piece edge by sorting
         a = tris.ravel()
-        b = tris[:, [1, 2, 0]].ravel()
+        b = next_corners(tris)
         und = np.minimum(a, b) * n + np.maximum(a, b)
         order = np.argsort(und, kind="stable")
         piece = np.repeat(np.arange(k), 3)
@@ -533,7 +537,7 @@ def _patches(imp: Imprint, X: Operand, n_ids: int, touch: np.ndarray) -> tuple[i
         # The small part: the split triangles' pieces and the whole triangles next to them.
         one = np.flatnonzero((r[:, 0] >= 0) != (r[:, 1] >= 0))
         pieces = tris[nw:]
-        pa, pb = pieces.ravel(), pieces[:, [1, 2, 0]].ravel()
+        pa, pb = pieces.ravel(), next_corners(pieces)
         keys = np.concatenate([np.minimum(pa, pb) * n + np.maximum(pa, pb), ekey(one)])
         node = np.concatenate([nw + np.repeat(np.arange(pieces.shape[0]), 3), np.maximum(r[one, 0], r[one, 1])])
         order = np.argsort(keys, kind="stable")
@@ -814,15 +818,79 @@ def _select(op: str, imp_a: Imprint, ca: _Classified, imp_b: Imprint, cb: _Class
         raise BooleanError("a patch was left unclassified", stage="select",
                            diagnostics={"unclassified_a": int((sa < 0).sum()), "unclassified_b": int((sb < 0).sum())})
     # np.compress / np.take: row selections several times faster than boolean or integer indexing.
-    ta = np.compress(np.isin(sa, list(keep_a)), imp_a.tris, axis=0)
-    tb = np.compress(np.isin(sb, list(keep_b)), imp_b.tris, axis=0)
+    ta = np.compress(_kept(ca, keep_a), imp_a.tris, axis=0)
+    tb = np.compress(_kept(cb, keep_b), imp_b.tris, axis=0)
     if reverse_b:
         tb = tb[:, ::-1]
     return np.concatenate([ta, tb])
 
 
-def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
+def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: Operand, imp_b: Imprint,
+                 cb: _Classified, B: Operand, table: PointTable) -> np.ndarray:
+    """``(3 k,)`` int64: the twin of each half-edge of :func:`_select`'s triangles ``tris (k, 3)`` where the operands'
+    edge tables already know it, else -1 (half-edge ``3 r + j`` runs from ``tris[r, j]`` to
+    ``tris[r, (j + 1) % 3]``).
+
+    An edge of an operand between two whole (unsplit) triangles that are both selected is an edge
+    of the result with these two half-edges, read from ``edge_tris`` / ``tri_edge`` without a sort.
+    No other selected half-edge can join the same two points: a piece or whole triangle of the same
+    (valid, manifold) operand with both points as vertices would be a third triangle on that
+    edge, and a triangle of the other operand uses both ids only if both are used by both
+    operands — such edges are left to the sort (-1) so that :func:`_pair_half_edges` still finds
+    an edge used more than twice.  Every other half-edge (pieces, the rims of split regions) is -1.
+    """
+    keep_a, keep_b, reverse_b = _TABLE[op]
+    parts = []
+    for imp, c, X, keep, rev in ((imp_a, ca, A, keep_a, False), (imp_b, cb, B, keep_b, reverse_b)):
+        sel = np.flatnonzero(_kept(c, keep))
+        parts.append((sel, int(np.searchsorted(sel, imp.n_whole)), imp, X, rev))
+    k_a = parts[0][0].size
+    k = k_a + parts[1][0].size
+    if k != tris.shape[0]:
+        raise BooleanError(f"internal: {tris.shape[0]} selected triangles, the statuses keep {k}", stage="select")
+    twin = np.full(3 * k, -1, dtype=np.int64)
+    # Corner j of a kept row holds the half-edge of the source triangle's edge k (j = k, or
+    # (1 - k) % 3 for B's triangles reversed by the difference: (v2, v1, v0) runs v1 -> v2 second).
+    # Each kept whole triangle writes its half-edge into its side of the operand edge (side 0 when
+    # it is edge_tris[e, 0]); edges with both sides written are pairs.
+    for (sel, n_ws, imp, X, rev), row0 in zip(parts, (0, k_a)):
+        if n_ws == 0:
+            continue
+        src = imp.source[sel[:n_ws]]  # the whole triangles kept, as rows row0 + i
+        e = np.take(X.tri_edge, src, axis=0).ravel()  # (3 w,) the edge of each corner
+        side = (X.edge_tris[:, 0][e] != np.repeat(src, 3)).astype(np.int64)
+        j = np.tile(np.array([1, 0, 2] if rev else [0, 1, 2], dtype=np.int64), n_ws)
+        he = np.full(2 * X.n_edges, -1, dtype=np.int64)
+        he[2 * e + side] = 3 * row0 + 3 * np.repeat(np.arange(n_ws), 3) + j
+        h0, h1 = he[0::2], he[1::2]
+        both = np.flatnonzero((h0 >= 0) & (h1 >= 0))
+        h0, h1 = h0[both], h1[both]
+        twin[h0], twin[h1] = h1, h0
+    # Edges whose two points are both used by both operands' rows go to the sort.
+    n_ids = table.float.shape[0]
+    used_a, used_b = np.zeros(n_ids, dtype=bool), np.zeros(n_ids, dtype=bool)
+    used_a[tris[:k_a].ravel()] = True
+    used_b[tris[k_a:].ravel()] = True
+    shared = used_a & used_b
+    if np.any(shared):
+        org, dst = tris.ravel(), next_corners(tris)
+        twin[shared[org] & shared[dst]] = -1
+    return twin
+
+
+def _kept(c: _Classified, keep: set) -> np.ndarray:
+    """``(k,)`` bool: the pieces whose patch status is in ``keep`` (a lookup table over the four statuses)."""
+    table = np.zeros(len(_STATUS_NAMES), dtype=bool)
+    table[list(keep)] = True
+    return table[c.status][c.patch]
+
+
+def _sew(tris: np.ndarray, table: PointTable, t: Tolerance, twin: np.ndarray | None = None) -> Solid:
     """Phases 8–9: round, clean features below the tolerance, check the result is manifold, build and check it.
+
+    ``twin (3 k,)``, optional: the half-edge twins :func:`_known_twins` read from the operands (-1
+    where unknown); used when the clean-up leaves the triangles unchanged, so that only the other
+    half-edges are paired by sorting.
 
     Raises
     ------
@@ -841,13 +909,16 @@ def _sew(tris: np.ndarray, table: PointTable, t: Tolerance) -> Solid:
     used, T = _compact(tris, table.float.shape[0])
     P = np.take(table.float, used, axis=0)
     original = used < nA + nB
+    T_raw = T
     T = _clean(P, T, original, t.linear, active)
+    if T is not T_raw:  # the clean-up changed the triangles: their twins are found again
+        twin = None
     if T.shape[0] == 0:
         return Solid.empty()
     used, T = _compact(T, P.shape[0])
     P = np.take(P, used, axis=0)
     try:
-        return _build(P, T, t)
+        return _build(P, T, t, twin)
     except BooleanError:
         # Diagnose: a non-manifold result gets a clear message; a closed component thinner than the
         # tolerance (two facing triangulations of one flat patch) is removed and the build retried.
@@ -876,13 +947,13 @@ def _compact(T: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return used, new[T]
 
 
-def _build(P: np.ndarray, T: np.ndarray, t: Tolerance) -> Solid:
+def _build(P: np.ndarray, T: np.ndarray, t: Tolerance, twin: np.ndarray | None = None) -> Solid:
     """The checked solid of the cleaned result mesh (``from_mesh``'s construction with coplanar merging,
     through its fast path for clean meshes); errors become ``BooleanError`` (stage ``"sew"`` or ``"check"``)."""
     from coons.topology.from_mesh import _solid_from_clean_triangles
 
     try:
-        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True, no_sheets=True)
+        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True, no_sheets=True, twin=twin)
     except TopologyError as exc:
         msg = str(exc)
         if "wrong sign" in msg:
@@ -940,7 +1011,7 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
         # 1. short edges and identical points.
         Ts = T if rows is None else np.take(T, rows, axis=0)
         a = Ts.ravel()
-        b = Ts[:, [1, 2, 0]].ravel()
+        b = next_corners(Ts)
         L = np.linalg.norm(np.take(P, a, axis=0) - np.take(P, b, axis=0), axis=1)
         short = L <= eps
         if np.any(short):
@@ -1041,7 +1112,7 @@ def _drop_thin_components(P: np.ndarray, T: np.ndarray, eps: float) -> np.ndarra
     m = T.shape[0]
     n = np.int64(T.max() + 1)
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     und = np.minimum(a, b) * n + np.maximum(a, b)
     order = np.argsort(und, kind="stable")
     same = und[order[1:]] == und[order[:-1]]
@@ -1059,7 +1130,7 @@ def _drop_thin_components(P: np.ndarray, T: np.ndarray, eps: float) -> np.ndarra
 def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> np.ndarray:
     """Insert each cap's apex into its longest edge (one cap per edge and per neighbour each round)."""
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     n = np.int64(T.max() + 1)
     dkey = a * n + b
     order = np.argsort(dkey)
@@ -1105,7 +1176,7 @@ def _manifold(T: np.ndarray, P: np.ndarray) -> None:
     n = np.int64(P.shape[0])
     m = T.shape[0]
     a = T.ravel()
-    b = T[:, [1, 2, 0]].ravel()
+    b = next_corners(T)
     und = np.minimum(a, b) * n + np.maximum(a, b)
     order = np.argsort(und, kind="stable")
     us = und[order]

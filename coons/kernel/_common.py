@@ -127,3 +127,38 @@ def binomials(n: int) -> np.ndarray:
         for i in range(1, k + 1):
             C[k, i] = C[k - 1, i - 1] + (C[k - 1, i] if i <= k - 1 else 0.0)
     return C
+
+
+def next_corners(T: np.ndarray) -> np.ndarray:
+    """``T[:, [1, 2, 0]].ravel()`` for a C-contiguous ``(m, 3)`` array: the end of each directed edge
+    ``3 t + k`` (from ``T[t, k]`` to ``T[t, (k + 1) % 3]``), as a new ``(3 m,)`` array.
+
+    The fancy-indexed form returns a Fortran-ordered array whose ``ravel`` is a strided copy: 20 to
+    30 times slower at 1e5 rows (numpy 2.4) than these two contiguous slice copies.
+    """
+    r = np.ascontiguousarray(T).ravel()
+    d = np.empty_like(r)
+    d[:-1] = r[1:]
+    d[2::3] = r[0::3]
+    return d
+
+
+def column_min(A: np.ndarray) -> np.ndarray:
+    """``A.min(axis=0)`` of an ``(n, k)`` array (small ``k``), one contiguous reduction per column: an
+    axis-0 reduction over rows of three is 10-20 times slower (numpy 2.4)."""
+    return np.array([A[:, j].min() for j in range(A.shape[1])], dtype=A.dtype)
+
+
+def column_max(A: np.ndarray) -> np.ndarray:
+    """``A.max(axis=0)`` of an ``(n, k)`` array (small ``k``); see :func:`column_min`."""
+    return np.array([A[:, j].max() for j in range(A.shape[1])], dtype=A.dtype)
+
+
+def sorted_contains(sorted_keys: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``np.isin(q, sorted_keys)`` for an already sorted 1-D ``sorted_keys`` (binary search; ``np.isin``
+    would sort both arrays again)."""
+    if sorted_keys.size == 0:
+        return np.zeros(q.shape, dtype=bool)
+    pos = np.searchsorted(sorted_keys, q)
+    np.minimum(pos, sorted_keys.size - 1, out=pos)
+    return sorted_keys[pos] == q

@@ -206,18 +206,25 @@ def _check_euler(b: BRep, out: list[Problem]) -> None:
     shell_of_face = b.face_shell
     F = np.bincount(shell_of_face, minlength=ns)
     L = np.bincount(shell_of_face[b.loop_face], minlength=ns)
-    E = np.bincount(shell_of_face[b.edge_face[:, 0]], minlength=ns) if b.n_edges else np.zeros(ns, int)
     edge_shell = shell_of_face[b.edge_face[:, 0]]
-    vs_pairs = np.concatenate([
-        np.stack([b.edge_vertex[:, 0], edge_shell], 1),
-        np.stack([b.edge_vertex[:, 1], edge_shell], 1),
-        np.stack([b.loop_vertex[b.loop_vertex >= 0], shell_of_face[b.loop_face[b.loop_vertex >= 0]]], 1),
-    ])
-    # Distinct (vertex, shell) pairs through a sorted 1-D key (np.unique, with or without axis=0, is
-    # many times slower than a sort on millions of pairs).
-    key = np.sort(vs_pairs[:, 0] * ns + vs_pairs[:, 1])
-    distinct = key[np.concatenate([[True], key[1:] != key[:-1]])] if key.size else key
-    V = np.bincount(distinct % ns, minlength=ns)
+    E = np.bincount(edge_shell, minlength=ns)
+    has_lv = b.loop_vertex >= 0
+    vs = np.concatenate([b.edge_vertex[:, 0], b.edge_vertex[:, 1], b.loop_vertex[has_lv]])
+    ss = np.concatenate([edge_shell, edge_shell, shell_of_face[b.loop_face[has_lv]]])
+    # Distinct (vertex, shell) pairs.  Nearly always every vertex lies in one shell: scatter a shell
+    # of each vertex and count the vertices whose pairs all agree with it (no sort); only the pairs
+    # of vertices seen in several shells are sorted (a 1-D key: np.unique is many times slower).
+    shell_of = np.full(b.n_vertices, -1, dtype=np.int64)
+    shell_of[vs] = ss
+    mixed = np.zeros(b.n_vertices, dtype=bool)
+    mixed[vs[shell_of[vs] != ss]] = True
+    single = (shell_of >= 0) & ~mixed
+    V = np.bincount(shell_of[single], minlength=ns)
+    if np.any(mixed):
+        sel = mixed[vs]
+        key = np.sort(vs[sel] * ns + ss[sel])
+        distinct = key[np.concatenate([[True], key[1:] != key[:-1]])]
+        V = V + np.bincount(distinct % ns, minlength=ns)
     chi = V - E + F - (L - F)
     for s in range(ns):
         if chi[s] % 2 or chi[s] > 2:

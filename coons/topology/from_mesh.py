@@ -36,8 +36,11 @@ Speed notes for successors: row gathers of 2-D arrays use ``np.take(A, idx, axis
 array is 4 to 40 times slower at 1e5 rows (1-D gathers ``x[idx]`` are not affected); half-edges
 are paired by one value sort of keys with their position packed below (:func:`_stable_sort`),
 not by a stable argsort.  The construction for the polyhedral Booleans
-(:func:`_solid_from_clean_triangles`) costs about 60 ms CPU at 1e5 triangles, half of it in
-:func:`~coons.topology.check.check`.
+(:func:`_solid_from_clean_triangles`, with the twins the Booleans already know) takes 85-95 ms
+wall at 1e5 triangles on a busy 2-core machine, about a fifth of it in
+:func:`~coons.topology.check.check`.  Avoid ``T[:, [1, 2, 0]].ravel()`` (a strided copy, use
+:func:`~coons.kernel._common.next_corners`) and axis-0 reductions of ``(n, 3)`` arrays (use
+``column_min`` / ``column_max``): both are 10-30 times slower at 1e5 rows.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ import warnings
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
+from coons.kernel._common import column_max, column_min, next_corners
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 from coons.topology.shape import Solid
@@ -154,7 +158,8 @@ def from_mesh(
 
 
 def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, merge_coplanar: bool = True,
-                                straighten: bool = False, no_sheets: bool = False) -> Solid:
+                                straighten: bool = False, no_sheets: bool = False,
+                                twin: np.ndarray | None = None) -> Solid:
     """:func:`from_mesh` for callers that guarantee their mesh is clean (the polyhedral Booleans).
 
     Preconditions, not re-verified: ``P (n, 3)`` finite float64 with every vertex used by ``T``;
@@ -172,6 +177,8 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     left on straight boundaries between merged faces (:func:`_remove_straight_vertices`).
     ``no_sheets`` also rejects components thinner than ``t.linear`` on average (``|volume| <=
     t.linear · area``: two facing triangulations of one patch left by touching operands).
+    ``twin (3 m,)`` int64, optional: the twin of each half-edge where the caller knows it, -1
+    elsewhere (:func:`_pair_known_half_edges`: the known pairs are verified, the others sorted).
 
     Raises
     ------
@@ -180,10 +187,11 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
         orientation disagrees with its nesting.
     """
     orig = np.arange(P.shape[0])
-    a, b = _pair_half_edges(P, T, orig)
+    a, b = _pair_half_edges(P, T, orig) if twin is None else _pair_known_half_edges(P, T, twin)
     labels, n_comp = _components(T.shape[0], a // 3, b // 3)
     depth, parent = _nesting(P, T, labels, n_comp)
-    flip = _orientation(P, T, labels, n_comp, depth, thin=t.linear if no_sheets else 0.0)
+    columns = _columns(P, T)
+    flip = _orientation(P, T, labels, n_comp, depth, thin=t.linear if no_sheets else 0.0, columns=columns)
     if np.any(flip):
         k = int(np.flatnonzero(flip)[0])
         raise TopologyError(
@@ -193,12 +201,12 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     if merge_coplanar:
         # _merge_coplanar needs only these columns of the triangle tables; the full tables are made
         # only when nothing merges.
-        org, dst = T.ravel(), T[:, [1, 2, 0]].ravel()
+        org, dst = T.ravel(), next_corners(T)
         h0 = np.where(org[a] < dst[a], a, b)
         shell_solid, solid_ptr, solid_shells = _solids(n_comp, depth, parent)
         few = dict(edge_vertex=np.stack([org[h0], dst[h0]], axis=1), face_shell=labels, shell_solid=shell_solid,
                    solid_shell_ptr=solid_ptr, solid_shells=solid_shells)
-        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten)
+        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten, columns=columns)
         if cols is few:
             cols = _tables(P, T, a, b, labels, n_comp, depth, parent, t)
     else:
@@ -309,8 +317,12 @@ def _reject_degenerate(P: np.ndarray, T: np.ndarray, orig: np.ndarray, t: Tolera
 
 
 # ====================================================================== half-edges
-def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray,
+                     subset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Twin half-edges: half-edge ``h = 3 t + k`` runs from ``T[t, k]`` to ``T[t, (k + 1) % 3]``.
+
+    ``subset``, optional: increasing half-edge ids to pair among themselves (every other half-edge
+    is left out).
 
     Half-edges are sorted by their undirected key ``min · n + max`` (stable, :func:`_stable_sort`, so each group
     lists its half-edges in triangle order); every group must hold exactly two half-edges
@@ -328,9 +340,16 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np
     """
     n = P.shape[0]
     org = T.ravel()
-    dst = T[:, [1, 2, 0]].ravel()
-    key = np.minimum(org, dst) * n + np.maximum(org, dst)
-    order, ks = _stable_sort(key)
+    dst = next_corners(T)
+    if subset is None:
+        key = np.minimum(org, dst) * n + np.maximum(org, dst)
+        order, ks = _stable_sort(key)
+    else:
+        o, d = org[subset], dst[subset]
+        order, ks = _stable_sort(np.minimum(o, d) * n + np.maximum(o, d))
+        order = subset[order]  # subset is increasing: the order stays stable
+    if ks.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     start = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
     count = np.diff(np.append(start, ks.size))
     a = order[start]
@@ -358,6 +377,42 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray) -> tuple[np
             f"{int(orig[v0])} to {int(orig[v1])}; neighbours must run a shared edge in opposite directions"
         )
     return a, b
+
+
+def _pair_known_half_edges(P: np.ndarray, T: np.ndarray, twin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_pair_half_edges` when the caller knows most twins: ``twin (3 m,)`` int64, -1 where unknown.
+
+    The known pairs are verified in array time — an involution without fixed points whose pairs
+    run between the same two vertices in opposite directions — and the unknown half-edges are
+    paired by sorting, with :func:`_pair_half_edges`'s checks and messages.  That no known pair
+    shares its two vertices with another edge is the caller's guarantee (the polyhedral Booleans:
+    :func:`coons.booleans.polyhedral._known_twins`).
+
+    Returns
+    -------
+    a, b : (E,) int64, the two half-edges of each edge, ``a < b``, edges in increasing ``a``.
+
+    Raises
+    ------
+    TopologyError
+        As :func:`_pair_half_edges`; a known pair that is not a pair of opposite half-edges.
+    """
+    org = T.ravel()
+    dst = next_corners(T)
+    h = np.flatnonzero(twin >= 0)
+    g = twin[h]
+    bad = (g == h) | (twin[g] != h) | (org[g] != dst[h]) | (dst[g] != org[h])
+    if np.any(bad):
+        i = int(h[np.argmax(bad)])
+        raise TopologyError(
+            f"internal: half-edge {i} (triangle {i // 3}) was given twin {int(twin[i])}, which does not run the "
+            "same edge the other way"
+        )
+    a1, b1 = _pair_half_edges(P, T, np.arange(P.shape[0]), subset=np.flatnonzero(twin < 0))
+    full = twin.copy()
+    full[a1], full[b1] = b1, a1
+    a = np.flatnonzero(full > np.arange(full.size))
+    return a, full[a]
 
 
 def _stable_sort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -389,14 +444,31 @@ def _components(m: int, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, int
 
 
 # ====================================================================== orientation and nesting
-def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _columns(P: np.ndarray, T: np.ndarray) -> tuple[list, tuple, list]:
+    """Coordinate columns ``X[k] (n,)``, corner columns ``(t0, t1, t2)`` of ``T`` and the unnormalised
+    triangle normals ``N[k] = ((P[t1] - P[t0]) × (P[t2] - P[t0]))[k] (m,)``, gathered once for the
+    orientation test and the coplanar merge (contiguous 1-D gathers: no ``(m, 3)`` temporaries)."""
+    X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
+    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    e1 = [x[t1] - x[t0] for x in X]
+    e2 = [x[t2] - x[t0] for x in X]
+    N = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+    return X, (t0, t1, t2), N
+
+
+def _signed_volumes(P: np.ndarray, T: np.ndarray, columns: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Signed volume of each triangle's tetrahedron with the centre of the vertex box, and the bound
     of its round-off: the determinant's permanent (the sum of the magnitudes of its six products),
     to which the rounding error of the float determinant is proportional whatever the value is (a
-    flat tetrahedron has a tiny value and a large permanent)."""
-    x0 = 0.5 * (P.min(axis=0) + P.max(axis=0))
-    Q = [np.ascontiguousarray(P[:, k]) - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
-    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    flat tetrahedron has a tiny value and a large permanent).  ``columns``: :func:`_columns` of
+    ``P, T`` when the caller has them."""
+    x0 = 0.5 * (column_min(P) + column_max(P))
+    if columns is None:
+        X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
+        t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
+    else:
+        X, (t0, t1, t2) = columns[0], columns[1]
+    Q = [X[k] - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
     ax, ay, az = (q[t0] for q in Q)
     bx, by, bz = (q[t1] for q in Q)
     cx, cy, cz = (q[t2] for q in Q)
@@ -407,8 +479,11 @@ def _signed_volumes(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _orientation(P: np.ndarray, T: np.ndarray, labels: np.ndarray, n_comp: int, depth: np.ndarray,
-                 thin: float = 0.0) -> np.ndarray:
+                 thin: float = 0.0, columns: tuple | None = None) -> np.ndarray:
     """Components to reverse: the sign of the enclosed volume must be ``(-1) ** depth``.
+
+    ``columns``: :func:`_columns` of ``P, T`` when the caller has them (the triangle areas of the
+    ``thin`` test are half the lengths of its normals).
 
     Raises
     ------
@@ -416,11 +491,13 @@ def _orientation(P: np.ndarray, T: np.ndarray, labels: np.ndarray, n_comp: int, 
         A component whose volume is indistinguishable from zero (round-off of its terms), or with
         ``thin > 0`` one whose mean thickness ``|volume| / area`` is at most ``thin``.
     """
-    v, av = _signed_volumes(P, T)
+    if thin > 0.0 and columns is None:
+        columns = _columns(P, T)
+    v, av = _signed_volumes(P, T, columns)
     vol = np.bincount(labels, weights=v, minlength=n_comp)
     if thin > 0.0:
-        E1, E2 = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
-        area = np.bincount(labels, weights=0.5 * np.linalg.norm(np.cross(E1, E2), axis=1), minlength=n_comp)
+        N = columns[2]
+        area = np.bincount(labels, weights=0.5 * np.sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]), minlength=n_comp)
         sheet = np.flatnonzero(np.abs(vol) <= thin * area)
         if sheet.size:
             k = int(sheet[0])
@@ -545,7 +622,7 @@ def _tables(
     m, n = T.shape[0], P.shape[0]
     E = a.size
     org = T.ravel()
-    dst = T[:, [1, 2, 0]].ravel()
+    dst = next_corners(T)
     a_fwd = org[a] < dst[a]
     h0 = np.where(a_fwd, a, b)  # runs start -> end (left side)
     h1 = np.where(a_fwd, b, a)
@@ -618,9 +695,11 @@ def _solids(n_comp: int, depth: np.ndarray, parent: np.ndarray) -> tuple[np.ndar
 # ====================================================================== coplanar merging
 def _merge_coplanar(
     cols: dict[str, np.ndarray], P: np.ndarray, T: np.ndarray, a: np.ndarray, b: np.ndarray, t: Tolerance,
-    straighten: bool = False,
+    straighten: bool = False, columns: tuple | None = None,
 ) -> dict[str, np.ndarray]:
     """Merge neighbouring coplanar triangles into polygon faces (outer loop first, then holes).
+
+    ``columns``: :func:`_columns` of ``P, T`` when the caller has them.
 
     Coplanarity of the two triangles on an edge is decided **exactly** when every coordinate
     is an integer of magnitude below 2**15 (the orientation determinant of one triangle and
@@ -639,17 +718,12 @@ def _merge_coplanar(
     """
     m = T.shape[0]
     org = T.ravel()
-    dst = T[:, [1, 2, 0]].ravel()
+    dst = next_corners(T)
     ta, tb = a // 3, b // 3
     far_a = org[3 * ta + (a - 3 * ta + 2) % 3]  # vertex of ta opposite the shared edge (1-D gathers)
     far_b = org[3 * tb + (b - 3 * tb + 2) % 3]
     # Column arrays: gathers of contiguous 1-D columns, no (E, 3) temporaries.
-    X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
-    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
-    e1 = [x[t1] - x[t0] for x in X]
-    e2 = [x[t2] - x[t0] for x in X]
-    Nc = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
-    N = np.stack(Nc, axis=1)
+    X, (t0, t1, t2), Nc = _columns(P, T) if columns is None else columns
 
     def dot_far(n: list, tri: np.ndarray, far: np.ndarray) -> np.ndarray:
         q = t0[tri]
@@ -679,7 +753,7 @@ def _merge_coplanar(
     local[rt] = np.arange(rt.size)
     region, n_reg = _components(rt.size, local[ta[coplanar]], local[tb[coplanar]])
     # Verify each region's planarity against its Newell plane (guards against drift).
-    Nr = np.take(N, rt, axis=0)  # np.take: row gathers several times faster than N[rt]
+    Nr = np.stack([n[rt] for n in Nc], axis=1)  # region triangles only (1-D gathers)
     normal = np.stack([np.bincount(region, weights=Nr[:, k], minlength=n_reg) for k in range(3)], axis=1)
     unit = normal / np.linalg.norm(normal, axis=1)[:, None]
     size = np.bincount(region, minlength=n_reg)
@@ -771,7 +845,7 @@ def _merge_coplanar(
     # Single triangles: their three coedges in a cycle, loop = face = their rank.
     Cs = np.take(C.reshape(m, 3), single, axis=0)
     flat = Cs.ravel()  # one scatter of each column over all three corners (contiguous rows)
-    nxt[flat] = Cs[:, [1, 2, 0]].ravel()
+    nxt[flat] = next_corners(Cs)
     cloop[flat] = np.repeat(np.arange(n_single), 3)
     loop_first[:n_single] = Cs[:, 0]
     # Region loops.

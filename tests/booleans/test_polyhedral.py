@@ -658,3 +658,51 @@ def test_clean_refuses_to_fold_a_triangle():
     with pytest.raises(BooleanError, match="turn over") as info:
         poly._clean(P, T, np.array([1, 0, 0, 0, 1, 1, 1], bool), 1e-7)
     assert info.value.stage == "sew"
+
+
+@pytest.mark.parametrize("op", ["union", "intersection", "difference"])
+@pytest.mark.parametrize("offset", [(0.3, 0.2, 0.1), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)])
+def test_known_twins_are_the_sorted_pairing(op, offset):
+    """The twins read from the operands' edge tables are those the sort finds (coincident and touching
+    operands included: their shared points leave the edges to the sort)."""
+    import trimesh
+
+    from coons.booleans._mesh_arrangement import Exact, PointTable
+    from coons.topology.from_mesh import _pair_half_edges, _pair_known_half_edges
+    from coons.tolerance import DEFAULT_TOLERANCE as t
+
+    s = trimesh.creation.icosphere(subdivisions=2)
+    V, F = np.asarray(s.vertices, dtype=np.float64), np.asarray(s.faces, dtype=np.int64)
+    a, b = from_mesh(V, F), from_mesh(V + np.asarray(offset), F)
+    A, B = poly._meshes(a, "A", t), poly._meshes(b, "B", t)
+    I, J = poly._broad_phase(A, B)
+    A, B, snapped = arrangement.snap(A, B, I, J, t.linear)
+    if snapped:
+        I, J = poly._broad_phase(A, B)
+    ex = Exact(A.P, B.P)
+    inter = poly._intersect(A, B, I, J, ex)
+    table = PointTable(A, B, inter, ex)
+    ia, ib = poly._imprint(A, 0, inter, table), poly._imprint(B, 1, inter, table)
+    ca = poly._classify(ia, A, B, 0, inter, table, ex)
+    cb = poly._classify(ib, B, A, 1, inter, table, ex)
+    tris = poly._select(op, ia, ca, ib, cb)
+    if tris.shape[0] == 0:
+        return
+    twin = poly._known_twins(op, tris, ia, ca, A, ib, cb, B, table)
+    used, T = poly._compact(tris, table.float.shape[0])
+    P = table.float[used]
+    a1, b1 = _pair_half_edges(P, T, np.arange(P.shape[0]))
+    a2, b2 = _pair_known_half_edges(P, T, twin)
+    assert sorted(zip(a1.tolist(), b1.tolist())) == list(zip(a2.tolist(), b2.tolist()))
+
+
+def test_a_wrong_known_twin_raises():
+    from coons.errors import TopologyError
+    from coons.topology.from_mesh import _pair_known_half_edges
+
+    P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    T = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    twin = np.full(12, -1)
+    twin[0], twin[3] = 3, 0  # 0 -> 2 and 0 -> 1 are not one edge
+    with pytest.raises(TopologyError, match="does not run the same edge"):
+        _pair_known_half_edges(P, T, twin)

@@ -45,6 +45,7 @@ import numpy as np
 from coons.errors import InvalidInputError, TopologyError
 from coons.kernel.analytic import TWO_PI, Circle, Line, scalar_parameter, scalar_point
 from coons.kernel.curve import NurbsCurve
+from coons.kernel.onsurface import evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
@@ -231,6 +232,10 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     return _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
 
 
+#: Curve types :func:`~coons.kernel.onsurface.evaluate_curves` evaluates as one array expression.
+_BATCHED_CURVES = frozenset({Line, Circle})
+
+
 class _Uses:
     """Flat arrays over all edge uses (coedges) in face, loop, position order."""
 
@@ -248,13 +253,25 @@ class _Uses:
         self.t0 = np.array([e.t0 for e in self.spec])
         self.t1 = np.array([e.t1 for e in self.spec])
         self.tol = np.array([t.linear if e.tol is None else max(e.tol, t.linear) for e in self.spec])
-        # Start, end and midpoint of every use, one evaluation per distinct curve object.
+        # Start, end and midpoint of every use: lines and circles (most edges) in one batch, any
+        # other curve in one evaluation per distinct curve object.
         self.start = np.empty((k, 3))
         self.end = np.empty((k, 3))
         self.mid = np.empty((k, 3))
+        simple = np.array([type(e.curve) in _BATCHED_CURVES for e in self.spec], dtype=bool)
+        rs = np.flatnonzero(simple)
+        if rs.size and np.isfinite(self.t0[rs]).all() and np.isfinite(self.t1[rs]).all():
+            tt = np.stack([self.t0[rs], self.t1[rs], 0.5 * (self.t0[rs] + self.t1[rs])], axis=1)
+            P = evaluate_curves([self.spec[i].curve for i in rs.tolist()], tt)
+            if np.isfinite(P).all():
+                self.start[rs], self.end[rs], self.mid[rs] = P[:, 0], P[:, 1], P[:, 2]
+            else:
+                simple[:] = False
+        else:
+            simple[:] = False
         groups: dict[int, list[int]] = {}
-        for i, e in enumerate(self.spec):
-            groups.setdefault(id(e.curve), []).append(i)
+        for i in np.flatnonzero(~simple).tolist():
+            groups.setdefault(id(self.spec[i].curve), []).append(i)
         for rows in groups.values():
             r = np.asarray(rows)
             curve = self.spec[rows[0]].curve

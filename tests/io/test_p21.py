@@ -210,6 +210,27 @@ def test_common_instances_are_deferred_until_used():
     assert not p21._DEFERRABLE.fullmatch("'a''b'")  # an escaped quote
 
 
+@pytest.mark.parametrize("args, triple", [
+    ("'',(0.,1.5,-2)", (0.0, 1.5, -2.0)),
+    (" 'NONE' , ( 0.0 , 1.5E-3 ,\n -2 ) ", (0.0, 1.5e-3, -2.0)),
+    ("'p',(1E999,0.,0.)", (float("inf"), 0.0, 0.0)),  # the reader checks finiteness itself
+    ("'',(0.,1.5)", None),  # two coordinates
+    ("'',(0.,1.5,-2,4.)", None),
+    ("'',(#1,1.5,-2)", None),
+    ("'',(0.,1.5,-2),#3", None),
+    ("$,(0.,1.5,-2)", None),
+])
+def test_real_triple_is_the_params_of_a_plain_point(args, triple):
+    f = parse(wrap(f"#1=CARTESIAN_POINT({args});\n"))
+    e = f.entities[1]
+    assert e.real_triple() == triple
+    if triple is not None:
+        assert tuple(map(float, e.params[1])) == triple  # params stay available and equal
+        assert e.real_triple() is None  # read: nothing left to shortcut
+    g = parse(wrap("#1=CARTESIAN_POINT('it''s',(0.,1.,2.));\n")).entities[1]  # escaped: general parser
+    assert g.real_triple() is None and g.params == ("it's", (0.0, 1.0, 2.0))
+
+
 @pytest.mark.parametrize("data, match, line", [
     ("#1=CARTESIAN_POINT('',(0.,1.5,-2));\n#2=CARTESIAN_POINT('',(0.,,1.));", "expected a parameter before ','", 7),
     ("#1=CARTESIAN_POINT('',(0.,1.5,-2));\n#2=DIRECTION('',(0. 1.));", "expected ',' or '\\)' after a parameter", 7),

@@ -178,6 +178,20 @@ class Entity:
             self._raw = None
         return self._params
 
+    def real_triple(self) -> tuple[float, float, float] | None:
+        """``(x, y, z)`` when the instance is an unread simple instance of the form ``'name', (x, y, z)``
+        with three numbers (a CARTESIAN_POINT or DIRECTION as CAD systems write them), else None.
+
+        A shortcut for readers of many points: the numbers are converted without building
+        :attr:`params` (which stays available and equal).
+        """
+        if self._raw is None:
+            return None
+        m = _REAL_TRIPLE.fullmatch(self._raw)
+        if m is None:
+            return None
+        return float(m.group(1)), float(m.group(2)), float(m.group(3))
+
     @property
     def is_complex(self) -> bool:
         return self.parts is not None
@@ -579,6 +593,8 @@ _DATA_OPEN = re.compile(r"\s*DATA\s*;")
 _END_SEC = re.compile(r"\s*ENDSEC\s*;")
 _END_FILE = re.compile(r"\s*END-ISO-10303-21\s*;\s*\Z")
 _NUM = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+#: The arguments ``'name', (x, y, z)`` of a point or direction (see Entity.real_triple).
+_REAL_TRIPLE = re.compile(rf"\s*'[^'\\\r\n]*'\s*,\s*\(\s*({_NUM})\s*,\s*({_NUM})\s*,\s*({_NUM})\s*\)\s*")
 #: Items of validated arguments without strings or white space: a one-level list, or an atom.
 _LEVEL1_ITEMS = re.compile(r"\(([^()]*)\)|([^,()]+)")
 # The argument grammar the fast path defers: atoms (numbers, references, enumerations, $, *, plain

@@ -329,11 +329,14 @@ class StepModel:
                 return self.point(self.params(e, 2)[1], e, dim)
             if not e.has_type("CARTESIAN_POINT"):
                 raise self.fail(e, "expected CARTESIAN_POINT")
-            c = self.seq(self.params(e, 2)[1], e, "coordinates")
-            if len(c) != dim:
-                raise self.fail(e, f"expected {dim} coordinates, got {len(c)}")
+            c = e.real_triple() if dim == 3 else None  # the common form, without building params
+            if c is None or not all(map(math.isfinite, c)):  # (the general path names what is wrong)
+                c = self.seq(self.params(e, 2)[1], e, "coordinates")
+                if len(c) != dim:
+                    raise self.fail(e, f"expected {dim} coordinates, got {len(c)}")
+                c = [self.number(x, e, "coordinate") for x in c]
             with np.errstate(over="ignore", invalid="ignore"):
-                P = np.array([self.number(x, e, "coordinate") for x in c]) * self.L
+                P = np.array(c, dtype=np.float64) * self.L
                 if dim == 3 and self._xf:
                     P = self.M @ P + self.b
             if not np.isfinite(P).all():
@@ -345,10 +348,12 @@ class StepModel:
         def build(e: Entity) -> np.ndarray:
             if not e.has_type("DIRECTION"):
                 raise self.fail(e, "expected DIRECTION")
-            c = self.seq(self.params(e, 2)[1], e, "direction ratios")
-            if len(c) != dim:
-                raise self.fail(e, f"expected {dim} direction ratios, got {len(c)}")
-            d = [self.number(x, e, "direction ratio") for x in c]
+            d = e.real_triple() if dim == 3 else None  # the common form, without building params
+            if d is None or not all(map(math.isfinite, d)):  # (the general path names what is wrong)
+                c = self.seq(self.params(e, 2)[1], e, "direction ratios")
+                if len(c) != dim:
+                    raise self.fail(e, f"expected {dim} direction ratios, got {len(c)}")
+                d = [self.number(x, e, "direction ratio") for x in c]
             big = max(map(abs, d))
             if big > 0.0:  # scaled first: huge ratios must not overflow the norm
                 d = [x / big for x in d]

@@ -303,3 +303,36 @@ def test_nurbs_faces_get_exact_boundary_pcurves(tmp_path):
     for pc in pcs:
         k = int(np.flatnonzero(pc.direction == 0.0)[0])
         assert pc.origin[k] in (0.0, 1.0)
+
+
+def test_reading_pauses_the_garbage_collector_and_restores_it(tmp_path, monkeypatch):
+    import gc
+
+    from coons.io.step import export_step, reader
+    from coons.topology.primitives import Box
+
+    bad = tmp_path / "bad.step"
+    bad.write_text("ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\n#1=CARTESIAN_POINT('',(0.,0.,0.));\n")  # truncated
+    assert gc.isenabled()
+    with pytest.raises(StepError):
+        reader.import_step(bad)
+    assert gc.isenabled()  # restored after an error
+    gc.disable()
+    try:
+        with pytest.raises(StepError):
+            reader.import_step(bad)
+        assert not gc.isenabled()  # left as found
+    finally:
+        gc.enable()
+    good = tmp_path / "box.step"
+    export_step(Box(1, 2, 3), good)
+    seen = []
+    real = reader.solids_from_p21
+
+    def spy(*args, **kwargs):
+        seen.append(gc.isenabled())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(reader, "solids_from_p21", spy)
+    assert reader.import_step(good).volume == pytest.approx(6.0)
+    assert seen == [False] and gc.isenabled()

@@ -89,11 +89,35 @@ class RawEdge:
         return cached
 
     def _collapsed(self) -> bool:
-        P = np.asarray(self.curve.evaluate(np.array([self.t0, 0.5 * (self.t0 + self.t1), self.t1])))
-        # within twice the edge's own tolerance (its two ends may deviate in opposite directions),
-        # or within the round-off of the coordinates for an edge declared exact
-        roundoff = 1e-12 * (1.0 + float(np.abs(P).max()))
-        return bool(np.max(np.linalg.norm(P - P[0], axis=-1)) <= 2.0 * max(self.tol, roundoff))
+        P = np.asarray(self.curve.evaluate(np.array([self.t0, 0.5 * (self.t0 + self.t1), self.t1])), dtype=np.float64)
+        return bool(_collapsed_rows(P[None], np.array([self.tol]))[0])
+
+
+def _collapsed_rows(P: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """``(k,)`` bool: edges whose start, midpoint and end ``P (k, 3, 3)`` lie within twice their
+    tolerance ``tol (k,)`` of the start (the two ends may deviate in opposite directions), or within
+    the round-off of the coordinates for an edge declared exact."""
+    roundoff = 1e-12 * (1.0 + np.abs(P).max(axis=(1, 2)))
+    return np.linalg.norm(P - P[:, :1], axis=-1).max(axis=1) <= 2.0 * np.maximum(tol, roundoff)
+
+
+def _mark_degenerate(faces: list) -> None:
+    """Decide :attr:`RawEdge.degenerate` for the line and circle edges of ``faces`` in one batch
+    (their points in one :func:`~coons.kernel.onsurface.evaluate_curves` call); other edges are
+    decided when first asked."""
+    from coons.kernel.onsurface import evaluate_curves
+
+    todo = {id(c.edge): c.edge for f in faces for loop in f.loops for c in loop
+            if type(c.edge.curve) in SCALAR_CURVES and "_degenerate" not in c.edge.__dict__}
+    edges = list(todo.values())
+    if not edges:
+        return
+    T = np.array([(e.t0, 0.5 * (e.t0 + e.t1), e.t1) for e in edges], dtype=np.float64)
+    if not np.isfinite(T).all():
+        return  # each edge reports its own bad range when asked
+    flags = _collapsed_rows(evaluate_curves([e.curve for e in edges], T), np.array([e.tol for e in edges], dtype=np.float64))
+    for e, flag in zip(edges, flags.tolist()):
+        e.__dict__["_degenerate"] = flag
 
 
 @dataclass(eq=False)
@@ -801,6 +825,7 @@ def face_specs_from_raw(faces: list[RawFace], tol: Tolerance | None = None) -> l
     # Every face runs as a generator up to its request for cheap p-curves; the requests of all
     # faces are answered in one batch (a thousand small faces cost a few batched passes), and the
     # faces go on to their next request or their result.
+    _mark_degenerate(faces)
     steps = [_face_spec(f, t) for f in faces]
     results: list = [None] * len(faces)
     pending: dict[int, tuple] = {}

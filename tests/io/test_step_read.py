@@ -336,3 +336,28 @@ def test_reading_pauses_the_garbage_collector_and_restores_it(tmp_path, monkeypa
     monkeypatch.setattr(reader, "solids_from_p21", spy)
     assert reader.import_step(good).volume == pytest.approx(6.0)
     assert seen == [False] and gc.isenabled()
+
+
+def test_batched_degenerate_edges_decide_as_one_at_a_time():
+    # _mark_degenerate (lines and circles in one batch) gives every edge the flag its own
+    # RawEdge.degenerate computes: collapsed lines and arcs within 2 tol, exact points, long edges.
+    from coons.io._faces import RawCoedge, RawEdge, RawFace, _mark_degenerate
+    from coons.kernel.analytic import Circle, Line, PlanarSurface
+
+    rng = np.random.default_rng(3)
+    edges = []
+    for _ in range(200):
+        tol = float(rng.choice([0.0, 1e-7, 1e-3]))
+        span = float(rng.choice([0.0, 1e-9, 1e-7, 1.5e-3, 1.0]))
+        a = float(rng.uniform(-5, 5))
+        if rng.random() < 0.5:
+            curve = Line(rng.uniform(-100, 100, 3), rng.normal(size=3))
+        else:
+            curve = Circle(rng.uniform(-100, 100, 3), rng.normal(size=3), rng.normal(size=3), float(rng.uniform(1e-3, 50)))
+        P = np.asarray(curve.evaluate(np.array([a, a + span])))
+        edges.append(RawEdge(curve, a, a + span, P[0], P[1], tol))
+    face = RawFace(PlanarSurface([0, 0, 0], [0, 0, 1], [1, 0, 0]), True, [[RawCoedge(e, True) for e in edges]])
+    _mark_degenerate([face])
+    batched = [e.__dict__.pop("_degenerate") for e in edges]
+    alone = [e.degenerate for e in edges]
+    assert batched == alone and any(alone) and not all(alone)

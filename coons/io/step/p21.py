@@ -598,21 +598,25 @@ _REAL_TRIPLE = re.compile(rf"\s*'[^'\\\r\n]*'\s*,\s*\(\s*({_NUM})\s*,\s*({_NUM})
 #: Items of validated arguments without strings or white space: a one-level list, or an atom.
 _LEVEL1_ITEMS = re.compile(r"\(([^()]*)\)|([^,()]+)")
 # The argument grammar the fast path defers: atoms (numbers, references, enumerations, $, *, plain
-# strings) and lists of atoms up to two levels deep, comma separated, optional white space between tokens.
-_STR = r"'[^'\\\r\n]*'(?!')"
-_ATOM = rf"(?:\#[0-9]+|{_NUM}|\.[A-Za-z_][A-Za-z0-9_]*\.|\$|\*|{_STR})"
-_LIST1 = rf"\(\s*(?:{_ATOM}(?:\s*,\s*{_ATOM})*)?\s*\)"
-_ARG1 = rf"(?:{_ATOM}|{_LIST1})"
+# strings) and lists of atoms up to two levels deep, comma separated, optional white space between
+# tokens.  Atomic groups and possessive quantifiers: the grammar is unambiguous (every token's kind
+# is fixed by its first character, a list's depth by its parentheses), so giving back what a token
+# matched never finds another match, and not trying it halves the matching time.
+_PNUM = r"[+-]?+(?:[0-9]++\.?+[0-9]*+|\.[0-9]++)(?:[eE][+-]?+[0-9]++)?+"
+_STR = r"'[^'\\\r\n]*+'(?!')"
+_ATOM = rf"(?>\#[0-9]++|{_PNUM}|\.[A-Za-z_][A-Za-z0-9_]*+\.|\$|\*|{_STR})"
+_LIST1 = rf"\(\s*+(?:{_ATOM}(?:\s*+,\s*+{_ATOM})*+)?+\s*+\)"
+_ARG1 = rf"(?>{_ATOM}|{_LIST1})"
 #: Lists of atoms and one-level lists (a B-spline surface's control point grid, its weights).
-_LIST2 = rf"\(\s*(?:{_ARG1}(?:\s*,\s*{_ARG1})*)?\s*\)"
-_ARG2 = rf"(?:{_ATOM}|{_LIST1}|{_LIST2})"
-_DEFERRABLE = re.compile(rf"\s*(?:{_ARG2}(?:\s*,\s*{_ARG2})*)?\s*")
+_LIST2 = rf"\(\s*+(?:{_ARG1}(?:\s*+,\s*+{_ARG1})*+)?+\s*+\)"
+_ARG2 = rf"(?>{_ATOM}|{_LIST1}|{_LIST2})"
+_DEFERRABLE = re.compile(rf"\s*+(?:{_ARG2}(?:\s*+,\s*+{_ARG2})*+)?+\s*+")
 #: A whole simple instance whose arguments match :data:`_DEFERRABLE`: one match finds and
 #: validates it.  It ends where :data:`_ANY_ENTITY` would (at the first ``;`` outside strings,
 #: which neither grammar admits elsewhere), so an instance it does not match goes whole to the
 #: general parser.
 _FAST_DEFERRED = re.compile(
-    rf"""\s*(\#([0-9]+)\s*=\s*([A-Za-z_][A-Za-z0-9_]*)\s*\(({_DEFERRABLE.pattern})\)\s*;)""")
+    rf"""\s*+(\#([0-9]++)\s*+=\s*+([A-Za-z_][A-Za-z0-9_]*+)\s*+\(({_DEFERRABLE.pattern})\)\s*+;)""")
 #: An opening parenthesis inside a list: the arguments nest two levels deep.
 _NESTED = re.compile(r"\([^()]*\(")
 _NESTED_TOKENS = re.compile(r"[(),]|[^(),]+")

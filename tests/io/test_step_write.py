@@ -239,8 +239,9 @@ def test_entities_written_for_each_geometry_type():
 def test_cone_semi_angle_is_positive_in_the_file():
     s = coons.Cone(1, 0.5, 2)
     assert s.brep.surfaces[[type(x).__name__ for x in s.brep.surfaces].index("ConicalSurface")].semi_angle < 0
-    (angle,) = re.findall(r"CONICAL_SURFACE\('',#\d+,[^,]+,([^)]+)\)", step_text(s))
-    np.testing.assert_allclose(float(angle), math.atan(0.25), rtol=1e-15)
+    angles = re.findall(r"CONICAL_SURFACE\('',#\d+,[^,]+,([^)]+)\)", step_text(s))
+    assert angles  # one surface entity per face
+    np.testing.assert_allclose([float(a) for a in angles], math.atan(0.25), rtol=1e-15)
 
 
 def test_rational_surfaces_and_curves_are_complex_entities():
@@ -329,3 +330,27 @@ def test_write_failure_leaves_nothing(tmp_path):
     with pytest.raises(FileNotFoundError):
         export_step(coons.Box(1, 1, 1), tmp_path / "missing" / "x.step")
     assert not list(tmp_path.iterdir())
+
+
+def test_pcurves_of_closed_curves_are_written_in_the_base_turn():
+    # An edge on a circle whose range starts a turn or more away from [0, 2pi) keeps its points:
+    # its p-curves are advanced by the whole turns, so that they use the parameters a reader
+    # derives from the vertices.
+    from coons.io.step.writer import _advanced, _period_shift
+    from coons.kernel.analytic import Circle, Line as Line3
+    from coons.kernel.curve import NurbsCurve
+    from coons.kernel.pcurve import Line2D, Trig2D
+
+    circle = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 2.0)
+    for t0, turns in [(6.4781, 1), (9.2299, 1), (-1.5708, -1), (0.2, 0), (2 * math.pi - 1e-14, 1), (-4 * math.pi, -2)]:
+        shift = _period_shift(circle, t0)
+        assert shift == pytest.approx(2 * math.pi * turns)
+        assert -1e-12 <= t0 - shift < 2 * math.pi  # a start within round-off of 2pi counts as 0
+    assert _period_shift(Line3([0, 0, 0], [1, 0, 0]), 9.0) == 0.0
+    shift = 2 * math.pi
+    t = np.linspace(6.5, 9.2, 7)
+    line = Line2D([0.3, -1.0], [0.0, 1.0])
+    nurbs = NurbsCurve(np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 1.0]]), [6.5, 6.5, 6.5, 9.2, 9.2, 9.2], 2)
+    trig = Trig2D([1.0, 2.0], [0.5, 0.0], [0.0, 0.5])
+    for pc in (line, nurbs, trig):
+        np.testing.assert_allclose(_advanced(pc, shift).evaluate(t - shift), pc.evaluate(t), rtol=0, atol=1e-12)

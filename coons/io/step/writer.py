@@ -64,6 +64,7 @@ from coons.kernel.analytic import (
     Ellipse,
     Line,
     PlanarSurface,
+    TWO_PI,
     SphericalSurface,
     ToroidalSurface,
 )
@@ -287,6 +288,42 @@ def _surface(out: _Out, s) -> tuple[int, np.ndarray | None]:
     )
 
 
+def _face_u_min(b, f: int) -> float:
+    """The smallest ``u`` of face ``f``'s p-curves (sampled at nine points per edge use)."""
+    lo = math.inf
+    for loop in b.face_loop_ids(f).tolist():
+        for c in b.loop_coedges(loop).tolist():
+            e, side = c >> 1, c & 1
+            pi = int(b.edge_pcurve[e, side])
+            if pi < 0:
+                return 0.0
+            t0, t1 = b.edge_range[e]
+            lo = min(lo, float(np.min(np.asarray(b.pcurves[pi].evaluate(np.linspace(t0, t1, 9)))[:, 0])))
+    return lo if math.isfinite(lo) else 0.0
+
+
+def _sphere_from(out: _Out, s, u_min: float) -> tuple[int, np.ndarray | None]:
+    """A sphere face's SPHERICAL_SURFACE, its placement turned about the axis so that the face starts at ``u = 0``.
+
+    OCCT's reader (OCCT 8) misplaces the p-curves of a sphere face that spans ``u ∈ [π, 2π]`` (the
+    second half of a sphere cut along meridians, as coons faces are): it reads those at ``u = 2π``
+    as ``u = 0`` and builds the complementary region; it cannot read its own STEP file of such a
+    solid either (tests/io/test_step_catalogue.py, sphere_sphere_difference).  Faces starting at
+    ``u = 0`` read correctly, so each sphere face is written on its own placement, turned by its
+    smallest ``u``, with its p-curves moved by ``-u`` (the 2-D map returned).
+    """
+    turn = TWO_PI * math.floor(u_min / TWO_PI + 1e-12)  # whole turns first: [0, 2π) stays the base range
+    turn = u_min if abs(u_min - turn) > 1e-9 else turn
+    if turn == 0.0:
+        return _surface(out, s)
+    z = np.asarray(s.axis, dtype=np.float64)
+    x = np.asarray(s.x_dir, dtype=np.float64)
+    y = np.cross(z, x)
+    x_turned = math.cos(turn) * x + math.sin(turn) * y
+    sid = out.add(f"SPHERICAL_SURFACE('',#{out.axis3(s.center, z, x_turned)},{_real(s.radius)})")
+    return sid, np.array([[1.0, 0.0, -turn], [0.0, 1.0, 0.0]])
+
+
 def _ellipse_of(center: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Principal form of ``C + cos t A + sin t B``: ``(C, X, a, b)`` with ``X`` unit, ``a >= b``.
 
@@ -312,7 +349,9 @@ def _curve2d(out: _Out, pc, scale: float, lin: np.ndarray | None) -> int:
         if isinstance(pc, (Line2D, Trig2D)):
             pc = pc.transformed(lin)
         elif isinstance(pc, NurbsCurve):
-            pc = NurbsCurve(np.asarray(pc.control_points) @ lin.T, pc.knots, pc.degree, pc.weights)
+            M = np.asarray(lin, dtype=np.float64)
+            shift = M[:, 2] if M.shape[1] == 3 else np.zeros(2)
+            pc = NurbsCurve(np.asarray(pc.control_points) @ M[:, :2].T + shift, pc.knots, pc.degree, pc.weights)
     if isinstance(pc, Line2D):
         d = np.asarray(pc.direction) / scale
         speed = float(np.hypot(*d))
@@ -332,6 +371,33 @@ def _curve2d(out: _Out, pc, scale: float, lin: np.ndarray | None) -> int:
             pc = pc.reparametrized(lo * scale, hi * scale)
         return _bspline_curve(out, pc)
     raise StepError(f"unsupported p-curve type {type(pc).__name__}; expected Line2D, Trig2D or a 2-D NurbsCurve")
+
+
+def _period_shift(curve, t0: float) -> float:
+    """The whole turns ``2πk`` that bring an edge's start ``t0`` on a circle or ellipse into ``[0, 2π)``.
+
+    A reader knows a closed curve's edge only by its vertices, whose parameters it takes in the
+    curve's base period (OCCT: ``[0, 2π)``, the end one period later if need be); the edge's
+    p-curves must use the same parameters, so they are written advanced by this shift.
+    """
+    if type(curve) not in (Circle, Ellipse):
+        return 0.0
+    k = math.floor(t0 / TWO_PI)
+    if t0 - k * TWO_PI > TWO_PI * (1.0 - 1e-12):  # the start of the next turn up to round-off
+        k += 1
+    return k * TWO_PI
+
+
+def _advanced(pc, shift: float):
+    """The p-curve ``t -> pc(t + shift)`` (a Trig2D is unchanged by whole turns)."""
+    if shift == 0.0 or isinstance(pc, Trig2D):
+        return pc
+    if isinstance(pc, Line2D):
+        return Line2D(np.asarray(pc.origin) + shift * np.asarray(pc.direction), pc.direction)
+    if isinstance(pc, NurbsCurve):
+        lo, hi = pc.domain
+        return pc.reparametrized(lo - shift, hi - shift)
+    return pc  # _curve2d reports the unsupported type
 
 
 def _newell_plane(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -415,16 +481,20 @@ def step_text(shape, *, schema: str = "AP214", tol: Tolerance | None = None, nam
     vfirst = out.add_many([f"VERTEX_POINT('',#{p})" for p in pts.tolist()])
     vid = np.arange(vfirst, vfirst + b.n_vertices)
 
-    # -- surfaces (shared surfaces written once) and planes of polyhedral faces
+    # -- surfaces, one entity per face (also where faces share a coons surface: the halves of a
+    # sphere or cylinder), and planes of polyhedral faces.  An edge between two faces on one
+    # surface entity would carry two p-curves on the same surface, which OCCT's reader takes for
+    # a seam: it then gives one face the other's p-curve and builds the complementary region.
     face_surf = np.zeros(b.n_faces, dtype=np.int64)
     face_lin: list[np.ndarray | None] = [None] * b.n_faces
-    surf_cache: dict[int, tuple[int, np.ndarray | None]] = {}
     for f in range(b.n_faces):
         si = int(b.face_surface[f])
         if si >= 0:
-            if si not in surf_cache:
-                surf_cache[si] = _surface(out, b.surfaces[si])
-            face_surf[f], face_lin[f] = surf_cache[si]
+            S = b.surfaces[si]
+            if isinstance(S, SphericalSurface):
+                face_surf[f], face_lin[f] = _sphere_from(out, S, _face_u_min(b, f))
+            else:
+                face_surf[f], face_lin[f] = _surface(out, S)
         else:
             loop = int(b.face_loop_ids(f)[0])
             cs = b.loop_coedges(loop)
@@ -452,13 +522,14 @@ def step_text(shape, *, schema: str = "AP214", tol: Tolerance | None = None, nam
             if scale == 0.0:
                 raise StepError(f"straight edge {e} has coincident end points; expected a positive length")
             cid = _line(out, a_, d / scale)
+        shift = _period_shift(b.curves[ci], float(b.edge_range[e, 0])) if ci >= 0 else 0.0
         pcs = []
         for side in (0, 1):
             pi = int(b.edge_pcurve[e, side])
             if pi < 0:
                 continue
             f = int(face_of[e, side])
-            c2 = _curve2d(out, b.pcurves[pi], scale, face_lin[f])
+            c2 = _curve2d(out, _advanced(b.pcurves[pi], shift), scale, face_lin[f])
             rep = out.add(f"DEFINITIONAL_REPRESENTATION('',(#{c2}),#{ctx2})")
             pcs.append(out.add(f"PCURVE('',#{face_surf[f]},#{rep})"))
         if pcs:

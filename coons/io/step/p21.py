@@ -24,11 +24,12 @@ Parameter values::
     "0FF"                                             Binary('0FF')
 
 Algorithm.  *Fast path* (files as CAD systems write them): the header goes through the general
-parser; in the DATA sections one anchored regular expression matches each whole simple instance
-``#id = NAME( args );`` at C speed, a second one validates the arguments when they have the
-common shapes (numbers, references, enumerations, ``$``, ``*``, plain strings, lists of those
-up to two levels deep), and such instances keep their argument text until :attr:`Entity.params` is
-first read (entities a reader never visits, such as the file's own p-curves, are never
+parser; in the DATA sections one anchored regular expression (atomic groups, possessive
+quantifiers) matches and validates each whole simple instance ``#id = NAME( args );`` at C speed
+when its arguments have the common shapes (numbers, references, enumerations, ``$``, ``*``,
+plain strings, lists of those up to two levels deep), and such instances keep their argument
+text until :attr:`Entity.params` is first read (:meth:`Entity.real_triple` reads a point's or
+direction's three numbers straight from it) (entities a reader never visits, such as the file's own p-curves, are never
 converted).  Every other instance (complex, typed or nested parameters, escaped strings,
 binaries) is parsed at once by the general parser, and anything the fast path cannot follow
 (comments, syntax errors, edition-3 sections) sends the whole file to the general parser, so

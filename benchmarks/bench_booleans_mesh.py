@@ -132,8 +132,9 @@ def _phases(a, b, op: str) -> list[tuple[str, float]]:
     lap(f"6 classify ({ca.status.size + cb.status.size} patches)")
     tris = poly._select(op, ia, ca, ib, cb)
     twin = poly._known_twins(op, tris, ia, ca, A, ib, cb, B, table)
+    groups = poly._patch_groups(op, ca, cb)
     lap("7 select (and the half-edge twins the operands know)")
-    poly._sew(tris, table, t, twin)
+    poly._sew(tris, table, t, twin, groups)
     lap("8–9 sew: clean-up, from_mesh (merge coplanar) and check")
     return out
 

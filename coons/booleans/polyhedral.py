@@ -86,7 +86,8 @@ Phases (each a private function raising ``BooleanError(stage=...)`` with ids and
    ``tol.linear`` are cleaned up (below; only rows holding a new point or points of both operands
    are searched), and the result is built by ``from_mesh``'s construction for clean meshes
    (:func:`~coons.topology.from_mesh._solid_from_clean_triangles`: half-edge pairing, shells as
-   connected components nested into lumps and voids, neighbouring coplanar triangles merged into
+   connected components — found on the patches, each connected, joined where they meet
+   (:func:`_patch_groups`) — nested into lumps and voids, neighbouring coplanar triangles merged into
    polygon faces with holes where needed, vertices left on straight edges between two merged
    faces removed).  An empty selection gives
    :meth:`Solid.empty() <coons.topology.shape.Solid.empty>` (no lumps, volume 0, valid).
@@ -154,15 +155,22 @@ Status and limitations
 * Speed: every phase is vectorised except the splits of the few triangles that a chain of
   segments does not describe (Python, exact integers when the float filters cannot decide).
   ``benchmarks/bench_booleans_mesh.py`` measures coons against manifold3d in the same run
-  (``benchmarks/results/booleans_mesh.md``); at 1.6e5 input triangles the sewing of the result
-  (half-edge pairing, tables, coplanar merging, the topological checks) is the largest phase
-  (85-95 of ~200-260 ms wall, on a machine busy with other work; interleaved runs put the union
-  near 3.5-4x manifold3d on a quiet machine and 2-2.5x when both are slowed by other load), then
-  imprint, the broad phase with the snap, the narrow phase, classification and the operands'
-  meshes.  About 95 % of the result's half-edges get their twins from the operands' edge tables
-  (:func:`_known_twins`); only the rest are paired by sorting.  Row gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times
-  faster than ``A[idx]`` with numpy 2.4).  Triangles crossed by two chains of segments (the
-  side faces of prisms through a plate) still take the per-triangle Python split.
+  (``benchmarks/results/booleans_mesh.md``).  At 1.6e5 input triangles, best of interleaved runs
+  on a 2-core machine shared with another process, union / intersection / difference take about
+  146 / 125 / 128 ms against manifold3d's 47 / 40 / 44 ms (2.9-3.2x; 3.7x before the changes of
+  branch ``mesh-speed2``).  The sewing of the result (half-edge pairing, tables, coplanar merging,
+  the topological checks) is the largest phase, about two fifths of the union, then the broad
+  phase with the snap, imprint, the narrow phase, classification (mostly the patch labelling,
+  one ``connected_components`` over each operand's pieces) and the operands' meshes.  About
+  95 % of the result's half-edges get their twins from the operands' edge tables
+  (:func:`_known_twins`); only the rest are paired by sorting, and the result's shells are found
+  on its patches (:func:`_patch_groups`), not on its triangles.  Row gathers of 2-D arrays go
+  through ``np.take`` / ``np.compress`` (several times faster than ``A[idx]`` with numpy 2.4);
+  ``A[:, [i, j]]`` and ``np.unique(..., axis=0)`` are avoided for the same reason (one integer
+  key per row instead).  Much of what remains is random gathers over 1e5-3e5 rows, bound by
+  cache misses: a row gather (one cache line per scattered index) beats column gathers there,
+  even where it loses with the arrays in cache.  Triangles crossed by two chains of segments
+  (the side faces of prisms through a plate) still take the per-triangle Python split.
 * Bit-identical rounded points that are not joined by an edge stay distinct vertices (the exact
   points are distinct); identical input vertices of A and B are one point (keyed exactly).
 * n-ary calls fold left: ``union(a, b, c) = (a ∪ b) ∪ c``.
@@ -170,7 +178,7 @@ Status and limitations
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -190,7 +198,7 @@ from coons.booleans._mesh_arrangement import (
     snap,
 )
 from coons.errors import BooleanError, InvalidInputError, TopologyError
-from coons.kernel._common import next_corners
+from coons.kernel._common import next_corners, used_ids
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.predicates import orient2d, orient3d
 from coons.tolerance import Tolerance, resolve
@@ -333,7 +341,8 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     status_a = _classify(imp_a, A, B, 0, inter, table, ex)
     status_b = _classify(imp_b, B, A, 1, inter, table, ex)
     tris = _select(op, imp_a, status_a, imp_b, status_b)
-    return _sew(tris, table, t, _known_twins(op, tris, imp_a, status_a, A, imp_b, status_b, B, table))
+    twin = _known_twins(op, tris, imp_a, status_a, A, imp_b, status_b, B, table)
+    return _sew(tris, table, t, twin, _patch_groups(op, status_a, status_b))
 
 
 @dataclass
@@ -342,6 +351,7 @@ class _Classified:
 
     patch: np.ndarray  # (k,) patch of each piece
     status: np.ndarray  # (n_patches,) int8
+    kept: dict = field(default_factory=dict, repr=False)  # _kept's masks by selected statuses
 
 
 def _meshes(s: Solid, name: str, t: Tolerance) -> Operand | None:
@@ -356,7 +366,7 @@ def _meshes(s: Solid, name: str, t: Tolerance) -> Operand | None:
     if b.n_faces == 0:
         return None
     # Geometry is shared by index: test each distinct surface and curve once, then name the first user.
-    used = np.unique(b.face_surface[b.face_surface >= 0])
+    used = used_ids(b.face_surface, len(b.surfaces))
     bad = [int(i) for i in used if not isinstance(b.surfaces[int(i)], PlanarSurface)]
     if bad:
         f = int(np.flatnonzero(np.isin(b.face_surface, bad))[0])
@@ -368,7 +378,7 @@ def _meshes(s: Solid, name: str, t: Tolerance) -> Operand | None:
             stage="input",
             diagnostics={"operand": name, "face": f, "surface": str(kind)},
         )
-    used = np.unique(b.edge_curve[b.edge_curve >= 0])
+    used = used_ids(b.edge_curve, len(b.curves))
     bad = [int(i) for i in used if not isinstance(b.curves[int(i)], Line)]
     if bad:
         e = int(np.flatnonzero(np.isin(b.edge_curve, bad))[0])
@@ -615,12 +625,21 @@ def _ray_status(todo: np.ndarray, patch: np.ndarray, tris: np.ndarray, X: Operan
     # A free original vertex of each patch, if any.
     free_mask = np.zeros(table.float.shape[0], dtype=bool)
     free_mask[free_id] = True
-    wanted = want[patch]
     vert_of = np.full(want.size, -1, dtype=np.int64)
-    for c in range(3):
-        V = tris[:, c]
-        ok = np.flatnonzero(free_mask[V] & wanted)
-        vert_of[patch[ok]] = V[ok]  # any one
+    # Blocks of pieces of doubling size until every patch has one: the patches are few and large, so
+    # the first block nearly always serves them all (a scan of every piece only for a patch without one).
+    start, step = 0, _QUERY_BLOCK
+    while start < tris.shape[0]:
+        stop = min(tris.shape[0], start + step)
+        pb = patch[start:stop]
+        wanted = want[pb]
+        for c in range(3):
+            V = tris[start:stop, c]
+            ok = np.flatnonzero(free_mask[V] & wanted)
+            vert_of[pb[ok]] = V[ok]  # any one
+        if np.all(vert_of[todo] >= 0):
+            break
+        start, step = stop, 2 * step
     result = np.zeros(want.size, dtype=np.int8)
     with_vertex = todo[vert_of[todo] >= 0]
     if with_vertex.size:
@@ -635,6 +654,9 @@ def _ray_status(todo: np.ndarray, patch: np.ndarray, tris: np.ndarray, X: Operan
     return np.where(result % 2 == 1, IN, OUT).astype(np.int8)[todo]
 
 
+#: Pieces searched first for a query vertex of each patch (:func:`_ray_status`; the block doubles while a
+#: patch has none).
+_QUERY_BLOCK = 4096
 #: Queries tested one by one against every triangle box; more go to the broad phase (a Python loop over
 #: queries pays only for a few).
 _RAY_FEW = 8
@@ -858,10 +880,13 @@ def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: 
             continue
         src = imp.source[sel[:n_ws]]  # the whole triangles kept, as rows row0 + i
         e = np.take(X.tri_edge, src, axis=0).ravel()  # (3 w,) the edge of each corner
-        side = (X.edge_tris[:, 0][e] != np.repeat(src, 3)).astype(np.int64)
-        j = np.tile(np.array([1, 0, 2] if rev else [0, 1, 2], dtype=np.int64), n_ws)
+        side = (X.edge_tris[:, 0][e].reshape(n_ws, 3) != src[:, None]).ravel()  # broadcast: no np.repeat
+        # Half-edge 3 (row0 + i) + j of corner k = j: an arange, with corners 0 and 1 swapped when reversed.
+        hid = np.arange(3 * row0, 3 * (row0 + n_ws), dtype=np.int64)
+        if rev:
+            hid += np.tile(np.array([1, -1, 0], dtype=np.int64), n_ws)
         he = np.full(2 * X.n_edges, -1, dtype=np.int64)
-        he[2 * e + side] = 3 * row0 + 3 * np.repeat(np.arange(n_ws), 3) + j
+        he[2 * e + side] = hid
         h0, h1 = he[0::2], he[1::2]
         both = np.flatnonzero((h0 >= 0) & (h1 >= 0))
         h0, h1 = h0[both], h1[both]
@@ -878,19 +903,39 @@ def _known_twins(op: str, tris: np.ndarray, imp_a: Imprint, ca: _Classified, A: 
     return twin
 
 
+def _patch_groups(op: str, ca: _Classified, cb: _Classified) -> np.ndarray:
+    """``(k,)`` int64: the patch of each of :func:`_select`'s triangles (B's patches numbered after A's).
+
+    A patch is connected through piece edges off the other surface, and both pieces of such an edge
+    have the patch's status, so are both selected: the triangles of one patch are connected in the
+    result, which lets the sew find the result's shells on the patches (a handful) instead of on
+    every triangle (:func:`coons.topology.from_mesh._components`).
+    """
+    keep_a, keep_b, _ = _TABLE[op]
+    n_a = int(ca.status.size)
+    return np.concatenate([np.compress(_kept(ca, keep_a), ca.patch), n_a + np.compress(_kept(cb, keep_b), cb.patch)])
+
+
 def _kept(c: _Classified, keep: set) -> np.ndarray:
-    """``(k,)`` bool: the pieces whose patch status is in ``keep`` (a lookup table over the four statuses)."""
-    table = np.zeros(len(_STATUS_NAMES), dtype=bool)
-    table[list(keep)] = True
-    return table[c.status][c.patch]
+    """``(k,)`` bool: the pieces whose patch status is in ``keep`` (a lookup table over the four statuses);
+    computed once per selection (select, the known twins and the patch groups all ask)."""
+    key = frozenset(keep)
+    mask = c.kept.get(key)
+    if mask is None:
+        table = np.zeros(len(_STATUS_NAMES), dtype=bool)
+        table[list(keep)] = True
+        mask = c.kept[key] = table[c.status][c.patch]
+    return mask
 
 
-def _sew(tris: np.ndarray, table: PointTable, t: Tolerance, twin: np.ndarray | None = None) -> Solid:
+def _sew(tris: np.ndarray, table: PointTable, t: Tolerance, twin: np.ndarray | None = None,
+         groups: np.ndarray | None = None) -> Solid:
     """Phases 8–9: round, clean features below the tolerance, check the result is manifold, build and check it.
 
     ``twin (3 k,)``, optional: the half-edge twins :func:`_known_twins` read from the operands (-1
     where unknown); used when the clean-up leaves the triangles unchanged, so that only the other
-    half-edges are paired by sorting.
+    half-edges are paired by sorting.  ``groups (k,)``, optional: the patch of each triangle
+    (:func:`_patch_groups`), used under the same condition to find the result's shells.
 
     Raises
     ------
@@ -911,14 +956,15 @@ def _sew(tris: np.ndarray, table: PointTable, t: Tolerance, twin: np.ndarray | N
     original = used < nA + nB
     T_raw = T
     T = _clean(P, T, original, t.linear, active)
-    if T is not T_raw:  # the clean-up changed the triangles: their twins are found again
-        twin = None
+    if T is not T_raw:  # the clean-up changed the triangles: their twins and shells are found again
+        twin = groups = None
     if T.shape[0] == 0:
         return Solid.empty()
-    used, T = _compact(T, P.shape[0])
-    P = np.take(P, used, axis=0)
+    if T is not T_raw:  # points the clean-up left unused are dropped (unchanged T uses every point)
+        used, T = _compact(T, P.shape[0])
+        P = np.take(P, used, axis=0)
     try:
-        return _build(P, T, t, twin)
+        return _build(P, T, t, twin, groups)
     except BooleanError:
         # Diagnose: a non-manifold result gets a clear message; a closed component thinner than the
         # tolerance (two facing triangulations of one flat patch) is removed and the build retried.
@@ -947,13 +993,15 @@ def _compact(T: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return used, new[T]
 
 
-def _build(P: np.ndarray, T: np.ndarray, t: Tolerance, twin: np.ndarray | None = None) -> Solid:
+def _build(P: np.ndarray, T: np.ndarray, t: Tolerance, twin: np.ndarray | None = None,
+           groups: np.ndarray | None = None) -> Solid:
     """The checked solid of the cleaned result mesh (``from_mesh``'s construction with coplanar merging,
     through its fast path for clean meshes); errors become ``BooleanError`` (stage ``"sew"`` or ``"check"``)."""
     from coons.topology.from_mesh import _solid_from_clean_triangles
 
     try:
-        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True, no_sheets=True, twin=twin)
+        return _solid_from_clean_triangles(P, T, t, merge_coplanar=True, straighten=True, no_sheets=True, twin=twin,
+                                           groups=groups)
     except TopologyError as exc:
         msg = str(exc)
         if "wrong sign" in msg:

@@ -136,6 +136,7 @@ import numpy as np
 
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
+from coons.kernel._common import used_ids
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -305,8 +306,9 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
 def is_polyhedral(s: Solid) -> bool:
     """Whether every face of ``s`` is planar (surface None or PlanarSurface) and every edge straight."""
     b = s.brep
-    surf_ok = all(int(i) < 0 or isinstance(b.surfaces[int(i)], PlanarSurface) for i in np.unique(b.face_surface))
-    curve_ok = all(int(i) < 0 or isinstance(b.curves[int(i)], Line) for i in np.unique(b.edge_curve))
+    # used_ids: the distinct references by a scatter (np.unique sorts: ~7 ms for two 1e5-face meshes).
+    surf_ok = all(isinstance(b.surfaces[int(i)], PlanarSurface) for i in used_ids(b.face_surface, len(b.surfaces)))
+    curve_ok = all(isinstance(b.curves[int(i)], Line) for i in used_ids(b.edge_curve, len(b.curves)))
     return surf_ok and curve_ok
 
 

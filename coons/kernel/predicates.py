@@ -210,15 +210,21 @@ def _broadcast_points(points: tuple, dim: int, names: str) -> tuple[tuple[int, .
     for name, arr in zip(names, arrays):
         if arr.ndim == 0 or arr.shape[-1] != dim:
             raise InvalidInputError(f"{name}: expected points of shape (..., {dim}), got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
+        # A NaN or inf makes the sum non-finite; only then (or when a finite sum overflows) is every
+        # coordinate tested (one reduction instead of a boolean temporary per array).
+        with np.errstate(over="ignore", invalid="ignore"):
+            total = np.add.reduce(arr, axis=None)
+        if not np.isfinite(total) and not np.all(np.isfinite(arr)):
             raise InvalidInputError(f"{name}: coordinates must be finite, got NaN or inf")
-    try:
-        arrays = np.broadcast_arrays(*arrays)
-    except ValueError as exc:
-        shapes = ", ".join(str(a.shape) for a in arrays)
-        raise InvalidInputError(f"point arrays do not broadcast: shapes {shapes}") from exc
+    shape0 = arrays[0].shape
+    if any(a.shape != shape0 for a in arrays[1:]):
+        try:
+            arrays = np.broadcast_arrays(*arrays)
+        except ValueError as exc:
+            shapes = ", ".join(str(a.shape) for a in arrays)
+            raise InvalidInputError(f"point arrays do not broadcast: shapes {shapes}") from exc
     shape = arrays[0].shape[:-1]
-    return shape, [a.reshape(-1, dim) for a in arrays]
+    return shape, [a if a.ndim == 2 else a.reshape(-1, dim) for a in arrays]
 
 
 def orient2d(a, b, c) -> np.ndarray:

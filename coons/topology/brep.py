@@ -54,6 +54,7 @@ from typing import Iterator
 import numpy as np
 
 from coons.errors import InvalidInputError
+from coons.kernel._common import interleaved_columns
 
 __all__ = ["BRep", "Vertex", "Edge", "Coedge", "Loop", "Face", "Shell", "Lump", "same_geometry"]
 
@@ -162,12 +163,12 @@ class BRep:
     @cached_property
     def coedge_next(self) -> np.ndarray:
         """``(2E,)`` next coedge of each coedge in its loop."""
-        return _ro(self.edge_wing[:, [1, 3]].ravel())
+        return _ro(interleaved_columns(self.edge_wing, 1, 3))
 
     @cached_property
     def coedge_prev(self) -> np.ndarray:
         """``(2E,)`` previous coedge of each coedge in its loop."""
-        return _ro(self.edge_wing[:, [0, 2]].ravel())
+        return _ro(interleaved_columns(self.edge_wing, 0, 2))
 
     @cached_property
     def coedge_loop(self) -> np.ndarray:
@@ -182,7 +183,7 @@ class BRep:
     @cached_property
     def coedge_target(self) -> np.ndarray:
         """``(2E,)`` vertex each coedge ends at."""
-        return _ro(self.edge_vertex[:, ::-1].ravel())
+        return _ro(interleaved_columns(self.edge_vertex, 1, 0))
 
     @cached_property
     def coedge_face(self) -> np.ndarray:

@@ -118,7 +118,7 @@ def _check_pointers(b: BRep, out: list[Problem]) -> None:
     if nc == 0:
         return
     for name, arr, hi in (("next", nxt, nc), ("prev", prv, nc), ("loop", loop, b.n_loops)):
-        bad = np.flatnonzero((arr < 0) | (arr >= hi))
+        bad = np.flatnonzero(arr.view(np.uint64) >= hi)  # negative ids wrap to huge: one comparison
         for c in bad[:10]:
             out.append(Problem("dangling-pointer", "coedge", int(c), f"{name} pointer {int(arr[c])} is out of range"))
     if out:
@@ -140,9 +140,11 @@ def _check_pointers(b: BRep, out: list[Problem]) -> None:
         out.append(Problem("loop-first-coedge", "loop", int(l), "its first coedge belongs to another loop"))
     # Every loop is a single cycle: count coedges per loop against the cycle length.
     if not out:
-        cyc_len = _cycle_lengths(nxt)
         per_loop = np.bincount(loop, minlength=b.n_loops)
-        bad = np.flatnonzero(has & (cyc_len[np.where(has, first, 0)] != per_loop))
+        with_coedge = np.flatnonzero(has)
+        cyc_len = np.zeros(b.n_loops, dtype=np.int64)
+        cyc_len[with_coedge] = _cycle_lengths_at(nxt, first[with_coedge], loop, per_loop[with_coedge])
+        bad = np.flatnonzero(has & (cyc_len != per_loop))
         for l in bad[:10]:
             out.append(Problem("loop-split", "loop", int(l), "its coedges form more than one cycle"))
         empty = np.flatnonzero(~has & (b.loop_vertex < 0))
@@ -172,6 +174,51 @@ def _cycle_lengths(perm: np.ndarray) -> np.ndarray:
     return np.bincount(label, minlength=n)[label]
 
 
+#: Steps walked along every cycle by :func:`_cycle_lengths_at` before the long ones go to pointer doubling.
+_WALK = 12
+
+
+def _cycle_lengths_at(perm: np.ndarray, start: np.ndarray, group: np.ndarray, expected: np.ndarray) -> np.ndarray:
+    """Length ``(k,)`` of the cycle of the permutation ``perm`` through each element of ``start (k,)``.
+
+    ``group (n,)``: a label that ``perm`` preserves (``group[perm] == group``, the caller's checked
+    invariant: loops for ``next``, origin vertices for the rotation about a vertex), and
+    ``expected (k,)`` the size of the group of each start (a cycle is at most that long).  The cycles
+    are walked together, one gather per step, for :data:`_WALK` steps — enough for the triangles and
+    vertex fans of meshes, a few array passes over the starts instead of :func:`_cycle_lengths`'s
+    log-many passes over every element; the cycles still open are measured by :func:`_cycle_lengths`
+    on the elements of their groups only.  Equal to ``_cycle_lengths(perm)[start]``.
+    """
+    k = start.size
+    out = np.zeros(k, dtype=np.int64)
+    rows = np.arange(k)
+    first = np.asarray(start, dtype=np.int64)
+    cur = perm[first]
+    for steps in range(1, _WALK + 1):
+        done = cur == first
+        out[rows[done]] = steps
+        if np.all(done):
+            return out
+        # a cycle longer than its group cannot close: stop walking it (the caller reports it)
+        keep = ~done & (expected[rows] > steps)
+        rows, first, cur = rows[keep], first[keep], cur[keep]
+        if rows.size == 0:
+            return out
+        cur = perm[cur]
+    open_rows = rows
+    in_open = np.zeros(int(group.max(initial=-1)) + 1, dtype=bool)
+    in_open[group[first]] = True
+    elems = np.flatnonzero(in_open[group])
+    local = np.full(perm.size, -1, dtype=np.int64)
+    local[elems] = np.arange(elems.size)
+    sub = local[perm[elems]]
+    if np.any(sub < 0):  # perm does not preserve the groups after all: measure on every element
+        out[open_rows] = _cycle_lengths(perm)[first]
+    else:
+        out[open_rows] = _cycle_lengths(sub)[local[first]]
+    return out
+
+
 def _check_manifold(b: BRep, out: list[Problem]) -> None:
     ef = b.edge_face
     same = np.flatnonzero(ef[:, 0] == ef[:, 1])
@@ -181,14 +228,23 @@ def _check_manifold(b: BRep, out: list[Problem]) -> None:
     nc = 2 * b.n_edges
     if nc:
         rot = b.coedge_next[np.arange(nc) ^ 1]  # next outgoing coedge around the origin vertex
-        fan = _cycle_lengths(rot)
-        degree = np.bincount(b.coedge_origin, minlength=b.n_vertices)
         v = b.coedge_origin
-        bad = np.unique(v[fan != degree[v]])
+        degree = np.bincount(v, minlength=b.n_vertices)
+        # rot permutes the coedges leaving each vertex (their twins end there, and the pointer checks
+        # made every next coedge start where its predecessor ends): the vertex is manifold when the
+        # cycle through any one of them visits all.
+        start = np.empty(b.n_vertices, dtype=np.int64)
+        start[v] = np.arange(nc)
+        used = np.flatnonzero(degree > 0)
+        fan = _cycle_lengths_at(rot, start[used], v, degree[used])
+        bad = used[fan != degree[used]]
         for vi in bad[:10]:
             out.append(Problem("non-manifold-vertex", "vertex", int(vi),
                                f"{int(degree[vi])} edges leave it but they form several fans"))
-    isolated = np.flatnonzero((b.vertex_coedge < 0) & ~np.isin(np.arange(b.n_vertices), b.loop_vertex))
+    lv = b.loop_vertex[(b.loop_vertex >= 0) & (b.loop_vertex < b.n_vertices)]
+    in_loop = np.zeros(b.n_vertices, dtype=bool)  # np.isin(arange, loop_vertex) by a scatter (no sort)
+    in_loop[lv] = True
+    isolated = np.flatnonzero((b.vertex_coedge < 0) & ~in_loop)
     for vi in isolated[:10]:
         out.append(Problem("isolated-vertex", "vertex", int(vi), "not used by any edge or loop"))
     # Shells must be closed: every edge's two faces in the same shell.

@@ -36,11 +36,15 @@ Speed notes for successors: row gathers of 2-D arrays use ``np.take(A, idx, axis
 array is 4 to 40 times slower at 1e5 rows (1-D gathers ``x[idx]`` are not affected); half-edges
 are paired by one value sort of keys with their position packed below (:func:`_stable_sort`),
 not by a stable argsort.  The construction for the polyhedral Booleans
-(:func:`_solid_from_clean_triangles`, with the twins the Booleans already know) takes 85-95 ms
-wall at 1e5 triangles on a busy 2-core machine, about a fifth of it in
-:func:`~coons.topology.check.check`.  Avoid ``T[:, [1, 2, 0]].ravel()`` (a strided copy, use
-:func:`~coons.kernel._common.next_corners`) and axis-0 reductions of ``(n, 3)`` arrays (use
-``column_min`` / ``column_max``): both are 10-30 times slower at 1e5 rows.
+(:func:`_solid_from_clean_triangles`, with the twins and the connected groups (patches) the
+Booleans already know) is about two fifths of a Boolean at 1e5 triangles (some 60 ms of the
+~146 ms union of ``benchmarks/bench_booleans_mesh.py``, best of interleaved runs on a shared
+2-core machine), about a quarter of it in :func:`~coons.topology.check.check`.  Avoid
+``T[:, [1, 2, 0]].ravel()`` and ``A[:, [i, j]].ravel()`` (strided copies, use
+:func:`~coons.kernel._common.next_corners`, ``prev_corners``, ``interleaved_columns``),
+``np.unique`` / ``np.isin`` where a scatter into a mask gives the answer (``used_ids``) and
+axis-0 reductions of ``(n, 3)`` arrays (use ``column_min`` / ``column_max``): all are 10-40 times
+slower at 1e5 rows.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ import warnings
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
-from coons.kernel._common import column_max, column_min, next_corners
+from coons.kernel._common import column_max, column_min, interleaved_columns, next_corners, prev_corners, used_ids
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 from coons.topology.shape import Solid
@@ -159,7 +163,7 @@ def from_mesh(
 
 def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, merge_coplanar: bool = True,
                                 straighten: bool = False, no_sheets: bool = False,
-                                twin: np.ndarray | None = None) -> Solid:
+                                twin: np.ndarray | None = None, groups: np.ndarray | None = None) -> Solid:
     """:func:`from_mesh` for callers that guarantee their mesh is clean (the polyhedral Booleans).
 
     Preconditions, not re-verified: ``P (n, 3)`` finite float64 with every vertex used by ``T``;
@@ -179,6 +183,10 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     t.linear · area``: two facing triangulations of one patch left by touching operands).
     ``twin (3 m,)`` int64, optional: the twin of each half-edge where the caller knows it, -1
     elsewhere (:func:`_pair_known_half_edges`: the known pairs are verified, the others sorted).
+    ``groups (m,)`` int64, optional: labels ``>= 0`` such that the triangles sharing a label are
+    connected through shared edges (the caller's guarantee: the polyhedral Booleans pass the patch of
+    each piece); the components are then those of the small graph of labels joined by an edge
+    (:func:`_components`), instead of a labelling of every triangle.
 
     Raises
     ------
@@ -187,8 +195,9 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
         orientation disagrees with its nesting.
     """
     orig = np.arange(P.shape[0])
-    a, b = _pair_half_edges(P, T, orig) if twin is None else _pair_known_half_edges(P, T, twin)
-    labels, n_comp = _components(T.shape[0], a // 3, b // 3)
+    dst = next_corners(T)  # the end of each half-edge, computed once for the pairing and the merge
+    a, b = _pair_half_edges(P, T, orig, dst=dst) if twin is None else _pair_known_half_edges(P, T, twin, dst)
+    labels, n_comp = _components(T.shape[0], a // 3, b // 3, groups)
     depth, parent = _nesting(P, T, labels, n_comp)
     columns = _columns(P, T)
     flip = _orientation(P, T, labels, n_comp, depth, thin=t.linear if no_sheets else 0.0, columns=columns)
@@ -201,12 +210,12 @@ def _solid_from_clean_triangles(P: np.ndarray, T: np.ndarray, t: Tolerance, *, m
     if merge_coplanar:
         # _merge_coplanar needs only these columns of the triangle tables; the full tables are made
         # only when nothing merges.
-        org, dst = T.ravel(), next_corners(T)
+        org = T.ravel()
         h0 = np.where(org[a] < dst[a], a, b)
         shell_solid, solid_ptr, solid_shells = _solids(n_comp, depth, parent)
         few = dict(edge_vertex=np.stack([org[h0], dst[h0]], axis=1), face_shell=labels, shell_solid=shell_solid,
                    solid_shell_ptr=solid_ptr, solid_shells=solid_shells)
-        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten, columns=columns)
+        cols = _merge_coplanar(few, P, T, a, b, t, straighten=straighten, columns=columns, dst=dst)
         if cols is few:
             cols = _tables(P, T, a, b, labels, n_comp, depth, parent, t)
     else:
@@ -318,11 +327,11 @@ def _reject_degenerate(P: np.ndarray, T: np.ndarray, orig: np.ndarray, t: Tolera
 
 # ====================================================================== half-edges
 def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray,
-                     subset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     subset: np.ndarray | None = None, dst: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Twin half-edges: half-edge ``h = 3 t + k`` runs from ``T[t, k]`` to ``T[t, (k + 1) % 3]``.
 
     ``subset``, optional: increasing half-edge ids to pair among themselves (every other half-edge
-    is left out).
+    is left out).  ``dst``, optional: ``next_corners(T)`` when the caller has it.
 
     Half-edges are sorted by their undirected key ``min · n + max`` (stable, :func:`_stable_sort`, so each group
     lists its half-edges in triangle order); every group must hold exactly two half-edges
@@ -340,7 +349,7 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray,
     """
     n = P.shape[0]
     org = T.ravel()
-    dst = next_corners(T)
+    dst = next_corners(T) if dst is None else dst
     if subset is None:
         key = np.minimum(org, dst) * n + np.maximum(org, dst)
         order, ks = _stable_sort(key)
@@ -379,7 +388,8 @@ def _pair_half_edges(P: np.ndarray, T: np.ndarray, orig: np.ndarray,
     return a, b
 
 
-def _pair_known_half_edges(P: np.ndarray, T: np.ndarray, twin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _pair_known_half_edges(P: np.ndarray, T: np.ndarray, twin: np.ndarray,
+                           dst: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_pair_half_edges` when the caller knows most twins: ``twin (3 m,)`` int64, -1 where unknown.
 
     The known pairs are verified in array time — an involution without fixed points whose pairs
@@ -398,17 +408,24 @@ def _pair_known_half_edges(P: np.ndarray, T: np.ndarray, twin: np.ndarray) -> tu
         As :func:`_pair_half_edges`; a known pair that is not a pair of opposite half-edges.
     """
     org = T.ravel()
-    dst = next_corners(T)
+    dst = next_corners(T) if dst is None else dst  # optional: the caller's next_corners(T)
     h = np.flatnonzero(twin >= 0)
     g = twin[h]
-    bad = (g == h) | (twin[g] != h) | (org[g] != dst[h]) | (dst[g] != org[h])
+    # dst[g] == org[h] needs no test of its own: twin[g] == h for every h makes g one of the h, and
+    # the test org[twin[g]] == dst[g] at g is that one.  twin and org side by side: one row gather
+    # (one cache line) per scattered g instead of two.
+    TO = np.empty((twin.size, 2), dtype=np.int64)
+    TO[:, 0] = twin
+    TO[:, 1] = org
+    R = np.take(TO, g, axis=0)
+    bad = (g == h) | (R[:, 0] != h) | (R[:, 1] != dst[h])
     if np.any(bad):
         i = int(h[np.argmax(bad)])
         raise TopologyError(
             f"internal: half-edge {i} (triangle {i // 3}) was given twin {int(twin[i])}, which does not run the "
             "same edge the other way"
         )
-    a1, b1 = _pair_half_edges(P, T, np.arange(P.shape[0]), subset=np.flatnonzero(twin < 0))
+    a1, b1 = _pair_half_edges(P, T, np.arange(P.shape[0]), subset=np.flatnonzero(twin < 0), dst=dst)
     full = twin.copy()
     full[a1], full[b1] = b1, a1
     a = np.flatnonzero(full > np.arange(full.size))
@@ -433,14 +450,38 @@ def _stable_sort(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return order, key[order]
 
 
-def _components(m: int, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, int]:
-    """Connected components of the triangle adjacency (triangles ``ta[i]``, ``tb[i]`` share an edge)."""
+def _components(m: int, ta: np.ndarray, tb: np.ndarray, groups: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Connected components of the triangle adjacency (triangles ``ta[i]``, ``tb[i]`` share an edge).
+
+    ``groups (m,)`` int64, optional: labels ``>= 0`` of sets of triangles known to be connected
+    (see :func:`_solid_from_clean_triangles`).  The components are then found on the labels joined
+    by the edges between two labels (a few, where a Boolean's patches meet), one gather per edge
+    end instead of a graph of every triangle; components are numbered in the order of their
+    smallest label, not of their first triangle.
+    """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    g = coo_matrix((np.ones(ta.size, dtype=np.int8), (ta, tb)), shape=(m, m)).tocsr()
-    n_comp, labels = connected_components(g, directed=False)
-    return labels.astype(np.int64), int(n_comp)
+    if groups is None:
+        g = coo_matrix((np.ones(ta.size, dtype=np.int8), (ta, tb)), shape=(m, m)).tocsr()
+        n_comp, labels = connected_components(g, directed=False)
+        return labels.astype(np.int64), int(n_comp)
+    if groups.shape != (m,):
+        raise InvalidInputError(f"groups must have shape ({m},), got {groups.shape}")
+    if m == 0:
+        return np.zeros(0, dtype=np.int64), 0
+    if int(groups.min()) < 0:
+        raise InvalidInputError(f"groups must be labels >= 0, got {int(groups.min())}")
+    n_g = int(groups.max()) + 1
+    used = used_ids(groups, n_g)
+    local = np.full(n_g, -1, dtype=np.int64)
+    local[used] = np.arange(used.size)
+    gl = local[groups]
+    ga, gb = gl[ta], gl[tb]
+    cross = ga != gb
+    g = coo_matrix((np.ones(int(cross.sum()), dtype=np.int8), (ga[cross], gb[cross])), shape=(used.size, used.size))
+    n_comp, lab = connected_components(g, directed=False)
+    return lab.astype(np.int64)[gl], int(n_comp)
 
 
 # ====================================================================== orientation and nesting
@@ -458,16 +499,24 @@ def _columns(P: np.ndarray, T: np.ndarray) -> tuple[list, tuple, list]:
 
 def _signed_volumes(P: np.ndarray, T: np.ndarray, columns: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Signed volume of each triangle's tetrahedron with the centre of the vertex box, and the bound
-    of its round-off: the determinant's permanent (the sum of the magnitudes of its six products),
-    to which the rounding error of the float determinant is proportional whatever the value is (a
-    flat tetrahedron has a tiny value and a large permanent).  ``columns``: :func:`_columns` of
-    ``P, T`` when the caller has them."""
+    of its round-off: the permanent of the products summed (the sum of their magnitudes), to which
+    the rounding error of the float value is proportional whatever the value is (a flat tetrahedron
+    has a tiny value and a large permanent).
+
+    Without ``columns`` the value is the determinant of the three centred corners ``a, b, c`` and
+    the bound its permanent (six products).  With ``columns`` (:func:`_columns` of ``P, T``, which
+    holds the normals ``N = (b - a) × (c - a)``) it is the same determinant evaluated as
+    ``(a - x0) · N`` and the bound that expression's permanent: three gathers instead of nine.
+    """
     x0 = 0.5 * (column_min(P) + column_max(P))
-    if columns is None:
-        X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
-        t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
-    else:
-        X, (t0, t1, t2) = columns[0], columns[1]
+    if columns is not None:
+        X, (t0, _, _), N = columns
+        A = [X[k][t0] - x0[k] for k in range(3)]
+        v = (A[0] * N[0] + A[1] * N[1] + A[2] * N[2]) / 6.0
+        perm = (np.abs(A[0]) * np.abs(N[0]) + np.abs(A[1]) * np.abs(N[1]) + np.abs(A[2]) * np.abs(N[2])) / 6.0
+        return v, perm
+    X = [np.ascontiguousarray(P[:, k]) for k in range(3)]
+    t0, t1, t2 = (np.ascontiguousarray(T[:, k]) for k in range(3))
     Q = [X[k] - x0[k] for k in range(3)]  # columns: no (m, 3) temporaries
     ax, ay, az = (q[t0] for q in Q)
     bx, by, bz = (q[t1] for q in Q)
@@ -649,7 +698,7 @@ def _tables(
         vertex_coedge=vertex_coedge,
         edge_vertex=edge_vertex,
         edge_loop=cloop.reshape(E, 2),
-        edge_wing=np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1),
+        edge_wing=_wings(prv, nxt),
         edge_curve=np.full(E, -1, dtype=np.int64),
         edge_range=_unit_ranges(E),
         edge_pcurve=np.full((E, 2), -1, dtype=np.int64),
@@ -668,6 +717,16 @@ def _tables(
         solid_shell_ptr=solid_ptr,
         solid_shells=solid_shells,
     )
+
+
+def _wings(prv: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """``edge_wing (E, 4)`` = ``[prev, next]`` of the left then the right side, from the coedge arrays
+    ``prv, nxt (2 E,)``: two strided copies (``np.stack`` of four strided slices is slower)."""
+    E = prv.size // 2
+    W = np.empty((E, 2, 2), dtype=np.int64)
+    W[:, :, 0] = prv.reshape(E, 2)
+    W[:, :, 1] = nxt.reshape(E, 2)
+    return W.reshape(E, 4)
 
 
 def _unit_ranges(E: int) -> np.ndarray:
@@ -695,11 +754,11 @@ def _solids(n_comp: int, depth: np.ndarray, parent: np.ndarray) -> tuple[np.ndar
 # ====================================================================== coplanar merging
 def _merge_coplanar(
     cols: dict[str, np.ndarray], P: np.ndarray, T: np.ndarray, a: np.ndarray, b: np.ndarray, t: Tolerance,
-    straighten: bool = False, columns: tuple | None = None,
+    straighten: bool = False, columns: tuple | None = None, dst: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Merge neighbouring coplanar triangles into polygon faces (outer loop first, then holes).
 
-    ``columns``: :func:`_columns` of ``P, T`` when the caller has them.
+    ``columns``: :func:`_columns` of ``P, T`` and ``dst``: ``next_corners(T)``, when the caller has them.
 
     Coplanarity of the two triangles on an edge is decided **exactly** when every coordinate
     is an integer of magnitude below 2**15 (the orientation determinant of one triangle and
@@ -718,16 +777,21 @@ def _merge_coplanar(
     """
     m = T.shape[0]
     org = T.ravel()
-    dst = next_corners(T)
+    dst = next_corners(T) if dst is None else dst
     ta, tb = a // 3, b // 3
-    far_a = org[3 * ta + (a - 3 * ta + 2) % 3]  # vertex of ta opposite the shared edge (1-D gathers)
-    far_b = org[3 * tb + (b - 3 * tb + 2) % 3]
+    opposite = prev_corners(T)  # the vertex of each half-edge's triangle opposite it
+    far_a, far_b = opposite[a], opposite[b]
     # Column arrays: gathers of contiguous 1-D columns, no (E, 3) temporaries.
     X, (t0, t1, t2), Nc = _columns(P, T) if columns is None else columns
 
+    P0 = np.take(P, t0, axis=0)  # the first corner of each triangle, a point of its plane
+
     def dot_far(n: list, tri: np.ndarray, far: np.ndarray) -> np.ndarray:
-        q = t0[tri]
-        return n[0][tri] * (X[0][far] - X[0][q]) + n[1][tri] * (X[1][far] - X[1][q]) + n[2][tri] * (X[2][far] - X[2][q])
+        # Row gathers (a cache line per scattered vertex) instead of column gathers of X; the same
+        # products and sums as n[k][tri] * (X[k][far] - X[k][t0[tri]]).
+        F = np.take(P, far, axis=0)
+        Q = np.take(P0, tri, axis=0)
+        return n[0][tri] * (F[:, 0] - Q[:, 0]) + n[1][tri] * (F[:, 1] - Q[:, 1]) + n[2][tri] * (F[:, 2] - Q[:, 2])
 
     if np.all(P == np.round(P)) and np.max(np.abs(P), initial=0.0) < _EXACT_COORD_LIMIT:
         coplanar = dot_far(Nc, ta, far_b) == 0.0
@@ -797,9 +861,9 @@ def _merge_coplanar(
         g[todo] = nxt_of(twin[g[todo]])
         todo = todo[inner_h[g[todo]]]
     # Region loops: cycles of the permutation h -> g on the region boundary half-edges.
-    pos = np.full(3 * m, -1, dtype=np.int64)
-    pos[kr] = np.arange(kr.size)
-    perm = pos[g]
+    perm = np.searchsorted(kr, g)  # kr is increasing and holds every g: positions without a (3 m,) table
+    if kr.size and np.any(kr[np.minimum(perm, kr.size - 1)] != g):
+        raise TopologyError("internal: a merged region's boundary walk left the region's boundary half-edges")
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -820,9 +884,9 @@ def _merge_coplanar(
     rloop_order = np.lexsort((-signed, rloop_face))
     rloop_rank = np.empty(n_rloops, dtype=np.int64)
     rloop_rank[rloop_order] = n_single + np.arange(n_rloops)
-    loops_per_face = np.concatenate([np.ones(n_single, dtype=np.int64),
-                                     np.bincount(rloop_face - n_single, minlength=n_reg)])
-    face_loop_ptr = np.concatenate([[0], np.cumsum(loops_per_face)])
+    reg_loops = np.bincount(rloop_face - n_single, minlength=n_reg)
+    # One loop per single face: its pointers are an arange, the regions' follow.
+    face_loop_ptr = np.concatenate([np.arange(n_single + 1, dtype=np.int64), n_single + np.cumsum(reg_loops)])
     outer = rloop_order[face_loop_ptr[n_single:-1] - n_single]
     if np.any(signed[outer] <= 0):
         r = int(np.flatnonzero(signed[outer] <= 0)[0])
@@ -855,7 +919,7 @@ def _merge_coplanar(
     loop_first[rloop_rank[rloop_of]] = ck
     prv = np.empty(2 * E, dtype=np.int64)
     prv[nxt] = np.arange(2 * E)
-    loop_face = np.repeat(np.arange(n_faces), loops_per_face)
+    loop_face = np.concatenate([np.arange(n_single, dtype=np.int64), n_single + np.repeat(np.arange(n_reg), reg_loops)])
     # Vertices that still have an edge, renumbered.
     edge_vertex = np.take(ev, keep_e, axis=0)
     used = np.zeros(P.shape[0], dtype=bool)
@@ -880,7 +944,7 @@ def _merge_coplanar(
         vertex_coedge=vertex_coedge,
         edge_vertex=edge_vertex,
         edge_loop=cloop.reshape(E, 2),
-        edge_wing=np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1),
+        edge_wing=_wings(prv, nxt),
         edge_curve=np.full(E, -1, dtype=np.int64),  # the constant columns of _tables
         edge_range=_unit_ranges(E),
         edge_pcurve=np.full((E, 2), -1, dtype=np.int64),
@@ -926,8 +990,8 @@ def _remove_straight_vertices(cols: dict[str, np.ndarray], t: Tolerance) -> dict
         return cols  # no vertex with two edges (most results: nothing to copy)
     ev = cols["edge_vertex"].copy()
     wing = cols["edge_wing"]
-    nxt = wing[:, [1, 3]].ravel()  # fancy indexing copies
-    prv = wing[:, [0, 2]].ravel()
+    nxt = interleaved_columns(wing, 1, 3)  # new arrays, written below
+    prv = interleaved_columns(wing, 0, 2)
     E = ev.shape[0]
     org = ev.ravel()  # a view: org[c] is the origin of coedge c, org[c ^ 1] its target
     vertex_coedge = cols["vertex_coedge"]

@@ -694,6 +694,22 @@ def test_known_twins_are_the_sorted_pairing(op, offset):
     a1, b1 = _pair_half_edges(P, T, np.arange(P.shape[0]))
     a2, b2 = _pair_known_half_edges(P, T, twin)
     assert sorted(zip(a1.tolist(), b1.tolist())) == list(zip(a2.tolist(), b2.tolist()))
+    # The patches are connected in the result: the shells found on them are the triangles' components.
+    from coons.topology.from_mesh import _components
+
+    groups = poly._patch_groups(op, ca, cb)
+    assert groups.shape == (T.shape[0],)
+    plain, n_plain = _components(T.shape[0], a1 // 3, b1 // 3)
+    hinted, n_hinted = _components(T.shape[0], a1 // 3, b1 // 3, groups)
+    assert n_plain == n_hinted
+    assert len(set(zip(plain.tolist(), hinted.tolist()))) == n_plain
+    for g in np.unique(groups).tolist():  # each patch alone is connected through the result's edges
+        rows = np.flatnonzero(groups == g)
+        local = np.full(T.shape[0], -1)
+        local[rows] = np.arange(rows.size)
+        inside = (local[a1 // 3] >= 0) & (local[b1 // 3] >= 0)
+        _, n_g = _components(rows.size, local[a1 // 3][inside], local[b1 // 3][inside])
+        assert n_g == 1
 
 
 def test_a_wrong_known_twin_raises():

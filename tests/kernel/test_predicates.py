@@ -298,3 +298,22 @@ def test_scalar_forms_equal_the_vectorised_predicates_near_degeneracy():
     vec = incircle(a, b, c, D)
     assert set(vec.tolist()) == {-1, 0, 1}
     assert [incircle_one(a, b, c, d) for d in D] == vec.tolist()
+
+
+def test_finite_check_survives_an_overflowing_sum_and_catches_nan_and_inf():
+    """The finiteness test sums the coordinates first: a finite input whose sum overflows still passes,
+    and a NaN or inf anywhere still raises."""
+    import warnings
+
+    from coons.errors import InvalidInputError
+    from coons.kernel.predicates import orient2d
+
+    big = np.array([[1e308, 1e308], [1e308, -1e308], [1e308, 1e308]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        orient2d(big[0], big[1], big[2])  # no overflow warning, no error
+    for bad in (np.nan, np.inf, -np.inf):
+        a = np.zeros((4, 2))
+        a[2, 1] = bad
+        with pytest.raises(InvalidInputError, match="coordinates must be finite"):
+            orient2d(a, np.ones((4, 2)), np.zeros((4, 2)))

@@ -521,3 +521,35 @@ def test_cycle_lengths_of_random_permutations():
             g = coo_matrix((np.ones(n), (np.arange(n), p)), shape=(n, n))
             _, label = connected_components(g, directed=True, connection="weak")
             np.testing.assert_array_equal(check_module._cycle_lengths(p), np.bincount(label)[label])
+
+
+def test_cycle_lengths_at_starts_agree_with_pointer_doubling():
+    """The bounded walks (and their pointer-doubling tail for long cycles) against _cycle_lengths."""
+    rng = np.random.default_rng(11)
+    for sizes in ([3] * 40, [1, 2, 3, 5, 8, 13, 40, 200], list(rng.integers(1, 30, 60))):
+        group = np.repeat(np.arange(len(sizes)), sizes)
+        n = group.size
+        perm = np.empty(n, dtype=np.int64)
+        ptr = np.concatenate([[0], np.cumsum(sizes)])
+        for g in range(len(sizes)):  # a random permutation inside each group (often several cycles)
+            perm[ptr[g] : ptr[g + 1]] = ptr[g] + rng.permutation(sizes[g])
+        order = rng.permutation(n)  # scatter the groups over the ids
+        inv = np.empty(n, dtype=np.int64)
+        inv[order] = np.arange(n)
+        perm, group = inv[perm[order]], group[order]
+        start = rng.integers(0, n, 50)
+        expected = np.bincount(group)[group[start]]
+        np.testing.assert_array_equal(check_module._cycle_lengths_at(perm, start, group, expected),
+                                      check_module._cycle_lengths(perm)[start])
+
+
+def test_cycle_lengths_at_flags_a_group_that_perm_leaves():
+    """A permutation that does not keep the groups (never expected from the checked tables) still gets
+    true lengths for cycles closing within the walk, and the whole-permutation doubling for the rest."""
+    n = 40
+    perm = np.roll(np.arange(n), 1)  # one cycle of 40 through two groups of 20
+    group = np.repeat([0, 1], 20)
+    out = check_module._cycle_lengths_at(perm, np.array([0, 25]), group, np.array([40, 40]))
+    np.testing.assert_array_equal(out, [40, 40])
+    out = check_module._cycle_lengths_at(perm, np.array([0]), group, np.array([20]))
+    assert out[0] != 20  # the group of 20 does not hold the cycle: reported as a mismatch

@@ -398,3 +398,52 @@ def test_a_flat_tetrahedron_is_rejected_whatever_its_rounded_volume():
     T = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [3, 2, 0]])
     with pytest.raises(TopologyError, match="indistinguishable from 0"):
         from_mesh(P, T)
+
+
+def test_signed_volumes_from_the_normals_agree_with_the_determinants():
+    """The three-gather form used with ``_columns`` (the Booleans' sew) against the nine-gather determinant."""
+    from coons.topology import from_mesh as fm
+
+    rng = np.random.default_rng(5)
+    P = rng.normal(size=(60, 3)) * 10.0 + 3.0
+    T = np.stack([rng.permutation(60)[:3] for _ in range(200)])
+    v0, perm0 = fm._signed_volumes(P, T)
+    v1, perm1 = fm._signed_volumes(P, T, fm._columns(P, T))
+    np.testing.assert_allclose(v1, v0, rtol=1e-12, atol=1e-12 * float(np.max(perm0)))
+    assert np.all(np.abs(v1 - v0) <= 64 * np.finfo(float).eps * (perm0 + perm1))
+    assert np.all(perm1 >= 0)
+
+
+def test_components_on_known_connected_groups_match_the_triangle_labelling():
+    """``_components`` with ``groups`` (the Booleans' patches) gives the same partition as without."""
+    from coons.topology import from_mesh as fm
+
+    # Two disjoint tetrahedra: triangle groups {0, 1}, {2, 3} (connected), {4}, {5, 6, 7}.
+    T = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    T = np.concatenate([T, T + 4])
+    P = np.concatenate([np.eye(4, 3), np.eye(4, 3) + 5.0])
+    a, b = fm._pair_half_edges(P, T, np.arange(8))
+    plain, n_plain = fm._components(8, a // 3, b // 3)
+    groups = np.array([7, 7, 2, 2, 9, 4, 4, 4])  # labels need not be consecutive
+    hinted, n_hinted = fm._components(8, a // 3, b // 3, groups)
+    assert n_plain == n_hinted == 2
+    # the same partition (numbering may differ)
+    assert len({(int(x), int(y)) for x, y in zip(plain, hinted)}) == 2
+
+
+def test_components_reject_bad_groups():
+    from coons.topology import from_mesh as fm
+
+    ta, tb = np.array([0]), np.array([1])
+    with pytest.raises(InvalidInputError, match=r"groups must have shape \(2,\), got \(3,\)"):
+        fm._components(2, ta, tb, np.zeros(3, dtype=np.int64))
+    with pytest.raises(InvalidInputError, match="groups must be labels >= 0, got -1"):
+        fm._components(2, ta, tb, np.array([0, -1]))
+
+
+def test_wings_are_the_stacked_coedge_pointers():
+    from coons.topology.from_mesh import _wings
+
+    rng = np.random.default_rng(9)
+    prv, nxt = rng.integers(0, 50, 50), rng.integers(0, 50, 50)
+    np.testing.assert_array_equal(_wings(prv, nxt), np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1))

@@ -24,22 +24,11 @@ import pytest
 
 from coons.errors import BooleanError
 from coons.validation.cases import default_cases
+from tests.io.test_step_write import occt_props
 
 CASES = {c.name: c for c in default_cases()}
 #: Results coons rejects by design (their boundary is not a manifold).
 REFUSED = {"box_box_edge_union", "box_box_vertex_union", "torus_minus_box"}
-
-
-def _occt_measures(shape) -> tuple[float, float]:
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
-
-    g = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, g, 1e-10)
-    v = g.Mass()
-    g = GProp_GProps()
-    BRepGProp.SurfaceProperties_s(shape, g, 1e-10)
-    return v, g.Mass()
 
 
 def _occt_case(case):
@@ -76,8 +65,8 @@ def test_catalogue_round_trips_through_occt(tmp_path, name):
         export_step(solid, path)
         back = bd.import_step(path).wrapped
         assert BRepCheck_Analyzer(back).IsValid()
-        v, a = _occt_measures(back)
-        v_direct, a_direct = _occt_measures(to_ocp(solid))  # the same B-rep handed over without a file
+        v, a = occt_props(back)
+        v_direct, a_direct = occt_props(to_ocp(solid))  # the same B-rep handed over without a file
         assert v == pytest.approx(v_direct, rel=1e-9, abs=1e-12)
         assert a == pytest.approx(a_direct, rel=1e-9)
         assert v == pytest.approx(solid.volume, rel=1e-8, abs=1e-12)
@@ -89,7 +78,7 @@ def test_catalogue_round_trips_through_occt(tmp_path, name):
     ref = _occt_case(case)
     if ref is None:
         return
-    v_ref, a_ref = _occt_measures(ref)
+    v_ref, a_ref = occt_props(ref)
     if abs(v_ref) <= 1e-12:
         return  # an empty OCCT result writes no solid
     path = tmp_path / "occt.step"

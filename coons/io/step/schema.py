@@ -323,18 +323,23 @@ class StepModel:
         return value
 
     # ------------------------------------------------------------------ points and placements
+    def _numbers(self, e: Entity, dim: int, what: str, item: str) -> list[float] | tuple[float, ...]:
+        """The ``dim`` finite numbers of a point's or direction's list (its second parameter)."""
+        c = e.real_triple() if dim == 3 else None  # the common form, read without building params
+        if c is not None and all(map(math.isfinite, c)):
+            return c
+        c = self.seq(self.params(e, 2)[1], e, what)  # (the general path names what is wrong)
+        if len(c) != dim:
+            raise self.fail(e, f"expected {dim} {what}, got {len(c)}")
+        return [self.number(x, e, item) for x in c]
+
     def point(self, ref: Any, referrer: Entity, dim: int = 3) -> np.ndarray:
         def build(e: Entity) -> np.ndarray:
             if e.name == "VERTEX_POINT":
                 return self.point(self.params(e, 2)[1], e, dim)
             if not e.has_type("CARTESIAN_POINT"):
                 raise self.fail(e, "expected CARTESIAN_POINT")
-            c = e.real_triple() if dim == 3 else None  # the common form, without building params
-            if c is None or not all(map(math.isfinite, c)):  # (the general path names what is wrong)
-                c = self.seq(self.params(e, 2)[1], e, "coordinates")
-                if len(c) != dim:
-                    raise self.fail(e, f"expected {dim} coordinates, got {len(c)}")
-                c = [self.number(x, e, "coordinate") for x in c]
+            c = self._numbers(e, dim, "coordinates", "coordinate")
             with np.errstate(over="ignore", invalid="ignore"):
                 P = np.array(c, dtype=np.float64) * self.L
                 if dim == 3 and self._xf:
@@ -348,12 +353,7 @@ class StepModel:
         def build(e: Entity) -> np.ndarray:
             if not e.has_type("DIRECTION"):
                 raise self.fail(e, "expected DIRECTION")
-            d = e.real_triple() if dim == 3 else None  # the common form, without building params
-            if d is None or not all(map(math.isfinite, d)):  # (the general path names what is wrong)
-                c = self.seq(self.params(e, 2)[1], e, "direction ratios")
-                if len(c) != dim:
-                    raise self.fail(e, f"expected {dim} direction ratios, got {len(c)}")
-                d = [self.number(x, e, "direction ratio") for x in c]
+            d = self._numbers(e, dim, "direction ratios", "direction ratio")
             big = max(map(abs, d))
             if big > 0.0:  # scaled first: huge ratios must not overflow the norm
                 d = [x / big for x in d]

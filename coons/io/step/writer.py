@@ -34,6 +34,12 @@ Conventions (ISO 10303-42; OCCT's ``StepToGeom`` reads them the same way)
   the left, seen from outside), so every ``FACE_BOUND`` has orientation ``.T.``; the first
   loop is the ``FACE_OUTER_BOUND``.  Faces without a surface (polyhedra) get a PLANE through
   their first vertex with the Newell normal of their outer loop.
+* Each face has its own surface entity.  A sphere face is written on a placement turned about
+  the axis to the face's smallest ``u`` (its p-curves moved by ``-u``): OCCT 8's reader builds
+  the complementary region of a sphere face spanning ``u ∈ [π, 2π]`` and cannot read OCCT's own
+  file of such a solid either (``tests/io/test_step_catalogue.py``, sphere_sphere_difference).
+  P-curves of circle and ellipse edges use the base turn ``[0, 2π)`` of the edge's start, the
+  parameters a reader derives from the vertices.
 * Void shells are ``ORIENTED_CLOSED_SHELL(.F.)`` of a closed shell whose faces are written
   with ``same_sense`` and loop orientation inverted (the void's own outward orientation),
   as ISO 10303-42 ``brep_with_voids`` requires.

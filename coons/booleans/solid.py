@@ -969,11 +969,7 @@ def _check_cuts_used(X: _Operand, f: int, cuts: list[EdgeSpec], pieces: list[Fac
     BooleanError
         (stage ``"split"``) naming the face and the first cut not used twice.
     """
-    spans: dict[int, list[tuple[float, float]]] = {}
-    for p in pieces:
-        for loop in p.loops:
-            for e in loop:
-                spans.setdefault(id(e.curve), []).append((min(e.t0, e.t1), max(e.t0, e.t1)))
+    spans = _curve_spans(pieces)
     free = None
     for k, c in enumerate(cuts):
         lo, hi = min(c.t0, c.t1), max(c.t0, c.t1)
@@ -1072,19 +1068,28 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
     return status
 
 
+def _curve_spans(pieces: list[FaceSpec]) -> dict[int, list[tuple[float, float]]]:
+    """``id(curve) -> [(lo, hi), ...]``: the parameter ranges of every use of each curve by the pieces."""
+    spans: dict[int, list[tuple[float, float]]] = {}
+    for p in pieces:
+        for loop in p.loops:
+            for e in loop:
+                spans.setdefault(id(e.curve), []).append((min(e.t0, e.t1), max(e.t0, e.t1)))
+    return spans
+
+
 def _dangling_cuts(pieces: list[tuple[int, FaceSpec]], cuts: dict[int, list[EdgeSpec]]) -> dict[int, list[EdgeSpec]]:
     """Per face, the cuts that no piece of it uses along any part of their range (dropped by the split)."""
-    spans: dict[tuple[int, int], list[tuple[float, float]]] = {}
+    of_face: dict[int, list[FaceSpec]] = {}
     for f, p in pieces:
         if f in cuts:
-            for loop in p.loops:
-                for e in loop:
-                    spans.setdefault((f, id(e.curve)), []).append((min(e.t0, e.t1), max(e.t0, e.t1)))
+            of_face.setdefault(f, []).append(p)
     out: dict[int, list[EdgeSpec]] = {}
     for f, cs in cuts.items():
+        spans = _curve_spans(of_face.get(f, []))
         for c in cs:
             lo, hi = min(c.t0, c.t1), max(c.t0, c.t1)
-            if not any(a < hi and b > lo for a, b in spans.get((f, id(c.curve)), ())):
+            if not any(a < hi and b > lo for a, b in spans.get(id(c.curve), ())):
                 out.setdefault(f, []).append(c)
     return out
 

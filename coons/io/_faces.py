@@ -105,10 +105,10 @@ def _mark_degenerate(faces: list) -> None:
     """Decide :attr:`RawEdge.degenerate` for the line and circle edges of ``faces`` in one batch
     (their points in one :func:`~coons.kernel.onsurface.evaluate_curves` call); other edges are
     decided when first asked."""
-    from coons.kernel.onsurface import evaluate_curves
+    from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 
     todo = {id(c.edge): c.edge for f in faces for loop in f.loops for c in loop
-            if type(c.edge.curve) in SCALAR_CURVES and "_degenerate" not in c.edge.__dict__}
+            if type(c.edge.curve) in BATCHED_CURVES and "_degenerate" not in c.edge.__dict__}
     edges = list(todo.values())
     if not edges:
         return

@@ -481,7 +481,7 @@ def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tole
     speed : (m, 2) float64
         ``|S_u|, |S_v|`` at the last Newton iterate (for detecting undetermined parameters).
     """
-    from coons.kernel.surface import NurbsSurfaceStack, derivatives_surfaces
+    from coons.kernel.surface import derivatives_surfaces, structure_groups
 
     def greville(knots, p, n):
         idx = np.arange(n)[:, None] + np.arange(1, p + 1)[None, :]
@@ -492,24 +492,16 @@ def _invert_nurbs_many(surfaces: list, which: np.ndarray, P: np.ndarray, t: Tole
     uv = np.empty((m, 2))
     lo, hi = np.empty((m, 2)), np.empty((m, 2))
     speed = np.zeros((m, 2))
-    ids, inverse = np.unique(which, return_inverse=True)
-    groups: dict = {}
-    for k, si in enumerate(ids.tolist()):
-        groups.setdefault(NurbsSurfaceStack.key(surfaces[si]), []).append(k)
-    order = np.argsort(inverse, kind="stable")
-    starts = np.searchsorted(inverse[order], np.arange(ids.size + 1))
-    for members in groups.values():
+    for members, rows, local in structure_groups(surfaces, which):
         # surfaces of one structure share knots, hence Greville abscissae: their seeds are one batch
         # (the points' own nets gathered, nearest control point by squared distance)
-        S0 = surfaces[int(ids[members[0]])]
+        S0 = surfaces[members[0]]
         (u0, u1), (v0, v1) = S0.domain
-        C = np.stack([np.asarray(surfaces[int(ids[k])].control_points, dtype=np.float64) for k in members])
+        C = np.stack([np.asarray(surfaces[k].control_points, dtype=np.float64) for k in members])
         nu, nv = C.shape[1:3]
         gu = np.clip(greville(S0.knots_u, S0.degree_u, nu), u0, u1)
         gv = np.clip(greville(S0.knots_v, S0.degree_v, nv), v0, v1)
         G = C.reshape(len(members), nu * nv, -1)
-        rows = np.concatenate([order[starts[k]:starts[k + 1]] for k in members])
-        local = np.repeat(np.arange(len(members)), [starts[k + 1] - starts[k] for k in members])
         idx = np.empty(rows.size, dtype=np.int64)
         step = max(1, _SEED_PAIRS // (nu * nv))
         for s0 in range(0, rows.size, step):  # bounded memory for large nets
@@ -691,6 +683,10 @@ def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     except (AttributeError, TypeError, ValueError, CoonsError):
         return None  # pcurve_on reports unusable curves
     return ab, ts, X
+
+
+#: Curve types :func:`evaluate_curves` evaluates as one array expression each (most edges of a model).
+BATCHED_CURVES = (Line, Circle)
 
 
 def evaluate_curves(curves: list, T: np.ndarray) -> np.ndarray:

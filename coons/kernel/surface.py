@@ -905,30 +905,46 @@ def derivatives_surfaces(surfaces, index, u, v, order: int = 1, tol: Tolerance |
     if m == 0:
         return out
     t = resolve(tol)
+    for members, rows, local in structure_groups(surfaces, index):
+        first = surfaces[members[0]]
+        if len(members) == 1 or not isinstance(first, NurbsSurface):
+            D = first.derivatives(u[rows], v[rows], order, t) if isinstance(first, NurbsSurface) \
+                else first.derivatives(u[rows], v[rows], order)
+            out[rows] = np.asarray(D, dtype=np.float64).reshape(-1, order + 1, order + 1, 3)
+            continue
+        stack = NurbsSurfaceStack([surfaces[k] for k in members])
+        uu = _b.check_parameters(u[rows], stack.domain[0], t, what="u")
+        vv = _b.check_parameters(v[rows], stack.domain[1], t, what="v")
+        out[rows] = stack.derivatives(local, uu, vv, order)
+    return out
+
+
+def structure_groups(surfaces, index: np.ndarray) -> list[tuple[list[int], np.ndarray, np.ndarray]]:
+    """The rows of ``index`` (into ``surfaces``) grouped by surface structure, for batched evaluation.
+
+    Returns ``[(members, rows, local), ...]``: per group the distinct surface ids ``members`` of
+    one :meth:`NurbsSurfaceStack.key` (3-D NURBS of equal degrees, knots, net shape and
+    rationality; any other surface is a group of its own), the rows ``rows`` of ``index`` on
+    them (in increasing order), and for each row the position ``local`` of its surface in
+    ``members``.
+    """
+    index = np.asarray(index, dtype=np.int64).ravel()
     ids, inverse = np.unique(index, return_inverse=True)
     groups: dict = {}
     for k, si in enumerate(ids.tolist()):
         S = surfaces[si]
         key = NurbsSurfaceStack.key(S) if isinstance(S, NurbsSurface) and S.dimension == 3 else ("single", k)
         groups.setdefault(key, []).append(k)
-    slot = np.empty(ids.size, dtype=np.int64)
     gid = np.empty(ids.size, dtype=np.int64)
+    slot = np.empty(ids.size, dtype=np.int64)
     for g, members in enumerate(groups.values()):
         gid[members] = g
-    point_group = gid[inverse]
-    order_ = np.argsort(point_group, kind="stable")
-    bounds = np.searchsorted(point_group[order_], np.arange(len(groups) + 1))
-    for g, members in enumerate(groups.values()):
-        rows = order_[bounds[g] : bounds[g + 1]]
-        first = surfaces[int(ids[members[0]])]
-        if len(members) == 1 or not isinstance(first, NurbsSurface):
-            D = first.derivatives(u[rows], v[rows], order, t) if isinstance(first, NurbsSurface) \
-                else first.derivatives(u[rows], v[rows], order)
-            out[rows] = np.asarray(D, dtype=np.float64).reshape(-1, order + 1, order + 1, 3)
-            continue
-        stack = NurbsSurfaceStack([surfaces[int(ids[k])] for k in members])
         slot[members] = np.arange(len(members))
-        uu = _b.check_parameters(u[rows], stack.domain[0], t, what="u")
-        vv = _b.check_parameters(v[rows], stack.domain[1], t, what="v")
-        out[rows] = stack.derivatives(slot[inverse[rows]], uu, vv, order)
+    point_group = gid[inverse]
+    order = np.argsort(point_group, kind="stable")
+    bounds = np.searchsorted(point_group[order], np.arange(len(groups) + 1))
+    out = []
+    for g, members in enumerate(groups.values()):
+        rows = order[bounds[g] : bounds[g + 1]]
+        out.append(([int(ids[k]) for k in members], rows, slot[inverse[rows]]))
     return out

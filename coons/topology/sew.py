@@ -45,7 +45,7 @@ import numpy as np
 from coons.errors import InvalidInputError, TopologyError
 from coons.kernel.analytic import TWO_PI, Circle, Line, scalar_parameter, scalar_point
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.onsurface import evaluate_curves
+from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
@@ -232,10 +232,6 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     return _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
 
 
-#: Curve types :func:`~coons.kernel.onsurface.evaluate_curves` evaluates as one array expression.
-_BATCHED_CURVES = frozenset({Line, Circle})
-
-
 class _Uses:
     """Flat arrays over all edge uses (coedges) in face, loop, position order."""
 
@@ -258,16 +254,13 @@ class _Uses:
         self.start = np.empty((k, 3))
         self.end = np.empty((k, 3))
         self.mid = np.empty((k, 3))
-        simple = np.array([type(e.curve) in _BATCHED_CURVES for e in self.spec], dtype=bool)
+        simple = np.array([type(e.curve) in BATCHED_CURVES for e in self.spec], dtype=bool)
         rs = np.flatnonzero(simple)
-        if rs.size and np.isfinite(self.t0[rs]).all() and np.isfinite(self.t1[rs]).all():
-            tt = np.stack([self.t0[rs], self.t1[rs], 0.5 * (self.t0[rs] + self.t1[rs])], axis=1)
-            P = evaluate_curves([self.spec[i].curve for i in rs.tolist()], tt)
-            if np.isfinite(P).all():
-                self.start[rs], self.end[rs], self.mid[rs] = P[:, 0], P[:, 1], P[:, 2]
-            else:
-                simple[:] = False
-        else:
+        tt = np.stack([self.t0[rs], self.t1[rs], 0.5 * (self.t0[rs] + self.t1[rs])], axis=1)
+        P = evaluate_curves([self.spec[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
+        if P is not None and np.isfinite(P).all():
+            self.start[rs], self.end[rs], self.mid[rs] = P[:, 0], P[:, 1], P[:, 2]
+        else:  # the per-curve path below names the use whose curve or range is bad
             simple[:] = False
         groups: dict[int, list[int]] = {}
         for i in np.flatnonzero(~simple).tolist():

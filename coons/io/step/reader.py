@@ -22,9 +22,9 @@ degenerate-edge tests and the cheap p-curves of all faces run as single batches
 of the model at once, and the cyclic garbage collector is paused while the file is read.  On the
 benchmark models (``benchmarks/bench_io.py``: a plate with 400 holes, a box of 1014 bilinear
 B-spline faces) the import ran 1.17x and 1.18x faster than OCCT's (with its default healing) in
-the last run on this two-core machine (1.5x and 1.2x in one on a busy machine); what is left is spread over parsing (~0.13 s on
-the box), the schema's per-entity objects (~0.25 s), normalisation (~0.15 s) and sewing with the
-check (~0.18 s).
+the last run on this two-core machine (1.5x and 1.2x in one on a busy machine); what is left is
+spread over parsing (~0.13 s on the box), the schema's per-entity objects (~0.25 s),
+normalisation (~0.15 s) and sewing with the check (~0.18 s), figures of one profiled run.
 """
 
 from __future__ import annotations

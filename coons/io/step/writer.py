@@ -75,7 +75,7 @@ from coons.kernel.analytic import (
     ToroidalSurface,
 )
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.pcurve import Line2D, Trig2D
+from coons.kernel.pcurve import Line2D, Trig2D, _affine2
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
 
@@ -318,15 +318,14 @@ def _sphere_from(out: _Out, s, u_min: float) -> tuple[int, np.ndarray | None]:
     ``u = 0`` read correctly, so each sphere face is written on its own placement, turned by its
     smallest ``u``, with its p-curves moved by ``-u`` (the 2-D map returned).
     """
-    turn = TWO_PI * math.floor(u_min / TWO_PI + 1e-12)  # whole turns first: [0, 2π) stays the base range
-    turn = u_min if abs(u_min - turn) > 1e-9 else turn
+    whole = TWO_PI * round(u_min / TWO_PI)
+    turn = whole if abs(u_min - whole) <= 1e-9 else u_min  # a face starting at 0 up to round-off stays put
     if turn == 0.0:
         return _surface(out, s)
-    z = np.asarray(s.axis, dtype=np.float64)
     x = np.asarray(s.x_dir, dtype=np.float64)
-    y = np.cross(z, x)
-    x_turned = math.cos(turn) * x + math.sin(turn) * y
-    sid = out.add(f"SPHERICAL_SURFACE('',#{out.axis3(s.center, z, x_turned)},{_real(s.radius)})")
+    if turn != whole:  # whole turns move only the p-curves
+        x = math.cos(turn) * x + math.sin(turn) * np.cross(np.asarray(s.axis, dtype=np.float64), x)
+    sid = out.add(f"SPHERICAL_SURFACE('',#{out.axis3(s.center, s.axis, x)},{_real(s.radius)})")
     return sid, np.array([[1.0, 0.0, -turn], [0.0, 1.0, 0.0]])
 
 
@@ -355,9 +354,8 @@ def _curve2d(out: _Out, pc, scale: float, lin: np.ndarray | None) -> int:
         if isinstance(pc, (Line2D, Trig2D)):
             pc = pc.transformed(lin)
         elif isinstance(pc, NurbsCurve):
-            M = np.asarray(lin, dtype=np.float64)
-            shift = M[:, 2] if M.shape[1] == 3 else np.zeros(2)
-            pc = NurbsCurve(np.asarray(pc.control_points) @ M[:, :2].T + shift, pc.knots, pc.degree, pc.weights)
+            M, shift = _affine2(lin)  # the p-curves' own reading of a 2-D affine map
+            pc = NurbsCurve(np.asarray(pc.control_points) @ M.T + shift, pc.knots, pc.degree, pc.weights)
     if isinstance(pc, Line2D):
         d = np.asarray(pc.direction) / scale
         speed = float(np.hypot(*d))
@@ -488,9 +486,8 @@ def step_text(shape, *, schema: str = "AP214", tol: Tolerance | None = None, nam
     vid = np.arange(vfirst, vfirst + b.n_vertices)
 
     # -- surfaces, one entity per face (also where faces share a coons surface: the halves of a
-    # sphere or cylinder), and planes of polyhedral faces.  An edge between two faces on one
-    # surface entity would carry two p-curves on the same surface, which OCCT's reader takes for
-    # a seam: it then gives one face the other's p-curve and builds the complementary region.
+    # sphere or cylinder; a sphere face gets its own turned placement, _sphere_from), and planes
+    # of polyhedral faces.
     face_surf = np.zeros(b.n_faces, dtype=np.int64)
     face_lin: list[np.ndarray | None] = [None] * b.n_faces
     for f in range(b.n_faces):

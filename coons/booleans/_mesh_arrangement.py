@@ -40,10 +40,15 @@ axis of its normal (exact: a coordinate is dropped).  A triangle crossed by one 
 segments (two points on two of its edges, a few interior points between them: nearly every
 split triangle of two fine meshes) is split in array time by a fixed template — a fan of the
 one-corner side, a triangle and two fans on the two-corner side (:func:`_chain_pieces`) — and
-kept when every piece is counter-clockwise for the exact points.  The other triangles with few
-points (at most ``_SMALL_SPLIT``) are split by incremental insertion and edge flips whose
-every orientation test is exact (a float filter on the rounded coordinates with a
-rounding-aware error bound, integer determinants when it cannot decide); triangles with many
+kept when every piece is counter-clockwise for the exact points.  The others are grouped by the
+pattern of their split problem (points per edge, interior points, chords between local indices:
+:func:`_patterns`); a group's first triangle is split as below and its triangulation, in local
+indices, is kept for each other member whose pieces are all counter-clockwise for that member's
+exact points (the prism sides of a perforated plate: thousands of triangles, a few patterns).
+The remaining triangles with few points (at most ``_SMALL_SPLIT``) are split by incremental
+insertion and edge flips whose every orientation test is exact (a float filter on the rounded
+coordinates with a rounding-aware error bound, integer determinants when it cannot decide);
+triangles with many
 points go to the constrained Delaunay triangulator of :mod:`coons.topology._cdt` on the nearest
 floats, whose output is verified exactly and, should rounding have made it invalid (features
 within an ulp of each other), replaced by the exact incremental split.  Every split is
@@ -863,15 +868,59 @@ def imprint(X: Operand, which: int, inter: Intersections, table: PointTable) -> 
     axis, sgn = _projection(X.P, X.T, aff) if aff.size else (np.zeros(0, np.int64), np.zeros(0, np.int8))
     whole = np.flatnonzero(~affected)
     pieces, sources = [np.take(T, whole, axis=0)], [whole]
-    small: list = []
-    redo: dict = {}  # entries of small split by _chain_split: the arguments of the exact split
-    is_float = table.is_float
     done, G_chain, src_chain = _chain_pieces(aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr,
                                              table)
     if G_chain.size:
         pieces.append(G_chain)
         sources.append(src_chain)
-    for r in np.flatnonzero(~done).tolist():  # the triangles the chain templates did not split
+    # Triangles of one pattern (points per edge, interior points, chords) take the split of the first
+    # of them where it is valid for theirs (vectorised); the others are split one by one.
+    rest = np.flatnonzero(~done)
+    reps, groups = _patterns(rest, aff, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr)
+    ctx = (aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr, table, which)
+    splits = _split_each(reps, *ctx)
+    if groups:
+        G_pat, src_pat, again = _apply_patterns(groups, splits, aff, axis, sgn, table)
+        pieces.append(G_pat)
+        sources.append(src_pat)
+        splits += _split_each(again, *ctx)
+    for t, tri, ids in splits:
+        pieces.append(ids[tri])
+        sources.append(np.full(tri.shape[0], t, dtype=np.int64))
+    tris = np.concatenate(pieces)
+    source = np.concatenate(sources)
+    if seg.size:  # distinct undirected segments, smaller id first, in order (one int key: unique(axis=0) is slow)
+        n_ids = np.int64(table.float.shape[0])
+        key = np.unique(np.minimum(seg[:, 1], seg[:, 2]) * n_ids + np.maximum(seg[:, 1], seg[:, 2]))
+        on = np.stack([key // n_ids, key % n_ids], axis=1)
+    else:
+        on = np.zeros((0, 2), dtype=np.int64)
+    # Closedness can only fail around split triangles: check their pieces, their neighbours and
+    # the triangles carrying segments.
+    near = affected.copy()
+    if aff.size:
+        near[X.edge_tris[X.tri_edge[aff]].ravel()] = True
+    if seg.size:
+        near[seg[:, 0]] = True
+    _verify_closed(np.compress(near[source], tris, axis=0), on, which,
+                   boundary_ok=near[X.edge_tris[:, 0]] != near[X.edge_tris[:, 1]], X=X, vid=vid)
+    return Imprint(tris, source, on, int(X.m - aff.size), vid)
+
+
+def _split_each(rows, aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr, table, which) -> list:
+    """Split the triangles ``aff[rows]`` one by one (the loop of :func:`imprint` for the triangles no
+    template split): exact incremental splits for few points, the constrained Delaunay triangulator
+    (verified exactly) for many.
+
+    Returns
+    -------
+    list of ``(t, tri, ids)``: triangle, ``(k, 3)`` local indices of its pieces into ``ids``, global ids.
+    """
+    out: list = []
+    small: list = []
+    redo: dict = {}  # entries of small split by _chain_split: the arguments of the exact split
+    is_float = table.is_float
+    for r in np.asarray(rows, dtype=np.int64).tolist():
         t = int(aff[r])
         ax, sg = int(axis[r]), int(sgn[r])
         loop = []
@@ -947,9 +996,7 @@ def imprint(X: Operand, which: int, inter: Intersections, table: PointTable) -> 
                 # Features within an ulp of each other: split with exact arithmetic instead.
                 tri = _split_incremental(len(ids), nb, corners, chords, _exact_orient(exact_h()), _failer(which, t))
                 _verify_split(tri, nb, len(ids), chords, F3, ids_arr, table, ax, sg, which, t)
-        G = ids_arr[tri]
-        pieces.append(G)
-        sources.append(np.full(G.shape[0], t, dtype=np.int64))
+        out.append((t, tri, ids_arr))
     if small:
         bad = _verify_small(small, table, which, strict=not redo)
         if bad.size:
@@ -960,28 +1007,8 @@ def imprint(X: Operand, which: int, inter: Intersections, table: PointTable) -> 
                 t_, _, ids_, nb_, ax_, sg_, loop_ = small[r]
                 small[r] = (t_, _split_incremental(*redo[r]), ids_, nb_, ax_, sg_, loop_)
             _verify_small([small[r] for r in bad.tolist()], table, which)
-        for t_, tri_, ids_, *_rest in small:
-            pieces.append(ids_[tri_])
-            sources.append(np.full(tri_.shape[0], t_, dtype=np.int64))
-    tris = np.concatenate(pieces)
-    source = np.concatenate(sources)
-    if seg.size:  # distinct undirected segments, smaller id first, in order (one int key: unique(axis=0) is slow)
-        n_ids = np.int64(table.float.shape[0])
-        key = np.unique(np.minimum(seg[:, 1], seg[:, 2]) * n_ids + np.maximum(seg[:, 1], seg[:, 2]))
-        on = np.stack([key // n_ids, key % n_ids], axis=1)
-    else:
-        on = np.zeros((0, 2), dtype=np.int64)
-    # Closedness can only fail around split triangles: check their pieces, their neighbours and
-    # the triangles carrying segments.
-    near = affected.copy()
-    if aff.size:
-        near[X.edge_tris[X.tri_edge[aff]].ravel()] = True
-    if seg.size:
-        near[seg[:, 0]] = True
-    _verify_closed(np.compress(near[source], tris, axis=0), on, which,
-                   boundary_ok=near[X.edge_tris[:, 0]] != near[X.edge_tris[:, 1]], X=X, vid=vid)
-    return Imprint(tris, source, on, int(X.m - aff.size), vid)
-
+        out.extend((t_, tri_, ids_) for t_, tri_, ids_, *_rest in small)
+    return out
 
 def _verify_split(tri, nb, n_ids, chords, F3, ids, table, ax, sg, which, t) -> None:
     """Exact checks of a triangle's split (module docstring): orientation, boundary, constraints."""
@@ -993,13 +1020,18 @@ def _verify_split(tri, nb, n_ids, chords, F3, ids, table, ax, sg, which, t) -> N
         if np.any(s <= 0):
             fail = f"piece {tri[int(np.argmax(s <= 0))].tolist()} is not counter-clockwise for the exact points"
         else:
-            d = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-            dk = set(map(tuple, d.tolist()))
-            boundary = {(a, b) for a, b in dk if (b, a) not in dk}
-            want = {(i, (i + 1) % nb) for i in range(nb)}
-            if boundary != want:
+            # Directed piece edges as one integer each (sets of tuples are slow for big splits).
+            n = np.int64(n_ids)
+            a, b = tri.ravel().astype(np.int64), next_corners(tri).astype(np.int64)
+            dk = np.sort(a * n + b)
+            boundary = np.sort((a * n + b)[~sorted_contains(dk, b * n + a)])
+            loop = np.arange(nb, dtype=np.int64)
+            want = np.sort(loop * n + np.roll(loop, -1))
+            ch = np.asarray(chords, dtype=np.int64).reshape(-1, 2)
+            if boundary.shape != want.shape or not np.array_equal(boundary, want):
                 fail = "the pieces' boundary is not the subdivided triangle boundary"
-            elif any((a, b) not in dk and (b, a) not in dk for a, b in chords):
+            elif not np.all(sorted_contains(dk, ch[:, 0] * n + ch[:, 1])
+                            | sorted_contains(dk, ch[:, 1] * n + ch[:, 0])):
                 fail = "a constraint segment is not an edge of the pieces"
     if fail:
         raise BooleanError(f"split of triangle {t} of {'AB'[which]} fails exact verification: {fail}",
@@ -1479,9 +1511,20 @@ def _chain_pieces(aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, 
     G = np.concatenate(out_G)
     src = np.concatenate(out_s)
     prow = np.concatenate(out_rows)
-    # Exact verification: every piece counter-clockwise in its triangle's projection.
-    pax, psg = ax[prow], sg[prow]
-    good = np.ones(c.size, dtype=bool)
+    good = _ccw_rows(G, prow, ax, sg, table) & ok
+    keep = good[prow]
+    done[c[good]] = True
+    return done, G[keep], src[keep]
+
+
+def _ccw_rows(G: np.ndarray, prow: np.ndarray, axis: np.ndarray, sgn: np.ndarray, table: "PointTable") -> np.ndarray:
+    """Which rows have all their pieces counter-clockwise for the exact points (vectorised).
+
+    ``G (p, 3)`` pieces as global ids, ``prow (p,)`` the row of each piece, ``axis``, ``sgn``
+    ``(rows,)`` each row's projection (:func:`_projection`).  Returns ``(rows,)`` bool.
+    """
+    pax, psg = axis[prow], sgn[prow]
+    good = np.ones(axis.size, dtype=bool)
     Fp = table.float[G]
     for a_ in range(3):
         for s_ in (-1, 1):
@@ -1489,11 +1532,122 @@ def _chain_pieces(aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, 
             if sel.size:
                 o = _orient_projected(Fp[sel], G[sel], table, a_, s_)
                 good[prow[sel[o <= 0]]] = False
-    good &= ok
-    keep = good[prow]
-    done[c[good]] = True
-    return done, G[keep], src[keep]
+    return good
 
+
+#: Segments a triangle may carry to be split by the pattern of another (:func:`_patterns`).
+_PATTERN_SEGMENTS = 16
+
+
+def _patterns(rest, aff, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr) -> tuple[np.ndarray, list]:
+    """Group the triangles ``aff[rest]`` by the pattern of their split, in array time.
+
+    A triangle's split is a triangulation of its local points — corner 0, the points of edge 0 in
+    order, corner 1, ..., then the interior points — constrained by its chords (segments not along
+    one of its edges).  Two triangles with the same points per edge, the same number of interior
+    points and the same chords between local indices have the same combinatorial problem, and
+    one's triangulation in local indices is the other's whenever its pieces are counter-clockwise
+    for the other's exact points (its boundary is the subdivided triangle by construction: the
+    degree argument of the module docstring).  The many prism sides of a perforated plate, each
+    cut by the plate's two faces, are a few patterns.
+
+    Returns
+    -------
+    reps : (r,) int64
+        Rows of ``aff`` to split one by one: each group's first triangle and the triangles in no
+        group (alone in their pattern, too many points or segments, or points the loop cannot
+        name: the per-triangle split reports those).
+    groups : list of ``(rep, members, ids)``
+        The representative's row, the other rows ``(m,)`` and their local points as global ids
+        ``(m, n)``.
+    """
+    t = aff[rest]
+    E = X.tri_edge[t]
+    cnt = e_ptr[E + 1] - e_ptr[E]
+    k = t_ptr[t + 1] - t_ptr[t]
+    ns = s_ptr[t + 1] - s_ptr[t]
+    n = 3 + cnt.sum(axis=1) + k
+    c = np.flatnonzero((n <= _SMALL_SPLIT) & (ns <= _PATTERN_SEGMENTS))
+    if c.size < 2:
+        return rest, []
+    t, E, cnt, k, ns, n = t[c], E[c], cnt[c], k[c], ns[c], n[c]
+    m, N = c.size, int(n.max())
+    r = np.arange(m)
+    ID = np.full((m, N), -1, dtype=np.int64)
+    side = np.zeros((m, N), dtype=np.int64)  # bit kk: on edge kk of the triangle
+    pos = np.zeros(m, dtype=np.int64)
+    for kk in range(3):
+        ID[r, pos] = T[t, kk]
+        side[r, pos] = (1 << kk) | (1 << ((kk + 2) % 3))
+        fwd = X.edges[E[:, kk], 0] == X.T[t, kk]
+        for j in range(int(cnt[:, kk].max())):
+            h = np.flatnonzero(cnt[:, kk] > j)
+            jj = np.where(fwd[h], j, cnt[h, kk] - 1 - j)
+            ID[h, pos[h] + 1 + j] = g_sorted[e_ptr[E[h, kk]] + jj]
+            side[h, pos[h] + 1 + j] = 1 << kk
+        pos = pos + 1 + cnt[:, kk]
+    for j in range(int(k.max())):
+        h = np.flatnonzero(k > j)
+        ID[h, pos[h] + j] = gi_sorted[t_ptr[t[h]] + j]
+    srt = np.sort(ID, axis=1)
+    ok = ~np.any((srt[:, 1:] == srt[:, :-1]) & (srt[:, 1:] >= 0), axis=1)
+    S = max(int(ns.max()), 1)
+    ends = np.full((m, S, 2), -2, dtype=np.int64)
+    for j in range(S):
+        h = np.flatnonzero(ns > j)
+        ends[h, j] = seg[s_ptr[t[h]] + j, 1:]
+    match = ID[:, None, None, :] == ends[:, :, :, None]
+    real = np.arange(S)[None, :] < ns[:, None]
+    ok &= np.all(match.any(axis=3) | ~real[:, :, None], axis=(1, 2))
+    loc = np.argmax(match, axis=3)
+    on = np.take_along_axis(side, loc.reshape(m, -1), axis=1).reshape(m, S, 2)
+    chord = real & ((on[:, :, 0] & on[:, :, 1]) == 0)
+    big = N * N
+    code = np.where(chord, loc.min(axis=2) * N + loc.max(axis=2), big)
+    code = np.sort(code, axis=1)
+    code[:, 1:][code[:, 1:] == code[:, :-1]] = big
+    code = np.sort(code, axis=1)
+    key = np.concatenate([cnt, k[:, None], code], axis=1)
+    sel = np.flatnonzero(ok)
+    if sel.size < 2:
+        return rest, []
+    _, first, inv, count = np.unique(key[sel], axis=0, return_index=True, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    grouped = count[inv] >= 2
+    order = np.argsort(inv, kind="stable")
+    groups = []
+    for g in np.flatnonzero(count >= 2).tolist():
+        rows = sel[order[np.searchsorted(inv[order], g) : np.searchsorted(inv[order], g, side="right")]]
+        rep, members = rows[0], rows[1:]
+        groups.append((int(rest[c[rep]]), rest[c[members]], ID[members, : int(n[rep])]))
+    alone = np.ones(rest.size, dtype=bool)
+    alone[c[sel[grouped]]] = False
+    reps = np.concatenate([rest[alone], np.array([g[0] for g in groups], dtype=np.int64)])
+    return reps, groups
+
+
+def _apply_patterns(groups: list, splits: list, aff, axis, sgn, table) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each group's members split by their representative's triangulation, kept where exact.
+
+    Returns
+    -------
+    G : (p, 3) int64       the pieces of the members it splits, global ids
+    source : (p,) int64    the triangle of each piece
+    again : (q,) int64     rows of ``aff`` whose pieces were not all counter-clockwise
+    """
+    by_t = {t: (tri, ids) for t, tri, ids in splits}
+    Gs, rows = [], []
+    for rep, members, ids in groups:
+        tri, rep_ids = by_t[int(aff[rep])]
+        if rep_ids.size != ids.shape[1]:  # pragma: no cover - the pattern fixes the number of points
+            raise BooleanError("a split pattern changed its number of points", stage="imprint")
+        Gs.append(ids[:, tri].reshape(-1, 3))
+        rows.append(np.repeat(members, tri.shape[0]))
+    G, prow = np.concatenate(Gs), np.concatenate(rows)
+    good = _ccw_rows(G, prow, axis, sgn, table)
+    keep = good[prow]
+    members = np.concatenate([g[1] for g in groups])
+    return G[keep], aff[prow[keep]], members[~good[members]]
 
 def _chain_split(n: int, nb: int, corners: list, chords: list, P2: np.ndarray) -> np.ndarray | None:
     """A candidate split, without predicates, of a triangle crossed by one chain of chords.

@@ -370,3 +370,85 @@ def test_bad_chain_candidates_in_the_per_triangle_loop_are_redone_exactly(monkey
         assert got.check().ok
         np.testing.assert_allclose(got.volume, r.volume, rtol=VOL_RTOL)
     assert calls["bad"] > 0
+
+
+# ---------------------------------------------------------------------- pattern splits
+def _plate_minus_prisms(n: int, rotation=None):
+    """A plate minus one tool of ``n × n`` square prisms through it, optionally turned as a whole."""
+    import trimesh
+
+    plate = trimesh.creation.box(extents=(n + 2.0, n + 2.0, 1.0))
+    cube = trimesh.creation.box(extents=(0.5, 0.5, 3.0))
+    Vs, Fs = [], []
+    for i in range(n):
+        for j in range(n):
+            Vs.append(np.asarray(cube.vertices) + [i - (n - 1) / 2, j - (n - 1) / 2, 0.0])
+            Fs.append(np.asarray(cube.faces) + 8 * (i * n + j))
+    PV, TV = np.asarray(plate.vertices), np.concatenate(Vs)
+    if rotation is not None:
+        PV, TV = PV @ rotation.T, TV @ rotation.T
+    return from_mesh(PV, np.asarray(plate.faces)), from_mesh(TV, np.concatenate(Fs))
+
+
+def _no_patterns(rest, *args):
+    return rest, []
+
+
+@pytest.mark.parametrize("turned", [False, True])
+def test_pattern_splits_equal_per_triangle_splits(monkeypatch, turned):
+    """The prism sides of a perforated plate, each cut by the plate's two faces, are split by the
+    pattern of one of them (vectorised); the result equals the one-by-one splits and the closed
+    form, also turned by a rotation (then the sides' exact points differ from pattern to member)."""
+    from scipy.spatial.transform import Rotation
+
+    n = 6
+    R = Rotation.from_rotvec([0.3, -0.2, 0.5]).as_matrix() if turned else None
+    plate, tool = _plate_minus_prisms(n, R)
+    real = arrangement._patterns
+    seen = {"members": 0}
+
+    def spy(*args):
+        reps, groups = real(*args)
+        seen["members"] += sum(g[1].size for g in groups)
+        return reps, groups
+
+    monkeypatch.setattr(arrangement, "_patterns", spy)
+    got = plate - tool
+    assert seen["members"] >= 4 * n * n  # most of the 8 n² side triangles
+    monkeypatch.setattr(arrangement, "_patterns", _no_patterns)
+    want = plate - tool
+    for r in (got, want):
+        assert r.check().ok
+        np.testing.assert_allclose(r.volume, (n + 2.0) ** 2 - 0.25 * n * n, rtol=1e-12)
+    assert got.brep.n_faces == want.brep.n_faces == 2 + 4 + 4 * n * n
+    np.testing.assert_allclose(got.area, want.area, rtol=VOL_RTOL)
+
+
+def test_pattern_failures_fall_back_to_per_triangle_splits(monkeypatch):
+    """A pattern whose pieces are not counter-clockwise for a member's exact points leaves that member
+    to the one-by-one split: here every member is refused, and the Boolean is unchanged."""
+    plate, tool = _plate_minus_prisms(4)
+    want = plate - tool
+    real_apply, real_ccw = arrangement._apply_patterns, arrangement._ccw_rows
+    flag = {"on": False, "again": 0}
+
+    def ccw(G, prow, axis, sgn, table):
+        good = real_ccw(G, prow, axis, sgn, table)
+        return np.zeros_like(good) if flag["on"] else good
+
+    def apply(*args):
+        flag["on"] = True
+        try:
+            G, src, again = real_apply(*args)
+        finally:
+            flag["on"] = False
+        assert G.shape[0] == 0 and again.size > 0
+        flag["again"] += again.size
+        return G, src, again
+
+    monkeypatch.setattr(arrangement, "_ccw_rows", ccw)
+    monkeypatch.setattr(arrangement, "_apply_patterns", apply)
+    got = plate - tool
+    assert flag["again"] > 0 and got.check().ok
+    np.testing.assert_allclose(got.volume, want.volume, rtol=VOL_RTOL)
+    assert got.brep.n_faces == want.brep.n_faces

@@ -1038,10 +1038,11 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
     ``active (k,)`` bool, optional: the rows where a feature can start (the others are input
     triangles between original vertices of one operand: their edges and heights are the valid
     input's, and a cancelling twin of one would lie on the other operand's surface, classified
-    ``ON`` and not selected).  Only they are searched until the first change, after which every row
-    is.  (Closed components thinner
-    than the tolerance are removed by :func:`_drop_thin_components` when ``from_mesh`` rejects
-    the result.)
+    ``ON`` and not selected).  Each later round searches only the rows the previous one changed or
+    made (a feature appears only where a vertex moved or a cap was split; a cancelling partner is
+    looked for among the rows on the searched rows' vertices), so the clean-up costs in proportion
+    to the features, not to the mesh.  (Closed components thinner than the tolerance are removed
+    by :func:`_drop_thin_components` when ``from_mesh`` rejects the result.)
 
     Returns
     -------
@@ -1053,17 +1054,21 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
         (stage ``"sew"``) a cluster wider than ``4 eps`` or no convergence in ``_MAX_CLEAN_ROUNDS``.
     """
     n = P.shape[0]
+    # ``act``: the rows searched this round; ``fresh``: the rows this round changes or makes, the only
+    # ones where a feature can appear next round (merging moves only rows with a merged vertex,
+    # cancelling removes rows, a cap split makes two new rows).
+    act = np.ones(T.shape[0], dtype=bool) if active is None else np.asarray(active, dtype=bool).copy()
     for _ in range(_MAX_CLEAN_ROUNDS):
         changed = False
-        rows = np.flatnonzero(active) if active is not None else None
+        fresh = np.zeros(T.shape[0], dtype=bool)
         # 1. short edges and identical points.
-        Ts = T if rows is None else np.take(T, rows, axis=0)
+        rows = np.flatnonzero(act)
+        Ts = np.take(T, rows, axis=0)
         a = Ts.ravel()
         b = next_corners(Ts)
         L = np.linalg.norm(np.take(P, a, axis=0) - np.take(P, b, axis=0), axis=1)
         short = L <= eps
         if np.any(short):
-            active = None
             src, dst = a[short], b[short]
             g = coo_matrix((np.ones(src.size, dtype=np.int8), (src, dst)), shape=(n, n))
             _, comp = connected_components(g, directed=False)
@@ -1083,56 +1088,51 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
             T_old, T = T, rep[T]
             keep = (T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 2] != T[:, 0])
             # A merge must not turn a surviving triangle over (a fold the checker would not see).
-            moved = keep & np.any(T != T_old, axis=1)
-            if np.any(moved):
-                C0, C1 = P[T_old[moved]], P[T[moved]]
+            touched = np.any(T != T_old, axis=1)
+            fold = keep & touched
+            if np.any(fold):
+                C0, C1 = P[T_old[fold]], P[T[fold]]
                 n0 = np.cross(C0[:, 1] - C0[:, 0], C0[:, 2] - C0[:, 0])
                 n1 = np.cross(C1[:, 1] - C1[:, 0], C1[:, 2] - C1[:, 0])
                 L = np.max(np.linalg.norm(C1 - C1[:, [1, 2, 0]], axis=2), axis=1)
                 tall = np.linalg.norm(n1, axis=1) > eps * L  # height above eps: not a cap to be removed
                 flipped = np.einsum("ij,ij->i", n0, n1) < 0
                 if np.any(flipped & tall):
-                    k = int(np.flatnonzero(moved)[np.argmax(flipped & tall)])
+                    k = int(np.flatnonzero(fold)[np.argmax(flipped & tall)])
                     raise BooleanError(
                         f"clean-up: merging vertices closer than {eps:g} would turn over the triangle at "
                         f"{P[T[k]].tolist()}", stage="sew", diagnostics={"triangle": P[T[k]].tolist()},
                     )
-            T = T[keep]
+            T, act, fresh = T[keep], (act | touched)[keep], touched[keep]
             changed = True
-        # 2. cancelling pairs.
-        rows = np.flatnonzero(active) if active is not None else None
-        if T.shape[0] and (rows is None or rows.size):
-            sub = T if rows is None else T[rows]
+        # 2. cancelling pairs: among the searched rows and the rows on their vertices only (a partner
+        # has the same three vertices).
+        if T.shape[0] and np.any(act):
+            on = np.zeros(n, dtype=bool)
+            on[np.take(T, np.flatnonzero(act), axis=0).ravel()] = True
+            near = np.flatnonzero(on[T[:, 0]] & on[T[:, 1]] & on[T[:, 2]])
+            sub = np.take(T, near, axis=0)
             S = np.sort(sub, axis=1)
             key = (S[:, 0] * np.int64(n) + S[:, 1]) * np.int64(n) + S[:, 2]
             _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
-            if rows is not None and np.any(cnt > 1):  # something to cancel: search every row
-                active = rows = None
-                S = np.sort(T, axis=1)
-                key = (S[:, 0] * np.int64(n) + S[:, 1]) * np.int64(n) + S[:, 2]
-                _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
-            rep_dup = cnt[inv] > 1
-            if np.any(rep_dup):
+            if np.any(cnt > 1):
                 # parity of the rotation from the sorted triple: even permutations are one orientation
-                even = ((T[:, 0] == S[:, 0]) & (T[:, 1] == S[:, 1])) | ((T[:, 1] == S[:, 0]) & (T[:, 2] == S[:, 1])) | (
-                    (T[:, 2] == S[:, 0]) & (T[:, 0] == S[:, 1]))
+                even = ((sub[:, 0] == S[:, 0]) & (sub[:, 1] == S[:, 1])) | (
+                    (sub[:, 1] == S[:, 0]) & (sub[:, 2] == S[:, 1])) | ((sub[:, 2] == S[:, 0]) & (sub[:, 0] == S[:, 1]))
                 plus = np.bincount(inv, weights=even.astype(float), minlength=cnt.size)
-                minus = cnt - plus
-                drop_pairs = np.minimum(plus, minus)
+                drop_pairs = np.minimum(plus, cnt - plus)
                 # remove min(plus, minus) of each orientation per key
                 keep = np.ones(T.shape[0], dtype=bool)
                 for kk in np.flatnonzero(drop_pairs > 0).tolist():
-                    rows = np.flatnonzero(inv == kk)
+                    r = np.flatnonzero(inv == kk)
                     m = int(drop_pairs[kk])
-                    keep[rows[even[rows]][:m]] = False
-                    keep[rows[~even[rows]][:m]] = False
+                    keep[near[r[even[r]][:m]]] = False
+                    keep[near[r[~even[r]][:m]]] = False
                 if not np.all(keep):
-                    T = T[keep]
+                    T, act, fresh = T[keep], act[keep], fresh[keep]
                     changed = True
         # 3. caps.
-        if changed:
-            active = None
-        rows = np.flatnonzero(active) if active is not None else np.arange(T.shape[0])
+        rows = np.flatnonzero(act)
         if rows.size:
             C = np.take(P, np.take(T, rows, axis=0), axis=0)
             e = np.stack([C[:, 1] - C[:, 0], C[:, 2] - C[:, 1], C[:, 0] - C[:, 2]], axis=1)
@@ -1142,11 +1142,15 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
             height = area2 / np.maximum(el[np.arange(rows.size), longest], np.finfo(float).tiny)
             caps = np.flatnonzero(height <= eps)
             if caps.size:
-                T = _split_caps(T, rows[caps], longest[caps])
-                active = None
-                changed = True
+                fresh[rows[caps]] = True  # caps left for the next round (one split per neighbour per round)
+                T, keep = _split_caps(T, rows[caps], longest[caps])
+                if keep is not None:
+                    made = T.shape[0] - int(keep.sum())
+                    fresh = np.concatenate([fresh[keep], np.ones(made, dtype=bool)])
+                changed = True  # a cap that cannot be split (an open edge) ends in the convergence error
         if not changed:
             return T
+        act = fresh
     raise BooleanError(
         f"clean-up of features below the tolerance {eps:g} did not converge in {_MAX_CLEAN_ROUNDS} rounds",
         stage="sew", diagnostics={"triangles": int(T.shape[0])},
@@ -1175,12 +1179,19 @@ def _drop_thin_components(P: np.ndarray, T: np.ndarray, eps: float) -> np.ndarra
     return T[~thin[comp]] if np.any(thin) else T
 
 
-def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> np.ndarray:
-    """Insert each cap's apex into its longest edge (one cap per edge and per neighbour each round)."""
-    a = T.ravel()
-    b = next_corners(T)
+def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Insert each cap's apex into its longest edge (one cap per edge and per neighbour each round).
+
+    Returns the new triangles — the kept rows of ``T`` in order, then two per split cap — and the
+    kept-row mask ``(len(T),)``, or ``T`` and None when no cap could be split.
+    """
     n = np.int64(T.max() + 1)
-    dkey = a * n + b
+    # The triangle across a cap's edge holds two of the cap's vertices: only such rows are searched.
+    on = np.zeros(int(n), dtype=bool)
+    on[T[caps].ravel()] = True
+    near = np.flatnonzero((on[T[:, 0]].astype(np.int8) + on[T[:, 1]] + on[T[:, 2]]) >= 2)
+    Tn = np.take(T, near, axis=0)
+    dkey = Tn.ravel() * n + next_corners(Tn)
     order = np.argsort(dkey)
     sk = dkey[order]
     keep = np.ones(T.shape[0], dtype=bool)
@@ -1193,7 +1204,7 @@ def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> np.ndar
         pos = np.searchsorted(sk, v * n + u)
         if pos >= sk.size or sk[pos] != v * n + u:
             continue  # an open edge: left for the manifold check to report
-        nb = int(order[pos] // 3)
+        nb = int(near[order[pos] // 3])
         if busy[nb] or nb == c:
             continue
         x = [q for q in T[nb].tolist() if q not in (u, v)]
@@ -1205,8 +1216,8 @@ def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> np.ndar
         new.append((v, w, x))
         new.append((w, u, x))
     if not new:
-        return T
-    return np.concatenate([T[keep], np.asarray(new, dtype=np.int64)])
+        return T, None
+    return np.concatenate([T[keep], np.asarray(new, dtype=np.int64)]), keep
 
 
 def _manifold(T: np.ndarray, P: np.ndarray) -> None:

@@ -452,3 +452,30 @@ def test_pattern_failures_fall_back_to_per_triangle_splits(monkeypatch):
     assert flag["again"] > 0 and got.check().ok
     np.testing.assert_allclose(got.volume, want.volume, rtol=VOL_RTOL)
     assert got.brep.n_faces == want.brep.n_faces
+
+
+@pytest.mark.parametrize("case", ["spheres", "turned plate"])
+def test_clean_searching_changed_rows_leaves_no_feature_anywhere(monkeypatch, case):
+    """Each round of the clean-up searches only the rows the previous round changed; what it returns
+    has no short edge, cancelling pair or cap in any row (a full search changes nothing)."""
+    from scipy.spatial.transform import Rotation
+
+    if case == "spheres":  # level 5: intersection points within 1e-16 of sphere vertices
+        (V, F), (W, G) = _icospheres(5)
+        a, b = from_mesh(V, F), from_mesh(W, G)
+    else:
+        a, b = _plate_minus_prisms(6, Rotation.from_rotvec([0.3, -0.2, 0.5]).as_matrix())
+    real = poly._clean
+    seen = []
+
+    def spy(P, T, original, eps, active=None):
+        out = real(P, T, original, eps, active)
+        seen.append((P, T, out, original, eps))
+        return out
+
+    monkeypatch.setattr(poly, "_clean", spy)
+    r = a - b if case != "spheres" else a + b
+    assert r.check().ok and seen
+    for P, T, out, original, eps in seen:
+        assert out is not T  # the clean-up had features to remove
+        assert real(P, out, original, eps) is out

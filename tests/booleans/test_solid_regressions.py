@@ -253,7 +253,8 @@ def test_interior_point_keeps_clear_of_dangling_cuts():
     P1, _ = S._interior_point(top, t, avoid)
     uv1 = np.asarray(top.surface.closest_parameters(P1[None])).reshape(2)
     d = avoid[0, 1] - avoid[0, 0]
-    assert abs(float(np.cross(d, uv1 - avoid[0, 0]))) / np.linalg.norm(d) > S._INTERIOR_CLEARANCE * t.linear
+    w = uv1 - avoid[0, 0]
+    assert abs(float(d[0] * w[1] - d[1] * w[0])) / np.linalg.norm(d) > S._INTERIOR_CLEARANCE * t.linear
 
 
 def test_tangent_line_of_contact_is_a_dangling_cut_of_the_face():

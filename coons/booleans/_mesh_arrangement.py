@@ -1394,6 +1394,14 @@ def _chain_templates(k: int, x: int, y: int) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
+@lru_cache(maxsize=None)
+def _chain_template_stack(k: int, x: int, y: int) -> np.ndarray:
+    """The templates of :func:`_chain_templates` as one read-only ``(templates, 2 k + 3, 3)`` array."""
+    TP = np.stack(_chain_templates(k, x, y))
+    TP.flags.writeable = False
+    return TP
+
+
 def _chain_pieces(aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr, table):
     """Split, in array time, the triangles crossed by one chain of segments (nearly all of them).
 
@@ -1489,23 +1497,16 @@ def _chain_pieces(aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, 
     keys = np.unique(key[ok])
     for kk_, x_, y_ in zip((keys // (base * base)).tolist(), (keys // base % base).tolist(), (keys % base).tolist()):
         rows = np.flatnonzero(ok & (key == (kk_ * base + x_) * base + y_))
-        temps = _chain_templates(kk_, x_, y_)
-        worst = np.empty((rows.size, len(temps)))
-        for ti, tp in enumerate(temps):
-            a, b, cc = tp[:, 0], tp[:, 1], tp[:, 2]
-            ua, va = U[rows][:, a], V[rows][:, a]
-            ub, vb = U[rows][:, b], V[rows][:, b]
-            uc, vc = U[rows][:, cc], V[rows][:, cc]
-            o = (ua - uc) * (vb - vc) - (va - vc) * (ub - uc)
-            worst[:, ti] = o.min(axis=1)
-        choice = np.argmax(worst, axis=1)
-        for ti, tp in enumerate(temps):
-            sel = rows[choice == ti]
-            if sel.size == 0:
-                continue
-            out_G.append(GID[sel][:, tp].reshape(-1, 3))
-            out_s.append(np.repeat(t[sel], tp.shape[0]))
-            out_rows.append(np.repeat(sel, tp.shape[0]))
+        TP = _chain_template_stack(kk_, x_, y_)  # (templates, pieces, 3)
+        Ur, Vr = U[rows], V[rows]
+        ia, ib, ic = TP[..., 0], TP[..., 1], TP[..., 2]
+        uc, vc = Ur[:, ic], Vr[:, ic]
+        o = (Ur[:, ia] - uc) * (Vr[:, ib] - vc) - (Vr[:, ia] - vc) * (Ur[:, ib] - uc)  # (rows, templates, pieces)
+        choice = np.argmax(o.min(axis=2), axis=1)
+        p = TP.shape[1]
+        out_G.append(GID[rows[:, None, None], TP[choice]].reshape(-1, 3))
+        out_s.append(np.repeat(t[rows], p))
+        out_rows.append(np.repeat(rows, p))
     if not out_G:
         return empty
     G = np.concatenate(out_G)

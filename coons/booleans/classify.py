@@ -556,18 +556,49 @@ def _shift_periodic(F: _Face, uv: np.ndarray) -> np.ndarray:
     return uv
 
 
+#: Below this many point–segment pairs (or with fewer than four points per row) :func:`_in_polygon`
+#: tests every pair: the row sweep's Python loop over rows does not pay.
+_ROW_SWEEP_PAIRS = 1 << 18
+
+
 def _in_polygon(uv: np.ndarray, seg: np.ndarray) -> np.ndarray:
-    """Even–odd crossing test of points ``(k, 2)`` against closed polygon segments ``(s, 2, 2)``."""
+    """Even–odd crossing test of points ``(k, 2)`` against closed polygon segments ``(s, 2, 2)``.
+
+    A point is inside when an odd number of segments straddle its horizontal line to its right
+    (crossing abscissa ``xc > x``).  Points sharing a ``y`` (the rows of a grid of candidate
+    interior points) share the crossings: each distinct ``y`` is then handled once, its crossings
+    sorted and each point's count found by bisection, ``O(rows · s + k log s)`` instead of the
+    ``O(k · s)`` of testing every pair (a face with hundreds of holes has tens of thousands of
+    segments).  The crossings and comparisons are the same floating-point operations either way.
+    """
     if uv.shape[0] == 0:
         return np.zeros(0, dtype=bool)
     a, c = seg[:, 0], seg[:, 1]
-    x, y = uv[:, 0:1], uv[:, 1:2]
-    straddle = (a[None, :, 1] > y) != (c[None, :, 1] > y)
     dy = c[:, 1] - a[:, 1]
     with np.errstate(divide="ignore", invalid="ignore"):
-        xc = a[None, :, 0] + (y - a[None, :, 1]) * ((c[:, 0] - a[:, 0]) / np.where(dy == 0, 1.0, dy))[None, :]
-    hits = straddle & (x < xc)
-    return (np.count_nonzero(hits, axis=1) % 2) == 1
+        slope = (c[:, 0] - a[:, 0]) / np.where(dy == 0, 1.0, dy)
+    ys, row = np.unique(uv[:, 1], return_inverse=True)
+    row = row.ravel()
+    if 4 * ys.size > uv.shape[0] or uv.shape[0] * seg.shape[0] <= _ROW_SWEEP_PAIRS:  # every pair
+        out = np.empty(uv.shape[0], dtype=bool)
+        step = max(1, _CHUNK // max(1, seg.shape[0]))
+        for s0 in range(0, uv.shape[0], step):
+            x, y = uv[s0 : s0 + step, 0:1], uv[s0 : s0 + step, 1:2]
+            straddle = (a[None, :, 1] > y) != (c[None, :, 1] > y)
+            xc = a[None, :, 0] + (y - a[None, :, 1]) * slope[None, :]
+            out[s0 : s0 + step] = (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
+        return out
+    count = np.zeros(uv.shape[0], dtype=np.int64)
+    order = np.argsort(row, kind="stable")
+    ptr = np.searchsorted(row[order], np.arange(ys.size + 1))
+    for r, y in enumerate(ys.tolist()):
+        j = np.flatnonzero((a[:, 1] > y) != (c[:, 1] > y))
+        if j.size == 0:
+            continue
+        xc = np.sort(a[j, 0] + (y - a[j, 1]) * slope[j])
+        pts = order[ptr[r] : ptr[r + 1]]
+        count[pts] = j.size - np.searchsorted(xc, uv[pts, 0], side="right")  # crossings with xc > x
+    return (count % 2) == 1
 
 
 def _segment_distance(Q: np.ndarray, seg: np.ndarray) -> np.ndarray:

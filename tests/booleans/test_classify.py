@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from coons.booleans.classify import INSIDE, ON, OUTSIDE, Classifier, classify_points, winding_numbers
 from coons.errors import InvalidInputError
@@ -185,3 +187,49 @@ def test_classifier_builds_face_data_only_near_the_queries_and_reuses_a_mesh():
     again, _ = Classifier(box).classify(P)  # its own tessellation: the same answers
     assert again.tolist() == cls.tolist()
     assert len(c.faces) == 6 and all(f is not None for f in c._faces)
+
+
+def _in_polygon_pairs(uv, seg):
+    """The even-odd test on every point-segment pair (the reference of the row sweep)."""
+    a, c = seg[:, 0], seg[:, 1]
+    x, y = uv[:, 0:1], uv[:, 1:2]
+    straddle = (a[None, :, 1] > y) != (c[None, :, 1] > y)
+    dy = c[:, 1] - a[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = a[None, :, 0] + (y - a[None, :, 1]) * ((c[:, 0] - a[:, 0]) / np.where(dy == 0, 1.0, dy))[None, :]
+    return (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.booleans(), st.booleans())
+def test_in_polygon_row_sweep_equals_every_pair(seed, holes, grid, sweep):
+    """Points on shared rows (a grid of candidates) take the row sweep; it gives the answers of the
+    pair-by-pair test exactly, on a square with many polygonal holes (some on the grid's rows and
+    vertices: axis-aligned squares on grid values)."""
+    import coons.booleans.classify as C
+
+    rng = np.random.default_rng(seed)
+    rings = [np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])]
+    for _ in range(holes):
+        c = rng.uniform(1, 9, 2)
+        if rng.random() < 0.3:  # on grid values: vertices and horizontal edges on the rows
+            c = np.round(c * 4) / 4
+            r = 0.25
+            rings.append(c + r * np.array([[-1, -1], [-1, 1], [1, 1], [1, -1]], float))
+        else:
+            k = int(rng.integers(3, 40))
+            ang = np.sort(rng.uniform(0, 2 * np.pi, k))[::-1]
+            rings.append(c + rng.uniform(0.05, 0.6) * np.stack([np.cos(ang), np.sin(ang)], 1))
+    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
+    if grid:
+        g = np.arange(41) / 4.0
+        uv = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    else:
+        uv = rng.uniform(-1, 11, (500, 2))
+    old = C._ROW_SWEEP_PAIRS
+    C._ROW_SWEEP_PAIRS = 0 if sweep else old  # the sweep also for small problems
+    try:
+        got = C._in_polygon(uv, seg)
+    finally:
+        C._ROW_SWEEP_PAIRS = old
+    np.testing.assert_array_equal(got, _in_polygon_pairs(uv, seg))

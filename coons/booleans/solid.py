@@ -343,7 +343,10 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     # Faces passed through unchanged: their operand (1 for A, 2 for B) and padded space box.
     orig = {id(spec): (1, A.lo[f], A.hi[f]) for f, spec in enumerate(A.specs)}
     orig.update({id(spec): (2, B.lo[f], B.hi[f]) for f, spec in enumerate(B.specs)})
-    faces = _split_edges_at_vertices(faces, t, orig)
+    # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
+    # edges): their operand.
+    orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
+    faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
     faces = _merge(faces, t)
     faces = _fuse_edges(faces, t)
     return _sew(faces, t)
@@ -1219,7 +1222,8 @@ def reversed_face(spec: FaceSpec) -> FaceSpec:
 
 
 # ---------------------------------------------------------------------- T-junctions
-def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None) -> list[FaceSpec]:
+def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None,
+                             orig_edges: dict | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -1229,15 +1233,19 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     of an edge use (within the edges' tolerance, parameter strictly inside) splits it.
 
     ``orig`` maps ``id(face)`` of faces passed through unchanged to ``(operand 1 or 2, lo, hi)``
-    (their padded space box): such a face is only tested against vertices of faces not of its
-    operand's unchanged faces (a valid solid has no vertex inside its own edges), and skipped
-    when none lies in its box.  Faces without split edges are returned as the same objects.
+    (their padded space box), ``orig_edges`` maps ``id(edge use)`` of edge uses passed through
+    unchanged (also inside split faces) to their operand.  A vertex belongs to the operand of the
+    edge use it starts (0 for new ones); an unchanged face or edge use is only tested against the
+    vertices of the other operand and new ones (a valid solid has no vertex inside its own
+    edges), and skipped when none lies in its box: after many cuts a plate's faces keep hundreds
+    of untouched hole edges.  Faces without split edges are returned as the same objects.
     """
     from scipy.spatial import cKDTree
 
     from coons.booleans.classify import _curve_closest
 
     orig = orig or {}
+    orig_edges = orig_edges or {}
     starts = np.array([np.asarray(e.curve.evaluate(e.t0), dtype=np.float64).reshape(3)
                        for f in faces for loop in f.loops for e in loop])
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
@@ -1245,15 +1253,16 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     if starts.shape[0] == 0:
         return faces
     start_tol = _cluster_max(starts, start_tol)
-    # An unchanged face of an operand can only meet vertices not of that operand's unchanged
-    # faces (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.
-    group = np.repeat([orig.get(id(f), (0,))[0] for f in faces], [sum(len(l) for l in f.loops) for f in faces])
+    # An unchanged face or edge use of an operand can only meet vertices not of that operand
+    # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.
+    group = np.array([orig_edges.get(id(e), 0) for f in faces for loop in f.loops for e in loop], dtype=np.int64)
+    foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     tree = cKDTree(starts)
     out = []
     changed_any = False
     for f in faces:
         info = orig.get(id(f))
-        foreign = None
+        face_foreign = None
         if info is not None:
             g, lo, hi = info
             other = group != g
@@ -1261,15 +1270,17 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
             if not np.any(inside):
                 out.append(f)  # no foreign vertex near this face
                 continue
-            foreign = starts[inside], start_tol[inside]
+            face_foreign = starts[inside], start_tol[inside]
         loops = []
         face_changed = False
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
                 thr = max(t.linear, e.tol or 0.0)
+                g_e = orig_edges.get(id(e), 0)
+                foreign = face_foreign if face_foreign is not None else foreign_of.get(g_e)
                 if foreign is not None:
-                    # An unchanged face's edge can only be split by a foreign vertex: none near the
+                    # An unchanged edge can only be split by a foreign vertex: none near the
                     # edge's box (a plate face with many holes has many edges), nothing to do.
                     box = _edge_box(e)
                     if box is not None:

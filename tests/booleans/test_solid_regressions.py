@@ -11,11 +11,13 @@ exactly converted operands) to ``1e-6`` relative in volume.
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 import pytest
 
 from coons.booleans import solid as S
+from coons.booleans.solid import difference
 from coons.errors import BooleanError
 from coons.topology.primitives import Box, Cylinder, Sphere, Torus
 from coons.topology.sew import face_specs
@@ -274,3 +276,24 @@ def test_tangent_line_of_contact_is_a_dangling_cut_of_the_face():
     np.testing.assert_allclose(ends[:, 1:], [[0.0, 5.0], [0.0, 5.0]], atol=1e-9)
     status = S._classify(pieces, A, B, t, free=S._unpaired(len(A.specs), I), cuts=cuts_a)
     assert (status == S.OUT).all()
+
+
+def test_sequential_overlapping_holes_equal_one_call_and_closed_form():
+    """Sequential holes in a plate, the second overlapping the first (its circles cross the first
+    hole's edges, which the plate faces carry over from the previous result) and a third apart
+    (its faces' edges are untouched uses of the operand): the closed form, a valid solid, and the
+    same solid as the one-call difference."""
+    r, h, d = 2.0, 10.0, 3.0
+    plate = Box(40, 40, h)
+    c1 = Cylinder(r, 2 * h).translate((-d / 2, 0, 0))
+    c2 = Cylinder(r, 2 * h).translate((d / 2, 0, 0))
+    c3 = Cylinder(r, 2 * h).translate((12, 12, 0))
+    seq = plate - c1 - c2 - c3
+    one = difference(plate, c1, c2, c3)
+    lens = 2 * r * r * math.acos(d / (2 * r)) - 0.5 * d * math.sqrt(4 * r * r - d * d)
+    want = 40 * 40 * h - h * (3 * math.pi * r * r - lens)
+    for s in (seq, one):
+        assert s.check().ok
+        assert abs(s.volume - want) <= 1e-8 * want
+    assert len(seq.faces()) == len(one.faces())
+    assert abs(seq.area - one.area) <= 1e-9 * one.area

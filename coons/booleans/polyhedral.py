@@ -152,25 +152,26 @@ Status and limitations
 * Vertices left on a straight edge between two merged faces (where the tessellation's diagonals
   met the intersection curves) are removed when they lie within ``tol.linear`` of the segment
   between their neighbours (:func:`~coons.topology.from_mesh._remove_straight_vertices`).
-* Speed: every phase is vectorised except the splits of the few triangles that a chain of
-  segments does not describe (Python, exact integers when the float filters cannot decide).
-  ``benchmarks/bench_booleans_mesh.py`` measures coons against manifold3d in the same run
-  (``benchmarks/results/booleans_mesh.md``).  At 1.6e5 input triangles, best of interleaved runs
-  on a 2-core machine shared with another process, union / intersection / difference take about
-  146 / 125 / 128 ms against manifold3d's 47 / 40 / 44 ms (2.9-3.2x; 3.7x before the changes of
-  branch ``mesh-speed2``).  The sewing of the result (half-edge pairing, tables, coplanar merging,
-  the topological checks) is the largest phase, about two fifths of the union, then the broad
-  phase with the snap, imprint, the narrow phase, classification (mostly the patch labelling,
-  one ``connected_components`` over each operand's pieces) and the operands' meshes.  About
-  95 % of the result's half-edges get their twins from the operands' edge tables
-  (:func:`_known_twins`); only the rest are paired by sorting, and the result's shells are found
-  on its patches (:func:`_patch_groups`), not on its triangles.  Row gathers of 2-D arrays go
-  through ``np.take`` / ``np.compress`` (several times faster than ``A[idx]`` with numpy 2.4);
-  ``A[:, [i, j]]`` and ``np.unique(..., axis=0)`` are avoided for the same reason (one integer
-  key per row instead).  Much of what remains is random gathers over 1e5-3e5 rows, bound by
-  cache misses: a row gather (one cache line per scattered index) beats column gathers there,
-  even where it loses with the arrays in cache.  Triangles crossed by two chains of segments
-  (the side faces of prisms through a plate) still take the per-triangle Python split.
+* Speed: every phase is vectorised except the splits of the few triangles that neither a chain
+  template nor the pattern of another triangle describes (Python, exact integers when the float
+  filters cannot decide).  ``benchmarks/bench_booleans_mesh.py`` measures coons against
+  manifold3d in the same run, the two peers' runs interleaved (``benchmarks/results/booleans_mesh.md``).
+  At 1.6e5 input triangles on a 2-core machine, union / intersection / difference take about
+  107 / 100 / 107 ms against manifold3d's 42 / 41 / 41 ms (2.4-2.6x; 2.7-2.9x at 1e5 by
+  interpolation, 3.4-3.6x at 4e4, where fixed costs of about 11 ms weigh).  The sewing of the
+  result (clean-up, half-edge pairing, tables, coplanar merging, the topological checks) is the
+  largest phase, about a third of the union, then the broad phase with the snap, the narrow
+  phase, imprint, classification (mostly the patch labelling, one ``connected_components`` over
+  each operand's pieces) and the operands' meshes.  About 95 % of the result's half-edges get
+  their twins from the operands' edge tables (:func:`_known_twins`); only the rest are paired by
+  sorting, and the result's shells are found on its patches (:func:`_patch_groups`), not on its
+  triangles.  The clean-up's later rounds search only the rows the previous round changed.  Row
+  gathers of 2-D arrays go through ``np.take`` / ``np.compress`` (several times faster than
+  ``A[idx]`` with numpy 2.4); ``A[:, [i, j]]`` and ``np.unique(..., axis=0)`` are avoided for the
+  same reason (one integer key per row instead).  Much of what remains is random gathers over
+  1e5-3e5 rows, bound by cache misses: a row gather (one cache line per scattered index) beats
+  column gathers there, even where it loses with the arrays in cache.  A plate minus 20 × 20
+  prisms (4,812 triangles) is about 8x manifold3d: its many small lumps are fixed costs.
 * Bit-identical rounded points that are not joined by an edge stay distinct vertices (the exact
   points are distinct); identical input vertices of A and B are one point (keyed exactly).
 * n-ary calls fold left: ``union(a, b, c) = (a ∪ b) ∪ c``.

@@ -1010,6 +1010,7 @@ def _split_each(rows, aff, axis, sgn, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, s
         out.extend((t_, tri_, ids_) for t_, tri_, ids_, *_rest in small)
     return out
 
+
 def _verify_split(tri, nb, n_ids, chords, F3, ids, table, ax, sg, which, t) -> None:
     """Exact checks of a triangle's split (module docstring): orientation, boundary, constraints."""
     fail = None
@@ -1558,9 +1559,9 @@ def _patterns(rest, aff, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr) ->
         Rows of ``aff`` to split one by one: each group's first triangle and the triangles in no
         group (alone in their pattern, too many points or segments, or points the loop cannot
         name: the per-triangle split reports those).
-    groups : list of ``(rep, members, ids)``
-        The representative's row, the other rows ``(m,)`` and their local points as global ids
-        ``(m, n)``.
+    groups : list of ``(rep, members, ids, rep_ids)``
+        The representative's row, the other rows ``(m,)``, their local points as global ids
+        ``(m, n)`` and the representative's ``(n,)``.
     """
     t = aff[rest]
     E = X.tri_edge[t]
@@ -1612,7 +1613,7 @@ def _patterns(rest, aff, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr) ->
     sel = np.flatnonzero(ok)
     if sel.size < 2:
         return rest, []
-    _, first, inv, count = np.unique(key[sel], axis=0, return_index=True, return_inverse=True, return_counts=True)
+    _, inv, count = np.unique(key[sel], axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
     grouped = count[inv] >= 2
     order = np.argsort(inv, kind="stable")
@@ -1620,7 +1621,7 @@ def _patterns(rest, aff, T, X, e_ptr, g_sorted, t_ptr, gi_sorted, seg, s_ptr) ->
     for g in np.flatnonzero(count >= 2).tolist():
         rows = sel[order[np.searchsorted(inv[order], g) : np.searchsorted(inv[order], g, side="right")]]
         rep, members = rows[0], rows[1:]
-        groups.append((int(rest[c[rep]]), rest[c[members]], ID[members, : int(n[rep])]))
+        groups.append((int(rest[c[rep]]), rest[c[members]], ID[members, : int(n[rep])], ID[rep, : int(n[rep])]))
     alone = np.ones(rest.size, dtype=bool)
     alone[c[sel[grouped]]] = False
     reps = np.concatenate([rest[alone], np.array([g[0] for g in groups], dtype=np.int64)])
@@ -1638,10 +1639,12 @@ def _apply_patterns(groups: list, splits: list, aff, axis, sgn, table) -> tuple[
     """
     by_t = {t: (tri, ids) for t, tri, ids in splits}
     Gs, rows = [], []
-    for rep, members, ids in groups:
+    for rep, members, ids, want in groups:
         tri, rep_ids = by_t[int(aff[rep])]
-        if rep_ids.size != ids.shape[1]:  # pragma: no cover - the pattern fixes the number of points
-            raise BooleanError("a split pattern changed its number of points", stage="imprint")
+        # The boundary argument needs the representative's points in the order the pattern named them.
+        if not np.array_equal(rep_ids, want):  # pragma: no cover - one layout of the local points
+            raise BooleanError(f"internal: triangle {int(aff[rep])}'s split points are not in its pattern's order",
+                               stage="imprint")
         Gs.append(ids[:, tri].reshape(-1, 3))
         rows.append(np.repeat(members, tri.shape[0]))
     G, prow = np.concatenate(Gs), np.concatenate(rows)
@@ -1649,6 +1652,7 @@ def _apply_patterns(groups: list, splits: list, aff, axis, sgn, table) -> tuple[
     keep = good[prow]
     members = np.concatenate([g[1] for g in groups])
     return G[keep], aff[prow[keep]], members[~good[members]]
+
 
 def _chain_split(n: int, nb: int, corners: list, chords: list, P2: np.ndarray) -> np.ndarray | None:
     """A candidate split, without predicates, of a triangle crossed by one chain of chords.

@@ -1452,6 +1452,10 @@ def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
     return any(float(np.ptp(U[:, k])) >= p - 1e-9 * p for k, p in pers)
 
 
+#: Edge starts of a face tested against another surface before :func:`_moved_to` re-expresses it.
+_MOVED_PROBES = 8
+
+
 def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
     """Face B on surface S (the same point set as B's surface), or None when B does not lie on S.
 
@@ -1461,6 +1465,15 @@ def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
     from coons.kernel.onsurface import pcurve_on
 
     try:
+        # A cheap necessary test first: B's boundary lies on S when B does (within the edges'
+        # tolerances; 10x of margin).  Two faces of a box meeting at an edge fail it at once,
+        # without the interior point of a face with many holes.
+        ends = [e for loop in B.loops for e in loop][:_MOVED_PROBES]
+        Q = np.array([np.asarray(e.curve.evaluate(e.t0), dtype=np.float64).reshape(3) for e in ends])
+        thr = 10.0 * np.array([max(t.linear, e.tol or 0.0) for e in ends])
+        uvq = np.asarray(S.closest_parameters(Q), dtype=np.float64).reshape(-1, 2)
+        if np.any(np.linalg.norm(np.asarray(S.evaluate(uvq[:, 0], uvq[:, 1])).reshape(-1, 3) - Q, axis=1) > thr):
+            return None
         P, N = _interior_point(B, t)
         uv = np.asarray(S.closest_parameters(P[None]), dtype=np.float64).reshape(2)
         if np.linalg.norm(np.asarray(S.evaluate(uv[0], uv[1])).reshape(3) - P) > t.linear:

@@ -297,3 +297,41 @@ def test_sequential_overlapping_holes_equal_one_call_and_closed_form():
         assert abs(s.volume - want) <= 1e-8 * want
     assert len(seq.faces()) == len(one.faces())
     assert abs(seq.area - one.area) <= 1e-9 * one.area
+
+
+def test_coplanar_caps_merge_and_other_planes_are_rejected_before_an_interior_point(monkeypatch):
+    """A cylinder whose caps lie in the box's top and bottom planes: each cap merges with the box
+    face (the same plane in another parametrisation, re-expressed by ``_moved_to``); pairs of
+    faces on different planes (the box's own edges) are rejected from their boundary points,
+    without an interior point of the face."""
+    from coons.kernel.analytic import PlanarSurface
+
+    box = Box(10, 10, 10)
+    cyl = Cylinder(3, 10).translate((5, 0, 0))
+    real_moved, real_interior = S._moved_to, S._interior_point
+    seen = {"moved": 0, "rejected_with_interior": 0, "interior": 0}
+
+    def interior(*args, **kw):
+        seen["interior"] += 1
+        return real_interior(*args, **kw)
+
+    def moved(B, surf, t):
+        seen["moved"] += 1
+        before = seen["interior"]
+        out = real_moved(B, surf, t)
+        if out is None and seen["interior"] > before:
+            seen["rejected_with_interior"] += 1
+        return out
+
+    monkeypatch.setattr(S, "_moved_to", moved)
+    monkeypatch.setattr(S, "_interior_point", interior)
+    r = box + cyl
+    assert r.check().ok
+    assert abs(r.volume - (1000 + 0.5 * math.pi * 9 * 10)) <= 1e-9 * r.volume
+    flat_z = 0
+    for spec in face_specs(r):
+        if isinstance(spec.surface, PlanarSurface):
+            n = np.asarray(spec.surface.normal(0.0, 0.0)).reshape(3)
+            flat_z += abs(abs(n[2]) - 1.0) < 1e-12
+    assert flat_z == 2  # the top and bottom faces, each merged with a cap
+    assert seen["moved"] > 2 and seen["rejected_with_interior"] == 0

@@ -392,25 +392,22 @@ class _Operand:
         self.lo, self.hi = lo - pad, hi + pad
         self.uv_box = []
         self.polygons = []
+        self.segments, self.seg_lo, self.seg_hi = [], [], []
         for spec in self.specs:
-            rings = _loop_rings(spec)
+            # Each edge sampled once: for the rings and for the pads of its segments.
+            samples = [[_edge_uv(e, spec.surface, _LOOP_SAMPLES) for e in loop] for loop in spec.loops]
+            rings = [np.concatenate(loop) for loop in samples]
             self.polygons.append(rings)
             U = np.concatenate(rings)
             (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
             mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
             self.uv_box.append(_within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1)))
-        self.segments, self.seg_lo, self.seg_hi = [], [], []
-        for spec, rings in zip(self.specs, self.polygons):
             seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
             # A sampled curved edge stays within about one chord of its samples; a straight
             # p-curve (Line2D, sampled by its two ends) is its segment.
-            pads = []
-            for loop in spec.loops:
-                for e in loop:
-                    straight = isinstance(e.pcurve, Line2D)
-                    U = _edge_uv(e, spec.surface, _LOOP_SAMPLES)
-                    step = 0.0 if straight else float(np.max(np.linalg.norm(np.diff(U, axis=0), axis=1)))
-                    pads.append(np.full(U.shape[0], step))
+            pads = [np.full(Ue.shape[0], 0.0 if isinstance(e.pcurve, Line2D)
+                            else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1))))
+                    for loop, loop_samples in zip(spec.loops, samples) for e, Ue in zip(loop, loop_samples)]
             pad = np.concatenate(pads)[:, None]
             self.segments.append(seg)
             self.seg_lo.append(seg.min(axis=1) - pad)

@@ -413,6 +413,23 @@ class _Operand:
             self.seg_lo.append(seg.min(axis=1) - pad)
             self.seg_hi.append(seg.max(axis=1) + pad)
         self._classifier = None
+        self._edge_boxes: dict[int, tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def edge_boxes(self, f: int) -> tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]:
+        """Face ``f``'s edge uses in loop order, their space boxes ``lo, hi (k, 3)`` (:func:`_edge_box`,
+        infinite where it gives none) and tolerances ``(k,)``, computed once per operand."""
+        got = self._edge_boxes.get(f)
+        if got is None:
+            edges = [e for loop in self.specs[f].loops for e in loop]
+            lo = np.full((len(edges), 3), -np.inf)
+            hi = np.full((len(edges), 3), np.inf)
+            for k, e in enumerate(edges):
+                box = _edge_box(e)
+                if box is not None:
+                    lo[k], hi[k] = box[0], box[1]
+            tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
+            got = self._edge_boxes[f] = (edges, lo, hi, tol)
+        return got
 
     @property
     def classifier(self):
@@ -516,7 +533,7 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                         s0, s1 = max(a0, b0), min(a1, b1)
                         if s1 <= s0 or not _long_enough(c.curve, s0, s1, t):
                             continue
-                        etol = _end_tolerance(c, (s0, s1), (X, Y), t)
+                        etol = _end_tolerance(c, (s0, s1), (A.edge_boxes(i), B.edge_boxes(j)), t)
                         if wa == "inside":
                             cuts_a.setdefault(i, []).append(EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
                         if wb == "inside":
@@ -682,7 +699,7 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
 _MIN_SINE = 1e-3
 
 
-def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec], t: Tolerance) -> float:
+def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> float:
     """Tolerance of a cut whose ends were found where the branch crosses the faces' boundaries.
 
     Two curves known within ``δ`` that cross at an angle ``φ`` meet at a point known along them
@@ -690,6 +707,9 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec
     independently (each in its own parameter plane), so near-grazing crossings give end points
     that differ by more than ``δ``.  The cut records ``δ / sin φ`` (``δ`` the branch's and the
     boundary edge's tolerance), which lets sewing merge the two ends into one vertex.
+
+    ``faces``: for each of the two faces, :meth:`_Operand.edge_boxes` (its edge uses, their boxes
+    and tolerances): only the edges whose box comes near an end are examined.
     """
     base = max(t.linear, c.tol)
     D = np.asarray(c.curve.derivatives(np.asarray(ends, dtype=np.float64), 1), dtype=np.float64)
@@ -698,22 +718,20 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple[FaceSpec, FaceSpec
     worst = base
     from coons.booleans.classify import _curve_closest
 
-    for F in faces:
-        for loop in F.loops:
-            for e in loop:
-                reach = 10.0 * max(base, e.tol or 0.0)
-                box = _edge_box(e)
-                if box is not None and np.all(np.any((P < box[0] - reach) | (P > box[1] + reach), axis=1)):
-                    continue  # both ends far from this edge (a face with many holes has many edges)
-                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                te = np.clip(_curve_closest(e.curve, P, lo, t), lo, hi)
-                De = np.asarray(e.curve.derivatives(te, 1), dtype=np.float64)
-                d = np.linalg.norm(De[:, 0] - P, axis=1)
-                Te = De[:, 1] / np.maximum(np.linalg.norm(De[:, 1], axis=1, keepdims=True), 1e-300)
-                sine = np.maximum(np.linalg.norm(np.cross(T, Te), axis=1), _MIN_SINE)
-                near = d <= 10.0 * max(base, e.tol or 0.0)  # the end lies on this boundary edge
-                if np.any(near):
-                    worst = max(worst, float(np.max(max(base, e.tol or 0.0) / sine[near])))
+    for edges, lo, hi, tol in faces:
+        reach = (10.0 * np.maximum(base, tol))[:, None, None]
+        far = np.any((P[None] < lo[:, None] - reach) | (P[None] > hi[:, None] + reach), axis=2)  # (k, 2)
+        for k in np.flatnonzero(~np.all(far, axis=1)).tolist():  # an end near the edge's box
+            e = edges[k]
+            lo_t, hi_t = min(e.t0, e.t1), max(e.t0, e.t1)
+            te = np.clip(_curve_closest(e.curve, P, lo_t, t), lo_t, hi_t)
+            De = np.asarray(e.curve.derivatives(te, 1), dtype=np.float64)
+            d = np.linalg.norm(De[:, 0] - P, axis=1)
+            Te = De[:, 1] / np.maximum(np.linalg.norm(De[:, 1], axis=1, keepdims=True), 1e-300)
+            sine = np.maximum(np.linalg.norm(np.cross(T, Te), axis=1), _MIN_SINE)
+            near = d <= 10.0 * max(base, e.tol or 0.0)  # the end lies on this boundary edge
+            if np.any(near):
+                worst = max(worst, float(np.max(max(base, e.tol or 0.0) / sine[near])))
     return worst
 
 

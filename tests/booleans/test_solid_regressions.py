@@ -335,3 +335,26 @@ def test_coplanar_caps_merge_and_other_planes_are_rejected_before_an_interior_po
             flat_z += abs(abs(n[2]) - 1.0) < 1e-12
     assert flat_z == 2  # the top and bottom faces, each merged with a cap
     assert seen["moved"] > 2 and seen["rejected_with_interior"] == 0
+
+
+def test_end_tolerance_examines_every_edge_near_an_end(monkeypatch):
+    """The cut-end tolerance looks only at edges whose box comes near an end; with every box
+    infinite (every edge examined) it is the same, on crossings of every kind (plane-cylinder,
+    cylinder-cylinder at a grazing angle, sphere-sphere, holes next to earlier holes)."""
+    real = S._end_tolerance
+    calls = []
+
+    def spy(c, ends, faces, t):
+        out = real(c, ends, faces, t)
+        calls.append((c, ends, faces, t, out))
+        return out
+
+    monkeypatch.setattr(S, "_end_tolerance", spy)
+    plate = Box(30, 30, 10) - Cylinder(2, 20).translate((-5, 0, 0))
+    _ = plate - Cylinder(2, 20).translate((5, 0, 0))
+    _ = Cylinder(2, 20) + Cylinder(1.99, 20, direction=(1, 0, 0)).translate((0, 0, 1))
+    _ = Sphere(5) + Sphere(5).translate((4.0, 2.0, 0.5))
+    assert len(calls) >= 8
+    for c, ends, faces, t, out in calls:
+        unfiltered = [(edges, np.full_like(lo, -np.inf), np.full_like(hi, np.inf), tol) for edges, lo, hi, tol in faces]
+        assert real(c, ends, unfiltered, t) == out

@@ -12,12 +12,13 @@ operands made by ``from_mesh`` beforehand — the call tessellates both operands
 faces), runs every phase and returns a checked solid with coplanar faces merged; manifold3d
 ``(A + B).to_mesh64()`` (its CSG tree is lazy: ``to_mesh64`` forces the evaluation and returns
 the mesh) on ``Manifold`` objects made beforehand from the same vertices through ``Mesh64``
-(double precision).  Every timing is a best-of, the two peers' runs interleaved (:func:`_time_pair`).  Before a rate is
-reported the two volumes must agree to 1e-9 relative; otherwise the row is marked and
-``run.py`` exits 1.  The report gives the time ratio coons / manifold3d, the growth exponent
-``t ∝ n^p`` fitted (least squares in log–log) over the cases with at least 1e4 triangles, the ratio
-at 1e5 (each peer interpolated in log–log between the sizes around it), the
-time of each coons phase at about 1e5 triangles, and the functions that dominate (cProfile).
+(double precision).  Every timing is a best-of, the two peers' runs interleaved
+(:func:`_time_pair`).  Before a rate is reported the two volumes must agree to 1e-9 relative;
+otherwise the row is marked and ``run.py`` exits 1.  The report gives the time ratio coons /
+manifold3d, the growth exponent ``t ∝ n^p`` fitted (least squares in log–log) over the cases with
+at least 1e4 triangles, the ratio at 1e5 (each peer interpolated in log–log between the sizes
+around it), the time of each coons phase at about 1e5 triangles, and the functions that
+dominate (cProfile).
 
 The module measures; it asserts nothing about speed (tests do not time anything).
 """

@@ -1024,8 +1024,9 @@ def _verify_split(tri, nb, n_ids, chords, F3, ids, table, ax, sg, which, t) -> N
             # Directed piece edges as one integer each (sets of tuples are slow for big splits).
             n = np.int64(n_ids)
             a, b = tri.ravel().astype(np.int64), next_corners(tri).astype(np.int64)
-            dk = np.sort(a * n + b)
-            boundary = np.sort((a * n + b)[~sorted_contains(dk, b * n + a)])
+            d = a * n + b
+            dk = np.sort(d)
+            boundary = np.sort(d[~sorted_contains(dk, b * n + a)])
             loop = np.arange(nb, dtype=np.int64)
             want = np.sort(loop * n + np.roll(loop, -1))
             ch = np.asarray(chords, dtype=np.int64).reshape(-1, 2)

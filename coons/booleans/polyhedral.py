@@ -1109,9 +1109,7 @@ def _clean(P: np.ndarray, T: np.ndarray, original: np.ndarray, eps: float,
         # 2. cancelling pairs: among the searched rows and the rows on their vertices only (a partner
         # has the same three vertices).
         if T.shape[0] and np.any(act):
-            on = np.zeros(n, dtype=bool)
-            on[np.take(T, np.flatnonzero(act), axis=0).ravel()] = True
-            near = np.flatnonzero(on[T[:, 0]] & on[T[:, 1]] & on[T[:, 2]])
+            near = _rows_on(T, np.flatnonzero(act), 3)
             sub = np.take(T, near, axis=0)
             S = np.sort(sub, axis=1)
             key = (S[:, 0] * np.int64(n) + S[:, 1]) * np.int64(n) + S[:, 2]
@@ -1180,6 +1178,13 @@ def _drop_thin_components(P: np.ndarray, T: np.ndarray, eps: float) -> np.ndarra
     return T[~thin[comp]] if np.any(thin) else T
 
 
+def _rows_on(T: np.ndarray, rows: np.ndarray, at_least: int) -> np.ndarray:
+    """The rows of ``T (m, 3)`` with at least ``at_least`` vertices among those of ``T[rows]``, increasing."""
+    on = np.zeros(int(T.max()) + 1, dtype=bool)
+    on[np.take(T, rows, axis=0).ravel()] = True
+    return np.flatnonzero((on[T[:, 0]].astype(np.int8) + on[T[:, 1]] + on[T[:, 2]]) >= at_least)
+
+
 def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """Insert each cap's apex into its longest edge (one cap per edge and per neighbour each round).
 
@@ -1188,9 +1193,7 @@ def _split_caps(T: np.ndarray, caps: np.ndarray, longest: np.ndarray) -> tuple[n
     """
     n = np.int64(T.max() + 1)
     # The triangle across a cap's edge holds two of the cap's vertices: only such rows are searched.
-    on = np.zeros(int(n), dtype=bool)
-    on[T[caps].ravel()] = True
-    near = np.flatnonzero((on[T[:, 0]].astype(np.int8) + on[T[:, 1]] + on[T[:, 2]]) >= 2)
+    near = _rows_on(T, caps, 2)
     Tn = np.take(T, near, axis=0)
     dkey = Tn.ravel() * n + next_corners(Tn)
     order = np.argsort(dkey)

@@ -395,8 +395,8 @@ class _Operand:
         self.segments, self.seg_lo, self.seg_hi = [], [], []
         for spec in self.specs:
             # Each edge sampled once: for the rings and for the pads of its segments.
-            samples = [[_edge_uv(e, spec.surface, _LOOP_SAMPLES) for e in loop] for loop in spec.loops]
-            rings = [np.concatenate(loop) for loop in samples]
+            samples = _edge_samples(spec)
+            rings = _loop_rings(spec, samples=samples)
             self.polygons.append(rings)
             U = np.concatenate(rings)
             (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
@@ -488,9 +488,15 @@ def _edge_uv(e: EdgeSpec, S, n: int) -> np.ndarray:
     return np.asarray(S.closest_parameters(np.asarray(e.curve.evaluate(tt))), dtype=np.float64)
 
 
-def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES) -> list[np.ndarray]:
-    """Each loop as a closed parameter-plane polyline ``(k, 2)`` (pole gaps closed by straight segments)."""
-    return [np.concatenate([_edge_uv(e, spec.surface, n) for e in loop]) for loop in spec.loops]
+def _edge_samples(spec: FaceSpec, n: int = _LOOP_SAMPLES) -> list[list[np.ndarray]]:
+    """Per loop, the parameter-plane samples of each edge use (:func:`_edge_uv`)."""
+    return [[_edge_uv(e, spec.surface, n) for e in loop] for loop in spec.loops]
+
+
+def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES, samples: list | None = None) -> list[np.ndarray]:
+    """Each loop as a closed parameter-plane polyline ``(k, 2)`` (pole gaps closed by straight segments);
+    ``samples``: :func:`_edge_samples` of ``spec`` when the caller has them."""
+    return [np.concatenate(loop) for loop in (_edge_samples(spec, n) if samples is None else samples)]
 
 
 # ---------------------------------------------------------------------- broad phase

@@ -166,6 +166,18 @@ def test_steinmetz_solid():
     np.testing.assert_allclose(s.area, 16 * r**2, rtol=RTOL)
 
 
+def test_three_cylinder_steinmetz_solid():
+    # Three equal cylinders along x, y, z: V = 8 (2 - √2) r³, A = 24 (2 - √2) r²; each cylinder keeps
+    # four curved faces (OCCT: 12 too).  The second Boolean's operand is the two-cylinder solid, whose
+    # fitted edges pass the singular points (its tessellation used to fail at r = 2, length 10).
+    r = 2.0
+    two = _ok(S.intersection(Cylinder(r, 10), Cylinder(r, 10, direction=(1, 0, 0))))
+    three = _ok(S.intersection(two, Cylinder(r, 10, direction=(0, 1, 0))))
+    _vol(three, 8 * (2 - math.sqrt(2)) * r**3)
+    np.testing.assert_allclose(three.area, 24 * (2 - math.sqrt(2)) * r**2, rtol=RTOL)
+    assert _types(three) == {"cylinder": 12}
+
+
 def test_crossing_cylinders_of_different_radii():
     from scipy.integrate import quad
 

@@ -52,6 +52,7 @@ curved boundary than the finest chord error may still be misclassified.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -107,30 +108,94 @@ def _newell(face: FaceSpec) -> PlanarSurface:
     return PlanarSurface(P.mean(axis=0), n, x)
 
 
+class _FaceData:
+    """What a face contributes to every clip and split of it, computed once per face and tolerance.
+
+    The surface (the Newell plane of an implicit plane), the axis scales ``M`` and ``σ``, the
+    largest edge tolerance, the working-plane p-curves of the loop edges, their end points and
+    proven boxes, and per working-plane tolerance ``eps`` the boundary pieces (with the virtual
+    pole segments, which depend on ``eps``) and their point-in-face polylines (:class:`_Inside`).
+    A face is clipped by every branch crossing it and then split by the cuts (``coons.booleans``),
+    and all of this depends on the face alone: a :class:`FaceSpec` is frozen (tuples of frozen
+    EdgeSpecs over geometry values), so the data stay valid as long as the face lives.
+    """
+
+    def __init__(self, face: FaceSpec, t: Tolerance) -> None:
+        S = face.surface
+        edges = [e for loop in face.loops for e in loop]
+        project = S is None
+        if S is None:
+            S = _newell(face)
+        elif not isinstance(S, PlanarSurface) and any(e.pcurve is None for e in edges):
+            raise InvalidInputError(f"face on a {type(S).__name__} needs p-curves on every edge; some are None")
+        if isinstance(S, PlanarSurface):
+            scale, sigma = np.ones(2), 1.0  # the plane's frame is orthonormal
+        else:
+            lo_hi = np.array([[e.t0, 0.5 * (e.t0 + e.t1), e.t1] for e in edges])
+            uv = np.concatenate([np.asarray(e.pcurve.evaluate(tt)) for e, tt in zip(edges, lo_hi)])
+            D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1))
+            scale = np.array([np.linalg.norm(D[:, 1, 0], axis=1).max(), np.linalg.norm(D[:, 0, 1], axis=1).max()])
+            if not np.all(scale > 0):
+                raise InvalidInputError(f"the surface does not move along u or v on the whole face boundary, "
+                                        f"got speeds {scale.tolist()}; expected both > 0")
+            J = np.stack([D[:, 1, 0] / scale[0], D[:, 0, 1] / scale[1]], axis=2)
+            sigma = float(np.linalg.norm(J, ord=2, axis=(1, 2)).max())
+        self.surface, self.project, self.sigma = S, project, sigma
+        self.M = np.diag([scale[0] * (1.0 if face.sense else -1.0), scale[1]])
+        self.tol3 = max([t.linear] + [e.tol for e in edges if e.tol is not None])
+        self.face, self.t = face, t
+        self.loops: list[list[tuple[Any, np.ndarray, np.ndarray, np.ndarray]]] | None = None
+        self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
+
+    def plane(self, cuts: Sequence[EdgeSpec]) -> _Plane:
+        t = self.t
+        tol3 = max([self.tol3] + [e.tol for e in cuts if e.tol is not None])
+        eps = tol3 / self.sigma
+        return _Plane(self.surface, self.project, self.M, eps, tol3, Tolerance(eps, t.angular, t.solver), t)
+
+    def pieces(self, plane: _Plane) -> tuple[list["_Piece"], "_Inside"]:
+        """Fresh boundary pieces (their splits are the caller's) sharing cached curves and boxes, and the
+        point-in-face test of the face."""
+        entry = self.by_eps.get(plane.eps)
+        if entry is None:
+            if self.loops is None:
+                self.loops = []
+                for li, loop in enumerate(self.face.loops):
+                    pcs = [_pcurve(plane, e, f"loop {li} edge {k}") for k, e in enumerate(loop)]
+                    self.loops.append([(pc, _uv(pc, e.t0), _uv(pc, e.t1), curve_box(pc, (e.t0, e.t1), plane.t))
+                                       for pc, e in zip(pcs, loop)])
+            rows = []
+            for li, (loop, data) in enumerate(zip(self.face.loops, self.loops)):
+                for k, (e, (pc, _, q, box)) in enumerate(zip(loop, data)):
+                    rows.append((pc, e.t0, e.t1, "boundary", li, e, box))
+                    p = data[(k + 1) % len(loop)][1]
+                    if np.linalg.norm(p - q) > plane.eps:
+                        rows.append((Line2D(q, p - q), 0.0, 1.0, "virtual", li, None, None))
+            pieces = [_Piece(pc, a, b, kind, li, e, [], [], box) for pc, a, b, kind, li, e, box in rows]
+            entry = self.by_eps[plane.eps] = (pieces, _Inside(pieces))
+        templates, region = entry
+        out = [_Piece(p.pc, p.a, p.b, p.kind, p.loop, p.spec, [], [], p.box) for p in templates]
+        return out, region
+
+
+_FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _FaceData]]" = \
+    weakref.WeakKeyDictionary()
+
+
+def _face_data(face: FaceSpec, t: Tolerance) -> _FaceData:
+    """The cached :class:`_FaceData` of ``face`` under tolerance ``t``."""
+    per_tol = _FACES.get(face)
+    if per_tol is None:
+        per_tol = _FACES[face] = {}
+    key = (t.linear, t.angular, t.solver)
+    data = per_tol.get(key)
+    if data is None:
+        data = per_tol[key] = _FaceData(face, t)
+    return data
+
+
 def _plane_of(face: FaceSpec, cuts: Sequence[EdgeSpec], t: Tolerance) -> _Plane:
-    S = face.surface
-    edges = [e for loop in face.loops for e in loop]
-    project = S is None
-    if S is None:
-        S = _newell(face)
-    elif not isinstance(S, PlanarSurface) and any(e.pcurve is None for e in edges):
-        raise InvalidInputError(f"face on a {type(S).__name__} needs p-curves on every edge; some are None")
-    tol3 = max([t.linear] + [e.tol for e in list(edges) + list(cuts) if e.tol is not None])
-    if isinstance(S, PlanarSurface):
-        scale, sigma = np.ones(2), 1.0  # the plane's frame is orthonormal
-    else:
-        lo_hi = np.array([[e.t0, 0.5 * (e.t0 + e.t1), e.t1] for e in edges])
-        uv = np.concatenate([np.asarray(e.pcurve.evaluate(tt)) for e, tt in zip(edges, lo_hi)])
-        D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1))
-        scale = np.array([np.linalg.norm(D[:, 1, 0], axis=1).max(), np.linalg.norm(D[:, 0, 1], axis=1).max()])
-        if not np.all(scale > 0):
-            raise InvalidInputError(f"the surface does not move along u or v on the whole face boundary, "
-                                    f"got speeds {scale.tolist()}; expected both > 0")
-        J = np.stack([D[:, 1, 0] / scale[0], D[:, 0, 1] / scale[1]], axis=2)
-        sigma = float(np.linalg.norm(J, ord=2, axis=(1, 2)).max())
-    eps = tol3 / sigma
-    M = np.diag([scale[0] * (1.0 if face.sense else -1.0), scale[1]])
-    return _Plane(S, project, M, eps, tol3, Tolerance(eps, t.angular, t.solver), t)
+    return _face_data(face, t).plane(cuts)
 
 
 def _to_plane(curve: Any, S: PlanarSurface, what: str) -> Any:
@@ -209,16 +274,7 @@ def _boxes_meet(a: np.ndarray, b: np.ndarray, eps: float) -> bool:
 
 def _boundary_pieces(face: FaceSpec, plane: _Plane) -> list[_Piece]:
     """Loop edge uses in loop order, with virtual segments closing parameter gaps (poles)."""
-    out = []
-    for li, loop in enumerate(face.loops):
-        pcs = [_pcurve(plane, e, f"loop {li} edge {k}") for k, e in enumerate(loop)]
-        ends = [(_uv(pc, e.t0), _uv(pc, e.t1)) for pc, e in zip(pcs, loop)]
-        for k, (pc, e) in enumerate(zip(pcs, loop)):
-            out.append(_Piece(pc, e.t0, e.t1, "boundary", li, e, [], []))
-            q, p = ends[k][1], ends[(k + 1) % len(loop)][0]
-            if np.linalg.norm(p - q) > plane.eps:
-                out.append(_Piece(Line2D(q, p - q), 0.0, 1.0, "virtual", li, None, [], []))
-    return out
+    return _face_data(face, plane.t3).pieces(plane)[0]
 
 
 def _polyline(pc: Any, a: float, b: float, n: int | None = None) -> np.ndarray:
@@ -312,14 +368,25 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     if not (callable(getattr(c3, "derivatives", None)) and callable(getattr(e.curve, "derivatives", None))):
         return s, u
     try:
-        s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s, u, plane.t3)
-        d0 = np.linalg.norm(np.asarray(c3.evaluate(s)) - np.asarray(e.curve.evaluate(u)), axis=-1)
+        P, Q = np.asarray(c3.evaluate(s)), np.asarray(e.curve.evaluate(u))
+        if P.shape != Q.shape:
+            return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
+        d0 = np.linalg.norm(P - Q, axis=-1)
+        # Only a strictly closer pair replaces the plane's answer (below), so crossings whose
+        # curves already meet exactly in space (d0 = 0, common for lines and circles whose
+        # p-curves are exact) keep theirs without Newton: Newton runs per pair independently.
+        k = np.flatnonzero(d0 > 0)
+        if k.size == 0:
+            return s, u
+        s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s[k], u[k], plane.t3)
     except InvalidInputError:
         return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
     # Only a strictly closer pair replaces the plane's answer: at a tangential touching Newton
     # stops anywhere along the band where the curves are within tol3, the plane's answer is exact.
-    ok = (d3 <= plane.tol3) & (d3 < d0)
-    return np.where(ok, s3, s), np.where(ok, u3, u)
+    ok = (d3 <= plane.tol3) & (d3 < d0[k])
+    s, u = s.copy(), u.copy()
+    s[k[ok]], u[k[ok]] = s3[ok], u3[ok]
+    return s, u
 
 
 # ====================================================================== clipping
@@ -369,10 +436,11 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
         raise InvalidInputError(f"clip_to_face needs finite, different t0 and t1, got ({t0!r}, {t1!r})")
     if not isinstance(face, FaceSpec):
         raise InvalidInputError(f"clip_to_face needs a FaceSpec, got {type(face).__name__}")
-    plane = _plane_of(face, [], t)
+    data = _face_data(face, t)
+    plane = data.plane([])
     planar = plane.project or isinstance(plane.surface, PlanarSurface)
     pc = _checked_pc(_to_plane(pcurve, plane.surface, "the clipped curve") if planar else pcurve, plane)
-    pieces = _boundary_pieces(face, plane)
+    pieces, region = data.pieces(plane)
     lo, hi = min(t0, t1), max(t0, t1)
     breaks, along = [lo, hi], []
     box = curve_box(pc, (lo, hi), plane.t)
@@ -387,7 +455,7 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     s = _distinct(pc, np.unique(breaks), plane.eps)
     a, b = s[:-1], s[1:]
     mid = 0.5 * (a + b)
-    inside = _Inside(pieces).winding(_uv(pc, mid)) != 0
+    inside = region.winding(_uv(pc, mid)) != 0
     on = np.zeros(mid.size, dtype=bool)
     for s0, s1 in along:
         on |= (mid >= s0) & (mid <= s1)
@@ -470,9 +538,9 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     for i, c in enumerate(cuts):
         if not isinstance(c, EdgeSpec):
             raise InvalidInputError(f"cuts[{i}] must be an EdgeSpec, got {type(c).__name__}")
-    plane = _plane_of(face, cuts, t)
-    pieces = _boundary_pieces(face, plane)
-    region = _Inside(pieces)
+    data = _face_data(face, t)
+    plane = data.plane(cuts)
+    pieces, region = data.pieces(plane)
     nb = len(pieces)
     for i, c in enumerate(cuts):
         pieces.append(_Piece(_pcurve(plane, c, f"cuts[{i}]"), c.t0, c.t1, "cut", -1, c, [], []))

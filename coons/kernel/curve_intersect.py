@@ -792,10 +792,14 @@ def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, fee
     kind = np.concatenate([kind, np.zeros(x.t1.size, dtype=np.int64)])
     n = s.size
     I, J = np.triu_indices(n, 1)
-    near = np.linalg.norm(_derivs(c1, s[I], 0)[:, 0] - _derivs(c1, s[J], 0)[:, 0], axis=1) <= eps
-    _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I] + s[J]), 0)[:, 0], t_)
-    _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I] + t[J]), 0)[:, 0], t_)
-    same = near | ((m1 <= eps) & (m2 <= eps))
+    P = _derivs(c1, s, 0)[:, 0]
+    same = np.linalg.norm(P[I] - P[J], axis=1) <= eps
+    far = np.flatnonzero(~same)
+    if far.size:  # a coincident stretch between them joins candidates that are not near (each pair alone)
+        I2, J2 = I[far], J[far]
+        _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I2] + s[J2]), 0)[:, 0], t_)
+        _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I2] + t[J2]), 0)[:, 0], t_)
+        same[far] = (m1 <= eps) & (m2 <= eps)
     label = np.arange(n)
     for i, j in zip(I[same], J[same]):  # union-find over a handful of candidates
         a, b = label[i], label[j]

@@ -444,9 +444,10 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     lo, hi = min(t0, t1), max(t0, t1)
     breaks, along = [lo, hi], []
     box = curve_box(pc, (lo, hi), plane.t)
-    for p in pieces:
-        if not _boxes_meet(box, _box(p, plane), plane.eps):
-            continue
+    B = np.array([_box(p, plane) for p in pieces])  # (n, 2, 2): the box tests of all pieces at once
+    meet = np.all((box[0] <= B[:, 1] + plane.eps) & (B[:, 0] <= box[1] + plane.eps), axis=1)
+    for k in np.flatnonzero(meet).tolist():
+        p = pieces[k]
         x = intersect_curves(pc, (lo, hi), p.pc, (p.a, p.b), plane.t)
         breaks += _in_space(plane, curve, (lo, hi), p.spec, x.t1, x.t2)[0].tolist()
         for (s0, s1), _ in x.overlaps:
@@ -560,12 +561,13 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
 
 def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     """Record mutual split parameters of cuts against every piece (boundary, virtual, earlier cuts)."""
+    B = np.array([_box(p, plane) for p in pieces])  # (n, 2, 2): all pairs' box tests at once
+    meet = np.all((B[:, None, 0] <= B[None, :, 1] + plane.eps) & (B[None, :, 0] <= B[:, None, 1] + plane.eps),
+                  axis=2)
     for i in range(nb, len(pieces)):
         c = pieces[i]
-        for j in range(i):
+        for j in np.flatnonzero(meet[i, :i]).tolist():
             o = pieces[j]
-            if not _boxes_meet(_box(c, plane), _box(o, plane), plane.eps):
-                continue
             x = intersect_curves(c.pc, (c.a, c.b), o.pc, (o.a, o.b), plane.t)
             s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, x.t1, x.t2)
             c.splits += s.tolist()

@@ -726,19 +726,39 @@ def _node_pairs(X: np.ndarray, plane: _Plane) -> np.ndarray:
     return wide[ok]
 
 
+def _components(m: int, pairs: np.ndarray) -> np.ndarray:
+    """Connected components ``(m,)`` of ``m`` nodes joined by ``pairs`` (p, 2): each node's label is the
+    smallest node of its component.
+
+    Minimum-label propagation with pointer jumping; labels only decrease (``label[x] <= x``
+    throughout), so it stops, and at the fixed point the two ends of every pair agree.  The
+    graphs here have a few dozen nodes, where scipy's sparse ``connected_components`` costs
+    mostly its set-up.
+    """
+    label = np.arange(m)
+    if len(pairs) == 0:
+        return label
+    i, j = pairs[:, 0], pairs[:, 1]
+    while True:
+        new = label.copy()
+        low = np.minimum(label[i], label[j])
+        np.minimum.at(new, i, low)
+        np.minimum.at(new, j, low)
+        new = new[new]
+        if np.array_equal(new, label):
+            return label
+        label = new
+
+
 class _Graph:
     """The planar arrangement of the sub-pieces: nodes, half-edges sorted around nodes, cycles."""
 
     def __init__(self, sub: list[_Sub], pieces: list[_Piece], plane: _Plane) -> None:
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-
         self.sub, self.pieces, self.plane = sub, pieces, plane
         n = len(sub)
         X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
         pairs = _node_pairs(X, plane) if n else np.zeros((0, 2), int)
-        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(2 * n, 2 * n))
-        _, label = connected_components(g, directed=False)
+        label = _components(2 * n, pairs)
         # Half-edge 2k runs sub k forward (node n0 -> n1), 2k + 1 backward.
         self.origin = np.empty(2 * n, dtype=np.int64)
         self.origin[0::2], self.origin[1::2] = label[:n], label[n:]

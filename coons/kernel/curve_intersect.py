@@ -40,7 +40,12 @@ cached weakly (:class:`_PowerForm`); its piece boxes are the Bézier hulls of eq
 its spans.  Lines and conics are evaluated from their closed forms (``o + t d``,
 ``C + A cos t + B sin t``) without the per-call checks of the curve classes.  Feet of points
 on lines and circles are closed forms; the feet of the range ends are computed once per call
-and shared by the seeds, the end contacts and the overlap cuts.
+and shared by the seeds, the end contacts and the overlap cuts.  Two crossing 2-D lines (the
+common pair when a face with straight p-curves is split) take the same steps on Python floats
+(:func:`_lines_2d`), and :func:`refine_intersections` of a few seeds on lines and conics
+iterates each seed on Python floats (:func:`_newton_one`): there numpy's per-call cost on
+one- and two-element arrays was most of the time.  Both agree with the array paths to
+round-off (the module switch ``_FAST`` turns them off for the tests that compare).
 
 The module does not intersect a curve with itself, does not compute intersection
 multiplicities, and does not find two distinct intersections closer together than the pieces

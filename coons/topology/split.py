@@ -40,7 +40,16 @@ Crossings are found between the p-curves (:func:`~coons.kernel.curve_intersect.i
 in the working plane) and then re-solved between the 3-D curves of the two edge uses when
 both have derivatives (:func:`~coons.kernel.curve_intersect.refine_intersections`): fitted
 p-curves crossing at a small angle would otherwise put a shared vertex at different places
-in the two faces that meet there.
+in the two faces that meet there.  A crossing whose 3-D points already coincide exactly keeps
+its parameters without Newton (only a strictly closer pair would replace them).
+
+Speed.  The Boolean pipeline clips every intersection branch against a face and then splits
+the face: what depends on the face alone — its working plane, the working-plane p-curves of
+its loop edges with their boxes, the boundary pieces and the point-in-face polylines — is
+computed once per face and tolerance (:class:`_FaceData`, cached weakly on the frozen
+:class:`FaceSpec`); each call takes fresh pieces for its own split parameters.  Box tests of
+all piece pairs are one array comparison, and the arrangement's nodes are the connected
+components of the merged ends by array label propagation.
 
 The module does not compute intersection curves (:mod:`coons.kernel.intersect`), does not
 classify pieces against another solid, does not re-sew, and does not merge faces.  Its

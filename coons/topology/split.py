@@ -234,13 +234,28 @@ def _to_plane(curve: Any, S: PlanarSurface, what: str) -> Any:
     raise InvalidInputError(f"{what}: cannot map a {type(curve).__name__} into the face plane; give its p-curve")
 
 
+_MAPPED: "weakref.WeakKeyDictionary[Any, dict[bytes, Any]]" = weakref.WeakKeyDictionary()
+
+
 def _mapped(pc: Any, M: np.ndarray) -> Any:
-    """The p-curve in the working plane: ``uv -> M uv`` (the parameter is unchanged)."""
+    """The p-curve in the working plane: ``uv -> M uv`` (the parameter is unchanged).
+
+    Cached per p-curve and ``M`` (curves are frozen values): a cut's p-curve is mapped when the
+    branch is clipped and again when the face is split, and one mapped object keeps the caches
+    of :mod:`coons.kernel.curve_intersect` (a NURBS curve's span polynomials) across the calls."""
+    per = _MAPPED.get(pc) if _FAST else None
+    key = M.tobytes()
+    if per is not None and key in per:
+        return per[key]
     if isinstance(pc, (Line2D, Trig2D)):
-        return pc.transformed(M)
-    if isinstance(pc, NurbsCurve):
-        return NurbsCurve(pc.control_points @ M.T, pc.knots, pc.degree, pc.weights)
-    raise InvalidInputError(f"p-curve must be a Line2D, Trig2D or 2-D NurbsCurve, got {type(pc).__name__}")
+        out = pc.transformed(M)
+    elif isinstance(pc, NurbsCurve):
+        out = NurbsCurve(pc.control_points @ M.T, pc.knots, pc.degree, pc.weights)
+    else:
+        raise InvalidInputError(f"p-curve must be a Line2D, Trig2D or 2-D NurbsCurve, got {type(pc).__name__}")
+    if _FAST:
+        _MAPPED.setdefault(pc, {})[key] = out
+    return out
 
 
 def _pcurve(plane: _Plane, e: EdgeSpec, what: str) -> Any:

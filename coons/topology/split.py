@@ -304,7 +304,8 @@ def _polyline(pc: Any, a: float, b: float, n: int | None = None) -> np.ndarray:
     """``(n, 2)`` samples of ``pc`` from ``a`` to ``b`` (2 for a straight line)."""
     if n is None:
         n = 2 if isinstance(pc, Line2D) else _SAMPLES
-    return _uv(pc, np.linspace(a, b, n))
+    # np.linspace(a, b, 2) is [a, b] (its first sample is a + 0 * step, its last b), without its set-up.
+    return _uv(pc, np.array([a, b], dtype=np.float64) if n == 2 else np.linspace(a, b, n))
 
 
 def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
@@ -700,12 +701,14 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     ``tol3`` in space, may stop short of it by many ``eps`` in the working plane, so that
     :func:`intersect_curves` finds no crossing there.  The foot of the end on the piece becomes a
     split (and :func:`_node_pairs` merges the end with it)."""
-    if plane.project or isinstance(plane.surface, PlanarSurface):
+    if plane.project or isinstance(plane.surface, PlanarSurface) or nb == len(pieces):
         return
+    # The ends of all cuts at once (the surface is evaluated point by point either way).
+    ends_all = np.concatenate([_uv(c.pc, np.array([c.a, c.b])) for c in pieces[nb:]])
+    P_all, reach_all = _space_reach(plane, ends_all)
     for i in range(nb, len(pieces)):
-        c = pieces[i]
-        ends = _uv(c.pc, np.array([c.a, c.b]))
-        P, reach = _space_reach(plane, ends)
+        k = 2 * (i - nb)
+        ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
         for q, Pq, r in zip(ends, P, reach):
             if not r > plane.eps:
                 continue

@@ -338,13 +338,55 @@ def _pieces(curve: Any, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, n
     return t[:-1], t[1:], np.minimum(P[:-1], P[1:]) - margin, np.maximum(P[:-1], P[1:]) + margin
 
 
+#: Ranges per curve whose pieces and seed samples are kept (a cut meets every piece of a face over one range).
+_RANGES_KEPT = 8
+
+
+def _memo(curve: Any, key: tuple, make):
+    """``make()`` remembered per curve object (weakly) and ``key``, the last :data:`_RANGES_KEPT` keys.
+
+    The callers intersect one curve over one range with many others (face splitting: a cut
+    against every piece of the face); its pieces and seed samples depend on the curve and the
+    range only.  Curves are frozen values, so the stored arrays stay valid (they are read-only)."""
+    try:
+        per = _MEMO.get(curve)
+    except TypeError:  # not weak-referenceable or not hashable: no memo
+        return make()
+    if per is None:
+        per = {}
+        try:
+            _MEMO[curve] = per
+        except TypeError:
+            return make()
+    out = per.get(key)
+    if out is None:
+        out = make()
+        for a in (out if isinstance(out, tuple) else (out,)):
+            a.setflags(write=False)
+        if len(per) >= _RANGES_KEPT:
+            per.pop(next(iter(per)))
+        per[key] = out
+    return out
+
+
+_MEMO: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+
+
+def _seed_samples(curve: Any, r: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """``(ts, points)``: :data:`_SEED_SAMPLES` parameters over ``r`` and the curve's points there (remembered)."""
+    def make():
+        ts = np.linspace(r[0], r[1], _SEED_SAMPLES)
+        return ts, _derivs(curve, ts, 0)[:, 0]
+    return _memo(curve, ("seeds", r[0], r[1]), make)
+
+
 def _nurbs_pieces(curve: NurbsCurve, lo: float, hi: float):
     """Knot spans of ``curve`` over ``[lo, hi]`` cut into about :data:`_TARGET_PIECES` pieces, each boxed by
     its Bézier control points (of the cached :class:`_PowerForm`; a refined copy's B-spline control
     points for an unclamped curve)."""
     form = _power_form(curve)
     if form is not None:
-        return form.pieces(lo, hi)
+        return _memo(curve, ("pieces", lo, hi), lambda: form.pieces(lo, hi))
     U, p = curve.knots, curve.degree
     vals = np.unique(U[p : U.size - p])
     spans = np.stack([vals[:-1], vals[1:]], axis=1)
@@ -662,8 +704,7 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.nda
         pick = np.argmin(dist, axis=1)
         rows = np.arange(X.shape[0])
         return cand[rows, pick], dist[rows, pick]
-    ts = np.linspace(r[0], r[1], _SEED_SAMPLES)
-    S = _derivs(curve, ts, 0)[:, 0]
+    ts, S = _seed_samples(curve, r)
     d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
     t = ts[np.argmin(d2, axis=1)]
     for _ in range(_NEWTON_ITERATIONS):

@@ -556,3 +556,26 @@ def test_refine_scalar_path_matches_the_general_path(radius, angle, tilt, ds, dt
     # Two seeds at once (the scalar path iterates each alone, as the array path does).
     both = refine_intersections(c1, r1, line, (0.0, 3.0), [angle + ds, angle - ds], [1.0 + dt, 1.0 - dt])
     np.testing.assert_allclose(np.array(both)[:, :1], np.array(fast), rtol=0, atol=0)
+
+
+def test_pieces_and_seed_samples_are_remembered_per_curve_and_range():
+    """A curve intersected over one range with many others reuses its pieces and seed samples: the
+    answers are the same as from a fresh copy of the curve, and the remembered arrays are read-only."""
+    from coons.kernel import curve_intersect
+
+    c = NurbsCurve([[0, 0], [1, 2], [2, -1], [3, 1]], [0, 0, 0, 0, 1, 1, 1, 1], 3)
+    fresh = NurbsCurve(c.control_points, c.knots, c.degree)
+    lines = [Line2D([x, -3], [0.01 * k, 1]) for k, x in enumerate(np.linspace(0.2, 2.8, 6))]
+    for line in lines:
+        a = intersect_curves(c, (0.0, 1.0), line, (0, 6))
+        b = intersect_curves(NurbsCurve(fresh.control_points, fresh.knots, fresh.degree), (0.0, 1.0), line, (0, 6))
+        assert len(a) >= 1
+        np.testing.assert_array_equal(a.t1, b.t1)
+        np.testing.assert_array_equal(a.t2, b.t2)
+    memo = curve_intersect._MEMO[c]
+    assert ("pieces", 0.0, 1.0) in memo and ("seeds", 0.0, 1.0) in memo
+    for arrays in memo.values():
+        assert not any(x.flags.writeable for x in arrays)
+    for k in range(2 * curve_intersect._RANGES_KEPT):  # bounded
+        curve_box(c, (0.0, 0.5 + 0.01 * k))
+    assert len(curve_intersect._MEMO[c]) <= curve_intersect._RANGES_KEPT

@@ -169,11 +169,12 @@ class _FaceData:
         entry = self.by_eps.get(plane.eps)
         if entry is None:
             if self.loops is None:
-                self.loops = []
+                loops = []  # kept only when every edge maps (a bad edge raises on every call)
                 for li, loop in enumerate(self.face_loops):
                     pcs = [_pcurve(plane, e, f"loop {li} edge {k}") for k, e in enumerate(loop)]
-                    self.loops.append([(pc, _uv(pc, e.t0), _uv(pc, e.t1), curve_box(pc, (e.t0, e.t1), plane.t))
-                                       for pc, e in zip(pcs, loop)])
+                    loops.append([(pc, _uv(pc, e.t0), _uv(pc, e.t1), curve_box(pc, (e.t0, e.t1), plane.t))
+                                  for pc, e in zip(pcs, loop)])
+                self.loops = loops
             rows = []
             for li, (loop, data) in enumerate(zip(self.face_loops, self.loops)):
                 for k, (e, (pc, _, q, box)) in enumerate(zip(loop, data)):

@@ -887,3 +887,23 @@ def test_components_match_scipy(m, pairs):
     # Same partition: one label per scipy component and vice versa; each label is its component's smallest node.
     assert len(set(zip(label.tolist(), ref.tolist()))) == len(set(label.tolist())) == len(set(ref.tolist()))
     assert all(label[k] == min(np.flatnonzero(ref == ref[k])) for k in range(m))
+
+
+def test_face_with_a_bad_edge_raises_on_every_call():
+    """An edge whose p-curve cannot be mapped raises each time (the per-face cache keeps nothing partial)."""
+    face = _cyl_face(True)
+    loop = list(face.loops[0])
+    e = loop[-1]
+
+    class _Wrapped:  # evaluates like a p-curve but is none of the p-curve types
+        def evaluate(self, t):
+            return e.pcurve.evaluate(t)
+
+    bad_pc = _Wrapped()
+    bad = FaceSpec(face.surface, True, [loop[:-1] + [EdgeSpec(e.curve, e.t0, e.t1, bad_pc, e.tol)]])
+    cut = _arc_cut(face, 0.5)
+    for _ in range(2):
+        with pytest.raises(InvalidInputError, match="loop 0 edge 3: p-curve must be"):
+            split_face(bad, [cut])
+        with pytest.raises(InvalidInputError, match="loop 0 edge 3: p-curve must be"):
+            clip_to_face(bad, cut.pcurve, cut.t0, cut.t1, curve=cut.curve)

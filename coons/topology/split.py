@@ -309,12 +309,17 @@ def _polyline(pc: Any, a: float, b: float, n: int | None = None) -> np.ndarray:
     return _uv(pc, np.array([a, b], dtype=np.float64) if n == 2 else np.linspace(a, b, n))
 
 
+def _next(x: np.ndarray) -> np.ndarray:
+    """``np.roll(x, -1, axis=0)`` without its set-up: the next element of each, cyclically."""
+    return np.concatenate((x[1:], x[:1]))
+
+
 def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
     """Winding numbers ``(m,)`` of ``points`` (m, 2) with respect to closed polylines (Sunday 2001)."""
     if not rings:
         return np.zeros(points.shape[0], dtype=np.int64)
     P = np.concatenate([r for r in rings])
-    Q = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    Q = np.concatenate([x for r in rings for x in (r[1:], r[:1])])  # each ring's next vertices (np.roll by -1)
     x, y = points[:, :1], points[:, 1:]
     cross = (Q[None, :, 0] - P[None, :, 0]) * (y - P[None, :, 1]) - (x - P[None, :, 0]) * (Q[None, :, 1] - P[None, :, 1])
     up = (P[None, :, 1] <= y) & (Q[None, :, 1] > y) & (cross > 0)
@@ -325,7 +330,7 @@ def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
 def _distance(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
     """Distance ``(m,)`` of ``points`` (m, 2) to the closed polylines."""
     P = np.concatenate(rings)
-    Q = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    Q = np.concatenate([x for r in rings for x in (r[1:], r[:1])])  # each ring's next vertices (np.roll by -1)
     d = Q - P
     dd = np.maximum((d * d).sum(axis=1), np.finfo(float).tiny)
     w = points[:, None, :] - P[None]
@@ -891,7 +896,7 @@ class _Graph:
 
     def faces(self, cycles: list[list[int]], face: FaceSpec) -> list[FaceSpec]:
         polys = [self.polygon(c) for c in cycles]
-        area = np.array([0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+        area = np.array([0.5 * float(np.sum(p[:, 0] * _next(p[:, 1]) - _next(p[:, 0]) * p[:, 1]))
                          for p in polys])
         outer = []
         for ci, cyc in enumerate(cycles):

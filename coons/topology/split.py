@@ -801,7 +801,13 @@ class _Graph:
         order = np.lexsort((angle, self.origin))
         starts = np.flatnonzero(np.concatenate([[True], self.origin[order][1:] != self.origin[order][:-1]]))
         stops = np.append(starts[1:], order.size)
-        for a, b in zip(starts, stops):
+        size = stops - starts
+        # A node with one or two half-edges leaving needs no order: each arrives and leaves by the other
+        # (or turns back), whatever the directions; the loop below gives the same for them.
+        one, two = starts[size == 1], starts[size == 2]
+        nxt[order[one] ^ 1] = order[one]
+        nxt[order[two] ^ 1], nxt[order[two + 1] ^ 1] = order[two + 1], order[two]
+        for a, b in zip(starts[size > 2].tolist(), stops[size > 2].tolist()) if n else zip(starts, stops):
             ring = order[a:b]
             # Directions just above -π are ties with those just below π: move them past π.
             thr = self._tie(float(np.abs(kappa[ring]).max()))

@@ -514,13 +514,19 @@ def _distinct(pc: Any, s: np.ndarray, eps: float) -> np.ndarray:
 
     The last parameter (the range end) is always kept; an interior one too close to it goes.
     """
+    return _distinct_points(pc, s, eps)[0]
+
+
+def _distinct_points(pc: Any, s: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_distinct`, and the points ``(m, 2)`` of the kept parameters."""
     P = _uv(pc, s)
     keep = [0]
     for k in range(1, s.size - 1):
         if np.linalg.norm(P[k] - P[keep[-1]]) > eps and np.linalg.norm(P[k] - P[-1]) > eps:
             keep.append(k)
     keep.append(s.size - 1)
-    return s[np.asarray(keep)]
+    keep = np.asarray(keep)
+    return s[keep], P[keep]
 
 
 # ====================================================================== splitting
@@ -622,14 +628,16 @@ def _sub_pieces(pieces: list[_Piece], plane: _Plane) -> list[_Sub]:
     for k, p in enumerate(pieces):
         lo, hi = min(p.a, p.b), max(p.a, p.b)
         s = np.unique(np.clip(np.asarray([lo, hi] + p.splits, dtype=np.float64), lo, hi))
-        s = _distinct(p.pc, s, plane.eps)
+        s, P = _distinct_points(p.pc, s, plane.eps)
         if p.a > p.b:
-            s = s[::-1]
-        for a, b in zip(s[:-1], s[1:]):
+            s, P = s[::-1], P[::-1]
+        # A straight piece's sub-piece polylines are its two end points, evaluated already (pointwise).
+        line = isinstance(p.pc, Line2D)
+        for i, (a, b) in enumerate(zip(s[:-1], s[1:])):
             m = 0.5 * (a + b)
             if any(r0 <= m <= r1 for r0, r1 in p.dropped):
                 continue
-            poly = _polyline(p.pc, a, b)
+            poly = P[i:i + 2] if line else _polyline(p.pc, a, b)
             if np.linalg.norm(poly[-1] - poly[0]) <= plane.eps:
                 if np.linalg.norm(np.diff(poly, axis=0), axis=1).sum() <= plane.eps:
                     continue  # degenerate sub-piece: a point

@@ -638,8 +638,10 @@ def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
         if np.any(two):
             k = np.flatnonzero(two)
             sg, tg = _step2(sa[k], ta[k], j11[k], j12[k], j22[k], g1[k], g2[k], r1, r2)
-            rh = _derivs(c1, s_new[k], 0)[:, 0] - _derivs(c2, t_new[k], 0)[:, 0]
-            rg = _derivs(c1, sg, 0)[:, 0] - _derivs(c2, tg, 0)[:, 0]
+            # Both trial points of each curve in one evaluation (pointwise: the same values as two).
+            P1 = _derivs(c1, np.concatenate([s_new[k], sg]), 0)[:, 0]
+            P2 = _derivs(c2, np.concatenate([t_new[k], tg]), 0)[:, 0]
+            rh, rg = P1[: k.size] - P2[: k.size], P1[k.size :] - P2[k.size :]
             use = np.einsum("kd,kd->k", rg, rg) < np.einsum("kd,kd->k", rh, rh)
             s_new[k[use]], t_new[k[use]] = sg[use], tg[use]
         moved = np.abs(s_new - sa) + np.abs(t_new - ta)

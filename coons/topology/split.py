@@ -690,13 +690,21 @@ def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return P, reach
 
 
-def _foot(pc: Any, a: float, b: float, q: np.ndarray) -> tuple[float, float]:
+def _foot(pc: Any, a: float, b: float, q: np.ndarray, samples: dict | None = None) -> tuple[float, float]:
     """The parameter in ``[min(a, b), max(a, b)]`` of the point of ``pc`` nearest ``q`` (2,), and the distance.
 
-    Dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few steps, kept in the range)."""
+    Dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few steps, kept in the range).
+    ``samples`` keeps the dense samples per curve and range for the next end near the same piece."""
     lo, hi = min(a, b), max(a, b)
-    s = np.linspace(lo, hi, 257)
-    k = int(np.argmin(np.linalg.norm(_uv(pc, s) - q, axis=1)))
+    key = (id(pc), lo, hi)
+    if samples is not None and key in samples:
+        s, S = samples[key]
+    else:
+        s = np.linspace(lo, hi, 257)
+        S = _uv(pc, s)
+        if samples is not None:
+            samples[key] = (s, S)
+    k = int(np.argmin(np.linalg.norm(S - q, axis=1)))
     x = float(s[k])
     for _ in range(8):
         D = np.asarray(pc.derivatives(np.array([x]), 2))[0]
@@ -704,7 +712,10 @@ def _foot(pc: Any, a: float, b: float, q: np.ndarray) -> tuple[float, float]:
         g, h = float(r @ D[1]), float(D[1] @ D[1] + r @ D[2])
         if not h > 0:
             break
-        x = min(max(x - g / h, lo), hi)
+        x_new = min(max(x - g / h, lo), hi)
+        if x_new == x:
+            break  # a fixed point: the remaining steps would repeat this one
+        x = x_new
     return x, float(np.linalg.norm(_uv(pc, x) - q))
 
 
@@ -720,6 +731,7 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     # The ends of all cuts at once (the surface is evaluated point by point either way).
     ends_all = np.concatenate([_uv(c.pc, np.array([c.a, c.b])) for c in pieces[nb:]])
     P_all, reach_all = _space_reach(plane, ends_all)
+    samples: dict = {}  # dense samples of the pieces, per curve and range (pieces live through the call)
     for i in range(nb, len(pieces)):
         k = 2 * (i - nb)
         ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
@@ -730,7 +742,7 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
             for j, o in enumerate(pieces):
                 if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
                     continue
-                s, d = _foot(o.pc, o.a, o.b, q)
+                s, d = _foot(o.pc, o.a, o.b, q, samples)
                 if not plane.eps < d <= r:
                     continue
                 Ps, _ = _space_reach(plane, _uv(o.pc, s)[None])

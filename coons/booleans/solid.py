@@ -639,7 +639,124 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
             S = X.specs[f].surface
             if not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
                 return []  # (on a periodic surface clip_to_face may still find it a period away)
+    straight = _clip_straight(X, f, pcurve, t0, t1, t)
+    if straight is not None:
+        return straight
     return clip_to_face(X.specs[f], pcurve, t0, t1, t, curve=curve)
+
+
+#: A straight branch is clipped in closed form (:func:`_clip_straight`) only when every feature of
+#: the face's polygon is farther than this many tolerances from it, or crosses it properly:
+#: ``clip_to_face`` merges and refines what lies within one tolerance, so far outside that band
+#: both compute the same crossings (up to round-off) and the same inside/outside pieces.
+_STRAIGHT_CLEARANCE = 100.0
+#: Smallest sine of the angle at which a straight branch may cross a polygon side in the closed-form
+#: clip: at a grazing crossing a tolerance-sized error moves the crossing far along both lines, and
+#: ``clip_to_face`` re-solves it in space; such branches take that path.
+_STRAIGHT_MIN_SINE = 1e-2
+
+
+def _clip_straight(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance
+                   ) -> list[tuple[float, float, str]] | None:
+    """``clip_to_face`` of a straight p-curve on a face bounded by straight p-curves, in closed form, or None.
+
+    Preconditions (else None, and ``clip_to_face`` runs): the p-curve is a ``Line2D``; the face
+    lies on a plane or a cylinder (where ``(u · s_u, v · s_v)`` with the constant speeds ``s_u,
+    s_v`` is a local isometry, so distances in it are distances along the surface); every edge
+    use has a ``Line2D`` p-curve and a tolerance within ``tol.linear``.  The face's loops are
+    then exactly the polygon ``X.segments[f]`` (each edge sampled at its two ends, pole gaps
+    closed by straight segments as ``clip_to_face``'s virtual pieces).  Each polygon side
+    either crosses the branch properly (at a sine of at least :data:`_STRAIGHT_MIN_SINE`, away
+    from the side's ends and the branch's ends by more than :data:`_STRAIGHT_CLEARANCE`
+    tolerances) or stays farther than that from it; the crossings are then solved exactly (two
+    lines), and the pieces between them are classified by one midpoint each against the
+    polygon.  Any touching, grazing, overlap, crossing at a vertex or branch end on the
+    boundary returns None.  The crossings are the plane solution that ``clip_to_face``
+    refines in space; both p-curves are exact within ``tol.linear`` here, so the refinement
+    moves them by at most that over the sine.  An empty answer on a periodic surface also
+    returns None (as in :func:`_clip`).
+    """
+    from coons.booleans.classify import _in_polygon
+    from coons.kernel.analytic import CylindricalSurface
+
+    if not isinstance(pcurve, Line2D):
+        return None
+    spec = X.specs[f]
+    S = spec.surface
+    if isinstance(S, PlanarSurface):
+        speed = (1.0, 1.0)  # the plane's frame is orthonormal
+    elif isinstance(S, CylindricalSurface):
+        speed = (float(S.radius), 1.0)
+    else:
+        return None
+    for loop in spec.loops:
+        for e in loop:
+            if not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear:
+                return None
+    lo_t, hi_t = (t0, t1) if t0 < t1 else (t1, t0)
+    su, sv = speed
+    seg = X.segments[f]
+    # Work in the isometric coordinates: (k, 2) side starts A and vectors E, branch p0 + s d.
+    A = np.stack([seg[:, 0, 0] * su, seg[:, 0, 1] * sv], axis=1)
+    E = np.stack([seg[:, 1, 0] * su, seg[:, 1, 1] * sv], axis=1) - A
+    o, dd = pcurve.origin, pcurve.direction
+    p0 = np.array([o[0] * su, o[1] * sv])
+    d = np.array([dd[0] * su, dd[1] * sv])
+    B0, B1 = p0 + lo_t * d, p0 + hi_t * d
+    scale = 1.0 + max(float(np.max(np.abs(A))), float(np.max(np.abs(B0))), float(np.max(np.abs(B1))))
+    # clip_to_face's own band is one tolerance (tol3: the edges' and tol.linear); 1e-12 of the
+    # coordinates' size covers the round-off of this arithmetic.
+    margin = _STRAIGHT_CLEARANCE * t.linear + 1e-12 * scale
+    L = np.hypot(E[:, 0], E[:, 1])
+    side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
+    A, E, L = A[side], E[side], L[side]
+    dn = math.hypot(d[0], d[1])
+    W = A - p0
+    cross = d[0] * E[:, 1] - d[1] * E[:, 0]
+    proper = np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (W[:, 0] * E[:, 1] - W[:, 1] * E[:, 0]) / cross  # branch parameter of the crossing
+        w = (W[:, 0] * d[1] - W[:, 1] * d[0]) / cross  # fraction along the side
+    crossing = proper & (w * L > margin) & ((1.0 - w) * L > margin) \
+        & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
+    # Every other side must stay clear of the branch: the distance between two segments that
+    # do not cross is the least of their four end-to-segment distances.
+    rest = ~crossing
+    if np.any(rest):
+        Ar, Er, Lr = A[rest], E[rest], L[rest]
+        Cr = Ar + Er
+        tb = np.clip(((Ar - p0) @ d) / (dn * dn), lo_t, hi_t)
+        tc = np.clip(((Cr - p0) @ d) / (dn * dn), lo_t, hi_t)
+        da = np.hypot(*(Ar - p0 - tb[:, None] * d).T)
+        dc = np.hypot(*(Cr - p0 - tc[:, None] * d).T)
+        fb0 = np.clip(np.sum((B0 - Ar) * Er, axis=1) / (Lr * Lr), 0.0, 1.0)
+        fb1 = np.clip(np.sum((B1 - Ar) * Er, axis=1) / (Lr * Lr), 0.0, 1.0)
+        d0 = np.hypot(*(B0 - Ar - fb0[:, None] * Er).T)
+        d1 = np.hypot(*(B1 - Ar - fb1[:, None] * Er).T)
+        if float(np.min(np.minimum(np.minimum(da, dc), np.minimum(d0, d1)))) <= margin:
+            return None
+    # Every polygon vertex must stay clear as well (a branch passing a vertex between two sides).
+    tv = np.clip(((A - p0) @ d) / (dn * dn), lo_t, hi_t)
+    if float(np.min(np.hypot(*(A - p0 - tv[:, None] * d).T))) <= margin:
+        return None
+    br = np.concatenate([[lo_t], np.sort(s[crossing]), [hi_t]])
+    if np.any(np.diff(br) * dn <= margin):
+        return None  # two crossings at one place: a vertex, let the general path decide
+    mid = 0.5 * (br[:-1] + br[1:])
+    Q = o[None, :] + mid[:, None] * dd[None, :]
+    inside = _in_polygon(Q, seg)
+    out: list[list] = []
+    for k in range(mid.size):
+        if out and out[-1][2] == inside[k]:
+            out[-1][1] = float(br[k + 1])
+        else:
+            out.append([float(br[k]), float(br[k + 1]), bool(inside[k])])
+    res = [(a, b, "inside") for a, b, ins in out if ins]
+    if not res and (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
+        return None  # (as in _clip: a period away is the general path's business)
+    if t0 > t1:
+        res = [(b, a, w_) for a, b, w_ in reversed(res)]
+    return res
 
 
 def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: Tolerance) -> None:

@@ -615,9 +615,67 @@ def _form_parameters(window: tuple[float, float]) -> np.ndarray:
 
 
 def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"]:
-    """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples."""
+    """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples
+    (or in closed form, :func:`_closed_coords`)."""
+    closed = _closed_coords(surface, curve, window, full, tol)
+    if closed is not None:
+        return closed
     uv = np.asarray(surface.closest_parameters(curve.evaluate(_form_parameters(window))), dtype=np.float64)
     return [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+
+
+def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"] | None:
+    """The two exact coordinates of the p-curve in closed form where the pair has one, else None.
+
+    * A line, circle or ellipse in a plane: the plane's parameters are the affine map
+      ``(P - O)·X, (P - O)·Y``, so a line gives ``o + d t`` and a conic ``C + a cos t X_c + b sin t Y_c``
+      gives ``o + α cos t + β sin t`` with ``o = (C - O)·X``, ``α = a X_c·X``, ``β = b Y_c·X`` (and ``Y``).
+    * A circle coaxial with a surface of revolution (its axis along ``±Z`` and its centre on the
+      axis, within ``tol.solver`` relative: the round-off of the exact constructions, below what
+      the sample fit of :class:`_Coord` calls exact): the longitude is ``u(t₀) ± (t - t₀)`` (``+``
+      when the circle's axis is ``Z``: both angles are measured in right-handed frames about it)
+      and the other parameter is constant, ``v(t₀)``, with ``u(t₀), v(t₀)`` the projection of
+      the first form sample ``t₀`` (where the fit's unwrapping starts).
+
+    The coefficients are then treated as the fit's are: those below ``tol.solver`` of the
+    coordinates' size become 0, a closed curve's slope is rounded to whole turns.
+    """
+    t = _form_parameters(window)
+    if isinstance(surface, PlanarSurface):
+        if not isinstance(curve, (Line, Circle, Ellipse)):
+            return None
+        F, O = surface._frame[:2], surface._origin
+        if isinstance(curve, Line):
+            o, d = F @ (curve.origin - O), F @ curve.direction
+            coef = np.array([[o[0], d[0], 0.0, 0.0], [o[1], d[1], 0.0, 0.0]])
+        else:
+            ra, rb = curve._radii()
+            X, Y, _ = curve._frame
+            o, al, be = F @ (curve._origin - O), ra * (F @ X), rb * (F @ Y)
+            coef = np.array([[o[0], 0.0, al[0], be[0]], [o[1], 0.0, al[1], be[1]]])
+    elif isinstance(surface, _REVOLVED) and isinstance(curve, Circle):
+        Z, Zc = surface.axis, curve._frame[2]
+        if float(np.linalg.norm(np.cross(Zc, Z))) > tol.solver:
+            return None
+        w = curve._origin - surface._origin
+        if float(np.linalg.norm(w - (w @ Z) * Z)) > tol.solver * curve.radius:
+            return None
+        sgn = 1.0 if float(Zc @ Z) > 0.0 else -1.0
+        u0, v0 = (float(x) for x in np.asarray(surface.closest_parameters(curve.evaluate(t[:1])))[0])
+        coef = np.array([[u0 - sgn * t[0], sgn, 0.0, 0.0], [v0, 0.0, 0.0, 0.0]])
+    else:
+        return None
+    basis = np.stack([np.ones_like(t), t, np.cos(t), np.sin(t)], axis=-1)
+    out = []
+    for i in (0, 1):
+        c = coef[i]
+        scale = max(1.0, float(np.max(np.abs(basis @ c))), abs(window[0]), abs(window[1]))
+        small = tol.solver * scale
+        c = np.where(np.abs(c) <= small, 0.0, c)
+        if full and abs(c[1] - round(c[1])) <= small:
+            c[1] = round(c[1])
+        out.append(_Coord.exact_form(surface, curve, i, window, full, c))
+    return out
 
 
 class _Coord:
@@ -656,6 +714,17 @@ class _Coord:
             ref = self._raw(self.grid)
             self.ref = np.unwrap(ref, period=TWO_PI) if self.periodic else ref
             self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if (self.periodic and full) else 0
+
+    @classmethod
+    def exact_form(cls, surface, curve, index: int, window: tuple[float, float], full: bool,
+                   coef: np.ndarray) -> "_Coord":
+        """The coordinate known in closed form: ``coef = (o, d, α, β)`` (4,)."""
+        self = object.__new__(cls)
+        self.surface, self.curve, self.index, self.window, self.full = surface, curve, index, window, full
+        self.periodic = bool(surface.periodic_u if index == 0 else surface.periodic_v)
+        self.exact = True
+        self.coef = np.asarray(coef, dtype=np.float64)
+        return self
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
         if self.periodic and not self.full:

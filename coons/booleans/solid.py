@@ -719,9 +719,15 @@ def _clip_straight(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Toleran
         w = (W[:, 0] * d[1] - W[:, 1] * d[0]) / cross  # fraction along the side
     crossing = proper & (w * L > margin) & ((1.0 - w) * L > margin) \
         & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
-    # Every other side must stay clear of the branch: the distance between two segments that
-    # do not cross is the least of their four end-to-segment distances.
+    # Every other side must stay clear of the branch: it must not meet it at all (a grazing
+    # crossing, or one near an end), and then the distance between the two segments is the
+    # least of their four end-to-segment distances.  (Where round-off puts a meeting just
+    # outside a segment, it lies near an end and that distance is small.)
     rest = ~crossing
+    with np.errstate(invalid="ignore"):
+        meets = (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (s >= lo_t) & (s <= hi_t)
+    if np.any(meets & rest):
+        return None
     if np.any(rest):
         Ar, Er, Lr = A[rest], E[rest], L[rest]
         Cr = Ar + Er

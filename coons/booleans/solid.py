@@ -846,6 +846,7 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> 
     T = T / np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-300)
     worst = base
     from coons.booleans.classify import _curve_closest
+    from coons.kernel.intersect import _cross
 
     for edges, lo, hi, tol in faces:
         reach = (10.0 * np.maximum(base, tol))[:, None, None]
@@ -857,7 +858,7 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> 
             De = np.asarray(e.curve.derivatives(te, 1), dtype=np.float64)
             d = np.linalg.norm(De[:, 0] - P, axis=1)
             Te = De[:, 1] / np.maximum(np.linalg.norm(De[:, 1], axis=1, keepdims=True), 1e-300)
-            sine = np.maximum(np.linalg.norm(np.cross(T, Te), axis=1), _MIN_SINE)
+            sine = np.maximum(np.linalg.norm(_cross(T, Te), axis=1), _MIN_SINE)
             near = d <= 10.0 * max(base, e.tol or 0.0)  # the end lies on this boundary edge
             if np.any(near):
                 worst = max(worst, float(np.max(max(base, e.tol or 0.0) / sine[near])))

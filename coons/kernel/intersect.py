@@ -234,9 +234,21 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` of arrays ``(..., 3)`` (the same products and differences as ``np.cross``, without its
+    axis handling, which costs more than the arithmetic on the few vectors here)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
 def _sine(d1: np.ndarray, d2: np.ndarray) -> float:
     """|sin| of the angle between two unit directions."""
-    return float(np.linalg.norm(np.cross(d1, d2)))
+    return float(np.linalg.norm(_cross(d1, d2)))
 
 
 def _off_axis(point: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> float:
@@ -588,7 +600,7 @@ def _oriented(cand: _Candidate, a, b) -> Any:
     P, T = D[:, 0], D[:, 1]
     na = a.normal(*a.closest_parameters(P).T)
     nb = b.normal(*b.closest_parameters(P).T)
-    cross = np.cross(na, nb)
+    cross = _cross(na, nb)
     strength = np.linalg.norm(cross, axis=-1)
     i = int(np.argmax(strength))  # the most transversal sample decides (poles and apexes give bad normals)
     return cand.curve if float(cross[i] @ T[i]) >= 0.0 else _reversed(cand.curve)
@@ -655,7 +667,7 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
             coef = np.array([[o[0], 0.0, al[0], be[0]], [o[1], 0.0, al[1], be[1]]])
     elif isinstance(surface, _REVOLVED) and isinstance(curve, Circle):
         Z, Zc = surface.axis, curve._frame[2]
-        if float(np.linalg.norm(np.cross(Zc, Z))) > tol.solver:
+        if _sine(Zc, Z) > tol.solver:
             return None
         w = curve._origin - surface._origin
         if float(np.linalg.norm(w - (w @ Z) * Z)) > tol.solver * curve.radius:
@@ -968,7 +980,7 @@ def _against(curve, t: float, a, b) -> bool:
     P = D[0][None]
     na = a.normal(*a.closest_parameters(P).T)[0]
     nb = b.normal(*b.closest_parameters(P).T)[0]
-    return float(np.cross(na, nb) @ D[1]) < 0.0
+    return float(_cross(na, nb) @ D[1]) < 0.0
 
 
 def _piece(curve, coords, s0, s1, a, b, boxes, slack, closed: bool, tangent: bool, tol: Tolerance):

@@ -45,7 +45,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    3-D curve rebuilt by ``pcurve_on`` (``_refitted``: a fit gone wrong near a pole must not
    widen the cut's tolerance to the size of the face); every branch is clipped to both
    trimmed faces (``clip_to_face``; answered at once by ``_clip`` when the sampled p-curve's
-   box meets no loop segment's box: the branch is then wholly inside or outside) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
+   box meets no loop segment's box: the branch is then wholly inside or outside; and in closed form by
+   ``_clip_straight`` when a straight p-curve crosses a plane or cylinder face bounded by straight
+   p-curves properly, far from its vertices) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
    Coincident surfaces imprint each face's boundary edges onto the other (``pcurve_on`` of the
    edge curve on the other surface, ``clip_to_face``).  Isolated tangent points split nothing.
    Cuts repeated by several pairs (a curve along an edge of the other operand meets both faces of

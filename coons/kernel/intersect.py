@@ -29,8 +29,10 @@ p-curve must not leave the box), so a closed curve is one closed branch only whe
 no seam except at its start; e.g. a circle around a cylinder with box ``u ∈ [0, 2π]`` is one
 closed branch from ``u = 0`` to ``u = 2π``.
 
-*P-curves.*  A coordinate of a p-curve is detected to be exactly ``o + d t + α cos t + β sin t``
-(a least-squares fit on samples whose residual is at round-off, ``tol.solver`` relative);
+*P-curves.*  A coordinate of a p-curve is exactly ``o + d t + α cos t + β sin t`` in closed form
+for a line or conic in a plane and a circle coaxial with a surface of revolution (``_closed_coords``);
+otherwise it is detected to be of that form by a least-squares fit on samples whose residual is
+at round-off, ``tol.solver`` relative;
 when both coordinates are affine in ``t`` the p-curve is a :class:`~coons.kernel.pcurve.Line2D`,
 when both are trigonometric a :class:`~coons.kernel.pcurve.Trig2D`.  Otherwise (an ellipse on
 a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a cubic 2-D

@@ -696,56 +696,45 @@ def _clip_straight(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Toleran
             if not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear:
                 return None
     lo_t, hi_t = (t0, t1) if t0 < t1 else (t1, t0)
-    su, sv = speed
+    sp = np.array(speed)
     seg = X.segments[f]
     # Work in the isometric coordinates: (k, 2) side starts A and vectors E, branch p0 + s d.
-    A = np.stack([seg[:, 0, 0] * su, seg[:, 0, 1] * sv], axis=1)
-    E = np.stack([seg[:, 1, 0] * su, seg[:, 1, 1] * sv], axis=1) - A
+    A = seg[:, 0] * sp
+    E = seg[:, 1] * sp - A
     o, dd = pcurve.origin, pcurve.direction
-    p0 = np.array([o[0] * su, o[1] * sv])
-    d = np.array([dd[0] * su, dd[1] * sv])
-    B0, B1 = p0 + lo_t * d, p0 + hi_t * d
-    scale = 1.0 + max(float(np.max(np.abs(A))), float(np.max(np.abs(B0))), float(np.max(np.abs(B1))))
+    p0, d = o * sp, dd * sp
+    B = np.stack([p0 + lo_t * d, p0 + hi_t * d])  # the branch's ends
+    scale = 1.0 + max(float(np.max(np.abs(A))), float(np.max(np.abs(B))))
     # clip_to_face's own band is one tolerance (tol3: the edges' and tol.linear); 1e-12 of the
     # coordinates' size covers the round-off of this arithmetic.
     margin = _STRAIGHT_CLEARANCE * t.linear + 1e-12 * scale
     L = np.hypot(E[:, 0], E[:, 1])
     side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
     A, E, L = A[side], E[side], L[side]
+    if L.size == 0:
+        return None
     dn = math.hypot(d[0], d[1])
     W = A - p0
     cross = d[0] * E[:, 1] - d[1] * E[:, 0]
-    proper = np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L
     with np.errstate(divide="ignore", invalid="ignore"):
         s = (W[:, 0] * E[:, 1] - W[:, 1] * E[:, 0]) / cross  # branch parameter of the crossing
         w = (W[:, 0] * d[1] - W[:, 1] * d[0]) / cross  # fraction along the side
-    crossing = proper & (w * L > margin) & ((1.0 - w) * L > margin) \
-        & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
-    # Every other side must stay clear of the branch: it must not meet it at all (a grazing
-    # crossing, or one near an end), and then the distance between the two segments is the
-    # least of their four end-to-segment distances.  (Where round-off puts a meeting just
-    # outside a segment, it lies near an end and that distance is small.)
-    rest = ~crossing
-    with np.errstate(invalid="ignore"):
         meets = (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (s >= lo_t) & (s <= hi_t)
-    if np.any(meets & rest):
+    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
+        & ((1.0 - w) * L > margin) & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
+    # Every other side must not meet the branch at all (a grazing crossing, or one near an end).
+    # Then the distance between it and the branch is the least of the four end-to-segment
+    # distances (where round-off puts a meeting just outside a segment, it lies near an end and
+    # that distance is small): every polygon vertex must stay clear of the branch, and the
+    # branch's ends clear of every side (of crossing sides too: declining more is safe).
+    if np.any(meets & ~crossing):
         return None
-    if np.any(rest):
-        Ar, Er, Lr = A[rest], E[rest], L[rest]
-        Cr = Ar + Er
-        tb = np.clip(((Ar - p0) @ d) / (dn * dn), lo_t, hi_t)
-        tc = np.clip(((Cr - p0) @ d) / (dn * dn), lo_t, hi_t)
-        da = np.hypot(*(Ar - p0 - tb[:, None] * d).T)
-        dc = np.hypot(*(Cr - p0 - tc[:, None] * d).T)
-        fb0 = np.clip(np.sum((B0 - Ar) * Er, axis=1) / (Lr * Lr), 0.0, 1.0)
-        fb1 = np.clip(np.sum((B1 - Ar) * Er, axis=1) / (Lr * Lr), 0.0, 1.0)
-        d0 = np.hypot(*(B0 - Ar - fb0[:, None] * Er).T)
-        d1 = np.hypot(*(B1 - Ar - fb1[:, None] * Er).T)
-        if float(np.min(np.minimum(np.minimum(da, dc), np.minimum(d0, d1)))) <= margin:
-            return None
-    # Every polygon vertex must stay clear as well (a branch passing a vertex between two sides).
-    tv = np.clip(((A - p0) @ d) / (dn * dn), lo_t, hi_t)
-    if float(np.min(np.hypot(*(A - p0 - tv[:, None] * d).T))) <= margin:
+    V = np.concatenate([A, A + E])
+    tv = np.clip(((V - p0) @ d) / (dn * dn), lo_t, hi_t)
+    near = np.hypot(*(V - p0 - tv[:, None] * d).T)
+    fb = np.clip(np.einsum("bkj,kj->bk", B[:, None, :] - A[None], E) / (L * L), 0.0, 1.0)  # (2, k)
+    Fb = B[:, None, :] - A[None] - fb[..., None] * E[None]
+    if min(float(np.min(near)), float(np.min(np.hypot(Fb[..., 0], Fb[..., 1])))) <= margin:
         return None
     br = np.concatenate([[lo_t], np.sort(s[crossing]), [hi_t]])
     if np.any(np.diff(br) * dn <= margin):

@@ -617,7 +617,9 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
     The p-curve is sampled; when the box of the samples (enlarged by the largest sample step)
     meets no box of a loop segment (enlarged by its length, see ``_Operand``), the branch
     neither crosses nor touches the boundary, and one sample inside or outside the trim polygon
-    decides the whole range.  Otherwise (near the boundary) the exact ``clip_to_face`` runs.
+    decides the whole range.  Otherwise (near the boundary) a straight p-curve on a face bounded
+    by straight p-curves is clipped in closed form (:func:`_clip_straight`) when it crosses the
+    boundary properly, and else the exact ``clip_to_face`` runs.
     """
     from coons.booleans.classify import _in_polygon
     from coons.topology.split import clip_to_face

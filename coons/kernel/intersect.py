@@ -30,7 +30,7 @@ no seam except at its start; e.g. a circle around a cylinder with box ``u ∈ [0
 closed branch from ``u = 0`` to ``u = 2π``.
 
 *P-curves.*  A coordinate of a p-curve is exactly ``o + d t + α cos t + β sin t`` in closed form
-for a line or conic in a plane (``_closed_coords``);
+for a line or conic in a plane and a circle coaxial with a surface of revolution (``_closed_coords``);
 otherwise it is detected to be of that form by a least-squares fit on samples whose residual is
 at round-off, ``tol.solver`` relative;
 when both coordinates are affine in ``t`` the p-curve is a :class:`~coons.kernel.pcurve.Line2D`,
@@ -639,16 +639,17 @@ def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolera
 
 
 def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"] | None:
-    """The two exact coordinates of the p-curve of a line, circle or ellipse in a plane, in closed form, else None.
+    """The two exact coordinates of the p-curve in closed form where the pair has one, else None.
 
-    The plane's parameters are the affine map
-    ``(P - O)·X, (P - O)·Y``, so a line gives ``o + d t`` and a conic ``C + a cos t X_c + b sin t Y_c``
-    gives ``o + α cos t + β sin t`` with ``o = (C - O)·X``, ``α = a X_c·X``, ``β = b Y_c·X`` (and ``Y``).
-
-    Not done for surfaces of revolution, although a coaxial circle's longitude is exactly
-    ``u(t₀) ± (t - t₀)`` and a cylinder ruling's ``v`` is affine: the tessellator's T-junction
-    points then land exactly on straight boundary segments of the parameter plane (a box minus a
-    tangent cylinder fails to triangulate), which the fitted coefficients' round-off avoids.
+    * A line, circle or ellipse in a plane: the plane's parameters are the affine map
+      ``(P - O)·X, (P - O)·Y``, so a line gives ``o + d t`` and a conic ``C + a cos t X_c + b sin t Y_c``
+      gives ``o + α cos t + β sin t`` with ``o = (C - O)·X``, ``α = a X_c·X``, ``β = b Y_c·X`` (and ``Y``).
+    * A circle coaxial with a surface of revolution (its axis along ``±Z`` and its centre on the
+      axis, within ``tol.solver`` relative: the round-off of the exact constructions, below what
+      the sample fit of :class:`_Coord` calls exact): the longitude is ``u(t₀) ± (t - t₀)`` (``+``
+      when the circle's axis is ``Z``: both angles are measured in right-handed frames about it)
+      and the other parameter is constant, ``v(t₀)``, with ``u(t₀), v(t₀)`` the projection of
+      the first form sample ``t₀`` (where the fit's unwrapping starts).
 
     The coefficients are then treated as the fit's are: those below ``tol.solver`` of the
     coordinates' size become 0, a closed curve's slope is rounded to whole turns.
@@ -666,6 +667,16 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
             X, Y, _ = curve._frame
             o, al, be = F @ (curve._origin - O), ra * (F @ X), rb * (F @ Y)
             coef = np.array([[o[0], 0.0, al[0], be[0]], [o[1], 0.0, al[1], be[1]]])
+    elif isinstance(surface, _REVOLVED) and isinstance(curve, Circle):
+        Z, Zc = surface.axis, curve._frame[2]
+        if _sine(Zc, Z) > tol.solver:
+            return None
+        w = curve._origin - surface._origin
+        if float(np.linalg.norm(w - (w @ Z) * Z)) > tol.solver * curve.radius:
+            return None
+        sgn = 1.0 if float(Zc @ Z) > 0.0 else -1.0
+        u0, v0 = (float(x) for x in np.asarray(surface.closest_parameters(curve.evaluate(t[:1])))[0])
+        coef = np.array([[u0 - sgn * t[0], sgn, 0.0, 0.0], [v0, 0.0, 0.0, 0.0]])
     else:
         return None
     basis = np.stack([np.ones_like(t), t, np.cos(t), np.sin(t)], axis=-1)

@@ -890,11 +890,19 @@ class _Builder:
         extra_uv: dict[int, list[np.ndarray]] = {}
         extra_xyz: dict[int, list[np.ndarray]] = {}
         V = self.point_array()
+        boundary = None
         for corner in np.flatnonzero(dup):
             t, j = divmod(int(corner), 3)
             f = int(F[t])
             if local[t] < 0:  # a face triangled in bulk: re-triangulate it with the 3-D midpoint
-                extra_xyz.setdefault(f, []).append(0.5 * (V[T[t, j]] + V[T[t, (j + 1) % 3]]))
+                a, c = int(T[t, j]), int(T[t, (j + 1) % 3])
+                if boundary is None:
+                    boundary = self._edge_chords()
+                if (min(a, c), max(a, c)) in boundary:
+                    # (its midpoint would be an interior point on the face's own boundary, exactly so
+                    # where the edge is a straight line of the parameter plane: a tangent ruling)
+                    continue
+                extra_xyz.setdefault(f, []).append(0.5 * (V[a] + V[c]))
                 continue
             fm = self.faces[f]
             a, c = fm.T[local[t], j], fm.T[local[t], (j + 1) % 3]
@@ -907,6 +915,16 @@ class _Builder:
             uv += [np.reshape(x, (1, 2)) for x in extra_uv.get(f, [])]
             xyz = np.reshape(extra_xyz.get(f, []), (-1, 3))
             self._surface_face(f, np.unique(np.concatenate(uv + [np.zeros((0, 2))]), axis=0), xyz)
+
+    def _edge_chords(self) -> set[tuple[int, int]]:
+        """The chords ``(min, max)`` between consecutive mesh vertices of every edge (its discretisation;
+        an edge without one runs straight between its two vertices, whose mesh ids are theirs)."""
+        ids = [x for x in self.edge_ids.values() if x.size > 1]
+        plain = np.setdiff1d(np.arange(self.b.n_edges), np.fromiter(self.edge_ids, dtype=np.int64))
+        ids.append(self.b.edge_vertex[plain].T.copy() if plain.size else np.zeros((2, 0), np.int64))
+        lo = np.concatenate([np.minimum(x[:-1], x[1:]).ravel() for x in ids])
+        hi = np.concatenate([np.maximum(x[:-1], x[1:]).ravel() for x in ids])
+        return set(zip(lo.tolist(), hi.tolist()))
 
     # ------------------------------------------------------------------ step 0
     def plan_revolved_faces(self) -> None:

@@ -709,13 +709,44 @@ def test_closed_form_plane_coordinates_match_the_sample_fit(n, x, o, c, ang, rad
     _compare_coords(p, curve, window, full)
 
 
-def test_closed_form_coordinates_only_for_curves_in_a_plane():
-    """Surfaces of revolution keep the sample fit (see _closed_coords), even for coaxial circles."""
+@settings(max_examples=40)
+@given(
+    kind=st.sampled_from(["cylinder", "cone", "sphere", "torus"]),
+    axis=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: np.linalg.norm(v) > 0.2),
+    o=st.tuples(*[st.floats(-3, 3)] * 3),
+    h=st.floats(-0.9, 0.9),
+    phase=st.floats(0, TWO_PI),
+    flip=st.booleans(),
+    full=st.booleans(),
+)
+def test_closed_form_coaxial_circle_coordinates_match_the_sample_fit(kind, axis, o, h, phase, flip, full):
+    Zs = np.array(axis) / np.linalg.norm(axis)
+    Xs = np.cross(Zs, [1.0, 0.0, 0.0]) if abs(Zs[0]) < 0.9 else np.cross(Zs, [0.0, 1.0, 0.0])
+    O = np.array(o)
+    if kind == "cylinder":
+        s, rho, z = CylindricalSurface(O, Zs, Xs, 1.5), 1.5, 2.0 * h
+    elif kind == "cone":
+        s = ConicalSurface(O, Zs, Xs, 1.0, 0.5)
+        v = 2.0 * h
+        rho, z = 1.0 + v * math.sin(0.5), v * math.cos(0.5)
+    elif kind == "sphere":
+        s, rho, z = SphericalSurface(O, Zs, Xs, 2.0), 2.0 * math.sqrt(1 - h * h), 2.0 * h
+    else:
+        s = ToroidalSurface(O, Zs, Xs, 3.0, 1.0)
+        rho, z = 3.0 + math.cos(3.0 * h), math.sin(3.0 * h)
+    Yc = np.cross(Zs, Xs)
+    curve = Circle(O + z * Zs, -Zs if flip else Zs, math.cos(phase) * Xs + math.sin(phase) * Yc, rho)
+    window = (0.0, TWO_PI) if full else (0.4, 2.5)
+    _compare_coords(s, curve, window, full)
+
+
+def test_closed_form_coordinates_refuse_other_curves():
     import coons.kernel.intersect as I
     from coons.tolerance import DEFAULT_TOLERANCE as T
 
     cyl = CylindricalSurface([0, 0, 0], Z, X, 1.0)
-    for curve in (Circle([0, 0, 0], Z, X, 1.0), Line([1, 0, 0], Z)):
+    tilted = Circle([0, 0, 0], [0, 1e-6, 1], X, 1.0)  # not coaxial: its longitude is not affine
+    off = Circle([1e-6, 0, 0], Z, X, 1.0)  # centre off the axis
+    ellipse = Ellipse([0, 0, 0], [0, 1, 1], X, 1.5, 1.0)
+    for curve in (tilted, off, ellipse, Line([1, 0, 0], Z)):
         assert I._closed_coords(cyl, curve, (0.0, 1.0), False, T) is None
-    nurbs = NurbsCurve(np.array([[0.0, 0, 0], [1, 1, 0], [2, 0, 0]]), [0, 0, 0, 1, 1, 1], 2)
-    assert I._closed_coords(plane([0, 0, 0], Z), nurbs, (0.0, 1.0), False, T) is None

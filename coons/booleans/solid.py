@@ -131,6 +131,7 @@ from __future__ import annotations
 
 import logging
 import math
+import weakref
 
 import numpy as np
 
@@ -140,7 +141,8 @@ from coons.kernel._common import used_ids
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
-from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces
+from coons.topology.brep import BRep
+from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces, sewn_unchanged
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -346,10 +348,13 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
     # edges): their operand.
     orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
-    faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
-    faces = _merge(faces, t)
-    faces = _fuse_edges(faces, t)
-    return _sew(faces, t)
+    points = _UsePoints()  # the uses' end and mid points, shared by the three passes below
+    faces = _split_edges_at_vertices(faces, t, orig, orig_edges, points)
+    faces = _merge(faces, t, points)
+    faces = _fuse_edges(faces, t, points)
+    out = _sew(faces, t)
+    _SEWN[out.brep] = faces
+    return out
 
 
 class _Operand:
@@ -368,68 +373,65 @@ class _Operand:
 
         self.solid, self.name, self.t = solid, name, t
         b = solid.brep
-        raw = face_specs(solid)
-        self.specs: list[FaceSpec] = []
-        for f, spec in enumerate(raw):
+        F = b.n_faces
+        # Faces of a Boolean result sewn unchanged from a completed spec are that spec (checked
+        # field by field, :func:`sewn_unchanged`); the others are read from the B-rep.
+        specs: list[FaceSpec | None] = [None] * F
+        sewn = _SEWN.get(b)
+        if sewn is not None and len(sewn) == F:
+            for f, spec in enumerate(sewn):
+                if sewn_unchanged(b, f, spec):
+                    specs[f] = spec
+        missing = [f for f in range(F) if specs[f] is None]
+        for f, spec in zip(missing, face_specs(solid, rows=missing) if missing else []):
             S = spec.surface if spec.surface is not None else surface_of(b, f)
             try:
                 loops = [[_with_pcurve(S, e, t) for e in loop] for loop in spec.loops]
             except CoonsError as exc:
                 raise BooleanError(f"operand {name}, face {f}: cannot compute the p-curves of its edges: {exc}",
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
-            self.specs.append(FaceSpec(S, spec.sense, loops))
+            specs[f] = FaceSpec(S, spec.sense, loops)
+        self.specs: list[FaceSpec] = specs
         mesh = self.mesh = tessellate(solid, tol=t)
         diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
         # Tessellation deflection (the tessellator's default) plus the edges' own tolerances: the
         # exact face lies within this of its triangles.
         pad = 1e-3 * diag + float(np.max(b.edge_tol, initial=0.0)) + t.linear
-        F = b.n_faces
         lo = np.full((F, 3), np.inf)
         hi = np.full((F, 3), -np.inf)
         X = mesh.vertices[mesh.triangles]
         np.minimum.at(lo, mesh.face_ids, X.min(axis=1))
         np.maximum.at(hi, mesh.face_ids, X.max(axis=1))
         self.lo, self.hi = lo - pad, hi + pad
-        self.uv_box = []
-        self.polygons = []
-        self.segments, self.seg_lo, self.seg_hi = [], [], []
-        for spec in self.specs:
-            # Each edge sampled once: for the rings and for the pads of its segments.
-            samples = _edge_samples(spec)
-            rings = _loop_rings(spec, samples=samples)
-            self.polygons.append(rings)
-            U = np.concatenate(rings)
-            (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
-            mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
-            self.uv_box.append(_within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1)))
-            seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
-            # A sampled curved edge stays within about one chord of its samples; a straight
-            # p-curve (Line2D, sampled by its two ends) is its segment.
-            pads = [np.full(Ue.shape[0], 0.0 if isinstance(e.pcurve, Line2D)
-                            else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1))))
-                    for loop, loop_samples in zip(spec.loops, samples) for e, Ue in zip(loop, loop_samples)]
-            pad = np.concatenate(pads)[:, None]
-            self.segments.append(seg)
-            self.seg_lo.append(seg.min(axis=1) - pad)
-            self.seg_hi.append(seg.max(axis=1) + pad)
+        self._data = [_face_data(spec, t) for spec in self.specs]
+        self.uv_box = [d.uv_box for d in self._data]
+        self.polygons = [d.rings for d in self._data]
+        self.segments = [d.seg for d in self._data]
+        self.seg_lo = [d.seg_lo for d in self._data]
+        self.seg_hi = [d.seg_hi for d in self._data]
         self._classifier = None
-        self._edge_boxes: dict[int, tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def edge_boxes(self, f: int) -> tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]:
         """Face ``f``'s edge uses in loop order, their space boxes ``lo, hi (k, 3)`` (:func:`_edge_box`,
-        infinite where it gives none) and tolerances ``(k,)``, computed once per operand."""
-        got = self._edge_boxes.get(f)
-        if got is None:
+        infinite where it gives none) and tolerances ``(k,)``, computed once per face spec."""
+        d = self._data[f]
+        if d.edge_boxes is None:
             edges = [e for loop in self.specs[f].loops for e in loop]
             lo = np.full((len(edges), 3), -np.inf)
             hi = np.full((len(edges), 3), np.inf)
             for k, e in enumerate(edges):
-                box = _edge_box(e)
+                box = _use_box(e)
                 if box is not None:
                     lo[k], hi[k] = box[0], box[1]
             tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
-            got = self._edge_boxes[f] = (edges, lo, hi, tol)
-        return got
+            d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
+        return d.edge_boxes
+
+    def samples(self) -> dict[int, tuple[object, np.ndarray]]:
+        """``id(edge use) -> (surface, (k, 2) samples)``: :func:`_edge_uv` with ``_LOOP_SAMPLES`` of every
+        edge use of the operand's faces (the pieces of a split face keep its untouched uses)."""
+        return {id(e): (spec.surface, Ue) for spec, d in zip(self.specs, self._data)
+                for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)}
 
     @property
     def classifier(self):
@@ -497,6 +499,60 @@ def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES, samples: list | None = N
     """Each loop as a closed parameter-plane polyline ``(k, 2)`` (pole gaps closed by straight segments);
     ``samples``: :func:`_edge_samples` of ``spec`` when the caller has them."""
     return [np.concatenate(loop) for loop in (_edge_samples(spec, n) if samples is None else samples)]
+
+
+class _FaceData:
+    """Per-face data of a completed face spec that depends on nothing else (and the tolerance).
+
+    ``uv_box`` the enlarged parameter box, ``samples`` (:func:`_edge_samples`), ``rings``
+    (:func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
+    ``seg_lo, seg_hi (s, 2)``, and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand).
+    """
+
+    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "edge_boxes", "__weakref__")
+
+
+#: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
+#: curves and surfaces that are values), so its data never goes stale; entries die with the spec.
+_FACE_DATA: "weakref.WeakKeyDictionary[FaceSpec, _FaceData]" = weakref.WeakKeyDictionary()
+#: Boolean result B-rep -> the completed face specs it was sewn from, in face order.  The next
+#: Boolean on the result takes a face's spec (and so its cached data) from here when
+#: :func:`~coons.topology.sew.sewn_unchanged` confirms the B-rep face is exactly that spec: the
+#: faces of a large part that a cut does not touch are not re-read, re-sampled or re-boxed.
+_SEWN: "weakref.WeakKeyDictionary[BRep, list[FaceSpec]]" = weakref.WeakKeyDictionary()
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
+    """The :class:`_FaceData` of a completed spec (surface set, every use with a p-curve), cached per spec."""
+    d = _FACE_DATA.get(spec)
+    if d is not None and d.t == t:
+        return d
+    d = _FaceData()
+    d.t, d.edge_boxes = t, None
+    # Each edge sampled once: for the rings and for the pads of its segments.
+    d.samples = [[_frozen(Ue) for Ue in loop] for loop in _edge_samples(spec)]
+    rings = d.rings = [_frozen(R) for R in _loop_rings(spec, samples=d.samples)]
+    U = np.concatenate(rings)
+    (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
+    mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
+    d.uv_box = _within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1))
+    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
+    # A sampled curved edge stays within about one chord of its samples; a straight
+    # p-curve (Line2D, sampled by its two ends) is its segment.
+    pads = [np.full(Ue.shape[0], 0.0 if isinstance(e.pcurve, Line2D)
+                    else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1))))
+            for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)]
+    pad = np.concatenate(pads)[:, None]
+    d.seg = _frozen(seg)
+    d.seg_lo = _frozen(seg.min(axis=1) - pad)
+    d.seg_hi = _frozen(seg.max(axis=1) + pad)
+    _FACE_DATA[spec] = d
+    return d
 
 
 # ---------------------------------------------------------------------- broad phase
@@ -1052,13 +1108,14 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
     quick = np.zeros(len(pieces), dtype=bool)
 
     dangling = _dangling_cuts(pieces, cuts or {})
+    known = X.samples()
 
     def interior(k: int, f: int, spec: FaceSpec) -> None:
         try:
             avoid = None
             if f in dangling:
                 avoid = np.concatenate([_polyline_segments(_edge_uv(c, spec.surface, _LOOP_SAMPLES)) for c in dangling[f]])
-            P[k], N[k] = _interior_point(spec, t, avoid)
+            P[k], N[k] = _interior_point(spec, t, avoid, known)
         except CoonsError as exc:
             raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
                                diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
@@ -1123,7 +1180,8 @@ def _polyline_segments(R: np.ndarray) -> np.ndarray:
     return np.stack([R[:-1], R[1:]], axis=1)
 
 
-def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = None,
+                    known: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A point of the piece's interior away from its boundary, and the outward normal there.
 
     The candidates are a grid over the parameter box of the trim polygon, ``n × (n + 2)`` for
@@ -1144,6 +1202,10 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
         intersection curves that end inside the face (a line of tangent contact), along which
         a point would be *on* the other solid.  On a periodic surface they are also taken one
         period to either side.
+    known : dict, optional
+        ``id(edge use) -> (surface, samples)`` (:meth:`_Operand.samples`): the loop samples of
+        the uses a piece keeps from its operand face, taken instead of sampled again when the
+        surface is the piece's.
 
     Raises
     ------
@@ -1154,7 +1216,11 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
     from coons.booleans.classify import _in_polygon, _segment_distance
 
     S = spec.surface
-    rings = _loop_rings(spec)
+    samples = None
+    if known:
+        samples = [[k[1] if (k := known.get(id(e))) is not None and k[0] is S else _edge_uv(e, S, _LOOP_SAMPLES)
+                    for e in loop] for loop in spec.loops]
+    rings = _loop_rings(spec, samples=samples)
     seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
     U = np.concatenate(rings)
     lo, hi = U.min(axis=0), U.max(axis=0)
@@ -1244,7 +1310,7 @@ def reversed_face(spec: FaceSpec) -> FaceSpec:
 
 # ---------------------------------------------------------------------- T-junctions
 def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None,
-                             orig_edges: dict | None = None) -> list[FaceSpec]:
+                             orig_edges: dict | None = None, points: _UsePoints | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -1267,8 +1333,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
 
     orig = orig or {}
     orig_edges = orig_edges or {}
-    starts = np.array([np.asarray(e.curve.evaluate(e.t0), dtype=np.float64).reshape(3)
-                       for f in faces for loop in f.loops for e in loop])
+    points = points if points is not None else _UsePoints()
+    starts = points.get([e for f in faces for loop in f.loops for e in loop])[:, 0].reshape(-1, 3)
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
     start_tol = np.array([max(t.linear, e.tol or 0.0) for f in faces for loop in f.loops for e in loop])
     if starts.shape[0] == 0:
@@ -1294,21 +1360,14 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
             face_foreign = starts[inside], start_tol[inside]
         loops = []
         face_changed = False
+        clear = iter(_clear_uses([e for loop in f.loops for e in loop], face_foreign, foreign_of, orig_edges, t).tolist())
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
                 thr = max(t.linear, e.tol or 0.0)
-                g_e = orig_edges.get(id(e), 0)
-                foreign = face_foreign if face_foreign is not None else foreign_of.get(g_e)
-                if foreign is not None:
-                    # An unchanged edge can only be split by a foreign vertex: none near the
-                    # edge's box (a plate face with many holes has many edges), nothing to do.
-                    box = _edge_box(e)
-                    if box is not None:
-                        pad = (foreign[1] + thr)[:, None]
-                        if not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1)):
-                            new.append(e)
-                            continue
+                if next(clear):
+                    new.append(e)
+                    continue
                 tt = np.linspace(e.t0, e.t1, 17)
                 X = np.asarray(e.curve.evaluate(tt), dtype=np.float64)
                 c = X.mean(axis=0)
@@ -1349,6 +1408,58 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     return out if changed_any else faces
 
 
+def _clear_uses(edges: list[EdgeSpec], face_foreign, foreign_of: dict, orig_edges: dict, t: Tolerance) -> np.ndarray:
+    """``(k,)`` bool: which of a face's edge uses no vertex can split (see :func:`_split_edges_at_vertices`).
+
+    An unchanged edge use can only be split by a foreign vertex (``face_foreign``, the foreign
+    vertices in an unchanged face's box, else ``foreign_of[operand of the use]``; a new use has
+    none and is never clear): a use is clear when no such vertex lies in its box
+    (:func:`_use_box`) padded by both tolerances.  All uses of one group against all their
+    foreign vertices in one array test (a plate face with many holes has many edges).
+    """
+    clear = np.zeros(len(edges), dtype=bool)
+    groups: dict[int, list[int]] = {}
+    for i, e in enumerate(edges):
+        key = -1 if face_foreign is not None else orig_edges.get(id(e), 0)
+        if key in foreign_of or key == -1:
+            if _use_box(e) is not None:
+                groups.setdefault(key, []).append(i)
+    for key, idx in groups.items():
+        P, ptol = face_foreign if key == -1 else foreign_of[key]
+        thr = np.array([max(t.linear, edges[i].tol or 0.0) for i in idx])
+        B = np.stack([_use_box(edges[i]) for i in idx])  # (n, 2, 3)
+        step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
+        for s0 in range(0, len(idx), step):
+            pad = (ptol[None, :] + thr[s0 : s0 + step, None])[..., None]  # (n, m, 1)
+            Bs = B[s0 : s0 + step, None]
+            near = np.all((P[None] >= Bs[:, :, 0] - pad) & (P[None] <= Bs[:, :, 1] + pad), axis=2).any(axis=1)
+            clear[idx[s0 : s0 + step]] = ~near
+    return clear
+
+
+#: Use–vertex pairs held at once by :func:`_clear_uses` (memory bound).
+_CLEAR_CHUNK = 1 << 18
+
+
+def _use_box(e: EdgeSpec) -> np.ndarray | None:
+    """:func:`_edge_box` of an edge use, cached per use (an EdgeSpec is immutable).
+
+    The uses of the faces a Boolean result carries over to the next Boolean are the same
+    objects (``_SEWN``): their boxes are computed once for a chain of cuts.
+    """
+    got = _USE_BOXES.get(e, _NO_BOX)
+    if got is _NO_BOX:
+        got = _edge_box(e)
+        if got is not None:
+            got = _frozen(np.asarray(got, dtype=np.float64))
+        _USE_BOXES[e] = got
+    return got
+
+
+_NO_BOX = object()
+_USE_BOXES: "weakref.WeakKeyDictionary[EdgeSpec, np.ndarray | None]" = weakref.WeakKeyDictionary()
+
+
 def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """Per point, the largest tolerance in its cluster (points within ``max(tol_i, tol_j)``, transitively), as sewing merges them."""
     from scipy.sparse import coo_matrix
@@ -1368,9 +1479,9 @@ def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- merge
-def _merge(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+def _merge(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
     """Merge neighbouring faces on one surface with one sense (see the module docstring)."""
-    return _merge_faces(faces, t)
+    return _merge_faces(faces, t, points)
 
 
 def _same_surface(S1, S2, t: Tolerance) -> bool:
@@ -1384,30 +1495,28 @@ def _same_surface(S1, S2, t: Tolerance) -> bool:
         return False
 
 
-def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
-    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense."""
+def _merge_faces(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
+    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense
+    (``points``: the use points known so far, shared with the neighbouring phases)."""
     from scipy.spatial import cKDTree
 
     faces = list(faces)
     failed: set[tuple] = set()  # pairs of uses already tried (their faces are kept alive in ``seen``)
     seen: list[tuple[FaceSpec, FaceSpec]] = []
+    # A merged face keeps the uses of its two faces (B's perhaps with other p-curves, never other
+    # curves or ranges): after the first round nothing is evaluated again.
+    points = points if points is not None else _UsePoints()
     changed = True
     while changed:
         changed = False
         uses = []  # (face, loop, pos, (start, end, mid))
-        by_curve: dict[int, list[int]] = {}
         for fi, f in enumerate(faces):
             for li, loop in enumerate(f.loops):
                 for pi, e in enumerate(loop):
-                    by_curve.setdefault(id(e.curve), []).append(len(uses))
                     uses.append((fi, li, pi, e))
         if len(uses) < 2:
             break
-        P3 = np.empty((len(uses), 3, 3))
-        for rows in by_curve.values():  # one evaluation per curve object
-            e0 = uses[rows[0]][3]
-            tt = np.array([[uses[k][3].t0, uses[k][3].t1, 0.5 * (uses[k][3].t0 + uses[k][3].t1)] for k in rows])
-            P3[rows] = np.asarray(e0.curve.evaluate(tt), dtype=np.float64).reshape(len(rows), 3, 3)
+        P3 = points.get([u[3] for u in uses])
         uses = [(fi, li, pi, P3[k]) for k, (fi, li, pi, _) in enumerate(uses)]
         M = P3[:, 2]
         pairs = cKDTree(M).query_pairs(r=max(t.linear, 1e-12), output_type="ndarray")
@@ -1423,39 +1532,62 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 continue
             failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
             seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
-            ea = A.loops[uses[p][1]][uses[p][2]]
-            eb = B.loops[uses[q][1]][uses[q][2]]
+            up, uq = uses[p][1:3], uses[q][1:3]
+            ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
             Pa, Pb = uses[p][3], uses[q][3]
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
                 continue
-            if not _same_surface(A.surface, B.surface, t):
-                # The same point set in another parametrisation: B's p-curves re-expressed on A's surface.
-                B = _moved_to(B, A.surface, t)
-                if B is None:
-                    continue
-                eb = B.loops[uses[q][1]][uses[q][2]]
-            if A.sense != B.sense:
-                continue
-            # The shared edge must have the same parameter-plane image on both: shift B by whole
-            # periods when they differ by one (a face pair across u = 0 of a cylinder).
-            ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
-            B = _period_shifted(B, A.surface, np.mean(ua - ub, axis=0))
-            if B is None:
-                continue
-            eb = B.loops[uses[q][1]][uses[q][2]]
-            ub = _edge_uv(eb, A.surface, 3)[::-1]
-            if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
-                continue
-            if _wraps(A, B):
-                continue  # (the cheap form of _fuse's own full-period test: two half cylinders)
-            merged = _fuse(A, B, (uses[p][1], uses[p][2]), (uses[q][1], uses[q][2]), t)
+            memo = (up, uq, t)
+            known = _MERGE_FAILED.get(A)
+            if known is not None and memo in known.get(B, ()):
+                continue  # found unmergeable by an earlier Boolean on the same two face specs
+            merged = _merged_pair(A, B, up, uq, t)
             if merged is None:
+                _MERGE_FAILED.setdefault(A, weakref.WeakKeyDictionary()).setdefault(B, set()).add(memo)
                 continue
             faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
             changed = True
             break
     return faces
+
+
+#: ``A -> B -> {(loop, position in A, loop, position in B, tol)}``: pairs of shared uses of two
+#: face specs that :func:`_merge_faces` found it cannot merge.  The test depends only on the two
+#: (immutable) specs, the two uses and the tolerance, so a Boolean result's faces that pass through
+#: the next Boolean unchanged (the same spec objects, see ``_SEWN``) are not tried again: the two
+#: halves of every hole's wall in a plate would otherwise be re-tested by every later cut.
+_MERGE_FAILED: "weakref.WeakKeyDictionary[FaceSpec, weakref.WeakKeyDictionary]" = weakref.WeakKeyDictionary()
+
+
+def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, int], t: Tolerance) -> FaceSpec | None:
+    """The face ``A ∪ B`` across use ``up = (loop, position)`` of A and ``uq`` of B (which run
+    between the same points the opposite way), or None when they do not merge: other
+    surfaces, other senses, other parameter-plane images of the shared edge, a full period.
+
+    A function of the two specs, the two uses and ``t`` only (memoised in :data:`_MERGE_FAILED`).
+    """
+    if not _same_surface(A.surface, B.surface, t):
+        # The same point set in another parametrisation: B's p-curves re-expressed on A's surface.
+        B = _moved_to(B, A.surface, t)
+        if B is None:
+            return None
+    if A.sense != B.sense:
+        return None
+    # The shared edge must have the same parameter-plane image on both: shift B by whole
+    # periods when they differ by one (a face pair across u = 0 of a cylinder).
+    ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+    ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
+    B = _period_shifted(B, A.surface, np.mean(ua - ub, axis=0))
+    if B is None:
+        return None
+    eb = B.loops[uq[0]][uq[1]]
+    ub = _edge_uv(eb, A.surface, 3)[::-1]
+    if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
+        return None
+    if _wraps(A, B):
+        return None  # (the cheap form of _fuse's own full-period test: two half cylinders)
+    return _fuse(A, B, up, uq, t)
 
 
 def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
@@ -1624,7 +1756,7 @@ def _shoelace(R: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------------- fuse edges
-def _fuse_edges(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
     """Remove vertices where exactly two edges meet and continue one curve.
 
     Splitting and merging leave such vertices (the top of the union of two boxes keeps the
@@ -1639,16 +1771,16 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
     from scipy.spatial import cKDTree
 
     loops = [[list(loop) for loop in f.loops] for f in faces]
+    changed: set[int] = set()
+    points = points if points is not None else _UsePoints()  # only a fused use is new in a round
     for _ in range(64):  # each round removes at least one vertex; a bound against surprises
-        where, starts, ends = [], [], []
+        where, uses = [], []
         for fi, fl in enumerate(loops):
             for li, loop in enumerate(fl):
                 for pi, e in enumerate(loop):
                     where.append((fi, li, pi))
-                    P = np.asarray(e.curve.evaluate(np.array([e.t0, e.t1])), dtype=np.float64)
-                    starts.append(P[0])
-                    ends.append(P[1])
-        starts_a = np.asarray(starts)
+                    uses.append(e)
+        starts_a = points.get(uses)[:, 0]
         pairs = cKDTree(starts_a).query_pairs(r=t.linear, output_type="ndarray")
         n = starts_a.shape[0]
         g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
@@ -1674,11 +1806,56 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 loop = loops[fi][li]
                 loop[pi - 1] = joined
                 del loop[pi]
+                changed.add(fi)
             fused = True
             break  # indices changed: recompute
         if not fused:
             break
-    return [FaceSpec(f.surface, f.sense, fl) for f, fl in zip(faces, loops)]
+    # Untouched faces stay the same objects (the next Boolean recognises them, see _SEWN).
+    return [FaceSpec(f.surface, f.sense, fl) if fi in changed else f for fi, (f, fl) in enumerate(zip(faces, loops))]
+
+
+class _UsePoints:
+    """Start, end and midpoint ``(3, 3)`` of edge uses, by curve object and range, evaluated once.
+
+    Lines and circles in one batch (:func:`~coons.kernel.onsurface.evaluate_curves`, their own
+    formulas), other curves once per curve object.  An entry holds its curve, so an ``id`` is
+    never that of another curve.
+    """
+
+    def __init__(self) -> None:
+        self._got: dict[tuple[int, float, float], tuple[object, np.ndarray]] = {}
+
+    def get(self, uses: list[EdgeSpec]) -> np.ndarray:
+        """``(k, 3, 3)``: start, end and midpoint of each use."""
+        from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
+
+        got = self._got
+        new: dict[tuple[int, float, float], EdgeSpec] = {}
+        for e in uses:
+            key = (id(e.curve), e.t0, e.t1)
+            if key not in got and key not in new:
+                new[key] = e
+        if new:
+            es = list(new.values())
+            simple = [e for e in es if type(e.curve) in BATCHED_CURVES]
+            if simple:
+                P = evaluate_curves([e.curve for e in simple],
+                                    np.array([[e.t0, e.t1, 0.5 * (e.t0 + e.t1)] for e in simple]))
+                for e, Pe in zip(simple, P):
+                    got[id(e.curve), e.t0, e.t1] = (e.curve, Pe)
+            by_curve: dict[int, list[EdgeSpec]] = {}
+            for e in es:
+                if type(e.curve) not in BATCHED_CURVES:
+                    by_curve.setdefault(id(e.curve), []).append(e)
+            for group in by_curve.values():
+                tt = np.array([[e.t0, e.t1, 0.5 * (e.t0 + e.t1)] for e in group])
+                P = np.asarray(group[0].curve.evaluate(tt), dtype=np.float64).reshape(len(group), 3, 3)
+                for e, Pe in zip(group, P):
+                    got[id(e.curve), e.t0, e.t1] = (e.curve, Pe)
+        if not uses:
+            return np.empty((0, 3, 3))
+        return np.stack([got[id(e.curve), e.t0, e.t1][1] for e in uses])
 
 
 def _joined(a: EdgeSpec, b: EdgeSpec, t: Tolerance) -> EdgeSpec | None:

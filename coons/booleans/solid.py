@@ -427,12 +427,6 @@ class _Operand:
             d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
         return d.edge_boxes
 
-    def samples(self) -> dict[int, tuple[object, np.ndarray]]:
-        """``id(edge use) -> (surface, (k, 2) samples)``: :func:`_edge_uv` with ``_LOOP_SAMPLES`` of every
-        edge use of the operand's faces (the pieces of a split face keep its untouched uses)."""
-        return {id(e): (spec.surface, Ue) for spec, d in zip(self.specs, self._data)
-                for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)}
-
     @property
     def classifier(self):
         from coons.booleans.classify import Classifier
@@ -491,8 +485,30 @@ def _edge_uv(e: EdgeSpec, S, n: int) -> np.ndarray:
 
 
 def _edge_samples(spec: FaceSpec, n: int = _LOOP_SAMPLES) -> list[list[np.ndarray]]:
-    """Per loop, the parameter-plane samples of each edge use (:func:`_edge_uv`)."""
-    return [[_edge_uv(e, spec.surface, n) for e in loop] for loop in spec.loops]
+    """Per loop, the parameter-plane samples of each edge use (:func:`_edge_uv`; read-only arrays,
+    cached per use and surface for the default ``n``)."""
+    if n != _LOOP_SAMPLES:
+        return [[_edge_uv(e, spec.surface, n) for e in loop] for loop in spec.loops]
+    return [[_use_samples(e, spec.surface) for e in loop] for loop in spec.loops]
+
+
+def _use_samples(e: EdgeSpec, S) -> np.ndarray:
+    """:func:`_edge_uv` of ``e`` on ``S`` with ``_LOOP_SAMPLES``, cached per use (an EdgeSpec is immutable).
+
+    The pieces of a split face and the faces a Boolean result carries over to the next Boolean
+    (``_SEWN``) keep the very EdgeSpec objects of their untouched uses: a plate face gaining one
+    more hole does not sample the edges of its other holes again.
+    """
+    got = _USE_SAMPLES.get(e)
+    if got is not None and got[0] is S:
+        return got[1]
+    Ue = _frozen(_edge_uv(e, S, _LOOP_SAMPLES))
+    _USE_SAMPLES[e] = (S, Ue)
+    return Ue
+
+
+#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface).
+_USE_SAMPLES: "weakref.WeakKeyDictionary[EdgeSpec, tuple]" = weakref.WeakKeyDictionary()
 
 
 def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES, samples: list | None = None) -> list[np.ndarray]:
@@ -535,7 +551,7 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     d = _FaceData()
     d.t, d.edge_boxes = t, None
     # Each edge sampled once: for the rings and for the pads of its segments.
-    d.samples = [[_frozen(Ue) for Ue in loop] for loop in _edge_samples(spec)]
+    d.samples = _edge_samples(spec)
     rings = d.rings = [_frozen(R) for R in _loop_rings(spec, samples=d.samples)]
     U = np.concatenate(rings)
     (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
@@ -1108,14 +1124,13 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
     quick = np.zeros(len(pieces), dtype=bool)
 
     dangling = _dangling_cuts(pieces, cuts or {})
-    known = X.samples()
 
     def interior(k: int, f: int, spec: FaceSpec) -> None:
         try:
             avoid = None
             if f in dangling:
                 avoid = np.concatenate([_polyline_segments(_edge_uv(c, spec.surface, _LOOP_SAMPLES)) for c in dangling[f]])
-            P[k], N[k] = _interior_point(spec, t, avoid, known)
+            P[k], N[k] = _interior_point(spec, t, avoid)
         except CoonsError as exc:
             raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
                                diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
@@ -1180,8 +1195,7 @@ def _polyline_segments(R: np.ndarray) -> np.ndarray:
     return np.stack([R[:-1], R[1:]], axis=1)
 
 
-def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = None,
-                    known: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A point of the piece's interior away from its boundary, and the outward normal there.
 
     The candidates are a grid over the parameter box of the trim polygon, ``n × (n + 2)`` for
@@ -1202,10 +1216,6 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
         intersection curves that end inside the face (a line of tangent contact), along which
         a point would be *on* the other solid.  On a periodic surface they are also taken one
         period to either side.
-    known : dict, optional
-        ``id(edge use) -> (surface, samples)`` (:meth:`_Operand.samples`): the loop samples of
-        the uses a piece keeps from its operand face, taken instead of sampled again when the
-        surface is the piece's.
 
     Raises
     ------
@@ -1216,11 +1226,7 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
     from coons.booleans.classify import _in_polygon, _segment_distance
 
     S = spec.surface
-    samples = None
-    if known:
-        samples = [[k[1] if (k := known.get(id(e))) is not None and k[0] is S else _edge_uv(e, S, _LOOP_SAMPLES)
-                    for e in loop] for loop in spec.loops]
-    rings = _loop_rings(spec, samples=samples)
+    rings = _loop_rings(spec)  # (the samples of the uses a piece keeps from its face are cached)
     seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
     U = np.concatenate(rings)
     lo, hi = U.min(axis=0), U.max(axis=0)

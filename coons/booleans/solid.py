@@ -129,6 +129,7 @@ Status and limitations
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import weakref
@@ -1125,6 +1126,14 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
 
     dangling = _dangling_cuts(pieces, cuts or {})
 
+    def avoid_of(f: int, spec: FaceSpec) -> np.ndarray | None:
+        if f not in dangling:
+            return None
+        try:
+            return np.concatenate([_polyline_segments(_edge_uv(c, spec.surface, _LOOP_SAMPLES)) for c in dangling[f]])
+        except CoonsError:
+            return None  # (interior() raises it with the piece named)
+
     def interior(k: int, f: int, spec: FaceSpec) -> None:
         try:
             avoid = None
@@ -1135,6 +1144,7 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
             raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
                                diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
 
+    searched = []
     for k, (f, spec) in enumerate(pieces):
         if free is not None and free[f]:
             e = spec.loops[0][0]
@@ -1142,7 +1152,14 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
             N[k] = np.nan
             quick[k] = True
         else:
-            interior(k, f, spec)
+            searched.append(k)
+    # The first grid of every searched piece in array passes; the pieces it leaves open alone.
+    found = _interior_points([(pieces[k][1], avoid_of(*pieces[k])) for k in searched], t)
+    for k, got in zip(searched, found):
+        if got is None:
+            interior(k, *pieces[k])
+        else:
+            P[k], N[k] = got
     cls, normal = Y.classifier.classify(P)
     redo = np.flatnonzero(quick & (cls == ON))
     if redo.size:  # not expected: a free face's vertex on Y's boundary
@@ -1225,24 +1242,10 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
     """
     from coons.booleans.classify import _in_polygon, _segment_distance
 
-    S = spec.surface
-    rings = _loop_rings(spec)  # (the samples of the uses a piece keeps from its face are cached)
-    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
-    U = np.concatenate(rings)
-    lo, hi = U.min(axis=0), U.max(axis=0)
-    c = 0.5 * (lo + hi)
-    D = np.asarray(S.derivatives(c[0], c[1], 1))
-    scale = np.array([np.linalg.norm(D[1, 0]), np.linalg.norm(D[0, 1])])
-    scale = np.where(scale > 0, scale, 1.0)
+    S, seg, near, lo, hi, scale = _interior_setup(spec, avoid)
     clearance = _INTERIOR_CLEARANCE * t.linear
-    near = seg
-    if avoid is not None and len(avoid):
-        shifts = [np.array([du, dv]) for du in _period_steps(S, "period_u") for dv in _period_steps(S, "period_v")]
-        near = np.concatenate([seg] + [avoid + d for d in shifts])
     for n in (16, 64, 256):
-        gu = (np.arange(n) + 0.5) / n
-        gv = (np.arange(n + 2) + 0.5) / (n + 2)
-        G = np.stack(np.meshgrid(lo[0] + gu * (hi[0] - lo[0]), lo[1] + gv * (hi[1] - lo[1]), indexing="ij"), -1).reshape(-1, 2)
+        G = _interior_grid(lo, hi, n)
         G = G[_in_polygon(G, seg)]
         if G.shape[0]:
             if G.shape[0] * near.shape[0] > _EXACT_DISTANCES:
@@ -1252,12 +1255,131 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
             best = int(np.argmax(d))
             if d[best] <= clearance:
                 continue
-            uv = G[best]
-            P = np.asarray(S.evaluate(uv[0], uv[1]), dtype=np.float64).reshape(3)
-            nrm = np.asarray(S.normal(uv[0], uv[1]), dtype=np.float64).reshape(3)
-            return P, (nrm if spec.sense else -nrm)
+            return _interior_at(spec, G[best])
     raise InvalidInputError(f"no interior point found in a {_kind(spec)} piece with parameter box {lo.tolist()}–{hi.tolist()} "
                             f"farther than {clearance:.3g} from its boundary")
+
+
+def _interior_setup(spec: FaceSpec, avoid: np.ndarray | None):
+    """What :func:`_interior_point` searches with: ``(surface, seg (s, 2, 2), near (m, 2, 2), lo, hi, scale)``:
+    the trim segments, those and the segments to avoid, the parameter box and the metric scale."""
+    S = spec.surface
+    rings = _loop_rings(spec)  # (the samples of the uses a piece keeps from its face are cached)
+    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
+    U = np.concatenate(rings)
+    lo, hi = U.min(axis=0), U.max(axis=0)
+    c = 0.5 * (lo + hi)
+    D = np.asarray(S.derivatives(c[0], c[1], 1))
+    scale = np.array([np.linalg.norm(D[1, 0]), np.linalg.norm(D[0, 1])])
+    scale = np.where(scale > 0, scale, 1.0)
+    near = seg
+    if avoid is not None and len(avoid):
+        shifts = [np.array([du, dv]) for du in _period_steps(S, "period_u") for dv in _period_steps(S, "period_v")]
+        near = np.concatenate([seg] + [avoid + d for d in shifts])
+    return S, seg, near, lo, hi, scale
+
+
+def _interior_grid(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
+    """The ``n × (n + 2)`` candidate grid ``(n (n + 2), 2)`` over the box, u-major (as ``meshgrid(..., indexing="ij")``)."""
+    gu, gv = _grid_fractions(n)
+    G = np.empty((n * (n + 2), 2))
+    G[:, 0] = np.repeat(lo[0] + gu * (hi[0] - lo[0]), n + 2)
+    G[:, 1] = np.tile(lo[1] + gv * (hi[1] - lo[1]), n)
+    return G
+
+
+def _interior_at(spec: FaceSpec, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    S = spec.surface
+    P = np.asarray(S.evaluate(uv[0], uv[1]), dtype=np.float64).reshape(3)
+    nrm = np.asarray(S.normal(uv[0], uv[1]), dtype=np.float64).reshape(3)
+    return P, (nrm if spec.sense else -nrm)
+
+
+#: Pieces with more trim segments than this take their first grid alone (the row sweep of
+#: ``_in_polygon``, a k-d tree for the distances) instead of in the batched array passes.
+_BATCH_SEGMENTS = 512
+#: Point–segment pairs held at once by the batched passes of :func:`_interior_points` (memory bound).
+_BATCH_PAIRS = 1 << 20
+
+
+def _interior_points(items: list[tuple[FaceSpec, np.ndarray | None]], t: Tolerance) -> list:
+    """The first grid (``n`` = 16) of :func:`_interior_point` for many pieces at once.
+
+    Returns, per item ``(spec, avoid)``, the point and normal :func:`_interior_point` returns, or
+    None where it must be asked alone (its first grid finds no point clear of the boundary, the
+    piece has many segments, or setting it up raises).  Pieces with the same number of trim
+    segments (all the hole walls of a plate, all its discs) are tested against their own
+    segments in one array pass, as are their distances; every element is the same
+    floating-point expression as in :func:`~coons.booleans.classify._in_polygon` (all pairs)
+    and :func:`~coons.booleans.classify._segment_distance`, so the chosen grid point is the same.
+    """
+    n = 16
+    clearance = _INTERIOR_CLEARANCE * t.linear
+    out: list = [None] * len(items)
+    setup: dict[int, tuple] = {}
+    by_count: dict[int, list[int]] = {}
+    for k, (spec, avoid) in enumerate(items):
+        try:
+            S, seg, near, lo, hi, scale = _interior_setup(spec, avoid)
+        except CoonsError:
+            continue  # (asked alone, the piece raises with its name)
+        if seg.shape[0] > _BATCH_SEGMENTS:
+            continue
+        setup[k] = (seg, near, scale, _interior_grid(lo, hi, n))
+        by_count.setdefault(seg.shape[0], []).append(k)
+    inside: dict[int, np.ndarray] = {}
+    g = n * (n + 2)
+    for s, ks in by_count.items():
+        step = max(1, _BATCH_PAIRS // (g * s))
+        for b0 in range(0, len(ks), step):
+            kb = ks[b0 : b0 + step]
+            seg = np.stack([setup[k][0] for k in kb])  # (p, s, 2, 2)
+            G = np.stack([setup[k][3] for k in kb])  # (p, g, 2)
+            a, c = seg[:, :, 0], seg[:, :, 1]
+            dy = c[..., 1] - a[..., 1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope = (c[..., 0] - a[..., 0]) / np.where(dy == 0, 1.0, dy)
+            x, y = G[..., 0:1], G[..., 1:2]
+            straddle = (a[:, None, :, 1] > y) != (c[:, None, :, 1] > y)
+            xc = a[:, None, :, 0] + (y - a[:, None, :, 1]) * slope[:, None, :]
+            odd = (np.count_nonzero(straddle & (x < xc), axis=2) % 2) == 1
+            for k, m in zip(kb, odd):
+                inside[k] = setup[k][3][m]
+    # Distances, grouped by (points inside, segments to keep clear of).
+    by_shape: dict[tuple[int, int], list[int]] = {}
+    for k, Gk in inside.items():
+        near = setup[k][1]
+        if Gk.shape[0] == 0 or Gk.shape[0] * near.shape[0] > _EXACT_DISTANCES:
+            continue  # (no point inside, or the k-d tree of _boundary_distance: asked alone)
+        by_shape.setdefault((Gk.shape[0], near.shape[0]), []).append(k)
+    for (q, m), ks in by_shape.items():
+        step = max(1, _BATCH_PAIRS // (q * m))
+        for b0 in range(0, len(ks), step):
+            kb = ks[b0 : b0 + step]
+            Q = np.stack([inside[k] * setup[k][2] for k in kb])  # (p, q, 2)
+            seg = np.stack([setup[k][1] * setup[k][2] for k in kb])  # (p, m, 2, 2)
+            a = seg[:, :, 0]
+            d = seg[:, :, 1] - a
+            dd = np.stack([np.maximum(np.einsum("ij,ij->i", dk, dk), 1e-300) for dk in d])  # as _segment_distance
+            R = [Q[:, :, None, i] - a[:, None, :, i] for i in range(2)]  # (p, q, m) per coordinate
+            lam = sum(R[i] * d[:, None, :, i] for i in range(2)) / dd[:, None, :]
+            np.clip(lam, 0.0, 1.0, out=lam)
+            d2 = sum(np.square(R[i] - lam * d[:, None, :, i]) for i in range(2))
+            dist = np.sqrt(np.min(d2, axis=2))  # (p, q)
+            for k, dk in zip(kb, dist):
+                best = int(np.argmax(dk))
+                if dk[best] > clearance:
+                    try:
+                        out[k] = _interior_at(items[k][0], inside[k][best])
+                    except CoonsError:
+                        pass  # (asked alone)
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _grid_fractions(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cell-centre fractions of the interior-point grid: ``(n,)`` along u and ``(n + 2,)`` along v (read-only)."""
+    return _frozen((np.arange(n) + 0.5) / n), _frozen((np.arange(n + 2) + 0.5) / (n + 2))
 
 
 def _period_steps(S, name: str) -> tuple[float, ...]:

@@ -674,3 +674,41 @@ def test_clear_uses_is_the_per_use_box_test(points, ptol):
                 pad = (foreign[1] + max(t.linear, e.tol or 0.0))[:, None]
                 expect = not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1))
             assert bool(got[k]) == expect
+
+
+def _pieces(a: Solid, b: Solid) -> list:
+    t = S.resolve(None)
+    A, B = S._Operand(a, "A", t), S._Operand(b, "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, cuts_b = S._intersect(A, B, I, J, t)
+    return [spec for _, spec in S._split(A, cuts_a, t) + S._split(B, cuts_b, t)]
+
+
+@pytest.mark.parametrize("make", [
+    lambda: (Box(10, 10, 10), Cylinder(3, 20)),
+    lambda: (S.difference(Box(40, 40, 6), *[Cylinder(1.5, 20).translate((8.0 * i, 8.0 * j, 0)) for i in (-1, 0, 1)
+                                            for j in (-1, 0, 1)]), Cylinder(1.0, 20).translate((4, 4, 0))),
+    lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
+    lambda: (Cylinder(2, 20), Cylinder(1.5, 20, direction=(1, 0, 0)).translate((0, 0, 1))),
+    lambda: (Torus(4, 1), Box(3, 3, 3).translate((4, 0, 0))),
+    lambda: (Cone(2, 0.5, 4), Box(2, 2, 2).translate((0, 0, 2))),
+])
+def test_batched_interior_points_are_the_single_ones(make):
+    """_interior_points gives exactly _interior_point's point and normal wherever it answers."""
+    t = S.resolve(None)
+    specs = _pieces(*make())
+    got = S._interior_points([(spec, None) for spec in specs], t)
+    assert sum(g is not None for g in got) >= len(specs) // 2
+    for spec, g in zip(specs, got):
+        if g is not None:
+            P, N = S._interior_point(spec, t)
+            np.testing.assert_array_equal(g[0], P)
+            np.testing.assert_array_equal(g[1], N)
+    # With segments to avoid (shifted by periods on periodic surfaces) as well.
+    avoid = [np.array([[[0.0, 0.0], [1e-3, 1e-3]]]) for _ in specs]
+    got = S._interior_points(list(zip(specs, avoid)), t)
+    for spec, av, g in zip(specs, avoid, got):
+        if g is not None:
+            P, N = S._interior_point(spec, t, av)
+            np.testing.assert_array_equal(g[0], P)
+            np.testing.assert_array_equal(g[1], N)

@@ -1473,18 +1473,34 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     group = np.array([orig_edges.get(id(e), 0) for f in faces for loop in f.loops for e in loop], dtype=np.int64)
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     tree = cKDTree(starts)
+    # Which unchanged faces have a foreign vertex in their box, all in array passes (after many
+    # cuts most faces of a plate are unchanged and far from the new vertices).
+    kept = [k for k, f in enumerate(faces) if id(f) in orig]
+    near_any = np.zeros(len(faces), dtype=bool)
+    if kept:
+        info = [orig[id(faces[k])] for k in kept]
+        g_of = np.array([i[0] for i in info], dtype=np.int64)
+        LO = np.array([i[1] for i in info], dtype=np.float64)
+        HI = np.array([i[2] for i in info], dtype=np.float64)
+        step = max(1, _CLEAR_CHUNK // max(1, starts.shape[0]))
+        for s0 in range(0, len(kept), step):
+            sl = slice(s0, s0 + step)
+            # (the same comparisons as the per-face test below, for a block of faces)
+            box_in = np.all((starts[None] >= LO[sl, None, :] - start_tol[None, :, None])
+                            & (starts[None] <= HI[sl, None, :] + start_tol[None, :, None]), axis=2)
+            near_any[np.asarray(kept[sl])] = np.any(box_in & (group[None, :] != g_of[sl, None]), axis=1)
     out = []
     changed_any = False
-    for f in faces:
+    for k, f in enumerate(faces):
         info = orig.get(id(f))
         face_foreign = None
         if info is not None:
+            if not near_any[k]:
+                out.append(f)  # no foreign vertex near this face
+                continue
             g, lo, hi = info
             other = group != g
             inside = other & np.all((starts >= lo - start_tol[:, None]) & (starts <= hi + start_tol[:, None]), axis=1)
-            if not np.any(inside):
-                out.append(f)  # no foreign vertex near this face
-                continue
             face_foreign = starts[inside], start_tol[inside]
         loops = []
         face_changed = False

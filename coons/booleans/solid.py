@@ -38,7 +38,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
 1. ``_Operand`` (stage ``"input"``): :func:`~coons.topology.sew.face_specs` of each solid, with
    implicit planes given a Newell plane and missing p-curves computed by
    :func:`~coons.kernel.onsurface.pcurve_on`; face boxes in space (tessellation) and in the
-   parameter plane (sampled p-curves).
+   parameter plane (sampled p-curves).  A face of an earlier Boolean's result that
+   :func:`~coons.topology.sew.sewn_unchanged` confirms is exactly the spec it was sewn from
+   (``_SEWN``) is that spec, with its per-face data (``_FACE_DATA``) already computed.
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
    a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
@@ -60,7 +62,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
 5. ``_classify`` (stage ``"classify"``): one interior point per piece (the sample of a grid over
    the piece's parameter box that lies inside the trim polygon farthest from its boundary,
-   mapped to space) against the other solid by
+   mapped to space; the first grid of all pieces in array passes, ``_interior_points``)
+   against the other solid by
    :class:`~coons.booleans.classify.Classifier` (winding number far from the boundary, exact
    projection near it); a point *on* the other boundary compares the outward normals.  Pieces
    of faces in no broad-phase pair are classified by their first vertex instead (they are far
@@ -102,14 +105,23 @@ Status and limitations
   and offset spheres and wrong on a few (a lens of spheres along x, torus ∪ cylinder).
 * Classification is one point per piece, all pieces of an operand in one vectorised call;
   classes are not propagated across uncut edges.
-* Cost: a Boolean still costs about the whole of both operands in ``_Operand`` (face specs,
-  one tessellation), the T-junction and merge passes and ``sew_faces`` (with its check), so
-  sequential cuts into a large part cost its size each time; the plate of the benchmark is
-  far slower than OCCT (``benchmarks/results/booleans_brep.md``).  Reused: an operand's mesh
-  when it was tessellated before (meshes are cached per B-rep; a result with voids shares the
-  mesh its void nesting made).  Local: the end tolerance of a cut and the T-junction pass only
-  look at boundary edges whose box (:func:`~coons.kernel.curve_intersect.curve_box`) is near the
-  points in question.
+* Cost: a Boolean still costs the whole of both operands in the tessellation of ``_Operand``
+  (the classifier's winding numbers need the whole mesh) and in ``sew_faces`` (matching and
+  the full check), and array passes over all edge uses in the T-junction, merge and fuse
+  passes, so sequential cuts into a large part still grow with its size; the plate of the
+  benchmark is far slower than OCCT (``benchmarks/results/booleans_brep.md``).
+  Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
+  depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
+  compares warm and cold chains): a result remembers the completed face specs it was sewn
+  from (``_SEWN``), and the next Boolean takes every face whose B-rep row is exactly its spec
+  (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
+  that spec's parameter box, rings and segments (``_FACE_DATA``); loop samples and space boxes
+  are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a split face
+  keep; a pair of face specs found unmergeable is not tried again (``_MERGE_FAILED``).  Reused
+  as well: an operand's mesh when it was tessellated before (meshes are cached per B-rep; a
+  result with voids shares the mesh its void nesting made).  Local: the end tolerance of a cut
+  and the T-junction pass only look at boundary edges whose box
+  (:func:`~coons.kernel.curve_intersect.curve_box`) is near the points in question.
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
   wall).  Lumps touching at a point inside their faces (two spheres) stay separate shells.  An

@@ -520,7 +520,21 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     return Ue
 
 
-#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface).
+def _use_pad(e: EdgeSpec, S) -> float:
+    """How far a use's p-curve may stray from its :func:`_use_samples` polyline: its longest
+    chord (0 for a straight p-curve, sampled by its two ends), cached with the samples."""
+    got = _USE_SAMPLES.get(e)
+    if got is None or got[0] is not S:
+        _use_samples(e, S)
+        got = _USE_SAMPLES[e]
+    if len(got) == 2:
+        Ue = got[1]
+        pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
+        got = _USE_SAMPLES[e] = (S, Ue, pad)
+    return got[2]
+
+
+#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface[, their pad (:func:`_use_pad`)]).
 _USE_SAMPLES: "weakref.WeakKeyDictionary[EdgeSpec, tuple]" = weakref.WeakKeyDictionary()
 
 
@@ -573,10 +587,8 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
     # A sampled curved edge stays within about one chord of its samples; a straight
     # p-curve (Line2D, sampled by its two ends) is its segment.
-    pads = [np.full(Ue.shape[0], 0.0 if isinstance(e.pcurve, Line2D)
-                    else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1))))
-            for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)]
-    pad = np.concatenate(pads)[:, None]
+    uses = [(e, Ue) for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)]
+    pad = np.repeat([_use_pad(e, spec.surface) for e, _ in uses], [Ue.shape[0] for _, Ue in uses])[:, None]
     d.seg = _frozen(seg)
     d.seg_lo = _frozen(seg.min(axis=1) - pad)
     d.seg_hi = _frozen(seg.max(axis=1) + pad)

@@ -416,6 +416,7 @@ class _Operand:
         np.minimum.at(lo, mesh.face_ids, X.min(axis=1))
         np.maximum.at(hi, mesh.face_ids, X.max(axis=1))
         self.lo, self.hi = lo - pad, hi + pad
+        _prefill_samples([spec for spec in self.specs if spec not in _FACE_DATA])
         self._data = [_face_data(spec, t) for spec in self.specs]
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
@@ -518,6 +519,42 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     Ue = _frozen(_edge_uv(e, S, _LOOP_SAMPLES))
     _USE_SAMPLES[e] = (S, Ue)
     return Ue
+
+
+def _prefill_samples(specs: list[FaceSpec]) -> None:
+    """Fill :func:`_use_samples` for the uses of ``specs`` not sampled yet whose p-curve is a
+    :class:`Line2D` or :class:`Trig2D`, all of a kind in one array pass (the same expressions as
+    ``_edge_uv``, ``np.linspace`` and the p-curves' ``evaluate``, element by element): the pieces
+    of a Boolean bring many new cut edges."""
+    lines: list[tuple[EdgeSpec, object]] = []
+    trigs: list[tuple[EdgeSpec, object]] = []
+    for spec in specs:
+        S = spec.surface
+        for loop in spec.loops:
+            for e in loop:
+                got = _USE_SAMPLES.get(e)
+                if got is not None and got[0] is S:
+                    continue
+                kind = type(e.pcurve)
+                if kind is Line2D:
+                    lines.append((e, S))
+                elif kind is Trig2D:
+                    trigs.append((e, S))
+    if lines:
+        T = np.array([[e.t0, e.t1] for e, _ in lines])  # (np.linspace(t0, t1, 2) is exactly that)
+        O = np.array([e.pcurve.origin for e, _ in lines])
+        D = np.array([e.pcurve.direction for e, _ in lines])
+        U = O[:, None, :] + T[..., None] * D[:, None, :]
+        for (e, S), Ue in zip(lines, U):
+            _USE_SAMPLES[e] = (S, _frozen(Ue))
+    if trigs:
+        T = np.linspace([e.t0 for e, _ in trigs], [e.t1 for e, _ in trigs], _LOOP_SAMPLES, axis=-1)
+        C = np.array([e.pcurve.center for e, _ in trigs])[:, None, :]
+        A = np.array([e.pcurve.a for e, _ in trigs])[:, None, :]
+        B = np.array([e.pcurve.b for e, _ in trigs])[:, None, :]
+        U = C + np.cos(T)[..., None] * A + np.sin(T)[..., None] * B
+        for (e, S), Ue in zip(trigs, U):
+            _USE_SAMPLES[e] = (S, _frozen(Ue))
 
 
 def _use_pad(e: EdgeSpec, S) -> float:
@@ -1340,6 +1377,7 @@ def _interior_points(items: list[tuple[FaceSpec, np.ndarray | None]], t: Toleran
     n = 16
     clearance = _INTERIOR_CLEARANCE * t.linear
     out: list = [None] * len(items)
+    _prefill_samples([spec for spec, _ in items])
     setup: dict[int, tuple] = {}
     by_count: dict[int, list[int]] = {}
     for k, (spec, avoid) in enumerate(items):

@@ -712,3 +712,19 @@ def test_batched_interior_points_are_the_single_ones(make):
             P, N = S._interior_point(spec, t, av)
             np.testing.assert_array_equal(g[0], P)
             np.testing.assert_array_equal(g[1], N)
+
+
+def test_prefilled_samples_are_the_single_ones():
+    """_prefill_samples samples Line2D and Trig2D p-curves of many uses at once exactly as _edge_uv does."""
+    specs = _pieces(S.difference(Box(20, 20, 5), Cylinder(2, 10).translate((3, 0, 0))), Cylinder(1.5, 10))
+    uses = [(e, spec.surface) for spec in specs for loop in spec.loops for e in loop]
+    for e, _ in uses:
+        S._USE_SAMPLES.pop(e, None)
+    S._prefill_samples(specs)
+    kinds = {type(e.pcurve).__name__ for e, _ in uses}
+    assert {"Line2D", "Trig2D"} <= kinds
+    for e, surface in uses:
+        if type(e.pcurve).__name__ in ("Line2D", "Trig2D"):
+            got = S._USE_SAMPLES[e]
+            assert got[0] is surface
+            np.testing.assert_array_equal(got[1], S._edge_uv(e, surface, S._LOOP_SAMPLES))

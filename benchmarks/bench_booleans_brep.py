@@ -10,7 +10,8 @@ Cases, each run by both peers in the same process on operands made beforehand:
 * ``plate − 10×10 holes``: a 110 × 110 × 10 plate minus 100 cylinders, once as one call with
   all tools (OCCT: ``cut`` with a list of tools; coons: ``difference(plate, *tools)``, which
   gathers the disjoint tools into one operand and runs one pass) and once as 100 sequential
-  cuts; ``plate − 20×20 holes``: the same with 400 cylinders on a 210 × 210 plate, one call;
+  cuts; ``plate − 20×20 holes``: the same with 400 cylinders on a 210 × 210 plate, one call, and
+  (only when named in ``COONS_BENCH_CASES``, e.g. ``20×20``: minutes) as 400 sequential cuts;
 * ``chain of 20``: a box to which 20 cylinders and spheres are alternately added and removed.
 
 ``COONS_BENCH_CASES`` (comma-separated, case-insensitive substrings of the case names, e.g.
@@ -121,6 +122,16 @@ def _cases():
     out["plate − 20×20 holes, one call"] = (lambda: coons.difference(cplate20, *ctools20),
                                             lambda: oplate20.cut(*otools20), 1)
 
+    def seq20(plate, tools):
+        def run():
+            s = plate
+            for t in tools:
+                s = s - t
+            return s
+        return run
+
+    out["plate − 20×20 holes, sequential"] = (seq20(cplate20, ctools20), seq20(oplate20, otools20), 1)
+
     steps = _chain_steps()
 
     def chain(L, keep=None):
@@ -137,6 +148,9 @@ def _cases():
     return out
 
 
+#: Cases run only when ``COONS_BENCH_CASES`` names them (OCCT alone takes ~26 s; its cost grows
+#: quadratically with the holes already cut).
+LONG_CASES = ("plate − 20×20 holes, sequential",)
 #: The chain's tools: cylinders of radius 1.2 and length 14 along an axis, spheres of radius 1.5.
 CHAIN_R_CYL, CHAIN_H_CYL, CHAIN_R_SPH = 1.2, 14.0, 1.5
 #: Monte Carlo points of the chain's referee (sampled inside the tool of the first disagreeing step).
@@ -250,6 +264,8 @@ def run() -> Report:
     for name, (cfn, ofn, reps) in _cases().items():
         if only and not any(w in name.lower() for w in only):
             continue
+        if name in LONG_CASES and not only:
+            continue  # minutes per peer: named explicitly (COONS_BENCH_CASES) or left out
         try:
             tc, rc = _best(cfn, reps, cold=True)
         except Exception as exc:  # a failing case is a row of the report, not a crash of the run

@@ -47,7 +47,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    3-D curve rebuilt by ``pcurve_on`` (``_refitted``: a fit gone wrong near a pole must not
    widen the cut's tolerance to the size of the face); every branch is clipped to both
    trimmed faces (``clip_to_face``; answered at once by ``_clip`` when the sampled p-curve's
-   box meets no loop segment's box: the branch is then wholly inside or outside) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
+   box meets no loop segment's box: the branch is then wholly inside or outside; and in closed form by
+   ``_clip_straight`` when a straight p-curve crosses a plane or cylinder face bounded by straight
+   p-curves properly, far from its vertices) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
    Coincident surfaces imprint each face's boundary edges onto the other (``pcurve_on`` of the
    edge curve on the other surface, ``clip_to_face``).  Isolated tangent points split nothing.
    Cuts repeated by several pairs (a curve along an edge of the other operand meets both faces of
@@ -749,7 +751,9 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
     The p-curve is sampled; when the box of the samples (enlarged by the largest sample step)
     meets no box of a loop segment (enlarged by its length, see ``_Operand``), the branch
     neither crosses nor touches the boundary, and one sample inside or outside the trim polygon
-    decides the whole range.  Otherwise (near the boundary) the exact ``clip_to_face`` runs.
+    decides the whole range.  Otherwise (near the boundary) a straight p-curve on a face bounded
+    by straight p-curves is clipped in closed form (:func:`_clip_straight`) when it crosses the
+    boundary properly, and else the exact ``clip_to_face`` runs.
     """
     from coons.booleans.classify import _in_polygon
     from coons.topology.split import clip_to_face
@@ -773,7 +777,119 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
             S = X.specs[f].surface
             if not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
                 return []  # (on a periodic surface clip_to_face may still find it a period away)
+    straight = _clip_straight(X, f, pcurve, t0, t1, t)
+    if straight is not None:
+        return straight
     return clip_to_face(X.specs[f], pcurve, t0, t1, t, curve=curve)
+
+
+#: A straight branch is clipped in closed form (:func:`_clip_straight`) only when every feature of
+#: the face's polygon is farther than this many tolerances from it, or crosses it properly:
+#: ``clip_to_face`` merges and refines what lies within one tolerance, so far outside that band
+#: both compute the same crossings (up to round-off) and the same inside/outside pieces.
+_STRAIGHT_CLEARANCE = 100.0
+#: Smallest sine of the angle at which a straight branch may cross a polygon side in the closed-form
+#: clip: at a grazing crossing a tolerance-sized error moves the crossing far along both lines, and
+#: ``clip_to_face`` re-solves it in space; such branches take that path.
+_STRAIGHT_MIN_SINE = 1e-2
+
+
+def _clip_straight(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance
+                   ) -> list[tuple[float, float, str]] | None:
+    """``clip_to_face`` of a straight p-curve on a face bounded by straight p-curves, in closed form, or None.
+
+    Preconditions (else None, and ``clip_to_face`` runs): the p-curve is a ``Line2D``; the face
+    lies on a plane or a cylinder (where ``(u · s_u, v · s_v)`` with the constant speeds ``s_u,
+    s_v`` is a local isometry, so distances in it are distances along the surface); every edge
+    use has a ``Line2D`` p-curve and a tolerance within ``tol.linear``.  The face's loops are
+    then exactly the polygon ``X.segments[f]`` (each edge sampled at its two ends, pole gaps
+    closed by straight segments as ``clip_to_face``'s virtual pieces).  Each polygon side
+    either crosses the branch properly (at a sine of at least :data:`_STRAIGHT_MIN_SINE`, away
+    from the side's ends and the branch's ends by more than :data:`_STRAIGHT_CLEARANCE`
+    tolerances) or stays farther than that from it; the crossings are then solved exactly (two
+    lines), and the pieces between them are classified by one midpoint each against the
+    polygon.  Any touching, grazing, overlap, crossing at a vertex or branch end on the
+    boundary returns None.  The crossings are the plane solution that ``clip_to_face``
+    refines in space; both p-curves are exact within ``tol.linear`` here, so the refinement
+    moves them by at most that over the sine.  An empty answer on a periodic surface also
+    returns None (as in :func:`_clip`).
+    """
+    from coons.booleans.classify import _in_polygon
+    from coons.kernel.analytic import CylindricalSurface
+
+    if not isinstance(pcurve, Line2D):
+        return None
+    spec = X.specs[f]
+    S = spec.surface
+    if isinstance(S, PlanarSurface):
+        speed = (1.0, 1.0)  # the plane's frame is orthonormal
+    elif isinstance(S, CylindricalSurface):
+        speed = (float(S.radius), 1.0)
+    else:
+        return None
+    for loop in spec.loops:
+        for e in loop:
+            if not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear:
+                return None
+    lo_t, hi_t = (t0, t1) if t0 < t1 else (t1, t0)
+    sp = np.array(speed)
+    seg = X.segments[f]
+    # Work in the isometric coordinates: (k, 2) side starts A and vectors E, branch p0 + s d.
+    A = seg[:, 0] * sp
+    E = seg[:, 1] * sp - A
+    o, dd = pcurve.origin, pcurve.direction
+    p0, d = o * sp, dd * sp
+    B = np.stack([p0 + lo_t * d, p0 + hi_t * d])  # the branch's ends
+    scale = 1.0 + max(float(np.max(np.abs(A))), float(np.max(np.abs(B))))
+    # clip_to_face's own band is one tolerance (tol3: the edges' and tol.linear); 1e-12 of the
+    # coordinates' size covers the round-off of this arithmetic.
+    margin = _STRAIGHT_CLEARANCE * t.linear + 1e-12 * scale
+    L = np.hypot(E[:, 0], E[:, 1])
+    side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
+    A, E, L = A[side], E[side], L[side]
+    if L.size == 0:
+        return None
+    dn = math.hypot(d[0], d[1])
+    W = A - p0
+    cross = d[0] * E[:, 1] - d[1] * E[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (W[:, 0] * E[:, 1] - W[:, 1] * E[:, 0]) / cross  # branch parameter of the crossing
+        w = (W[:, 0] * d[1] - W[:, 1] * d[0]) / cross  # fraction along the side
+        meets = (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (s >= lo_t) & (s <= hi_t)
+    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
+        & ((1.0 - w) * L > margin) & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
+    # Every other side must not meet the branch at all (a grazing crossing, or one near an end).
+    # Then the distance between it and the branch is the least of the four end-to-segment
+    # distances (where round-off puts a meeting just outside a segment, it lies near an end and
+    # that distance is small): every polygon vertex must stay clear of the branch, and the
+    # branch's ends clear of every side (of crossing sides too: declining more is safe).
+    if np.any(meets & ~crossing):
+        return None
+    V = np.concatenate([A, A + E])
+    tv = np.clip(((V - p0) @ d) / (dn * dn), lo_t, hi_t)
+    near = np.hypot(*(V - p0 - tv[:, None] * d).T)
+    fb = np.clip(np.einsum("bkj,kj->bk", B[:, None, :] - A[None], E) / (L * L), 0.0, 1.0)  # (2, k)
+    Fb = B[:, None, :] - A[None] - fb[..., None] * E[None]
+    if min(float(np.min(near)), float(np.min(np.hypot(Fb[..., 0], Fb[..., 1])))) <= margin:
+        return None
+    br = np.concatenate([[lo_t], np.sort(s[crossing]), [hi_t]])
+    if np.any(np.diff(br) * dn <= margin):
+        return None  # two crossings at one place: a vertex, let the general path decide
+    mid = 0.5 * (br[:-1] + br[1:])
+    Q = o[None, :] + mid[:, None] * dd[None, :]
+    inside = _in_polygon(Q, seg)
+    out: list[list] = []
+    for k in range(mid.size):
+        if out and out[-1][2] == inside[k]:
+            out[-1][1] = float(br[k + 1])
+        else:
+            out.append([float(br[k]), float(br[k + 1]), bool(inside[k])])
+    res = [(a, b, "inside") for a, b, ins in out if ins]
+    if not res and (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
+        return None  # (as in _clip: a period away is the general path's business)
+    if t0 > t1:
+        res = [(b, a, w_) for a, b, w_ in reversed(res)]
+    return res
 
 
 def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: Tolerance) -> None:
@@ -857,6 +973,7 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> 
     T = T / np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-300)
     worst = base
     from coons.booleans.classify import _curve_closest
+    from coons.kernel.intersect import _cross
 
     for edges, lo, hi, tol in faces:
         reach = (10.0 * np.maximum(base, tol))[:, None, None]
@@ -868,7 +985,7 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> 
             De = np.asarray(e.curve.derivatives(te, 1), dtype=np.float64)
             d = np.linalg.norm(De[:, 0] - P, axis=1)
             Te = De[:, 1] / np.maximum(np.linalg.norm(De[:, 1], axis=1, keepdims=True), 1e-300)
-            sine = np.maximum(np.linalg.norm(np.cross(T, Te), axis=1), _MIN_SINE)
+            sine = np.maximum(np.linalg.norm(_cross(T, Te), axis=1), _MIN_SINE)
             near = d <= 10.0 * max(base, e.tol or 0.0)  # the end lies on this boundary edge
             if np.any(near):
                 worst = max(worst, float(np.max(max(base, e.tol or 0.0) / sine[near])))

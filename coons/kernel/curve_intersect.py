@@ -40,7 +40,12 @@ cached weakly (:class:`_PowerForm`); its piece boxes are the Bézier hulls of eq
 its spans.  Lines and conics are evaluated from their closed forms (``o + t d``,
 ``C + A cos t + B sin t``) without the per-call checks of the curve classes.  Feet of points
 on lines and circles are closed forms; the feet of the range ends are computed once per call
-and shared by the seeds, the end contacts and the overlap cuts.
+and shared by the seeds, the end contacts and the overlap cuts.  Two crossing 2-D lines (the
+common pair when a face with straight p-curves is split) take the same steps on Python floats
+(:func:`_lines_2d`), and :func:`refine_intersections` of a few seeds on lines and conics
+iterates each seed on Python floats (:func:`_newton_one`): there numpy's per-call cost on
+one- and two-element arrays was most of the time.  Both agree with the array paths to
+round-off (the module switch ``_FAST`` turns them off for the tests that compare).
 
 The module does not intersect a curve with itself, does not compute intersection
 multiplicities, and does not find two distinct intersections closer together than the pieces
@@ -333,13 +338,55 @@ def _pieces(curve: Any, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, n
     return t[:-1], t[1:], np.minimum(P[:-1], P[1:]) - margin, np.maximum(P[:-1], P[1:]) + margin
 
 
+#: Ranges per curve whose pieces and seed samples are kept (a cut meets every piece of a face over one range).
+_RANGES_KEPT = 8
+
+
+def _memo(curve: Any, key: tuple, make):
+    """``make()`` remembered per curve object (weakly) and ``key``, the last :data:`_RANGES_KEPT` keys.
+
+    The callers intersect one curve over one range with many others (face splitting: a cut
+    against every piece of the face); its pieces and seed samples depend on the curve and the
+    range only.  Curves are frozen values, so the stored arrays stay valid (they are read-only)."""
+    try:
+        per = _MEMO.get(curve)
+    except TypeError:  # not weak-referenceable or not hashable: no memo
+        return make()
+    if per is None:
+        per = {}
+        try:
+            _MEMO[curve] = per
+        except TypeError:
+            return make()
+    out = per.get(key)
+    if out is None:
+        out = make()
+        for a in (out if isinstance(out, tuple) else (out,)):
+            a.setflags(write=False)
+        if len(per) >= _RANGES_KEPT:
+            per.pop(next(iter(per)))
+        per[key] = out
+    return out
+
+
+_MEMO: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+
+
+def _seed_samples(curve: Any, r: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """``(ts, points)``: :data:`_SEED_SAMPLES` parameters over ``r`` and the curve's points there (remembered)."""
+    def make():
+        ts = np.linspace(r[0], r[1], _SEED_SAMPLES)
+        return ts, _derivs(curve, ts, 0)[:, 0]
+    return _memo(curve, ("seeds", r[0], r[1]), make)
+
+
 def _nurbs_pieces(curve: NurbsCurve, lo: float, hi: float):
     """Knot spans of ``curve`` over ``[lo, hi]`` cut into about :data:`_TARGET_PIECES` pieces, each boxed by
     its Bézier control points (of the cached :class:`_PowerForm`; a refined copy's B-spline control
     points for an unclamped curve)."""
     form = _power_form(curve)
     if form is not None:
-        return form.pieces(lo, hi)
+        return _memo(curve, ("pieces", lo, hi), lambda: form.pieces(lo, hi))
     U, p = curve.knots, curve.degree
     vals = np.unique(U[p : U.size - p])
     spans = np.stack([vals[:-1], vals[1:]], axis=1)
@@ -437,7 +484,98 @@ def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Toleranc
         raise InvalidInputError(f"t1 and t2 must have the same size, got {s.size} and {t.size}")
     if s.size == 0:
         return s, t, np.zeros(0)
-    return _newton_pairs(c1, r1, c2, r2, np.clip(s, *r1), np.clip(t, *r2), t_)
+    s, t = np.clip(s, *r1), np.clip(t, *r2)
+    if _FAST and s.size <= _SCALAR_SEEDS:
+        f1, f2 = _scalar_form(c1), _scalar_form(c2)
+        if f1 is not None and f2 is not None:
+            out = np.array([_newton_one(f1, r1, f2, r2, a, b, t_) for a, b in zip(s.tolist(), t.tolist())])
+            return out[:, 0].copy(), out[:, 1].copy(), out[:, 2].copy()
+    return _newton_pairs(c1, r1, c2, r2, s, t, t_)
+
+
+#: Up to this many seeds, :func:`refine_intersections` of lines and conics iterates each on Python floats.
+_SCALAR_SEEDS = 4
+
+
+def _scalar_form(curve: Any) -> tuple | None:
+    """``("line", o, d)`` or ``("trig", C, A, B)`` as lists of floats for :func:`_point1`, None for other curves."""
+    lin = _linear(curve)
+    if lin is not None:
+        return ("line", lin[0].tolist(), lin[1].tolist())
+    if isinstance(curve, (Circle, Ellipse, Trig2D)):
+        C, A, B = _trig_form(curve)
+        return ("trig", C.tolist(), A.tolist(), B.tolist())
+    return None
+
+
+def _point1(form: tuple, t: float, order: int) -> list[list[float]]:
+    """Point and derivatives up to ``order`` at one parameter, as :func:`_derivs` (lists of floats)."""
+    if form[0] == "line":
+        o, d = form[1], form[2]
+        out = [[oi + t * di for oi, di in zip(o, d)]]
+        if order:
+            out.append(list(d))
+        if order > 1:
+            out.append([0.0] * len(d))
+        return out
+    C, A, B = form[1], form[2], form[3]
+    c, s = math.cos(t), math.sin(t)
+    cycle = ((c, s), (-s, c), (-c, -s), (s, -c))  # d^k/dt^k (cos t, sin t), period 4
+    out = [[cycle[k % 4][0] * a + cycle[k % 4][1] * b for a, b in zip(A, B)] for k in range(order + 1)]
+    out[0] = [x + ci for x, ci in zip(out[0], C)]
+    return out
+
+
+def _dot(a: list[float], b: list[float]) -> float:
+    out = 0.0
+    for x, y in zip(a, b):
+        out += x * y
+    return out
+
+
+def _gap1(f1: tuple, s: float, f2: tuple, t: float) -> list[float]:
+    return [a - b for a, b in zip(_point1(f1, s, 0)[0], _point1(f2, t, 0)[0])]
+
+
+def _step1(s, t, m11, m12, m22, g1, g2, r1, r2) -> tuple[float, float]:
+    """:func:`_step2` for one seed on Python floats."""
+    dm = m11 * m22 - m12 * m12
+    if abs(dm) > 0:
+        st, tt = (m12 * g2 - m22 * g1) / dm, (m12 * g1 - m11 * g2) / dm
+        if math.isfinite(st) and math.isfinite(tt):
+            s, t = s + st, t + tt
+    return min(max(s, r1[0]), r1[1]), min(max(t, r2[0]), r2[1])
+
+
+def _newton_one(f1: tuple, r1, f2: tuple, r2, s: float, t: float, t_: Tolerance) -> tuple[float, float, float]:
+    """:func:`_newton_pairs` for one seed of two lines or conics on Python floats (same steps and stops):
+    numpy's per-call cost on one-row arrays is most of the array version's time for a few seeds."""
+    best, stalled = math.inf, 0
+    tiny = np.finfo(float).tiny
+    for _ in range(_NEWTON_ITERATIONS):
+        A, B = _point1(f1, s, 2), _point1(f2, t, 2)
+        r = [a - b for a, b in zip(A[0], B[0])]
+        dist = math.sqrt(_dot(r, r))
+        stalled = 0 if dist < best else stalled + 1
+        best = min(best, dist)
+        j11, j12, j22 = _dot(A[1], A[1]), -_dot(A[1], B[1]), _dot(B[1], B[1])
+        g1, g2 = _dot(A[1], r), -_dot(B[1], r)
+        h11, h22 = j11 + _dot(r, A[2]), j22 - _dot(r, B[2])
+        det = h11 * h22 - j12 * j12
+        pd = det > t_.solver * (abs(h11 * h22) + j12 * j12) and h11 > 0
+        lam = t_.solver * (j11 + j22) + tiny
+        s_new, t_new = _step1(s, t, h11 if pd else j11 + lam, j12, h22 if pd else j22 + lam, g1, g2, r1, r2)
+        if pd and j11 * j22 - j12 * j12 > _TRANSVERSAL * j11 * j22:
+            sg, tg = _step1(s, t, j11, j12, j22, g1, g2, r1, r2)
+            rh, rg = _gap1(f1, s_new, f2, t_new), _gap1(f1, sg, f2, tg)
+            if _dot(rg, rg) < _dot(rh, rh):
+                s_new, t_new = sg, tg
+        moved = abs(s_new - s) + abs(t_new - t)
+        s, t = s_new, t_new
+        if moved <= t_.solver * (1.0 + abs(s_new) + abs(t_new)) or stalled >= _STALL:
+            break
+    g = _gap1(f1, s, f2, t)
+    return s, t, math.sqrt(_dot(g, g))
 
 
 # ====================================================================== Newton
@@ -500,8 +638,10 @@ def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
         if np.any(two):
             k = np.flatnonzero(two)
             sg, tg = _step2(sa[k], ta[k], j11[k], j12[k], j22[k], g1[k], g2[k], r1, r2)
-            rh = _derivs(c1, s_new[k], 0)[:, 0] - _derivs(c2, t_new[k], 0)[:, 0]
-            rg = _derivs(c1, sg, 0)[:, 0] - _derivs(c2, tg, 0)[:, 0]
+            # Both trial points of each curve in one evaluation (pointwise: the same values as two).
+            P1 = _derivs(c1, np.concatenate([s_new[k], sg]), 0)[:, 0]
+            P2 = _derivs(c2, np.concatenate([t_new[k], tg]), 0)[:, 0]
+            rh, rg = P1[: k.size] - P2[: k.size], P1[k.size :] - P2[k.size :]
             use = np.einsum("kd,kd->k", rg, rg) < np.einsum("kd,kd->k", rh, rh)
             s_new[k[use]], t_new[k[use]] = sg[use], tg[use]
         moved = np.abs(s_new - sa) + np.abs(t_new - ta)
@@ -566,8 +706,7 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.nda
         pick = np.argmin(dist, axis=1)
         rows = np.arange(X.shape[0])
         return cand[rows, pick], dist[rows, pick]
-    ts = np.linspace(r[0], r[1], _SEED_SAMPLES)
-    S = _derivs(curve, ts, 0)[:, 0]
+    ts, S = _seed_samples(curve, r)
     d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
     t = ts[np.argmin(d2, axis=1)]
     for _ in range(_NEWTON_ITERATIONS):
@@ -619,6 +758,10 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
     if d1 != d2:
         raise InvalidInputError(f"intersect_curves needs curves of one dimension, got {d1}-D and {d2}-D")
     r1, r2 = _range(range1, c1, "range1", t_), _range(range2, c2, "range2", t_)
+    if _FAST and isinstance(c1, Line2D) and isinstance(c2, Line2D):
+        fast = _lines_2d(c1, r1, c2, r2, t_)
+        if fast is not None:
+            return fast
     eps = t_.linear
     exact = _exact(c1, r1, c2, r2, t_)
     feet = _end_feet(c1, r1, c2, r2, t_)
@@ -659,6 +802,93 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
 
 
 # ====================================================================== closed forms
+#: Scalar fast paths on (tests switch them off to compare with the general path).
+_FAST = True
+
+
+def _lines_2d(c1: Line2D, r1, c2: Line2D, r2, t_: Tolerance) -> CurveIntersections | None:
+    """:func:`intersect_curves` of two crossing 2-D lines in scalar arithmetic, None for parallel lines.
+
+    The same steps as the general path for a pair of lines — the closed-form crossing of
+    :func:`_exact`, the feet of the range ends (:func:`_end_feet`) and their merging with the
+    crossing (:func:`_with_end_contacts`) — on Python floats: face splitting intersects many
+    short segments, and numpy's per-call cost on two-element arrays is most of the general
+    path's time.  The answers agree with it to round-off (sums of two products may be fused
+    differently); tests compare the two.
+    """
+    eps = t_.linear
+    (ox1, oy1), (dx1, dy1) = c1.origin.tolist(), c1.direction.tolist()
+    (ox2, oy2), (dx2, dy2) = c2.origin.tolist(), c2.direction.tolist()
+    q1, q2 = dx1 * dx1 + dy1 * dy1, dx2 * dx2 + dy2 * dy2
+    n1, n2 = math.sqrt(q1), math.sqrt(q2)
+    cr = dx1 * dy2 - dy1 * dx2
+    sin2 = cr * cr
+    if sin2 <= (t_.angular * n1 * n2) ** 2:
+        return None  # parallel to the angular tolerance: the general path reports overlaps
+    a0, a1 = r1
+    b0, b1 = r2
+    # The crossing (_exact): closest points of the lines, Cramer with det = |d1 × d2|².
+    wx, wy = ox2 - ox1, oy2 - oy1
+    a12 = dx1 * dx2 + dy1 * dy2
+    w1, w2 = wx * dx1 + wy * dy1, wx * dx2 + wy * dy2
+    s = (w1 * n2 * n2 - w2 * a12) / sin2
+    t = (w1 * a12 - w2 * n1 * n1) / sin2
+    ok = a0 - eps / n1 <= s <= a1 + eps / n1 and b0 - eps / n2 <= t <= b1 + eps / n2
+    s, t = min(max(s, a0), a1), min(max(t, b0), b1)
+    cands = []  # (s, t, kind): kind 1 an end of c1, 2 an end of c2, 0 the crossing
+    ex, ey = ox1 + s * dx1 - ox2 - t * dx2, oy1 + s * dy1 - oy2 - t * dy2
+    if ok and math.sqrt(ex * ex + ey * ey) <= eps:
+        crossing = [(s, t)]
+    else:
+        crossing = []
+
+    def foot(x, y, ox, oy, dx, dy, q, lo, hi):
+        u = min(max(((x - ox) * dx + (y - oy) * dy) / q, lo), hi)
+        fx, fy = ox + u * dx - x, oy + u * dy - y
+        return u, math.sqrt(fx * fx + fy * fy)
+
+    # Range ends within eps of the other line (_end_feet, _with_end_contacts), c1's ends first.
+    for e in (a0, a1):
+        u, d = foot(ox1 + e * dx1, oy1 + e * dy1, ox2, oy2, dx2, dy2, q2, b0, b1)
+        if d <= eps:
+            cands.append((e, u, 1))
+    for e in (b0, b1):
+        u, d = foot(ox2 + e * dx2, oy2 + e * dy2, ox1, oy1, dx1, dy1, q1, a0, a1)
+        if d <= eps:
+            cands.append((u, e, 2))
+    if cands:
+        cands += [(s_, t_2, 0) for s_, t_2 in crossing]
+        n = len(cands)
+        label = list(range(n))
+        for i in range(n):
+            for j in range(i + 1, n):
+                si, ti, _ = cands[i]
+                sj, tj, _ = cands[j]
+                gx, gy = (ox1 + si * dx1) - (ox1 + sj * dx1), (oy1 + si * dy1) - (oy1 + sj * dy1)
+                same = math.sqrt(gx * gx + gy * gy) <= eps
+                if not same:  # joined by a stretch within eps of both lines
+                    sm, tm = 0.5 * (si + sj), 0.5 * (ti + tj)
+                    same = (foot(ox1 + sm * dx1, oy1 + sm * dy1, ox2, oy2, dx2, dy2, q2, b0, b1)[1] <= eps
+                            and foot(ox2 + tm * dx2, oy2 + tm * dy2, ox1, oy1, dx1, dy1, q1, a0, a1)[1] <= eps)
+                if same:
+                    lo_, hi_ = min(label[i], label[j]), max(label[i], label[j])
+                    label = [lo_ if g == hi_ else g for g in label]
+        pairs = []
+        for g in sorted(set(label)):
+            m = [k for k in range(n) if label[k] == g]
+            k1 = [k for k in m if cands[k][2] == 1]
+            k2 = [k for k in m if cands[k][2] == 2]
+            pairs.append((cands[k1[0] if k1 else m[0]][0], cands[k2[0] if k2 else m[0]][1]))
+    else:
+        pairs = crossing
+    pairs.sort(key=lambda st: st[0])  # stable, as _result's argsort
+    S = np.array([st[0] for st in pairs], dtype=np.float64)
+    T = np.array([st[1] for st in pairs], dtype=np.float64)
+    P = np.array([[0.5 * ((ox1 + a * dx1) + (ox2 + b * dx2)), 0.5 * ((oy1 + a * dy1) + (oy2 + b * dy2))]
+                  for a, b in pairs], dtype=np.float64).reshape(-1, 2)
+    return CurveIntersections(S, T, P, ())
+
+
 def _linear(c: Any) -> tuple[np.ndarray, np.ndarray] | None:
     """``(origin, direction)`` of a straight curve ``O + t D``, else None."""
     if isinstance(c, Line2D):
@@ -792,10 +1022,14 @@ def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, fee
     kind = np.concatenate([kind, np.zeros(x.t1.size, dtype=np.int64)])
     n = s.size
     I, J = np.triu_indices(n, 1)
-    near = np.linalg.norm(_derivs(c1, s[I], 0)[:, 0] - _derivs(c1, s[J], 0)[:, 0], axis=1) <= eps
-    _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I] + s[J]), 0)[:, 0], t_)
-    _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I] + t[J]), 0)[:, 0], t_)
-    same = near | ((m1 <= eps) & (m2 <= eps))
+    P = _derivs(c1, s, 0)[:, 0]
+    same = np.linalg.norm(P[I] - P[J], axis=1) <= eps
+    far = np.flatnonzero(~same)
+    if far.size:  # a coincident stretch between them joins candidates that are not near (each pair alone)
+        I2, J2 = I[far], J[far]
+        _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I2] + s[J2]), 0)[:, 0], t_)
+        _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I2] + t[J2]), 0)[:, 0], t_)
+        same[far] = (m1 <= eps) & (m2 <= eps)
     label = np.arange(n)
     for i, j in zip(I[same], J[same]):  # union-find over a handful of candidates
         a, b = label[i], label[j]

@@ -29,8 +29,10 @@ p-curve must not leave the box), so a closed curve is one closed branch only whe
 no seam except at its start; e.g. a circle around a cylinder with box ``u ∈ [0, 2π]`` is one
 closed branch from ``u = 0`` to ``u = 2π``.
 
-*P-curves.*  A coordinate of a p-curve is detected to be exactly ``o + d t + α cos t + β sin t``
-(a least-squares fit on samples whose residual is at round-off, ``tol.solver`` relative);
+*P-curves.*  A coordinate of a p-curve is exactly ``o + d t + α cos t + β sin t`` in closed form
+for a line or conic in a plane (``_closed_coords``);
+otherwise it is detected to be of that form by a least-squares fit on samples whose residual is
+at round-off, ``tol.solver`` relative;
 when both coordinates are affine in ``t`` the p-curve is a :class:`~coons.kernel.pcurve.Line2D`,
 when both are trigonometric a :class:`~coons.kernel.pcurve.Trig2D`.  Otherwise (an ellipse on
 a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a cubic 2-D
@@ -234,9 +236,21 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` of arrays ``(..., 3)`` (the same products and differences as ``np.cross``, without its
+    axis handling, which costs more than the arithmetic on the few vectors here)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
 def _sine(d1: np.ndarray, d2: np.ndarray) -> float:
     """|sin| of the angle between two unit directions."""
-    return float(np.linalg.norm(np.cross(d1, d2)))
+    return float(np.linalg.norm(_cross(d1, d2)))
 
 
 def _off_axis(point: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> float:
@@ -588,7 +602,7 @@ def _oriented(cand: _Candidate, a, b) -> Any:
     P, T = D[:, 0], D[:, 1]
     na = a.normal(*a.closest_parameters(P).T)
     nb = b.normal(*b.closest_parameters(P).T)
-    cross = np.cross(na, nb)
+    cross = _cross(na, nb)
     strength = np.linalg.norm(cross, axis=-1)
     i = int(np.argmax(strength))  # the most transversal sample decides (poles and apexes give bad normals)
     return cand.curve if float(cross[i] @ T[i]) >= 0.0 else _reversed(cand.curve)
@@ -615,9 +629,56 @@ def _form_parameters(window: tuple[float, float]) -> np.ndarray:
 
 
 def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"]:
-    """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples."""
+    """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples
+    (or in closed form, :func:`_closed_coords`)."""
+    closed = _closed_coords(surface, curve, window, full, tol)
+    if closed is not None:
+        return closed
     uv = np.asarray(surface.closest_parameters(curve.evaluate(_form_parameters(window))), dtype=np.float64)
     return [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+
+
+def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"] | None:
+    """The two exact coordinates of the p-curve of a line, circle or ellipse in a plane, in closed form, else None.
+
+    The plane's parameters are the affine map
+    ``(P - O)·X, (P - O)·Y``, so a line gives ``o + d t`` and a conic ``C + a cos t X_c + b sin t Y_c``
+    gives ``o + α cos t + β sin t`` with ``o = (C - O)·X``, ``α = a X_c·X``, ``β = b Y_c·X`` (and ``Y``).
+
+    Not done for surfaces of revolution, although a coaxial circle's longitude is exactly
+    ``u(t₀) ± (t - t₀)`` and a cylinder ruling's ``v`` is affine: the tessellator's T-junction
+    points then land exactly on straight boundary segments of the parameter plane (a box minus a
+    tangent cylinder fails to triangulate), which the fitted coefficients' round-off avoids.
+
+    The coefficients are then treated as the fit's are: those below ``tol.solver`` of the
+    coordinates' size become 0, a closed curve's slope is rounded to whole turns.
+    """
+    t = _form_parameters(window)
+    if isinstance(surface, PlanarSurface):
+        if not isinstance(curve, (Line, Circle, Ellipse)):
+            return None
+        F, O = surface._frame[:2], surface._origin
+        if isinstance(curve, Line):
+            o, d = F @ (curve.origin - O), F @ curve.direction
+            coef = np.array([[o[0], d[0], 0.0, 0.0], [o[1], d[1], 0.0, 0.0]])
+        else:
+            ra, rb = curve._radii()
+            X, Y, _ = curve._frame
+            o, al, be = F @ (curve._origin - O), ra * (F @ X), rb * (F @ Y)
+            coef = np.array([[o[0], 0.0, al[0], be[0]], [o[1], 0.0, al[1], be[1]]])
+    else:
+        return None
+    basis = np.stack([np.ones_like(t), t, np.cos(t), np.sin(t)], axis=-1)
+    out = []
+    for i in (0, 1):
+        c = coef[i]
+        scale = max(1.0, float(np.max(np.abs(basis @ c))), abs(window[0]), abs(window[1]))
+        small = tol.solver * scale
+        c = np.where(np.abs(c) <= small, 0.0, c)
+        if full and abs(c[1] - round(c[1])) <= small:
+            c[1] = round(c[1])
+        out.append(_Coord.exact_form(surface, curve, i, window, full, c))
+    return out
 
 
 class _Coord:
@@ -656,6 +717,17 @@ class _Coord:
             ref = self._raw(self.grid)
             self.ref = np.unwrap(ref, period=TWO_PI) if self.periodic else ref
             self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if (self.periodic and full) else 0
+
+    @classmethod
+    def exact_form(cls, surface, curve, index: int, window: tuple[float, float], full: bool,
+                   coef: np.ndarray) -> "_Coord":
+        """The coordinate known in closed form: ``coef = (o, d, α, β)`` (4,)."""
+        self = object.__new__(cls)
+        self.surface, self.curve, self.index, self.window, self.full = surface, curve, index, window, full
+        self.periodic = bool(surface.periodic_u if index == 0 else surface.periodic_v)
+        self.exact = True
+        self.coef = np.asarray(coef, dtype=np.float64)
+        return self
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
         if self.periodic and not self.full:
@@ -899,7 +971,7 @@ def _against(curve, t: float, a, b) -> bool:
     P = D[0][None]
     na = a.normal(*a.closest_parameters(P).T)[0]
     nb = b.normal(*b.closest_parameters(P).T)[0]
-    return float(np.cross(na, nb) @ D[1]) < 0.0
+    return float(_cross(na, nb) @ D[1]) < 0.0
 
 
 def _piece(curve, coords, s0, s1, a, b, boxes, slack, closed: bool, tangent: bool, tol: Tolerance):

@@ -86,6 +86,7 @@ from scipy.sparse.csgraph import connected_components, depth_first_order
 from scipy.spatial import cKDTree
 
 from coons.errors import InvalidInputError
+from coons.kernel.analytic import _Revolved, _surface_params
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import singular_parameters, surface_periods
 from coons.kernel.surface import NurbsSurface
@@ -187,7 +188,22 @@ def _clip(surface, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _frame(surface, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points and first partials ``(m, 3)`` each (NURBS parameters clipped into the domain)."""
+    """Points and first partials ``(m, 3)`` each (NURBS parameters clipped into the domain).
+
+    A surface of revolution's three are formed here from its meridian with the same element-wise
+    operations, in the same order, as its ``derivatives(u, v, 1)`` (bit for bit the same values):
+    the marching corrector calls this every Newton step, and the general routine's stacking of
+    all four partials costs more than the arithmetic.
+    """
+    if isinstance(surface, _Revolved):
+        u, v = _surface_params(u, v)
+        rho, h = surface._meridian(v, 1)
+        X, Y, Z = surface._frame
+        c, s = np.cos(u)[..., None], np.sin(u)[..., None]
+        e0 = c * X + s * Y
+        e1 = (-s) * X + c * Y
+        S = (e0 * rho[0][..., None] + h[0][..., None] * Z) + surface._origin
+        return S, e1 * rho[0][..., None], e0 * rho[1][..., None] + h[1][..., None] * Z
     d = np.asarray(surface.derivatives(*_clip(surface, u, v), 1))
     return d[..., 0, 0, :], d[..., 1, 0, :], d[..., 0, 1, :]
 

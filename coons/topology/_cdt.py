@@ -219,9 +219,10 @@ class _Mesh:
         T, N = self.T, self.N
         start = t = self.vt[a]
         # Counter-clockwise around a (across the edge from a to the vertex before it), then, if
-        # a hull vertex stops the turn, clockwise from the start.
+        # a hull vertex stops the turn, clockwise from the start.  A fan has fewer triangles than
+        # the mesh: a longer walk means the neighbour table is corrupt, which must raise, not hang.
         for step in (1, 2):
-            while True:
+            for _ in range(len(T) + 1):
                 tri = T[t]
                 i = tri.index(a)
                 if tri[(i + 1) % 3] == b:
@@ -231,6 +232,9 @@ class _Mesh:
                     return -1, -1
                 if t < 0:
                     break
+            else:
+                raise ConvergenceError(f"triangulate: the triangles around vertex {a} do not close a fan "
+                                       "(inconsistent neighbour table)")
             t = start
         return -1, -1
 
@@ -381,7 +385,10 @@ class _Mesh:
                 continue
             s1 = self.T[t1][j1]
             s2 = next(v for v in self.T[t2] if v != u and v != w)
-            if incircle(P[u], P[w], P[s1], P[s2]) > 0:
+            # Only a strictly convex quad (u, s2, w, s1) may flip: the stack holds edges not opposite
+            # the new point too, and Qhull's start is Delaunay only to its precision, so an illegal
+            # edge of a non-convex quad can come up; flipping it would fold two triangles over.
+            if incircle(P[u], P[w], P[s1], P[s2]) > 0 and self.orient(u, s2, s1) > 0 and self.orient(s2, w, s1) > 0:
                 self.flip(t1, j1)
                 stack += [(u, s2), (s2, w), (w, s1), (s1, u)]
 
@@ -413,18 +420,57 @@ def _delaunay(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     r = 4.0 * size  # far enough that every input point is strictly interior
     corners = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
     Q = np.vstack([P, corners])
-    try:
-        d = Delaunay(Q)
-    except QhullError as exc:  # pragma: no cover - Qhull rejects only degenerate input
-        raise InvalidInputError(f"triangulate: Qhull failed: {exc}") from None
-    dropped = np.unique(d.coplanar[:, 0]).astype(np.int64) if d.coplanar.size else np.zeros(0, dtype=np.int64)
-    T = d.simplices.astype(np.int64)
+    n = P.shape[0]
+    # scipy lists 2-D simplices counter-clockwise, so a clockwise one by the exact predicate is a
+    # triangle Qhull folded over at its precision (boundary samples 1e-8 of the domain apart on a
+    # nearly straight stretch): its output is then no triangulation.  The vertices of folded
+    # triangles are left out and Qhull runs again on the rest; the left-out points join those Qhull
+    # dropped itself, which the caller inserts with the exact predicates.
+    keep = np.ones(n + 4, dtype=bool)
+    for _ in range(_QHULL_RETRIES):
+        idx = np.flatnonzero(keep)
+        try:
+            d = Delaunay(Q[idx])
+        except QhullError as exc:  # pragma: no cover - Qhull rejects only degenerate input
+            raise InvalidInputError(f"triangulate: Qhull failed: {exc}") from None
+        T = idx[d.simplices.astype(np.int64)]
+        s = _orient_signs(Q, T)
+        if not np.any(s < 0):
+            break
+        folded = np.unique(T[s < 0])
+        keep[folded[folded < n]] = False
+    else:
+        return (Q,) + _exact_delaunay(Q) + (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
     N = d.neighbors.astype(np.int64)
-    s = _orient_signs(Q, T)
-    neg = s < 0
-    T[neg] = T[neg][:, [0, 2, 1]]
-    N[neg] = N[neg][:, [0, 2, 1]]
+    qhull_dropped = idx[d.coplanar[:, 0]] if d.coplanar.size else np.zeros(0, dtype=np.int64)
+    dropped = np.union1d(qhull_dropped.astype(np.int64), np.flatnonzero(~keep))
     return Q, T, N, np.flatnonzero(s == 0), dropped
+
+
+#: Qhull runs, each without the vertices of the triangles it folded the time before, before the
+#: triangulation is built by exact incremental insertion alone.
+_QHULL_RETRIES = 4
+
+
+def _exact_delaunay(Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Delaunay triangles and neighbours ``(m, 3)`` of ``Q`` (points, then the four far corners of
+    :func:`_delaunay` counter-clockwise) by Lawson's incremental insertion with the exact predicates.
+
+    The last resort when Qhull keeps folding triangles; Python-level work per point (and a seeded
+    random order, whose expected number of flips per point is constant), so it is kept for rare inputs.
+    """
+    n = Q.shape[0] - 4
+    c = n + np.arange(4)
+    T = np.array([[c[0], c[1], c[2]], [c[0], c[2], c[3]]], dtype=np.int64)
+    N = np.array([[-1, 1, -1], [-1, -1, 0]], dtype=np.int64)
+    mesh = _Mesh(Q, T, N)
+    order = np.random.default_rng(0).permutation(n)
+    hint = 0
+    fixed: set[tuple[int, int]] = set()
+    for p in order.tolist():
+        mesh.insert_point(p, hint, fixed)
+        hint = mesh.vt[p]
+    return mesh.arrays()
 
 
 def _remove_flat(mesh: _Mesh, flat: np.ndarray) -> None:

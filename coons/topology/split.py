@@ -40,7 +40,16 @@ Crossings are found between the p-curves (:func:`~coons.kernel.curve_intersect.i
 in the working plane) and then re-solved between the 3-D curves of the two edge uses when
 both have derivatives (:func:`~coons.kernel.curve_intersect.refine_intersections`): fitted
 p-curves crossing at a small angle would otherwise put a shared vertex at different places
-in the two faces that meet there.
+in the two faces that meet there.  A crossing whose 3-D points already coincide exactly keeps
+its parameters without Newton (only a strictly closer pair would replace them).
+
+Speed.  The Boolean pipeline clips every intersection branch against a face and then splits
+the face: what depends on the face alone — its working plane, the working-plane p-curves of
+its loop edges with their boxes, the boundary pieces and the point-in-face polylines — is
+computed once per face and tolerance (:class:`_FaceData`, cached weakly on the frozen
+:class:`FaceSpec`); each call takes fresh pieces for its own split parameters.  Box tests of
+all piece pairs are one array comparison, and the arrangement's nodes are the connected
+components of the merged ends by array label propagation.
 
 The module does not compute intersection curves (:mod:`coons.kernel.intersect`), does not
 classify pieces against another solid, does not re-sew, and does not merge faces.  Its
@@ -52,6 +61,7 @@ curved boundary than the finest chord error may still be misclassified.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -107,30 +117,99 @@ def _newell(face: FaceSpec) -> PlanarSurface:
     return PlanarSurface(P.mean(axis=0), n, x)
 
 
-def _plane_of(face: FaceSpec, cuts: Sequence[EdgeSpec], t: Tolerance) -> _Plane:
-    S = face.surface
-    edges = [e for loop in face.loops for e in loop]
-    project = S is None
-    if S is None:
-        S = _newell(face)
-    elif not isinstance(S, PlanarSurface) and any(e.pcurve is None for e in edges):
-        raise InvalidInputError(f"face on a {type(S).__name__} needs p-curves on every edge; some are None")
-    tol3 = max([t.linear] + [e.tol for e in list(edges) + list(cuts) if e.tol is not None])
-    if isinstance(S, PlanarSurface):
-        scale, sigma = np.ones(2), 1.0  # the plane's frame is orthonormal
-    else:
-        lo_hi = np.array([[e.t0, 0.5 * (e.t0 + e.t1), e.t1] for e in edges])
-        uv = np.concatenate([np.asarray(e.pcurve.evaluate(tt)) for e, tt in zip(edges, lo_hi)])
-        D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1))
-        scale = np.array([np.linalg.norm(D[:, 1, 0], axis=1).max(), np.linalg.norm(D[:, 0, 1], axis=1).max()])
-        if not np.all(scale > 0):
-            raise InvalidInputError(f"the surface does not move along u or v on the whole face boundary, "
-                                    f"got speeds {scale.tolist()}; expected both > 0")
-        J = np.stack([D[:, 1, 0] / scale[0], D[:, 0, 1] / scale[1]], axis=2)
-        sigma = float(np.linalg.norm(J, ord=2, axis=(1, 2)).max())
-    eps = tol3 / sigma
-    M = np.diag([scale[0] * (1.0 if face.sense else -1.0), scale[1]])
-    return _Plane(S, project, M, eps, tol3, Tolerance(eps, t.angular, t.solver), t)
+class _FaceData:
+    """What a face contributes to every clip and split of it, computed once per face and tolerance.
+
+    The surface (the Newell plane of an implicit plane), the axis scales ``M`` and ``σ``, the
+    largest edge tolerance, the working-plane p-curves of the loop edges, their end points and
+    proven boxes, and per working-plane tolerance ``eps`` the boundary pieces (with the virtual
+    pole segments, which depend on ``eps``) and their point-in-face polylines (:class:`_Inside`).
+    A face is clipped by every branch crossing it and then split by the cuts (``coons.booleans``),
+    and all of this depends on the face alone: a :class:`FaceSpec` is frozen (tuples of frozen
+    EdgeSpecs over geometry values), so the data stay valid as long as the face lives.
+    """
+
+    def __init__(self, face: FaceSpec, t: Tolerance) -> None:
+        S = face.surface
+        edges = [e for loop in face.loops for e in loop]
+        project = S is None
+        if S is None:
+            S = _newell(face)
+        elif not isinstance(S, PlanarSurface) and any(e.pcurve is None for e in edges):
+            raise InvalidInputError(f"face on a {type(S).__name__} needs p-curves on every edge; some are None")
+        if isinstance(S, PlanarSurface):
+            scale, sigma = np.ones(2), 1.0  # the plane's frame is orthonormal
+        else:
+            lo_hi = np.array([[e.t0, 0.5 * (e.t0 + e.t1), e.t1] for e in edges])
+            uv = np.concatenate([np.asarray(e.pcurve.evaluate(tt)) for e, tt in zip(edges, lo_hi)])
+            D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1))
+            scale = np.array([np.linalg.norm(D[:, 1, 0], axis=1).max(), np.linalg.norm(D[:, 0, 1], axis=1).max()])
+            if not np.all(scale > 0):
+                raise InvalidInputError(f"the surface does not move along u or v on the whole face boundary, "
+                                        f"got speeds {scale.tolist()}; expected both > 0")
+            J = np.stack([D[:, 1, 0] / scale[0], D[:, 0, 1] / scale[1]], axis=2)
+            sigma = float(np.linalg.norm(J, ord=2, axis=(1, 2)).max())
+        self.surface, self.project, self.sigma = S, project, sigma
+        self.M = np.diag([scale[0] * (1.0 if face.sense else -1.0), scale[1]])
+        self.tol3 = max([t.linear] + [e.tol for e in edges if e.tol is not None])
+        # The loops, not the face: the cache holds its values strongly and the face only weakly.
+        self.face_loops, self.t = face.loops, t
+        self.loops: list[list[tuple[Any, np.ndarray, np.ndarray, np.ndarray]]] | None = None
+        self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
+
+    def plane(self, cuts: Sequence[EdgeSpec]) -> _Plane:
+        t = self.t
+        tol3 = max([self.tol3] + [e.tol for e in cuts if e.tol is not None])
+        eps = tol3 / self.sigma
+        return _Plane(self.surface, self.project, self.M, eps, tol3, Tolerance(eps, t.angular, t.solver), t)
+
+    def pieces(self, plane: _Plane) -> tuple[list["_Piece"], "_Inside"]:
+        """Fresh boundary pieces (their splits are the caller's) sharing cached curves and boxes, and the
+        point-in-face test of the face."""
+        entry = self.by_eps.get(plane.eps)
+        if entry is None:
+            if self.loops is None:
+                loops = []  # kept only when every edge maps (a bad edge raises on every call)
+                for li, loop in enumerate(self.face_loops):
+                    pcs = [_pcurve(plane, e, f"loop {li} edge {k}") for k, e in enumerate(loop)]
+                    loops.append([(pc, _uv(pc, e.t0), _uv(pc, e.t1), curve_box(pc, (e.t0, e.t1), plane.t))
+                                  for pc, e in zip(pcs, loop)])
+                self.loops = loops
+            rows = []
+            for li, (loop, data) in enumerate(zip(self.face_loops, self.loops)):
+                for k, (e, (pc, _, q, box)) in enumerate(zip(loop, data)):
+                    rows.append((pc, e.t0, e.t1, "boundary", li, e, box))
+                    p = data[(k + 1) % len(loop)][1]
+                    if np.linalg.norm(p - q) > plane.eps:
+                        rows.append((Line2D(q, p - q), 0.0, 1.0, "virtual", li, None, None))
+            pieces = [_Piece(pc, a, b, kind, li, e, [], [], box) for pc, a, b, kind, li, e, box in rows]
+            entry = self.by_eps[plane.eps] = (pieces, _Inside(pieces))
+        templates, region = entry
+        out = [_Piece(p.pc, p.a, p.b, p.kind, p.loop, p.spec, [], [], p.box) for p in templates]
+        return out, region
+
+
+_FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _FaceData]]" = \
+    weakref.WeakKeyDictionary()
+
+
+#: Per-face cache and the skip of exact crossings in :func:`_in_space` on (tests switch them off to
+#: compare with the general path).
+_FAST = True
+
+
+def _face_data(face: FaceSpec, t: Tolerance) -> _FaceData:
+    """The cached :class:`_FaceData` of ``face`` under tolerance ``t``."""
+    if not _FAST:
+        return _FaceData(face, t)
+    per_tol = _FACES.get(face)
+    if per_tol is None:
+        per_tol = _FACES[face] = {}
+    key = (t.linear, t.angular, t.solver)
+    data = per_tol.get(key)
+    if data is None:
+        data = per_tol[key] = _FaceData(face, t)
+    return data
 
 
 def _to_plane(curve: Any, S: PlanarSurface, what: str) -> Any:
@@ -156,13 +235,28 @@ def _to_plane(curve: Any, S: PlanarSurface, what: str) -> Any:
     raise InvalidInputError(f"{what}: cannot map a {type(curve).__name__} into the face plane; give its p-curve")
 
 
+_MAPPED: "weakref.WeakKeyDictionary[Any, dict[bytes, Any]]" = weakref.WeakKeyDictionary()
+
+
 def _mapped(pc: Any, M: np.ndarray) -> Any:
-    """The p-curve in the working plane: ``uv -> M uv`` (the parameter is unchanged)."""
+    """The p-curve in the working plane: ``uv -> M uv`` (the parameter is unchanged).
+
+    Cached per p-curve and ``M`` (curves are frozen values): a cut's p-curve is mapped when the
+    branch is clipped and again when the face is split, and one mapped object keeps the caches
+    of :mod:`coons.kernel.curve_intersect` (a NURBS curve's span polynomials) across the calls."""
+    per = _MAPPED.get(pc) if _FAST else None
+    key = M.tobytes()
+    if per is not None and key in per:
+        return per[key]
     if isinstance(pc, (Line2D, Trig2D)):
-        return pc.transformed(M)
-    if isinstance(pc, NurbsCurve):
-        return NurbsCurve(pc.control_points @ M.T, pc.knots, pc.degree, pc.weights)
-    raise InvalidInputError(f"p-curve must be a Line2D, Trig2D or 2-D NurbsCurve, got {type(pc).__name__}")
+        out = pc.transformed(M)
+    elif isinstance(pc, NurbsCurve):
+        out = NurbsCurve(pc.control_points @ M.T, pc.knots, pc.degree, pc.weights)
+    else:
+        raise InvalidInputError(f"p-curve must be a Line2D, Trig2D or 2-D NurbsCurve, got {type(pc).__name__}")
+    if _FAST:
+        _MAPPED.setdefault(pc, {})[key] = out
+    return out
 
 
 def _pcurve(plane: _Plane, e: EdgeSpec, what: str) -> Any:
@@ -207,25 +301,17 @@ def _boxes_meet(a: np.ndarray, b: np.ndarray, eps: float) -> bool:
     return bool(np.all(a[0] <= b[1] + eps) and np.all(b[0] <= a[1] + eps))
 
 
-def _boundary_pieces(face: FaceSpec, plane: _Plane) -> list[_Piece]:
-    """Loop edge uses in loop order, with virtual segments closing parameter gaps (poles)."""
-    out = []
-    for li, loop in enumerate(face.loops):
-        pcs = [_pcurve(plane, e, f"loop {li} edge {k}") for k, e in enumerate(loop)]
-        ends = [(_uv(pc, e.t0), _uv(pc, e.t1)) for pc, e in zip(pcs, loop)]
-        for k, (pc, e) in enumerate(zip(pcs, loop)):
-            out.append(_Piece(pc, e.t0, e.t1, "boundary", li, e, [], []))
-            q, p = ends[k][1], ends[(k + 1) % len(loop)][0]
-            if np.linalg.norm(p - q) > plane.eps:
-                out.append(_Piece(Line2D(q, p - q), 0.0, 1.0, "virtual", li, None, [], []))
-    return out
-
-
 def _polyline(pc: Any, a: float, b: float, n: int | None = None) -> np.ndarray:
     """``(n, 2)`` samples of ``pc`` from ``a`` to ``b`` (2 for a straight line)."""
     if n is None:
         n = 2 if isinstance(pc, Line2D) else _SAMPLES
-    return _uv(pc, np.linspace(a, b, n))
+    # np.linspace(a, b, 2) is [a, b] (its first sample is a + 0 * step, its last b), without its set-up.
+    return _uv(pc, np.array([a, b], dtype=np.float64) if n == 2 else np.linspace(a, b, n))
+
+
+def _next(x: np.ndarray) -> np.ndarray:
+    """``np.roll(x, -1, axis=0)`` without its set-up: the next element of each, cyclically."""
+    return np.concatenate((x[1:], x[:1]))
 
 
 def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
@@ -233,7 +319,7 @@ def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
     if not rings:
         return np.zeros(points.shape[0], dtype=np.int64)
     P = np.concatenate([r for r in rings])
-    Q = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    Q = np.concatenate([x for r in rings for x in (r[1:], r[:1])])  # each ring's next vertices (np.roll by -1)
     x, y = points[:, :1], points[:, 1:]
     cross = (Q[None, :, 0] - P[None, :, 0]) * (y - P[None, :, 1]) - (x - P[None, :, 0]) * (Q[None, :, 1] - P[None, :, 1])
     up = (P[None, :, 1] <= y) & (Q[None, :, 1] > y) & (cross > 0)
@@ -244,7 +330,7 @@ def _winding(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
 def _distance(points: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
     """Distance ``(m,)`` of ``points`` (m, 2) to the closed polylines."""
     P = np.concatenate(rings)
-    Q = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    Q = np.concatenate([x for r in rings for x in (r[1:], r[:1])])  # each ring's next vertices (np.roll by -1)
     d = Q - P
     dd = np.maximum((d * d).sum(axis=1), np.finfo(float).tiny)
     w = points[:, None, :] - P[None]
@@ -312,14 +398,25 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     if not (callable(getattr(c3, "derivatives", None)) and callable(getattr(e.curve, "derivatives", None))):
         return s, u
     try:
-        s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s, u, plane.t3)
-        d0 = np.linalg.norm(np.asarray(c3.evaluate(s)) - np.asarray(e.curve.evaluate(u)), axis=-1)
+        P, Q = np.asarray(c3.evaluate(s)), np.asarray(e.curve.evaluate(u))
+        if P.shape != Q.shape:
+            return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
+        d0 = np.linalg.norm(P - Q, axis=-1)
+        # Only a strictly closer pair replaces the plane's answer (below), so crossings whose
+        # curves already meet exactly in space (d0 = 0, common for lines and circles whose
+        # p-curves are exact) keep theirs without Newton: Newton runs per pair independently.
+        k = np.flatnonzero(d0 > 0) if _FAST else np.arange(s.size)
+        if k.size == 0:
+            return s, u
+        s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s[k], u[k], plane.t3)
     except InvalidInputError:
         return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
     # Only a strictly closer pair replaces the plane's answer: at a tangential touching Newton
     # stops anywhere along the band where the curves are within tol3, the plane's answer is exact.
-    ok = (d3 <= plane.tol3) & (d3 < d0)
-    return np.where(ok, s3, s), np.where(ok, u3, u)
+    ok = (d3 <= plane.tol3) & (d3 < d0[k])
+    s, u = s.copy(), u.copy()
+    s[k[ok]], u[k[ok]] = s3[ok], u3[ok]
+    return s, u
 
 
 # ====================================================================== clipping
@@ -369,16 +466,18 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
         raise InvalidInputError(f"clip_to_face needs finite, different t0 and t1, got ({t0!r}, {t1!r})")
     if not isinstance(face, FaceSpec):
         raise InvalidInputError(f"clip_to_face needs a FaceSpec, got {type(face).__name__}")
-    plane = _plane_of(face, [], t)
+    data = _face_data(face, t)
+    plane = data.plane([])
     planar = plane.project or isinstance(plane.surface, PlanarSurface)
     pc = _checked_pc(_to_plane(pcurve, plane.surface, "the clipped curve") if planar else pcurve, plane)
-    pieces = _boundary_pieces(face, plane)
+    pieces, region = data.pieces(plane)
     lo, hi = min(t0, t1), max(t0, t1)
     breaks, along = [lo, hi], []
     box = curve_box(pc, (lo, hi), plane.t)
-    for p in pieces:
-        if not _boxes_meet(box, _box(p, plane), plane.eps):
-            continue
+    B = np.array([_box(p, plane) for p in pieces])  # (n, 2, 2): the box tests of all pieces at once
+    meet = np.all((box[0] <= B[:, 1] + plane.eps) & (B[:, 0] <= box[1] + plane.eps), axis=1)
+    for k in np.flatnonzero(meet).tolist():
+        p = pieces[k]
         x = intersect_curves(pc, (lo, hi), p.pc, (p.a, p.b), plane.t)
         breaks += _in_space(plane, curve, (lo, hi), p.spec, x.t1, x.t2)[0].tolist()
         for (s0, s1), _ in x.overlaps:
@@ -387,7 +486,7 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     s = _distinct(pc, np.unique(breaks), plane.eps)
     a, b = s[:-1], s[1:]
     mid = 0.5 * (a + b)
-    inside = _Inside(pieces).winding(_uv(pc, mid)) != 0
+    inside = region.winding(_uv(pc, mid)) != 0
     on = np.zeros(mid.size, dtype=bool)
     for s0, s1 in along:
         on |= (mid >= s0) & (mid <= s1)
@@ -415,13 +514,19 @@ def _distinct(pc: Any, s: np.ndarray, eps: float) -> np.ndarray:
 
     The last parameter (the range end) is always kept; an interior one too close to it goes.
     """
+    return _distinct_points(pc, s, eps)[0]
+
+
+def _distinct_points(pc: Any, s: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_distinct`, and the points ``(m, 2)`` of the kept parameters."""
     P = _uv(pc, s)
     keep = [0]
     for k in range(1, s.size - 1):
         if np.linalg.norm(P[k] - P[keep[-1]]) > eps and np.linalg.norm(P[k] - P[-1]) > eps:
             keep.append(k)
     keep.append(s.size - 1)
-    return s[np.asarray(keep)]
+    keep = np.asarray(keep)
+    return s[keep], P[keep]
 
 
 # ====================================================================== splitting
@@ -470,9 +575,9 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     for i, c in enumerate(cuts):
         if not isinstance(c, EdgeSpec):
             raise InvalidInputError(f"cuts[{i}] must be an EdgeSpec, got {type(c).__name__}")
-    plane = _plane_of(face, cuts, t)
-    pieces = _boundary_pieces(face, plane)
-    region = _Inside(pieces)
+    data = _face_data(face, t)
+    plane = data.plane(cuts)
+    pieces, region = data.pieces(plane)
     nb = len(pieces)
     for i, c in enumerate(cuts):
         pieces.append(_Piece(_pcurve(plane, c, f"cuts[{i}]"), c.t0, c.t1, "cut", -1, c, [], []))
@@ -492,12 +597,13 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
 
 def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     """Record mutual split parameters of cuts against every piece (boundary, virtual, earlier cuts)."""
+    B = np.array([_box(p, plane) for p in pieces])  # (n, 2, 2): all pairs' box tests at once
+    meet = np.all((B[:, None, 0] <= B[None, :, 1] + plane.eps) & (B[None, :, 0] <= B[:, None, 1] + plane.eps),
+                  axis=2)
     for i in range(nb, len(pieces)):
         c = pieces[i]
-        for j in range(i):
+        for j in np.flatnonzero(meet[i, :i]).tolist():
             o = pieces[j]
-            if not _boxes_meet(_box(c, plane), _box(o, plane), plane.eps):
-                continue
             x = intersect_curves(c.pc, (c.a, c.b), o.pc, (o.a, o.b), plane.t)
             s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, x.t1, x.t2)
             c.splits += s.tolist()
@@ -522,14 +628,16 @@ def _sub_pieces(pieces: list[_Piece], plane: _Plane) -> list[_Sub]:
     for k, p in enumerate(pieces):
         lo, hi = min(p.a, p.b), max(p.a, p.b)
         s = np.unique(np.clip(np.asarray([lo, hi] + p.splits, dtype=np.float64), lo, hi))
-        s = _distinct(p.pc, s, plane.eps)
+        s, P = _distinct_points(p.pc, s, plane.eps)
         if p.a > p.b:
-            s = s[::-1]
-        for a, b in zip(s[:-1], s[1:]):
+            s, P = s[::-1], P[::-1]
+        # A straight piece's sub-piece polylines are its two end points, evaluated already (pointwise).
+        line = isinstance(p.pc, Line2D)
+        for i, (a, b) in enumerate(zip(s[:-1], s[1:])):
             m = 0.5 * (a + b)
             if any(r0 <= m <= r1 for r0, r1 in p.dropped):
                 continue
-            poly = _polyline(p.pc, a, b)
+            poly = P[i:i + 2] if line else _polyline(p.pc, a, b)
             if np.linalg.norm(poly[-1] - poly[0]) <= plane.eps:
                 if np.linalg.norm(np.diff(poly, axis=0), axis=1).sum() <= plane.eps:
                     continue  # degenerate sub-piece: a point
@@ -582,13 +690,21 @@ def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return P, reach
 
 
-def _foot(pc: Any, a: float, b: float, q: np.ndarray) -> tuple[float, float]:
+def _foot(pc: Any, a: float, b: float, q: np.ndarray, samples: dict | None = None) -> tuple[float, float]:
     """The parameter in ``[min(a, b), max(a, b)]`` of the point of ``pc`` nearest ``q`` (2,), and the distance.
 
-    Dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few steps, kept in the range)."""
+    Dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few steps, kept in the range).
+    ``samples`` keeps the dense samples per curve and range for the next end near the same piece."""
     lo, hi = min(a, b), max(a, b)
-    s = np.linspace(lo, hi, 257)
-    k = int(np.argmin(np.linalg.norm(_uv(pc, s) - q, axis=1)))
+    key = (id(pc), lo, hi)
+    if samples is not None and key in samples:
+        s, S = samples[key]
+    else:
+        s = np.linspace(lo, hi, 257)
+        S = _uv(pc, s)
+        if samples is not None:
+            samples[key] = (s, S)
+    k = int(np.argmin(np.linalg.norm(S - q, axis=1)))
     x = float(s[k])
     for _ in range(8):
         D = np.asarray(pc.derivatives(np.array([x]), 2))[0]
@@ -596,7 +712,10 @@ def _foot(pc: Any, a: float, b: float, q: np.ndarray) -> tuple[float, float]:
         g, h = float(r @ D[1]), float(D[1] @ D[1] + r @ D[2])
         if not h > 0:
             break
-        x = min(max(x - g / h, lo), hi)
+        x_new = min(max(x - g / h, lo), hi)
+        if x_new == x:
+            break  # a fixed point: the remaining steps would repeat this one
+        x = x_new
     return x, float(np.linalg.norm(_uv(pc, x) - q))
 
 
@@ -607,12 +726,15 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     ``tol3`` in space, may stop short of it by many ``eps`` in the working plane, so that
     :func:`intersect_curves` finds no crossing there.  The foot of the end on the piece becomes a
     split (and :func:`_node_pairs` merges the end with it)."""
-    if plane.project or isinstance(plane.surface, PlanarSurface):
+    if plane.project or isinstance(plane.surface, PlanarSurface) or nb == len(pieces):
         return
+    # The ends of all cuts at once (the surface is evaluated point by point either way).
+    ends_all = np.concatenate([_uv(c.pc, np.array([c.a, c.b])) for c in pieces[nb:]])
+    P_all, reach_all = _space_reach(plane, ends_all)
+    samples: dict = {}  # dense samples of the pieces, per curve and range (pieces live through the call)
     for i in range(nb, len(pieces)):
-        c = pieces[i]
-        ends = _uv(c.pc, np.array([c.a, c.b]))
-        P, reach = _space_reach(plane, ends)
+        k = 2 * (i - nb)
+        ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
         for q, Pq, r in zip(ends, P, reach):
             if not r > plane.eps:
                 continue
@@ -620,7 +742,7 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
             for j, o in enumerate(pieces):
                 if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
                     continue
-                s, d = _foot(o.pc, o.a, o.b, q)
+                s, d = _foot(o.pc, o.a, o.b, q, samples)
                 if not plane.eps < d <= r:
                     continue
                 Ps, _ = _space_reach(plane, _uv(o.pc, s)[None])
@@ -656,19 +778,39 @@ def _node_pairs(X: np.ndarray, plane: _Plane) -> np.ndarray:
     return wide[ok]
 
 
+def _components(m: int, pairs: np.ndarray) -> np.ndarray:
+    """Connected components ``(m,)`` of ``m`` nodes joined by ``pairs`` (p, 2): each node's label is the
+    smallest node of its component.
+
+    Minimum-label propagation with pointer jumping; labels only decrease (``label[x] <= x``
+    throughout), so it stops, and at the fixed point the two ends of every pair agree.  The
+    graphs here have a few dozen nodes, where scipy's sparse ``connected_components`` costs
+    mostly its set-up.
+    """
+    label = np.arange(m)
+    if len(pairs) == 0:
+        return label
+    i, j = pairs[:, 0], pairs[:, 1]
+    while True:
+        new = label.copy()
+        low = np.minimum(label[i], label[j])
+        np.minimum.at(new, i, low)
+        np.minimum.at(new, j, low)
+        new = new[new]
+        if np.array_equal(new, label):
+            return label
+        label = new
+
+
 class _Graph:
     """The planar arrangement of the sub-pieces: nodes, half-edges sorted around nodes, cycles."""
 
     def __init__(self, sub: list[_Sub], pieces: list[_Piece], plane: _Plane) -> None:
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-
         self.sub, self.pieces, self.plane = sub, pieces, plane
         n = len(sub)
         X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
         pairs = _node_pairs(X, plane) if n else np.zeros((0, 2), int)
-        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(2 * n, 2 * n))
-        _, label = connected_components(g, directed=False)
+        label = _components(2 * n, pairs)
         # Half-edge 2k runs sub k forward (node n0 -> n1), 2k + 1 backward.
         self.origin = np.empty(2 * n, dtype=np.int64)
         self.origin[0::2], self.origin[1::2] = label[:n], label[n:]
@@ -679,7 +821,13 @@ class _Graph:
         order = np.lexsort((angle, self.origin))
         starts = np.flatnonzero(np.concatenate([[True], self.origin[order][1:] != self.origin[order][:-1]]))
         stops = np.append(starts[1:], order.size)
-        for a, b in zip(starts, stops):
+        size = stops - starts
+        # A node with one or two half-edges leaving needs no order: each arrives and leaves by the other
+        # (or turns back), whatever the directions; the loop below gives the same for them.
+        one, two = starts[size == 1], starts[size == 2]
+        nxt[order[one] ^ 1] = order[one]
+        nxt[order[two] ^ 1], nxt[order[two + 1] ^ 1] = order[two + 1], order[two]
+        for a, b in zip(starts[size > 2].tolist(), stops[size > 2].tolist()) if n else zip(starts, stops):
             ring = order[a:b]
             # Directions just above -π are ties with those just below π: move them past π.
             thr = self._tie(float(np.abs(kappa[ring]).max()))
@@ -774,7 +922,7 @@ class _Graph:
 
     def faces(self, cycles: list[list[int]], face: FaceSpec) -> list[FaceSpec]:
         polys = [self.polygon(c) for c in cycles]
-        area = np.array([0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+        area = np.array([0.5 * float(np.sum(p[:, 0] * _next(p[:, 1]) - _next(p[:, 0]) * p[:, 1]))
                          for p in polys])
         outer = []
         for ci, cyc in enumerate(cycles):

@@ -494,6 +494,10 @@ def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool) -> np.nda
     breaks, jumps = _c0_knots(curve, float(t[0]), float(t[-1])) if check_curve else (np.zeros(0), np.zeros(0))
     if breaks.size:
         t = np.union1d(t, breaks)  # the initial samples hold every knot already; this keeps it so
+    # The curve is known only within the edge's tolerance: its direction over a chord no longer
+    # than that is noise (a fitted intersection curve rounds a crossing's corner within it, as at
+    # the singular points of the Steinmetz solid), so such chords are never tested for turning.
+    known = max(float(b.edge_tol[edge]), 0.0)
     for _ in range(_MAX_EDGE_ROUNDS):
         tm = 0.5 * (t[:-1] + t[1:])
         P = _edge_eval(b, edge, curve, t)
@@ -503,12 +507,13 @@ def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool) -> np.nda
             bad |= np.linalg.norm(Pm - 0.5 * (P[:-1] + P[1:]), axis=1) > d
             # Turning inside each interval (half chords) and between consecutive chords; at a C0 knot
             # (always a sample, never inside an interval) the chords may turn by the corner's angle more.
-            bad |= _turning(Pm - P[:-1], P[1:] - Pm) > a
+            resolved = np.linalg.norm(P[1:] - P[:-1], axis=1) > known
+            bad |= (_turning(Pm - P[:-1], P[1:] - Pm) > a) & resolved
             allowed = np.full(t.size - 2, a)
             if breaks.size:
                 at = np.searchsorted(t[1:-1], breaks)
                 allowed[at] += jumps
-            turn = _turning(P[1:-1] - P[:-2], P[2:] - P[1:-1]) > allowed
+            turn = (_turning(P[1:-1] - P[:-2], P[2:] - P[1:-1]) > allowed) & resolved[:-1] & resolved[1:]
             bad[:-1] |= turn
             bad[1:] |= turn
         if sides:
@@ -524,11 +529,26 @@ def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool) -> np.nda
             off = w - np.einsum("ij,ij->i", w, unit)[:, None] * unit
             bad |= np.linalg.norm(off, axis=1) > d
         if not bad.any():
-            return t
+            return _resolved_samples(t, P, known)
         t = np.sort(np.concatenate([t, tm[bad]]))
     raise ConvergenceError(
         f"edge {edge}: discretisation did not reach deflection {d:g} / angle {a:g} in {_MAX_EDGE_ROUNDS} bisection rounds"
     )
+
+
+def _resolved_samples(t: np.ndarray, P: np.ndarray, known: float) -> np.ndarray:
+    """Samples ``t (k,)`` (points ``P (k, 3)``) without the interior ones within ``known`` of the last kept sample
+    or of the end: points the edge's tolerance cannot tell apart would become mesh vertices at one place
+    (a knot cluster of a fitted curve at a crossing gives samples 1e-17 apart).  Both ends are kept."""
+    step = np.linalg.norm(P[1:] - P[:-1], axis=1)
+    if t.size <= 2 or not np.any(step <= known):
+        return t
+    keep = [0]
+    for i in range(1, t.size - 1):  # cold: only edges with sub-tolerance chords get here
+        if np.linalg.norm(P[i] - P[keep[-1]]) > known and np.linalg.norm(P[-1] - P[i]) > known:
+            keep.append(i)
+    keep.append(t.size - 1)
+    return t[np.asarray(keep)]
 
 
 def _linspace(t0: float, t1: float, n: int) -> np.ndarray:

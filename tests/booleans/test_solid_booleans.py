@@ -166,6 +166,18 @@ def test_steinmetz_solid():
     np.testing.assert_allclose(s.area, 16 * r**2, rtol=RTOL)
 
 
+def test_three_cylinder_steinmetz_solid():
+    # Three equal cylinders along x, y, z: V = 8 (2 - √2) r³, A = 24 (2 - √2) r²; each cylinder keeps
+    # four curved faces (OCCT: 12 too).  The second Boolean's operand is the two-cylinder solid, whose
+    # fitted edges pass the singular points (its tessellation used to fail at r = 2, length 10).
+    r = 2.0
+    two = _ok(S.intersection(Cylinder(r, 10), Cylinder(r, 10, direction=(1, 0, 0))))
+    three = _ok(S.intersection(two, Cylinder(r, 10, direction=(0, 1, 0))))
+    _vol(three, 8 * (2 - math.sqrt(2)) * r**3)
+    np.testing.assert_allclose(three.area, 24 * (2 - math.sqrt(2)) * r**2, rtol=RTOL)
+    assert _types(three) == {"cylinder": 12}
+
+
 def test_crossing_cylinders_of_different_radii():
     from scipy.integrate import quad
 
@@ -516,6 +528,84 @@ def test_self_crossing_polyline():
     seg = lambda R: np.stack([R, np.roll(R, -1, axis=0)], axis=1)  # noqa: E731
     assert not S._self_crossing(seg(square))
     assert S._self_crossing(seg(bow))
+
+
+def _straight_faces():
+    """(operand, face) of plane and cylinder faces bounded by straight p-curves: a box, a slab with a square
+    hole (two loops), a cylinder's half sides, and a rotated box."""
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+    from coons.kernel.pcurve import Line2D
+
+    solids = [Box(4, 3, 2), Box(10, 10, 1) - Box(2, 2, 4).translate((1.0, 0.5, 0.0)), Cylinder(1.5, 4),
+              Box(3, 2, 1).rotate((0, 0, 0), (1, 1, 0), 30.0).translate((0.3, -0.2, 0.1))]
+    out = []
+    for solid in solids:
+        X = S._Operand(solid, "A", T)
+        for f, spec in enumerate(X.specs):
+            if all(isinstance(e.pcurve, Line2D) for loop in spec.loops for e in loop):
+                out.append((X, f))
+    return out
+
+
+def test_straight_clip_agrees_with_clip_to_face():
+    """The closed-form clip of a straight p-curve (``_clip_straight``) gives clip_to_face's pieces whenever it
+    answers, and declines touching, vertex and along-edge configurations."""
+    from coons.kernel.pcurve import Line2D
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+    from coons.topology.split import clip_to_face
+
+    rng = np.random.default_rng(5)
+    faces = _straight_faces()
+    assert {type(X.specs[f].surface).__name__ for X, f in faces} == {"PlanarSurface", "CylindricalSurface"}
+    answered = tried = 0
+    for X, f in faces:
+        seg = X.segments[f]
+        lo, hi = seg.reshape(-1, 2).min(axis=0), seg.reshape(-1, 2).max(axis=0)
+        size = hi - lo
+        lines = []
+        for _ in range(60):  # random lines over the face's box
+            o = lo - 0.2 * size + 1.4 * size * rng.random(2)
+            ang = rng.uniform(0, 2 * np.pi)
+            lines.append((Line2D(o, np.array([np.cos(ang), np.sin(ang)]) * size), rng.uniform(-1, 0), rng.uniform(0, 1)))
+        V = seg[:, 0]
+        for k in range(0, len(V), 2):  # through a vertex, and along a side
+            lines.append((Line2D(V[k], rng.normal(size=2)), -1.0, 1.0))
+            if np.any(seg[k, 1] != seg[k, 0]):
+                lines.append((Line2D(seg[k, 0], seg[k, 1] - seg[k, 0]), -0.5, 1.5))
+        # A branch ending on a side (at its midpoint), and a line across the whole face.
+        lines.append((Line2D(0.5 * (seg[0, 0] + seg[0, 1]), [0.3 * size[0], 0.7 * size[1]]), 0.0, 1.0))
+        lines.append((Line2D(lo - 0.1 * size, 1.2 * size), 0.0, 1.0))
+        for pc, t0, t1 in lines:
+            for a, b in ((t0, t1), (t1, t0)):
+                tried += 1
+                fast = S._clip_straight(X, f, pc, a, b, T)
+                if fast is None:
+                    continue
+                answered += 1
+                ref = clip_to_face(X.specs[f], pc, a, b, T)
+                assert [w for *_, w in fast] == [w for *_, w in ref], (type(X.specs[f].surface).__name__, f, pc, a, b, fast, ref, seg.tolist(), X.specs[f].sense)
+                np.testing.assert_allclose(np.array([r[:2] for r in fast]).reshape(-1, 2),
+                                           np.array([r[:2] for r in ref]).reshape(-1, 2), rtol=0, atol=1e-9)
+        # Degenerate lines must have been declined: along a side, or ending on one.
+        along = Line2D(seg[0, 0], seg[0, 1] - seg[0, 0])
+        assert S._clip_straight(X, f, along, -0.5, 1.5, T) is None
+        ending = Line2D(0.5 * (seg[0, 0] + seg[0, 1]), [0.3 * size[0], 0.7 * size[1]])
+        assert S._clip_straight(X, f, ending, 0.0, 1.0, T) is None
+    assert answered > tried // 3  # the closed form serves most configurations
+
+
+def test_straight_clip_preconditions():
+    """Not a Line2D, a face on another surface, or a face with a curved p-curve: the general path."""
+    from coons.kernel.pcurve import Line2D, Trig2D
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    X = S._Operand(Sphere(2), "A", T)
+    assert S._clip_straight(X, 0, Line2D([0, 0], [1, 0]), 0.0, 1.0, T) is None
+    X = S._Operand(Cylinder(1, 2), "A", T)
+    caps = [f for f, spec in enumerate(X.specs) if type(spec.surface).__name__ == "PlanarSurface"]
+    assert S._clip_straight(X, caps[0], Line2D([-5, 0.1], [10, 0]), 0.0, 1.0, T) is None  # a circle bounds it
+    box = S._Operand(Box(2, 2, 2), "A", T)
+    assert S._clip_straight(box, 0, Trig2D([0, 0], [0.5, 0], [0, 0.5]), 0.0, 1.0, T) is None
 
 
 # ---------------------------------------------------------------------- data carried from Boolean to Boolean

@@ -469,3 +469,113 @@ def test_curve_boxes_of_line_and_conic_arcs_contain_them():
             lo, hi = curve_box(c, (t0, t1))
             P = np.asarray(c.evaluate(np.linspace(t0, t1, 2001)))
             assert np.all(P >= lo - 1e-12) and np.all(P <= hi + 1e-12)
+
+
+# ====================================================================== scalar fast paths
+def _general(fn, *args, **kwargs):
+    """``fn`` with the scalar fast paths of the module switched off."""
+    from coons.kernel import curve_intersect
+
+    old, curve_intersect._FAST = curve_intersect._FAST, False
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        curve_intersect._FAST = old
+
+
+def _assert_same(x: CurveIntersections, y: CurveIntersections, c1, c2, tol: float) -> None:
+    """The same intersections, to round-off: points within ``tol``, parameters within ``tol`` of length."""
+    assert len(x) == len(y) and x.overlaps == y.overlaps
+    np.testing.assert_allclose(x.points, y.points, rtol=0, atol=tol)
+    n1, n2 = float(np.linalg.norm(c1.direction)), float(np.linalg.norm(c2.direction))
+    np.testing.assert_allclose(x.t1 * n1, y.t1 * n1, rtol=0, atol=tol)
+    np.testing.assert_allclose(x.t2 * n2, y.t2 * n2, rtol=0, atol=tol)
+
+
+coord = st.floats(-4, 4, allow_nan=False).map(lambda v: round(v, 3))
+
+
+@settings(max_examples=150)
+@given(coord, coord, coord, coord, coord, coord, coord, coord, st.sampled_from(["free", "end", "shared", "near", "slant"]),
+       st.floats(-0.5, 1.5), st.floats(-0.5, 1.5), st.floats(0.01, 1.0))
+@example(0.0, 0.0, 1.0, 0.0, 1.0, -1.0, 0.0, 2.0, "free", 0.0, 1.0, 1.0)  # a crossing at c1's end
+@example(0.0, 0.0, 1.0, 0.0, 0.5, 0.0, 0.0, 1.0, "free", 0.0, 1.0, 1.0)  # c2 starts on c1
+def test_two_lines_scalar_path_matches_the_general_path(ox, oy, dx, dy, px, py, ex, ey, case, a, b, h):
+    """Crossings, end contacts within tolerance (ends on the other line, shared end points, nearly
+    parallel lines crossing at a range end): the scalar path of two 2-D lines gives the general path's
+    answer to round-off."""
+    d, o = np.array([dx, dy]), np.array([ox, oy])
+    if np.linalg.norm(d) < 0.05:
+        return
+    p, e = np.array([px, py]), np.array([ex, ey])
+    if case == "end":  # c2 ends on c1 at parameter a (within or beyond c1's range)
+        e = o + a * d - p
+    elif case == "shared":  # c2 starts where c1 ends
+        p = o + d
+    elif case == "near":  # c2 starts within tolerance of c1's end, turning back over it: the merged
+        # contact takes each line's own range end, not the other's foot (which differs by ~1e-8)
+        n = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+        p = o + d + 5e-8 * h * n
+        e = -n + 0.3 * e / max(1.0, float(np.linalg.norm(e)))
+    elif case == "slant":  # a small angle: end contacts and the crossing merge
+        e = d + 1e-6 * h * np.array([-d[1], d[0]])
+    if np.linalg.norm(e) < 0.05:
+        return
+    l1, l2 = Line2D(o, d), Line2D(p, e)
+    r2 = (min(a, b), max(a, b)) if case == "free" and abs(b - a) > 1e-6 else (0.0, 1.0)
+    fast = intersect_curves(l1, (0.0, 1.0), l2, r2)
+    general = _general(intersect_curves, l1, (0.0, 1.0), l2, r2)
+    _assert_same(fast, general, l1, l2, 1e-9)
+    _assert_consistent(fast, l1, l2, atol=1e-6)
+
+
+@settings(max_examples=60)
+@given(st.floats(0.1, 5.0), st.floats(0.0, TWO_PI), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0),
+       st.sampled_from(["circle", "ellipse", "trig", "line"]))
+def test_refine_scalar_path_matches_the_general_path(radius, angle, tilt, ds, dt, kind):
+    """Newton on one seed of a line against a circle, ellipse, Trig2D or line, on Python floats: the
+    array path's answer to round-off, at crossings and at the closest approach of curves that miss."""
+    if kind == "trig":
+        c1 = Trig2D([0.3, -0.2], [radius, 0.1], [0.2, 0.7 * radius])
+        P = c1.evaluate(np.array([angle]))[0]
+        line = Line2D(P - [1.0, tilt], [1.0, tilt])
+    else:
+        if kind == "circle":
+            c1 = Circle([0.3, -0.2, 0.1], [0, 0, 1], [1, 0, 0], radius)
+        elif kind == "ellipse":
+            c1 = Ellipse([0.3, -0.2, 0.1], [0, 0, 1], [1, 0, 0], radius, 0.6 * radius)
+        else:
+            c1 = Line([0.3, -0.2, 0.1], [math.cos(angle), math.sin(angle), 0.0])
+        P = np.asarray(c1.evaluate(np.array([angle])), dtype=float).reshape(-1, 3)[0]
+        line = Line(P - [1.0, tilt, 0.5 * tilt], [1.0, tilt, 0.5 * tilt])
+    r1 = (angle - 1.0, angle + 1.0)
+    seeds = ([angle + ds], [1.0 + dt])
+    fast = refine_intersections(c1, r1, line, (0.0, 3.0), *seeds)
+    general = _general(refine_intersections, c1, r1, line, (0.0, 3.0), *seeds)
+    np.testing.assert_allclose(np.array(fast), np.array(general), rtol=0, atol=1e-9)
+    # Two seeds at once (the scalar path iterates each alone, as the array path does).
+    both = refine_intersections(c1, r1, line, (0.0, 3.0), [angle + ds, angle - ds], [1.0 + dt, 1.0 - dt])
+    np.testing.assert_allclose(np.array(both)[:, :1], np.array(fast), rtol=0, atol=0)
+
+
+def test_pieces_and_seed_samples_are_remembered_per_curve_and_range():
+    """A curve intersected over one range with many others reuses its pieces and seed samples: the
+    answers are the same as from a fresh copy of the curve, and the remembered arrays are read-only."""
+    from coons.kernel import curve_intersect
+
+    c = NurbsCurve([[0, 0], [1, 2], [2, -1], [3, 1]], [0, 0, 0, 0, 1, 1, 1, 1], 3)
+    fresh = NurbsCurve(c.control_points, c.knots, c.degree)
+    lines = [Line2D([x, -3], [0.01 * k, 1]) for k, x in enumerate(np.linspace(0.2, 2.8, 6))]
+    for line in lines:
+        a = intersect_curves(c, (0.0, 1.0), line, (0, 6))
+        b = intersect_curves(NurbsCurve(fresh.control_points, fresh.knots, fresh.degree), (0.0, 1.0), line, (0, 6))
+        assert len(a) >= 1
+        np.testing.assert_array_equal(a.t1, b.t1)
+        np.testing.assert_array_equal(a.t2, b.t2)
+    memo = curve_intersect._MEMO[c]
+    assert ("pieces", 0.0, 1.0) in memo and ("seeds", 0.0, 1.0) in memo
+    for arrays in memo.values():
+        assert not any(x.flags.writeable for x in arrays)
+    for k in range(2 * curve_intersect._RANGES_KEPT):  # bounded
+        curve_box(c, (0.0, 0.5 + 0.01 * k))
+    assert len(curve_intersect._MEMO[c]) <= curve_intersect._RANGES_KEPT

@@ -650,3 +650,72 @@ def test_random_plane_sections_satisfy_the_invariants(kind, normal, offset, u_bo
     q = run(s, p, box_b, box_a)
     assert len(q.curves) == len(r.curves)
     assert sum(_length(c) for c in q.curves) == pytest.approx(sum(_length(c) for c in r.curves), rel=1e-9, abs=1e-12)
+
+
+# ---------------------------------------------------------------------------- closed-form p-curve coordinates
+def _general_coords(surface, curve, window, full):
+    """The coordinates from the projected samples and their least-squares form (the closed forms switched off)."""
+    import coons.kernel.intersect as I
+    from coons.tolerance import DEFAULT_TOLERANCE
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "_closed_coords", lambda *a, **k: None)
+        return I._coords(surface, curve, window, full, DEFAULT_TOLERANCE)
+
+
+def _compare_coords(surface, curve, window, full):
+    import coons.kernel.intersect as I
+    from coons.tolerance import DEFAULT_TOLERANCE
+
+    closed = I._closed_coords(surface, curve, window, full, DEFAULT_TOLERANCE)
+    assert closed is not None
+    general = _general_coords(surface, curve, window, full)
+    for c, g in zip(closed, general):
+        assert g.exact and c.exact
+        assert (c.affine, c.trigonometric) == (g.affine, g.trigonometric)
+        np.testing.assert_allclose(c.coef, g.coef, rtol=0, atol=1e-10)
+    # The coordinates map back onto the curve.
+    t = np.linspace(window[0], window[1], 37)
+    P = surface.evaluate(closed[0](t), closed[1](t))
+    np.testing.assert_allclose(P, curve.evaluate(t), rtol=0, atol=1e-10)
+
+
+@settings(max_examples=40)
+@given(
+    n=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: np.linalg.norm(v) > 0.2),
+    x=st.tuples(*[st.floats(-1, 1)] * 3),
+    o=st.tuples(*[st.floats(-3, 3)] * 3),
+    c=st.tuples(st.floats(-3, 3), st.floats(-3, 3)),
+    ang=st.floats(0, TWO_PI),
+    radii=st.tuples(st.floats(0.1, 3), st.floats(0.1, 3)),
+    kind=st.sampled_from(["line", "circle", "ellipse", "reversed circle"]),
+)
+def test_closed_form_plane_coordinates_match_the_sample_fit(n, x, o, c, ang, radii, kind):
+    n = np.array(n) / np.linalg.norm(n)
+    x = np.array(x) - (np.array(x) @ n) * n
+    if np.linalg.norm(x) < 0.2:
+        x = np.cross(n, [1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.cross(n, [0.0, 1.0, 0.0])
+    p = PlanarSurface(o, n, x)
+    C = p.evaluate(*c)
+    d = math.cos(ang) * p.frame[0] + math.sin(ang) * p.frame[1]
+    if kind == "line":
+        curve, window, full = Line(C, d), (-1.0, 1.0), False
+    elif kind == "circle":
+        curve, window, full = Circle(C, n, d, radii[0]), (0.0, TWO_PI), True
+    elif kind == "reversed circle":
+        curve, window, full = Circle(C, -n, d, radii[0]), (0.3, 2.0), False
+    else:
+        curve, window, full = Ellipse(C, n, d, max(radii), min(radii)), (0.0, TWO_PI), True
+    _compare_coords(p, curve, window, full)
+
+
+def test_closed_form_coordinates_only_for_curves_in_a_plane():
+    """Surfaces of revolution keep the sample fit (see _closed_coords), even for coaxial circles."""
+    import coons.kernel.intersect as I
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    cyl = CylindricalSurface([0, 0, 0], Z, X, 1.0)
+    for curve in (Circle([0, 0, 0], Z, X, 1.0), Line([1, 0, 0], Z)):
+        assert I._closed_coords(cyl, curve, (0.0, 1.0), False, T) is None
+    nurbs = NurbsCurve(np.array([[0.0, 0, 0], [1, 1, 0], [2, 0, 0]]), [0, 0, 0, 1, 1, 1], 2)
+    assert I._closed_coords(plane([0, 0, 0], Z), nurbs, (0.0, 1.0), False, T) is None

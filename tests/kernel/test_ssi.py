@@ -635,3 +635,26 @@ def test_singular_point_search_abandons_a_transversal_crossing_quickly(monkeypat
     assert ssi._singular_points(sphere, plane, x0, TOL).shape == (0, 4)
     # Each step evaluates the residual 9 times (2 frames each); all iterations would be 60 steps.
     assert len(calls) <= 2 * 9 * (ssi._SINGULAR_PATIENCE + 3) + 2
+
+
+@settings(max_examples=30)
+@given(
+    kind=st.sampled_from(["cylinder", "cone", "sphere", "torus"]),
+    axis=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda a: np.linalg.norm(a) > 0.2),
+    seed=st.integers(0, 2**16),
+)
+def test_frame_of_a_surface_of_revolution_is_its_derivatives_bit_for_bit(kind, axis, seed):
+    """The marching's own points and partials of analytic surfaces of revolution equal ``derivatives(u, v, 1)``."""
+    from coons.kernel.analytic import ConicalSurface, CylindricalSurface, SphericalSurface, ToroidalSurface
+    from coons.kernel.ssi import _frame
+
+    rng = np.random.default_rng(seed)
+    z = np.array(axis) / np.linalg.norm(axis)
+    x = np.cross(z, [1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.cross(z, [0.0, 1.0, 0.0])
+    o = rng.uniform(-5, 5, 3)
+    s = {"cylinder": lambda: CylindricalSurface(o, z, x, 1.7), "cone": lambda: ConicalSurface(o, z, x, 1.1, -0.3),
+         "sphere": lambda: SphericalSurface(o, z, x, 2.3), "torus": lambda: ToroidalSurface(o, z, x, 3.0, 0.7)}[kind]()
+    u, v = rng.uniform(-7, 7, 40), rng.uniform(-1.5, 1.5, 40)
+    d = s.derivatives(u, v, 1)
+    for got, want in zip(_frame(s, u, v), (d[:, 0, 0], d[:, 1, 0], d[:, 0, 1])):
+        assert np.array_equal(got, want)

@@ -304,3 +304,57 @@ def test_insertion_on_an_edge_and_rejected_insertions():
         cdt.insert([[0.5, 0.0]])
     with pytest.raises(InvalidInputError, match="NaN or inf"):
         cdt.insert([[np.nan, 0.0]])
+
+
+# ---------------------------------------------------------------------- Qhull folds at its precision
+@pytest.mark.parametrize("retries", [4, 0])
+def test_qhull_folds_are_left_to_the_exact_insertion(monkeypatch, retries):
+    # The boundary of a Steinmetz-solid face in its scaled parameter plane (tests/data/README.md):
+    # samples ~1e-7 apart on a nearly straight stretch, where Qhull's Delaunay comes back with a
+    # triangle that is clockwise by the exact predicate (folded over a neighbour).  Before the
+    # repair the incremental insertion then walked around a vertex forever.  The vertices of folded
+    # triangles are left out of Qhull's run and inserted exactly (retries > 0), or, once the
+    # retries are spent, the whole triangulation is built by exact insertion (retries = 0).
+    from pathlib import Path
+
+    from scipy.spatial import Delaunay
+
+    from coons.topology import _cdt
+
+    data = np.load(Path(__file__).parents[1] / "data" / "cdt-steinmetz-face.npz")
+    P, S = data["points"], data["segments"].astype(np.int64)
+    monkeypatch.setattr(_cdt, "_QHULL_RETRIES", retries)
+    Q, T, N, flat, dropped = _cdt._delaunay(P)
+    # The input is a hard one: Qhull's own triangulation of the same points has a folded triangle.
+    assert np.any(_cdt._orient_signs(Q, Delaunay(Q).simplices.astype(np.int64)) < 0)
+    assert np.all(_cdt._orient_signs(Q, T) > 0)
+    assert len(directed_edges(T)) == 3 * T.shape[0]  # a triangulation of what it holds
+    held = np.zeros(Q.shape[0], dtype=bool)
+    held[T.ravel()] = True
+    np.testing.assert_array_equal(np.flatnonzero(~held), dropped)  # the rest is left to the caller
+    assert (dropped.size > 0) == (retries > 0)
+    T2 = triangulate(P, S)
+    assert_valid(P, S, T2, shoelace(P, S))
+
+
+@given(st.integers(0, 2**31 - 1), st.integers(3, 60))
+def test_exact_delaunay_fallback_is_delaunay(seed, n):
+    from coons.topology._cdt import _exact_delaunay
+
+    rng = np.random.default_rng(seed)
+    P = rng.uniform(-5, 5, size=(n, 2))
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    c, r = 0.5 * (lo + hi), 4.0 * float(np.max(hi - lo))
+    Q = np.vstack([P, c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])])
+    T, N = _exact_delaunay(Q)
+    # Every point used, a triangulation of the corners' square (Euler: n + 4 points on a 4-gon hull).
+    assert set(np.unique(T).tolist()) == set(range(n + 4))
+    assert T.shape[0] == 2 * (n + 4) - 2 - 4
+    assert_valid(Q, np.zeros((0, 2), np.int64), T, 4.0 * r * r)
+    assert _locally_delaunay(Q, T, np.zeros((0, 2), np.int64))
+    # Neighbours: N[t, j] shares the edge opposite T[t, j].
+    for t in range(T.shape[0]):
+        for j in range(3):
+            u = N[t, j]
+            if u >= 0:
+                assert {int(T[t, (j + 1) % 3]), int(T[t, (j + 2) % 3])} <= set(T[u].tolist())

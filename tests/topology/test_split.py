@@ -722,3 +722,188 @@ def test_polyhedral_tetrahedron_split_by_plane_resews():
     assert (solid.brep.n_faces, solid.brep.n_edges, solid.brep.n_vertices) == (7, 12, 7)
     np.testing.assert_allclose(solid.volume, 1 / 6, rtol=RTOL)
     np.testing.assert_allclose(solid.area, tet.area, rtol=RTOL)
+
+
+# ====================================================================== fast paths against the general path
+def _general(fn, *args, **kwargs):
+    """``fn`` with the per-face cache, the skip of exact crossings and the scalar intersection paths off."""
+    from coons.kernel import curve_intersect
+    from coons.topology import split
+
+    old = split._FAST, curve_intersect._FAST
+    split._FAST = curve_intersect._FAST = False
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        split._FAST, curve_intersect._FAST = old
+
+
+#: The scalar paths agree with the array paths to round-off (sums of products fused differently).
+ATOL_PARAM = 1e-12
+
+
+def _assert_same_faces(fast, general) -> None:
+    """Same regions, loops and edge uses (same curve objects), parameters equal to round-off."""
+    assert len(fast) == len(general)
+    for a, b in zip(fast, general):
+        assert a.surface is b.surface and a.sense == b.sense
+        assert [len(lp) for lp in a.loops] == [len(lp) for lp in b.loops]
+        for la, lb in zip(a.loops, b.loops):
+            for ea, eb in zip(la, lb):
+                assert ea.curve is eb.curve and ea.pcurve is eb.pcurve and ea.tol == eb.tol
+                np.testing.assert_allclose([ea.t0, ea.t1], [eb.t0, eb.t1], rtol=0, atol=ATOL_PARAM)
+
+
+def _arc_cut(face: FaceSpec, v: float, u0: float = math.pi, u1: float = 2 * math.pi) -> EdgeSpec:
+    """The circle of height ``v`` on the half cylinder of ``_cyl_face`` over ``u ∈ [u0, u1]``."""
+    arc = Circle(face.surface.evaluate(0.0, v) - [1, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    return EdgeSpec(arc, u0, u1, Line2D([0, v], [1, 0]))
+
+
+def _rule_cut(face: FaceSpec, u: float) -> EdgeSpec:
+    """The straight line ``u = const`` of the half cylinder of ``_cyl_face`` from bottom to top."""
+    return EdgeSpec(Line(face.surface.evaluate(u, 0.0), [0, 0, 1]), 0.0, 2.0, Line2D([u, 0], [0, 1]))
+
+
+@settings(max_examples=30)
+@given(
+    st.booleans(),
+    st.lists(st.floats(0.1, 1.9), min_size=1, max_size=3, unique=True),
+    st.lists(st.floats(math.pi + 0.1, 2 * math.pi - 0.1), max_size=2, unique=True),
+)
+def test_half_cylinder_grid_fast_paths_match_the_general_path(sense, heights, rules):
+    """Arcs (Line2D p-curves of circles) and rulings (of lines) cutting a half cylinder: the cached
+    face data, the skipped exact crossings and the scalar line/line intersection and Newton give
+    the pieces of the general path, and the grid's (arcs + 1)(rulings + 1) regions."""
+    face = _cyl_face(sense)
+    heights = sorted(heights)
+    rules = sorted(rules)
+    if np.any(np.diff(heights) < 1e-3) or np.any(np.diff(rules) < 1e-3):
+        return  # nearly coincident cuts: slivers, not what this property is about
+    cuts = [_arc_cut(face, v) for v in heights] + [_rule_cut(face, u) for u in rules]
+    fast = split_face(face, cuts)
+    again = split_face(face, cuts)  # from the per-face cache
+    general = _general(split_face, face, cuts)
+    # Another split of the same face (cached) by fewer cuts: nothing of the first split carries over.
+    _assert_same_faces(split_face(face, cuts[-1:]), _general(split_face, face, cuts[-1:]))
+    assert len(fast) == (len(heights) + 1) * (len(rules) + 1)
+    _assert_same_faces(fast, general)
+    _assert_same_faces(again, general)
+    sign = 1 if sense else -1
+    np.testing.assert_allclose(sum(sign * _area(p) for p in fast), 2 * math.pi, rtol=RTOL_AREA)
+    _assert_cut_uses(fast, cuts)
+
+
+@settings(max_examples=30)
+@given(st.booleans(), st.floats(-0.5, 2.5), st.floats(math.pi - 0.5, 2 * math.pi + 0.5),
+       st.floats(math.pi - 0.5, 2 * math.pi + 0.5))
+def test_clip_on_half_cylinder_fast_paths_match_the_general_path(sense, v, u0, u1):
+    face = _cyl_face(sense)
+    if abs(u1 - u0) < 1e-3:
+        return
+    cut = _arc_cut(face, v, u0, u1)
+    fast = clip_to_face(face, cut.pcurve, u0, u1, curve=cut.curve)
+    general = _general(clip_to_face, face, cut.pcurve, u0, u1, curve=cut.curve)
+    assert [w for *_, w in fast] == [w for *_, w in general]
+    np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=ATOL_PARAM)
+    inside = 0.0 < v < 2.0 and max(u0, u1) > math.pi and min(u0, u1) < 2 * math.pi
+    assert (len(fast) > 0) == inside or min(abs(v), abs(v - 2.0)) < 1e-6
+
+
+@settings(max_examples=25)
+@given(
+    st.lists(st.floats(0.0, 2 * math.pi), min_size=3, max_size=7, unique=True),
+    st.lists(st.tuples(st.floats(-2.5, 2.5), st.floats(-2.5, 2.5), st.floats(-2.5, 2.5), st.floats(-2.5, 2.5)),
+             min_size=1, max_size=3),
+)
+def test_chords_and_clips_of_convex_polygon_fast_paths_match_the_general_path(angles, segments):
+    """Segments in and across a convex polygon (2-D lines against 2-D lines): clipping them and
+    splitting by their inside parts gives the general path's answers."""
+    ang = np.sort(np.asarray(angles))
+    if np.min(np.diff(np.concatenate([ang, [ang[0] + 2 * math.pi]]))) < 0.2:
+        return
+    V = np.stack([np.cos(ang), np.sin(ang)], axis=1) * 2.0
+    edges = []
+    for k in range(V.shape[0]):
+        p, q = V[k], V[(k + 1) % V.shape[0]]
+        L = float(np.linalg.norm(q - p))
+        edges.append(EdgeSpec(Line(PLANE.evaluate(*p), PLANE.evaluate(*q) - PLANE.evaluate(*p)), 0.0, L,
+                              Line2D(p, (q - p) / L)))
+    face = FaceSpec(PLANE, True, [edges])
+    cuts = []
+    for x0, y0, x1, y1 in segments:
+        if math.hypot(x1 - x0, y1 - y0) < 1e-2:
+            continue
+        c = _line_cut([x0, y0], [x1, y1])
+        fast = clip_to_face(face, c.pcurve, c.t0, c.t1, curve=c.curve)
+        general = _general(clip_to_face, face, c.pcurve, c.t0, c.t1, curve=c.curve)
+        assert [w for *_, w in fast] == [w for *_, w in general]
+        np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=ATOL_PARAM)
+        cuts += [EdgeSpec(c.curve, s0, s1, c.pcurve) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
+    if cuts:
+        _assert_same_faces(split_face(face, cuts), _general(split_face, face, cuts))
+
+
+def test_face_cache_follows_the_face_and_the_tolerance():
+    """The per-face data are kept while the face lives and per tolerance; a cut's tolerance widens eps."""
+    import gc
+
+    from coons.tolerance import Tolerance
+    from coons.topology import split
+
+    face = _cyl_face(True)
+    cut = _arc_cut(face, 0.5)
+    first = split_face(face, [cut])
+    assert face in split._FACES
+    coarse = Tolerance(1e-5, 1e-9, 1e-12)
+    _assert_same_faces(split_face(face, [cut], coarse), _general(split_face, face, [cut], coarse))
+    assert len(split._FACES[face]) == 2
+    wide = EdgeSpec(cut.curve, cut.t0, cut.t1, cut.pcurve, 1e-4)
+    assert split._face_data(face, split.resolve(None)).plane([wide]).eps == pytest.approx(1e-4)
+    _assert_same_faces(split_face(face, [cut]), first)
+    del face, first
+    gc.collect()
+    before = len(split._FACES)
+    g = _cyl_face(True)
+    split_face(g, [_arc_cut(g, 0.5)])
+    assert len(split._FACES) == before + 1
+    del g
+    gc.collect()
+    assert len(split._FACES) == before  # the cache does not keep its faces alive
+
+
+@settings(max_examples=50)
+@given(st.integers(1, 30), st.lists(st.tuples(st.integers(0, 29), st.integers(0, 29)), max_size=40))
+def test_components_match_scipy(m, pairs):
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from coons.topology.split import _components
+
+    P = np.array([(a % m, b % m) for a, b in pairs], dtype=np.int64).reshape(-1, 2)
+    label = _components(m, P)
+    g = coo_matrix((np.ones(len(P)), (P[:, 0], P[:, 1])), shape=(m, m))
+    _, ref = connected_components(g, directed=False)
+    # Same partition: one label per scipy component and vice versa; each label is its component's smallest node.
+    assert len(set(zip(label.tolist(), ref.tolist()))) == len(set(label.tolist())) == len(set(ref.tolist()))
+    assert all(label[k] == min(np.flatnonzero(ref == ref[k])) for k in range(m))
+
+
+def test_face_with_a_bad_edge_raises_on_every_call():
+    """An edge whose p-curve cannot be mapped raises each time (the per-face cache keeps nothing partial)."""
+    face = _cyl_face(True)
+    loop = list(face.loops[0])
+    e = loop[-1]
+
+    class _Wrapped:  # evaluates like a p-curve but is none of the p-curve types
+        def evaluate(self, t):
+            return e.pcurve.evaluate(t)
+
+    bad_pc = _Wrapped()
+    bad = FaceSpec(face.surface, True, [loop[:-1] + [EdgeSpec(e.curve, e.t0, e.t1, bad_pc, e.tol)]])
+    cut = _arc_cut(face, 0.5)
+    for _ in range(2):
+        with pytest.raises(InvalidInputError, match="loop 0 edge 3: p-curve must be"):
+            split_face(bad, [cut])
+        with pytest.raises(InvalidInputError, match="loop 0 edge 3: p-curve must be"):
+            clip_to_face(bad, cut.pcurve, cut.t0, cut.t1, curve=cut.curve)

@@ -577,9 +577,12 @@ def _in_polygon(uv: np.ndarray, seg: np.ndarray) -> np.ndarray:
     dy = c[:, 1] - a[:, 1]
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = (c[:, 0] - a[:, 0]) / np.where(dy == 0, 1.0, dy)
-    ys, row = np.unique(uv[:, 1], return_inverse=True)
-    row = row.ravel()
-    if 4 * ys.size > uv.shape[0] or uv.shape[0] * seg.shape[0] <= _ROW_SWEEP_PAIRS:  # every pair
+    every = uv.shape[0] * seg.shape[0] <= _ROW_SWEEP_PAIRS
+    if not every:  # (the rows are only needed, and only sorted out, for the sweep)
+        ys, row = np.unique(uv[:, 1], return_inverse=True)
+        row = row.ravel()
+        every = 4 * ys.size > uv.shape[0]
+    if every:  # every pair
         out = np.empty(uv.shape[0], dtype=bool)
         step = max(1, _CHUNK // max(1, seg.shape[0]))
         for s0 in range(0, uv.shape[0], step):

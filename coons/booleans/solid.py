@@ -38,7 +38,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
 1. ``_Operand`` (stage ``"input"``): :func:`~coons.topology.sew.face_specs` of each solid, with
    implicit planes given a Newell plane and missing p-curves computed by
    :func:`~coons.kernel.onsurface.pcurve_on`; face boxes in space (tessellation) and in the
-   parameter plane (sampled p-curves).
+   parameter plane (sampled p-curves).  A face of an earlier Boolean's result that
+   :func:`~coons.topology.sew.sewn_unchanged` confirms is exactly the spec it was sewn from
+   (``_SEWN``) is that spec, with its per-face data (``_FACE_DATA``) already computed.
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
    a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
@@ -62,7 +64,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
 5. ``_classify`` (stage ``"classify"``): one interior point per piece (the sample of a grid over
    the piece's parameter box that lies inside the trim polygon farthest from its boundary,
-   mapped to space) against the other solid by
+   mapped to space; the first grid of all pieces in array passes, ``_interior_points``)
+   against the other solid by
    :class:`~coons.booleans.classify.Classifier` (winding number far from the boundary, exact
    projection near it); a point *on* the other boundary compares the outward normals.  Pieces
    of faces in no broad-phase pair are classified by their first vertex instead (they are far
@@ -104,14 +107,23 @@ Status and limitations
   and offset spheres and wrong on a few (a lens of spheres along x, torus ∪ cylinder).
 * Classification is one point per piece, all pieces of an operand in one vectorised call;
   classes are not propagated across uncut edges.
-* Cost: a Boolean still costs about the whole of both operands in ``_Operand`` (face specs,
-  one tessellation), the T-junction and merge passes and ``sew_faces`` (with its check), so
-  sequential cuts into a large part cost its size each time; the plate of the benchmark is
-  far slower than OCCT (``benchmarks/results/booleans_brep.md``).  Reused: an operand's mesh
-  when it was tessellated before (meshes are cached per B-rep; a result with voids shares the
-  mesh its void nesting made).  Local: the end tolerance of a cut and the T-junction pass only
-  look at boundary edges whose box (:func:`~coons.kernel.curve_intersect.curve_box`) is near the
-  points in question.
+* Cost: a Boolean still costs the whole of both operands in the tessellation of ``_Operand``
+  (the classifier's winding numbers need the whole mesh) and in ``sew_faces`` (matching and
+  the full check), and array passes over all edge uses in the T-junction, merge and fuse
+  passes, so sequential cuts into a large part still grow with its size; the plate of the
+  benchmark is far slower than OCCT (``benchmarks/results/booleans_brep.md``).
+  Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
+  depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
+  compares warm and cold chains): a result remembers the completed face specs it was sewn
+  from (``_SEWN``), and the next Boolean takes every face whose B-rep row is exactly its spec
+  (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
+  that spec's parameter box, rings and segments (``_FACE_DATA``); loop samples and space boxes
+  are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a split face
+  keep; a pair of face specs found unmergeable is not tried again (``_MERGE_FAILED``).  Reused
+  as well: an operand's mesh when it was tessellated before (meshes are cached per B-rep; a
+  result with voids shares the mesh its void nesting made).  Local: the end tolerance of a cut
+  and the T-junction pass only look at boundary edges whose box
+  (:func:`~coons.kernel.curve_intersect.curve_box`) is near the points in question.
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
   wall).  Lumps touching at a point inside their faces (two spheres) stay separate shells.  An
@@ -131,8 +143,10 @@ Status and limitations
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
+import weakref
 
 import numpy as np
 
@@ -142,7 +156,8 @@ from coons.kernel._common import used_ids
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
-from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces
+from coons.topology.brep import BRep
+from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces, sewn_unchanged
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -348,10 +363,13 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
     # edges): their operand.
     orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
-    faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
-    faces = _merge(faces, t)
-    faces = _fuse_edges(faces, t)
-    return _sew(faces, t)
+    points = _UsePoints()  # the uses' end and mid points, shared by the three passes below
+    faces = _split_edges_at_vertices(faces, t, orig, orig_edges, points)
+    faces = _merge(faces, t, points)
+    faces = _fuse_edges(faces, t, points)
+    out = _sew(faces, t)
+    _SEWN[out.brep] = faces
+    return out
 
 
 class _Operand:
@@ -370,68 +388,60 @@ class _Operand:
 
         self.solid, self.name, self.t = solid, name, t
         b = solid.brep
-        raw = face_specs(solid)
-        self.specs: list[FaceSpec] = []
-        for f, spec in enumerate(raw):
+        F = b.n_faces
+        # Faces of a Boolean result sewn unchanged from a completed spec are that spec (checked
+        # field by field, :func:`sewn_unchanged`); the others are read from the B-rep.
+        specs: list[FaceSpec | None] = [None] * F
+        sewn = _SEWN.get(b)
+        if sewn is not None and len(sewn) == F:
+            for f, spec in enumerate(sewn):
+                if sewn_unchanged(b, f, spec):
+                    specs[f] = spec
+        missing = [f for f in range(F) if specs[f] is None]
+        for f, spec in zip(missing, face_specs(solid, rows=missing) if missing else []):
             S = spec.surface if spec.surface is not None else surface_of(b, f)
             try:
                 loops = [[_with_pcurve(S, e, t) for e in loop] for loop in spec.loops]
             except CoonsError as exc:
                 raise BooleanError(f"operand {name}, face {f}: cannot compute the p-curves of its edges: {exc}",
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
-            self.specs.append(FaceSpec(S, spec.sense, loops))
+            specs[f] = FaceSpec(S, spec.sense, loops)
+        self.specs: list[FaceSpec] = specs
         mesh = self.mesh = tessellate(solid, tol=t)
         diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
         # Tessellation deflection (the tessellator's default) plus the edges' own tolerances: the
         # exact face lies within this of its triangles.
         pad = 1e-3 * diag + float(np.max(b.edge_tol, initial=0.0)) + t.linear
-        F = b.n_faces
         lo = np.full((F, 3), np.inf)
         hi = np.full((F, 3), -np.inf)
         X = mesh.vertices[mesh.triangles]
         np.minimum.at(lo, mesh.face_ids, X.min(axis=1))
         np.maximum.at(hi, mesh.face_ids, X.max(axis=1))
         self.lo, self.hi = lo - pad, hi + pad
-        self.uv_box = []
-        self.polygons = []
-        self.segments, self.seg_lo, self.seg_hi = [], [], []
-        for spec in self.specs:
-            # Each edge sampled once: for the rings and for the pads of its segments.
-            samples = _edge_samples(spec)
-            rings = _loop_rings(spec, samples=samples)
-            self.polygons.append(rings)
-            U = np.concatenate(rings)
-            (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
-            mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
-            self.uv_box.append(_within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1)))
-            seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
-            # A sampled curved edge stays within about one chord of its samples; a straight
-            # p-curve (Line2D, sampled by its two ends) is its segment.
-            pads = [np.full(Ue.shape[0], 0.0 if isinstance(e.pcurve, Line2D)
-                            else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1))))
-                    for loop, loop_samples in zip(spec.loops, samples) for e, Ue in zip(loop, loop_samples)]
-            pad = np.concatenate(pads)[:, None]
-            self.segments.append(seg)
-            self.seg_lo.append(seg.min(axis=1) - pad)
-            self.seg_hi.append(seg.max(axis=1) + pad)
+        _prefill_samples([spec for spec in self.specs if spec not in _FACE_DATA])
+        self._data = [_face_data(spec, t) for spec in self.specs]
+        self.uv_box = [d.uv_box for d in self._data]
+        self.polygons = [d.rings for d in self._data]
+        self.segments = [d.seg for d in self._data]
+        self.seg_lo = [d.seg_lo for d in self._data]
+        self.seg_hi = [d.seg_hi for d in self._data]
         self._classifier = None
-        self._edge_boxes: dict[int, tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def edge_boxes(self, f: int) -> tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]:
         """Face ``f``'s edge uses in loop order, their space boxes ``lo, hi (k, 3)`` (:func:`_edge_box`,
-        infinite where it gives none) and tolerances ``(k,)``, computed once per operand."""
-        got = self._edge_boxes.get(f)
-        if got is None:
+        infinite where it gives none) and tolerances ``(k,)``, computed once per face spec."""
+        d = self._data[f]
+        if d.edge_boxes is None:
             edges = [e for loop in self.specs[f].loops for e in loop]
             lo = np.full((len(edges), 3), -np.inf)
             hi = np.full((len(edges), 3), np.inf)
             for k, e in enumerate(edges):
-                box = _edge_box(e)
+                box = _use_box(e)
                 if box is not None:
                     lo[k], hi[k] = box[0], box[1]
             tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
-            got = self._edge_boxes[f] = (edges, lo, hi, tol)
-        return got
+            d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
+        return d.edge_boxes
 
     @property
     def classifier(self):
@@ -491,14 +501,138 @@ def _edge_uv(e: EdgeSpec, S, n: int) -> np.ndarray:
 
 
 def _edge_samples(spec: FaceSpec, n: int = _LOOP_SAMPLES) -> list[list[np.ndarray]]:
-    """Per loop, the parameter-plane samples of each edge use (:func:`_edge_uv`)."""
-    return [[_edge_uv(e, spec.surface, n) for e in loop] for loop in spec.loops]
+    """Per loop, the parameter-plane samples of each edge use (:func:`_edge_uv`; read-only arrays,
+    cached per use and surface for the default ``n``)."""
+    if n != _LOOP_SAMPLES:
+        return [[_edge_uv(e, spec.surface, n) for e in loop] for loop in spec.loops]
+    return [[_use_samples(e, spec.surface) for e in loop] for loop in spec.loops]
+
+
+def _use_samples(e: EdgeSpec, S) -> np.ndarray:
+    """:func:`_edge_uv` of ``e`` on ``S`` with ``_LOOP_SAMPLES``, cached per use (an EdgeSpec is immutable).
+
+    The pieces of a split face and the faces a Boolean result carries over to the next Boolean
+    (``_SEWN``) keep the very EdgeSpec objects of their untouched uses: a plate face gaining one
+    more hole does not sample the edges of its other holes again.
+    """
+    got = _USE_SAMPLES.get(e)
+    if got is not None and got[0] is S:
+        return got[1]
+    Ue = _frozen(_edge_uv(e, S, _LOOP_SAMPLES))
+    _USE_SAMPLES[e] = (S, Ue)
+    return Ue
+
+
+def _prefill_samples(specs: list[FaceSpec]) -> None:
+    """Fill :func:`_use_samples` for the uses of ``specs`` not sampled yet whose p-curve is a
+    :class:`Line2D` or :class:`Trig2D`, all of a kind in one array pass (the same expressions as
+    ``_edge_uv``, ``np.linspace`` and the p-curves' ``evaluate``, element by element): the pieces
+    of a Boolean bring many new cut edges."""
+    lines: list[tuple[EdgeSpec, object]] = []
+    trigs: list[tuple[EdgeSpec, object]] = []
+    for spec in specs:
+        S = spec.surface
+        for loop in spec.loops:
+            for e in loop:
+                got = _USE_SAMPLES.get(e)
+                if got is not None and got[0] is S:
+                    continue
+                kind = type(e.pcurve)
+                if kind is Line2D:
+                    lines.append((e, S))
+                elif kind is Trig2D:
+                    trigs.append((e, S))
+    if lines:
+        T = np.array([[e.t0, e.t1] for e, _ in lines])  # (np.linspace(t0, t1, 2) is exactly that)
+        O = np.array([e.pcurve.origin for e, _ in lines])
+        D = np.array([e.pcurve.direction for e, _ in lines])
+        U = O[:, None, :] + T[..., None] * D[:, None, :]
+        for (e, S), Ue in zip(lines, U):
+            _USE_SAMPLES[e] = (S, _frozen(Ue))
+    if trigs:
+        T = np.linspace([e.t0 for e, _ in trigs], [e.t1 for e, _ in trigs], _LOOP_SAMPLES, axis=-1)
+        C = np.array([e.pcurve.center for e, _ in trigs])[:, None, :]
+        A = np.array([e.pcurve.a for e, _ in trigs])[:, None, :]
+        B = np.array([e.pcurve.b for e, _ in trigs])[:, None, :]
+        U = C + np.cos(T)[..., None] * A + np.sin(T)[..., None] * B
+        for (e, S), Ue in zip(trigs, U):
+            _USE_SAMPLES[e] = (S, _frozen(Ue))
+
+
+def _use_pad(e: EdgeSpec, S) -> float:
+    """How far a use's p-curve may stray from its :func:`_use_samples` polyline: its longest
+    chord (0 for a straight p-curve, sampled by its two ends), cached with the samples."""
+    got = _USE_SAMPLES.get(e)
+    if got is None or got[0] is not S:
+        _use_samples(e, S)
+        got = _USE_SAMPLES[e]
+    if len(got) == 2:
+        Ue = got[1]
+        pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
+        got = _USE_SAMPLES[e] = (S, Ue, pad)
+    return got[2]
+
+
+#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface[, their pad (:func:`_use_pad`)]).
+_USE_SAMPLES: "weakref.WeakKeyDictionary[EdgeSpec, tuple]" = weakref.WeakKeyDictionary()
 
 
 def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES, samples: list | None = None) -> list[np.ndarray]:
     """Each loop as a closed parameter-plane polyline ``(k, 2)`` (pole gaps closed by straight segments);
     ``samples``: :func:`_edge_samples` of ``spec`` when the caller has them."""
     return [np.concatenate(loop) for loop in (_edge_samples(spec, n) if samples is None else samples)]
+
+
+class _FaceData:
+    """Per-face data of a completed face spec that depends on nothing else (and the tolerance).
+
+    ``uv_box`` the enlarged parameter box, ``samples`` (:func:`_edge_samples`), ``rings``
+    (:func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
+    ``seg_lo, seg_hi (s, 2)``, and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand).
+    """
+
+    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "edge_boxes", "__weakref__")
+
+
+#: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
+#: curves and surfaces that are values), so its data never goes stale; entries die with the spec.
+_FACE_DATA: "weakref.WeakKeyDictionary[FaceSpec, _FaceData]" = weakref.WeakKeyDictionary()
+#: Boolean result B-rep -> the completed face specs it was sewn from, in face order.  The next
+#: Boolean on the result takes a face's spec (and so its cached data) from here when
+#: :func:`~coons.topology.sew.sewn_unchanged` confirms the B-rep face is exactly that spec: the
+#: faces of a large part that a cut does not touch are not re-read, re-sampled or re-boxed.
+_SEWN: "weakref.WeakKeyDictionary[BRep, list[FaceSpec]]" = weakref.WeakKeyDictionary()
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
+    """The :class:`_FaceData` of a completed spec (surface set, every use with a p-curve), cached per spec."""
+    d = _FACE_DATA.get(spec)
+    if d is not None and d.t == t:
+        return d
+    d = _FaceData()
+    d.t, d.edge_boxes = t, None
+    # Each edge sampled once: for the rings and for the pads of its segments.
+    d.samples = _edge_samples(spec)
+    rings = d.rings = [_frozen(R) for R in _loop_rings(spec, samples=d.samples)]
+    U = np.concatenate(rings)
+    (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
+    mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
+    d.uv_box = _within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1))
+    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
+    # A sampled curved edge stays within about one chord of its samples; a straight
+    # p-curve (Line2D, sampled by its two ends) is its segment.
+    uses = [(e, Ue) for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)]
+    pad = np.repeat([_use_pad(e, spec.surface) for e, _ in uses], [Ue.shape[0] for _, Ue in uses])[:, None]
+    d.seg = _frozen(seg)
+    d.seg_lo = _frozen(seg.min(axis=1) - pad)
+    d.seg_hi = _frozen(seg.max(axis=1) + pad)
+    _FACE_DATA[spec] = d
+    return d
 
 
 # ---------------------------------------------------------------------- broad phase
@@ -1170,6 +1304,14 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
 
     dangling = _dangling_cuts(pieces, cuts or {})
 
+    def avoid_of(f: int, spec: FaceSpec) -> np.ndarray | None:
+        if f not in dangling:
+            return None
+        try:
+            return np.concatenate([_polyline_segments(_edge_uv(c, spec.surface, _LOOP_SAMPLES)) for c in dangling[f]])
+        except CoonsError:
+            return None  # (interior() raises it with the piece named)
+
     def interior(k: int, f: int, spec: FaceSpec) -> None:
         try:
             avoid = None
@@ -1180,6 +1322,7 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
             raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
                                diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
 
+    searched = []
     for k, (f, spec) in enumerate(pieces):
         if free is not None and free[f]:
             e = spec.loops[0][0]
@@ -1187,7 +1330,14 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
             N[k] = np.nan
             quick[k] = True
         else:
-            interior(k, f, spec)
+            searched.append(k)
+    # The first grid of every searched piece in array passes; the pieces it leaves open alone.
+    found = _interior_points([(pieces[k][1], avoid_of(*pieces[k])) for k in searched], t)
+    for k, got in zip(searched, found):
+        if got is None:
+            interior(k, *pieces[k])
+        else:
+            P[k], N[k] = got
     cls, normal = Y.classifier.classify(P)
     redo = np.flatnonzero(quick & (cls == ON))
     if redo.size:  # not expected: a free face's vertex on Y's boundary
@@ -1270,24 +1420,10 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
     """
     from coons.booleans.classify import _in_polygon, _segment_distance
 
-    S = spec.surface
-    rings = _loop_rings(spec)
-    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
-    U = np.concatenate(rings)
-    lo, hi = U.min(axis=0), U.max(axis=0)
-    c = 0.5 * (lo + hi)
-    D = np.asarray(S.derivatives(c[0], c[1], 1))
-    scale = np.array([np.linalg.norm(D[1, 0]), np.linalg.norm(D[0, 1])])
-    scale = np.where(scale > 0, scale, 1.0)
+    S, seg, near, lo, hi, scale = _interior_setup(spec, avoid)
     clearance = _INTERIOR_CLEARANCE * t.linear
-    near = seg
-    if avoid is not None and len(avoid):
-        shifts = [np.array([du, dv]) for du in _period_steps(S, "period_u") for dv in _period_steps(S, "period_v")]
-        near = np.concatenate([seg] + [avoid + d for d in shifts])
     for n in (16, 64, 256):
-        gu = (np.arange(n) + 0.5) / n
-        gv = (np.arange(n + 2) + 0.5) / (n + 2)
-        G = np.stack(np.meshgrid(lo[0] + gu * (hi[0] - lo[0]), lo[1] + gv * (hi[1] - lo[1]), indexing="ij"), -1).reshape(-1, 2)
+        G = _interior_grid(lo, hi, n)
         G = G[_in_polygon(G, seg)]
         if G.shape[0]:
             if G.shape[0] * near.shape[0] > _EXACT_DISTANCES:
@@ -1297,12 +1433,132 @@ def _interior_point(spec: FaceSpec, t: Tolerance, avoid: np.ndarray | None = Non
             best = int(np.argmax(d))
             if d[best] <= clearance:
                 continue
-            uv = G[best]
-            P = np.asarray(S.evaluate(uv[0], uv[1]), dtype=np.float64).reshape(3)
-            nrm = np.asarray(S.normal(uv[0], uv[1]), dtype=np.float64).reshape(3)
-            return P, (nrm if spec.sense else -nrm)
+            return _interior_at(spec, G[best])
     raise InvalidInputError(f"no interior point found in a {_kind(spec)} piece with parameter box {lo.tolist()}–{hi.tolist()} "
                             f"farther than {clearance:.3g} from its boundary")
+
+
+def _interior_setup(spec: FaceSpec, avoid: np.ndarray | None):
+    """What :func:`_interior_point` searches with: ``(surface, seg (s, 2, 2), near (m, 2, 2), lo, hi, scale)``:
+    the trim segments, those and the segments to avoid, the parameter box and the metric scale."""
+    S = spec.surface
+    rings = _loop_rings(spec)  # (the samples of the uses a piece keeps from its face are cached)
+    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
+    U = np.concatenate(rings)
+    lo, hi = U.min(axis=0), U.max(axis=0)
+    c = 0.5 * (lo + hi)
+    D = np.asarray(S.derivatives(c[0], c[1], 1))
+    scale = np.array([np.linalg.norm(D[1, 0]), np.linalg.norm(D[0, 1])])
+    scale = np.where(scale > 0, scale, 1.0)
+    near = seg
+    if avoid is not None and len(avoid):
+        shifts = [np.array([du, dv]) for du in _period_steps(S, "period_u") for dv in _period_steps(S, "period_v")]
+        near = np.concatenate([seg] + [avoid + d for d in shifts])
+    return S, seg, near, lo, hi, scale
+
+
+def _interior_grid(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
+    """The ``n × (n + 2)`` candidate grid ``(n (n + 2), 2)`` over the box, u-major (as ``meshgrid(..., indexing="ij")``)."""
+    gu, gv = _grid_fractions(n)
+    G = np.empty((n * (n + 2), 2))
+    G[:, 0] = np.repeat(lo[0] + gu * (hi[0] - lo[0]), n + 2)
+    G[:, 1] = np.tile(lo[1] + gv * (hi[1] - lo[1]), n)
+    return G
+
+
+def _interior_at(spec: FaceSpec, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    S = spec.surface
+    P = np.asarray(S.evaluate(uv[0], uv[1]), dtype=np.float64).reshape(3)
+    nrm = np.asarray(S.normal(uv[0], uv[1]), dtype=np.float64).reshape(3)
+    return P, (nrm if spec.sense else -nrm)
+
+
+#: Pieces with more trim segments than this take their first grid alone (the row sweep of
+#: ``_in_polygon``, a k-d tree for the distances) instead of in the batched array passes.
+_BATCH_SEGMENTS = 512
+#: Point–segment pairs held at once by the batched passes of :func:`_interior_points` (memory bound).
+_BATCH_PAIRS = 1 << 20
+
+
+def _interior_points(items: list[tuple[FaceSpec, np.ndarray | None]], t: Tolerance) -> list:
+    """The first grid (``n`` = 16) of :func:`_interior_point` for many pieces at once.
+
+    Returns, per item ``(spec, avoid)``, the point and normal :func:`_interior_point` returns, or
+    None where it must be asked alone (its first grid finds no point clear of the boundary, the
+    piece has many segments, or setting it up raises).  Pieces with the same number of trim
+    segments (all the hole walls of a plate, all its discs) are tested against their own
+    segments in one array pass, as are their distances; every element is the same
+    floating-point expression as in :func:`~coons.booleans.classify._in_polygon` (all pairs)
+    and :func:`~coons.booleans.classify._segment_distance`, so the chosen grid point is the same.
+    """
+    n = 16
+    clearance = _INTERIOR_CLEARANCE * t.linear
+    out: list = [None] * len(items)
+    _prefill_samples([spec for spec, _ in items])
+    setup: dict[int, tuple] = {}
+    by_count: dict[int, list[int]] = {}
+    for k, (spec, avoid) in enumerate(items):
+        try:
+            S, seg, near, lo, hi, scale = _interior_setup(spec, avoid)
+        except CoonsError:
+            continue  # (asked alone, the piece raises with its name)
+        if seg.shape[0] > _BATCH_SEGMENTS:
+            continue
+        setup[k] = (seg, near, scale, _interior_grid(lo, hi, n))
+        by_count.setdefault(seg.shape[0], []).append(k)
+    inside: dict[int, np.ndarray] = {}
+    g = n * (n + 2)
+    for s, ks in by_count.items():
+        step = max(1, _BATCH_PAIRS // (g * s))
+        for b0 in range(0, len(ks), step):
+            kb = ks[b0 : b0 + step]
+            seg = np.stack([setup[k][0] for k in kb])  # (p, s, 2, 2)
+            G = np.stack([setup[k][3] for k in kb])  # (p, g, 2)
+            a, c = seg[:, :, 0], seg[:, :, 1]
+            dy = c[..., 1] - a[..., 1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope = (c[..., 0] - a[..., 0]) / np.where(dy == 0, 1.0, dy)
+            x, y = G[..., 0:1], G[..., 1:2]
+            straddle = (a[:, None, :, 1] > y) != (c[:, None, :, 1] > y)
+            xc = a[:, None, :, 0] + (y - a[:, None, :, 1]) * slope[:, None, :]
+            odd = (np.count_nonzero(straddle & (x < xc), axis=2) % 2) == 1
+            for k, m in zip(kb, odd):
+                inside[k] = setup[k][3][m]
+    # Distances, grouped by (points inside, segments to keep clear of).
+    by_shape: dict[tuple[int, int], list[int]] = {}
+    for k, Gk in inside.items():
+        near = setup[k][1]
+        if Gk.shape[0] == 0 or Gk.shape[0] * near.shape[0] > _EXACT_DISTANCES:
+            continue  # (no point inside, or the k-d tree of _boundary_distance: asked alone)
+        by_shape.setdefault((Gk.shape[0], near.shape[0]), []).append(k)
+    for (q, m), ks in by_shape.items():
+        step = max(1, _BATCH_PAIRS // (q * m))
+        for b0 in range(0, len(ks), step):
+            kb = ks[b0 : b0 + step]
+            Q = np.stack([inside[k] * setup[k][2] for k in kb])  # (p, q, 2)
+            seg = np.stack([setup[k][1] * setup[k][2] for k in kb])  # (p, m, 2, 2)
+            a = seg[:, :, 0]
+            d = seg[:, :, 1] - a
+            dd = np.stack([np.maximum(np.einsum("ij,ij->i", dk, dk), 1e-300) for dk in d])  # as _segment_distance
+            R = [Q[:, :, None, i] - a[:, None, :, i] for i in range(2)]  # (p, q, m) per coordinate
+            lam = sum(R[i] * d[:, None, :, i] for i in range(2)) / dd[:, None, :]
+            np.clip(lam, 0.0, 1.0, out=lam)
+            d2 = sum(np.square(R[i] - lam * d[:, None, :, i]) for i in range(2))
+            dist = np.sqrt(np.min(d2, axis=2))  # (p, q)
+            for k, dk in zip(kb, dist):
+                best = int(np.argmax(dk))
+                if dk[best] > clearance:
+                    try:
+                        out[k] = _interior_at(items[k][0], inside[k][best])
+                    except CoonsError:
+                        pass  # (asked alone)
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _grid_fractions(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cell-centre fractions of the interior-point grid: ``(n,)`` along u and ``(n + 2,)`` along v (read-only)."""
+    return _frozen((np.arange(n) + 0.5) / n), _frozen((np.arange(n + 2) + 0.5) / (n + 2))
 
 
 def _period_steps(S, name: str) -> tuple[float, ...]:
@@ -1361,7 +1617,7 @@ def reversed_face(spec: FaceSpec) -> FaceSpec:
 
 # ---------------------------------------------------------------------- T-junctions
 def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None,
-                             orig_edges: dict | None = None) -> list[FaceSpec]:
+                             orig_edges: dict | None = None, points: _UsePoints | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -1384,8 +1640,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
 
     orig = orig or {}
     orig_edges = orig_edges or {}
-    starts = np.array([np.asarray(e.curve.evaluate(e.t0), dtype=np.float64).reshape(3)
-                       for f in faces for loop in f.loops for e in loop])
+    points = points if points is not None else _UsePoints()
+    starts = points.get([e for f in faces for loop in f.loops for e in loop])[:, 0].reshape(-1, 3)
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
     start_tol = np.array([max(t.linear, e.tol or 0.0) for f in faces for loop in f.loops for e in loop])
     if starts.shape[0] == 0:
@@ -1396,36 +1652,45 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     group = np.array([orig_edges.get(id(e), 0) for f in faces for loop in f.loops for e in loop], dtype=np.int64)
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     tree = cKDTree(starts)
+    # Which unchanged faces have a foreign vertex in their box, all in array passes (after many
+    # cuts most faces of a plate are unchanged and far from the new vertices).
+    kept = [k for k, f in enumerate(faces) if id(f) in orig]
+    near_any = np.zeros(len(faces), dtype=bool)
+    if kept:
+        info = [orig[id(faces[k])] for k in kept]
+        g_of = np.array([i[0] for i in info], dtype=np.int64)
+        LO = np.array([i[1] for i in info], dtype=np.float64)
+        HI = np.array([i[2] for i in info], dtype=np.float64)
+        step = max(1, _CLEAR_CHUNK // max(1, starts.shape[0]))
+        for s0 in range(0, len(kept), step):
+            sl = slice(s0, s0 + step)
+            # (the same comparisons as the per-face test below, for a block of faces)
+            box_in = np.all((starts[None] >= LO[sl, None, :] - start_tol[None, :, None])
+                            & (starts[None] <= HI[sl, None, :] + start_tol[None, :, None]), axis=2)
+            near_any[np.asarray(kept[sl])] = np.any(box_in & (group[None, :] != g_of[sl, None]), axis=1)
     out = []
     changed_any = False
-    for f in faces:
+    for k, f in enumerate(faces):
         info = orig.get(id(f))
         face_foreign = None
         if info is not None:
+            if not near_any[k]:
+                out.append(f)  # no foreign vertex near this face
+                continue
             g, lo, hi = info
             other = group != g
             inside = other & np.all((starts >= lo - start_tol[:, None]) & (starts <= hi + start_tol[:, None]), axis=1)
-            if not np.any(inside):
-                out.append(f)  # no foreign vertex near this face
-                continue
             face_foreign = starts[inside], start_tol[inside]
         loops = []
         face_changed = False
+        clear = iter(_clear_uses([e for loop in f.loops for e in loop], face_foreign, foreign_of, orig_edges, t).tolist())
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
                 thr = max(t.linear, e.tol or 0.0)
-                g_e = orig_edges.get(id(e), 0)
-                foreign = face_foreign if face_foreign is not None else foreign_of.get(g_e)
-                if foreign is not None:
-                    # An unchanged edge can only be split by a foreign vertex: none near the
-                    # edge's box (a plate face with many holes has many edges), nothing to do.
-                    box = _edge_box(e)
-                    if box is not None:
-                        pad = (foreign[1] + thr)[:, None]
-                        if not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1)):
-                            new.append(e)
-                            continue
+                if next(clear):
+                    new.append(e)
+                    continue
                 tt = np.linspace(e.t0, e.t1, 17)
                 X = np.asarray(e.curve.evaluate(tt), dtype=np.float64)
                 c = X.mean(axis=0)
@@ -1466,6 +1731,58 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     return out if changed_any else faces
 
 
+def _clear_uses(edges: list[EdgeSpec], face_foreign, foreign_of: dict, orig_edges: dict, t: Tolerance) -> np.ndarray:
+    """``(k,)`` bool: which of a face's edge uses no vertex can split (see :func:`_split_edges_at_vertices`).
+
+    An unchanged edge use can only be split by a foreign vertex (``face_foreign``, the foreign
+    vertices in an unchanged face's box, else ``foreign_of[operand of the use]``; a new use has
+    none and is never clear): a use is clear when no such vertex lies in its box
+    (:func:`_use_box`) padded by both tolerances.  All uses of one group against all their
+    foreign vertices in one array test (a plate face with many holes has many edges).
+    """
+    clear = np.zeros(len(edges), dtype=bool)
+    groups: dict[int, list[int]] = {}
+    for i, e in enumerate(edges):
+        key = -1 if face_foreign is not None else orig_edges.get(id(e), 0)
+        if key in foreign_of or key == -1:
+            if _use_box(e) is not None:
+                groups.setdefault(key, []).append(i)
+    for key, idx in groups.items():
+        P, ptol = face_foreign if key == -1 else foreign_of[key]
+        thr = np.array([max(t.linear, edges[i].tol or 0.0) for i in idx])
+        B = np.stack([_use_box(edges[i]) for i in idx])  # (n, 2, 3)
+        step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
+        for s0 in range(0, len(idx), step):
+            pad = (ptol[None, :] + thr[s0 : s0 + step, None])[..., None]  # (n, m, 1)
+            Bs = B[s0 : s0 + step, None]
+            near = np.all((P[None] >= Bs[:, :, 0] - pad) & (P[None] <= Bs[:, :, 1] + pad), axis=2).any(axis=1)
+            clear[idx[s0 : s0 + step]] = ~near
+    return clear
+
+
+#: Use–vertex pairs held at once by :func:`_clear_uses` (memory bound).
+_CLEAR_CHUNK = 1 << 18
+
+
+def _use_box(e: EdgeSpec) -> np.ndarray | None:
+    """:func:`_edge_box` of an edge use, cached per use (an EdgeSpec is immutable).
+
+    The uses of the faces a Boolean result carries over to the next Boolean are the same
+    objects (``_SEWN``): their boxes are computed once for a chain of cuts.
+    """
+    got = _USE_BOXES.get(e, _NO_BOX)
+    if got is _NO_BOX:
+        got = _edge_box(e)
+        if got is not None:
+            got = _frozen(np.asarray(got, dtype=np.float64))
+        _USE_BOXES[e] = got
+    return got
+
+
+_NO_BOX = object()
+_USE_BOXES: "weakref.WeakKeyDictionary[EdgeSpec, np.ndarray | None]" = weakref.WeakKeyDictionary()
+
+
 def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """Per point, the largest tolerance in its cluster (points within ``max(tol_i, tol_j)``, transitively), as sewing merges them."""
     from scipy.sparse import coo_matrix
@@ -1485,9 +1802,9 @@ def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- merge
-def _merge(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+def _merge(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
     """Merge neighbouring faces on one surface with one sense (see the module docstring)."""
-    return _merge_faces(faces, t)
+    return _merge_faces(faces, t, points)
 
 
 def _same_surface(S1, S2, t: Tolerance) -> bool:
@@ -1501,30 +1818,28 @@ def _same_surface(S1, S2, t: Tolerance) -> bool:
         return False
 
 
-def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
-    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense."""
+def _merge_faces(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
+    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense
+    (``points``: the use points known so far, shared with the neighbouring phases)."""
     from scipy.spatial import cKDTree
 
     faces = list(faces)
     failed: set[tuple] = set()  # pairs of uses already tried (their faces are kept alive in ``seen``)
     seen: list[tuple[FaceSpec, FaceSpec]] = []
+    # A merged face keeps the uses of its two faces (B's perhaps with other p-curves, never other
+    # curves or ranges): after the first round nothing is evaluated again.
+    points = points if points is not None else _UsePoints()
     changed = True
     while changed:
         changed = False
         uses = []  # (face, loop, pos, (start, end, mid))
-        by_curve: dict[int, list[int]] = {}
         for fi, f in enumerate(faces):
             for li, loop in enumerate(f.loops):
                 for pi, e in enumerate(loop):
-                    by_curve.setdefault(id(e.curve), []).append(len(uses))
                     uses.append((fi, li, pi, e))
         if len(uses) < 2:
             break
-        P3 = np.empty((len(uses), 3, 3))
-        for rows in by_curve.values():  # one evaluation per curve object
-            e0 = uses[rows[0]][3]
-            tt = np.array([[uses[k][3].t0, uses[k][3].t1, 0.5 * (uses[k][3].t0 + uses[k][3].t1)] for k in rows])
-            P3[rows] = np.asarray(e0.curve.evaluate(tt), dtype=np.float64).reshape(len(rows), 3, 3)
+        P3 = points.get([u[3] for u in uses])
         uses = [(fi, li, pi, P3[k]) for k, (fi, li, pi, _) in enumerate(uses)]
         M = P3[:, 2]
         pairs = cKDTree(M).query_pairs(r=max(t.linear, 1e-12), output_type="ndarray")
@@ -1540,39 +1855,62 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 continue
             failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
             seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
-            ea = A.loops[uses[p][1]][uses[p][2]]
-            eb = B.loops[uses[q][1]][uses[q][2]]
+            up, uq = uses[p][1:3], uses[q][1:3]
+            ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
             Pa, Pb = uses[p][3], uses[q][3]
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
                 continue
-            if not _same_surface(A.surface, B.surface, t):
-                # The same point set in another parametrisation: B's p-curves re-expressed on A's surface.
-                B = _moved_to(B, A.surface, t)
-                if B is None:
-                    continue
-                eb = B.loops[uses[q][1]][uses[q][2]]
-            if A.sense != B.sense:
-                continue
-            # The shared edge must have the same parameter-plane image on both: shift B by whole
-            # periods when they differ by one (a face pair across u = 0 of a cylinder).
-            ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
-            B = _period_shifted(B, A.surface, np.mean(ua - ub, axis=0))
-            if B is None:
-                continue
-            eb = B.loops[uses[q][1]][uses[q][2]]
-            ub = _edge_uv(eb, A.surface, 3)[::-1]
-            if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
-                continue
-            if _wraps(A, B):
-                continue  # (the cheap form of _fuse's own full-period test: two half cylinders)
-            merged = _fuse(A, B, (uses[p][1], uses[p][2]), (uses[q][1], uses[q][2]), t)
+            memo = (up, uq, t)
+            known = _MERGE_FAILED.get(A)
+            if known is not None and memo in known.get(B, ()):
+                continue  # found unmergeable by an earlier Boolean on the same two face specs
+            merged = _merged_pair(A, B, up, uq, t)
             if merged is None:
+                _MERGE_FAILED.setdefault(A, weakref.WeakKeyDictionary()).setdefault(B, set()).add(memo)
                 continue
             faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
             changed = True
             break
     return faces
+
+
+#: ``A -> B -> {(loop, position in A, loop, position in B, tol)}``: pairs of shared uses of two
+#: face specs that :func:`_merge_faces` found it cannot merge.  The test depends only on the two
+#: (immutable) specs, the two uses and the tolerance, so a Boolean result's faces that pass through
+#: the next Boolean unchanged (the same spec objects, see ``_SEWN``) are not tried again: the two
+#: halves of every hole's wall in a plate would otherwise be re-tested by every later cut.
+_MERGE_FAILED: "weakref.WeakKeyDictionary[FaceSpec, weakref.WeakKeyDictionary]" = weakref.WeakKeyDictionary()
+
+
+def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, int], t: Tolerance) -> FaceSpec | None:
+    """The face ``A ∪ B`` across use ``up = (loop, position)`` of A and ``uq`` of B (which run
+    between the same points the opposite way), or None when they do not merge: other
+    surfaces, other senses, other parameter-plane images of the shared edge, a full period.
+
+    A function of the two specs, the two uses and ``t`` only (memoised in :data:`_MERGE_FAILED`).
+    """
+    if not _same_surface(A.surface, B.surface, t):
+        # The same point set in another parametrisation: B's p-curves re-expressed on A's surface.
+        B = _moved_to(B, A.surface, t)
+        if B is None:
+            return None
+    if A.sense != B.sense:
+        return None
+    # The shared edge must have the same parameter-plane image on both: shift B by whole
+    # periods when they differ by one (a face pair across u = 0 of a cylinder).
+    ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+    ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
+    B = _period_shifted(B, A.surface, np.mean(ua - ub, axis=0))
+    if B is None:
+        return None
+    eb = B.loops[uq[0]][uq[1]]
+    ub = _edge_uv(eb, A.surface, 3)[::-1]
+    if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
+        return None
+    if _wraps(A, B):
+        return None  # (the cheap form of _fuse's own full-period test: two half cylinders)
+    return _fuse(A, B, up, uq, t)
 
 
 def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
@@ -1741,7 +2079,7 @@ def _shoelace(R: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------------- fuse edges
-def _fuse_edges(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
     """Remove vertices where exactly two edges meet and continue one curve.
 
     Splitting and merging leave such vertices (the top of the union of two boxes keeps the
@@ -1756,16 +2094,16 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
     from scipy.spatial import cKDTree
 
     loops = [[list(loop) for loop in f.loops] for f in faces]
+    changed: set[int] = set()
+    points = points if points is not None else _UsePoints()  # only a fused use is new in a round
     for _ in range(64):  # each round removes at least one vertex; a bound against surprises
-        where, starts, ends = [], [], []
+        where, uses = [], []
         for fi, fl in enumerate(loops):
             for li, loop in enumerate(fl):
                 for pi, e in enumerate(loop):
                     where.append((fi, li, pi))
-                    P = np.asarray(e.curve.evaluate(np.array([e.t0, e.t1])), dtype=np.float64)
-                    starts.append(P[0])
-                    ends.append(P[1])
-        starts_a = np.asarray(starts)
+                    uses.append(e)
+        starts_a = points.get(uses)[:, 0]
         pairs = cKDTree(starts_a).query_pairs(r=t.linear, output_type="ndarray")
         n = starts_a.shape[0]
         g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
@@ -1791,11 +2129,56 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 loop = loops[fi][li]
                 loop[pi - 1] = joined
                 del loop[pi]
+                changed.add(fi)
             fused = True
             break  # indices changed: recompute
         if not fused:
             break
-    return [FaceSpec(f.surface, f.sense, fl) for f, fl in zip(faces, loops)]
+    # Untouched faces stay the same objects (the next Boolean recognises them, see _SEWN).
+    return [FaceSpec(f.surface, f.sense, fl) if fi in changed else f for fi, (f, fl) in enumerate(zip(faces, loops))]
+
+
+class _UsePoints:
+    """Start, end and midpoint ``(3, 3)`` of edge uses, by curve object and range, evaluated once.
+
+    Lines and circles in one batch (:func:`~coons.kernel.onsurface.evaluate_curves`, their own
+    formulas), other curves once per curve object.  An entry holds its curve, so an ``id`` is
+    never that of another curve.
+    """
+
+    def __init__(self) -> None:
+        self._got: dict[tuple[int, float, float], tuple[object, np.ndarray]] = {}
+
+    def get(self, uses: list[EdgeSpec]) -> np.ndarray:
+        """``(k, 3, 3)``: start, end and midpoint of each use."""
+        from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
+
+        got = self._got
+        new: dict[tuple[int, float, float], EdgeSpec] = {}
+        for e in uses:
+            key = (id(e.curve), e.t0, e.t1)
+            if key not in got and key not in new:
+                new[key] = e
+        if new:
+            es = list(new.values())
+            simple = [e for e in es if type(e.curve) in BATCHED_CURVES]
+            if simple:
+                P = evaluate_curves([e.curve for e in simple],
+                                    np.array([[e.t0, e.t1, 0.5 * (e.t0 + e.t1)] for e in simple]))
+                for e, Pe in zip(simple, P):
+                    got[id(e.curve), e.t0, e.t1] = (e.curve, Pe)
+            by_curve: dict[int, list[EdgeSpec]] = {}
+            for e in es:
+                if type(e.curve) not in BATCHED_CURVES:
+                    by_curve.setdefault(id(e.curve), []).append(e)
+            for group in by_curve.values():
+                tt = np.array([[e.t0, e.t1, 0.5 * (e.t0 + e.t1)] for e in group])
+                P = np.asarray(group[0].curve.evaluate(tt), dtype=np.float64).reshape(len(group), 3, 3)
+                for e, Pe in zip(group, P):
+                    got[id(e.curve), e.t0, e.t1] = (e.curve, Pe)
+        if not uses:
+            return np.empty((0, 3, 3))
+        return np.stack([got[id(e.curve), e.t0, e.t1][1] for e in uses])
 
 
 def _joined(a: EdgeSpec, b: EdgeSpec, t: Tolerance) -> EdgeSpec | None:

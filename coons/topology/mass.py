@@ -1470,9 +1470,21 @@ def _bounding_box(b: BRep) -> np.ndarray:
     lo = b.vertex_point.min(axis=0)
     hi = b.vertex_point.max(axis=0)
     pts = []
-    for ci in np.unique(b.edge_curve[b.edge_curve >= 0]):
-        rows = np.flatnonzero(b.edge_curve == ci)
-        pts.append(_curve_extreme_points(b.curves[int(ci)], b.edge_range[rows]))
+    # Edges grouped by curve (ascending rows within a curve); circles (every hole of a plate has
+    # two) all in one array pass, the other curves one by one.
+    curved = np.flatnonzero(b.edge_curve >= 0)
+    order = curved[np.argsort(b.edge_curve[curved], kind="stable")]
+    cut = np.flatnonzero(np.diff(b.edge_curve[order])) + 1
+    circles = []
+    for rows in np.split(order, cut) if order.size else []:
+        curve = b.curves[int(b.edge_curve[rows[0]])]
+        if type(curve) is Circle:
+            circles.append(rows)
+        else:
+            pts.append(_curve_extreme_points(curve, b.edge_range[rows]))
+    if circles:
+        rows = np.concatenate(circles)
+        pts.append(_circle_extreme_points([b.curves[int(c)] for c in b.edge_curve[rows]], b.edge_range[rows]))
     # Planes, cylinders and cones have no isolated interior extrema; every other face is searched.
     flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
     search = np.array([not isinstance(S, flat) for S in b.surfaces] + [False])[b.face_surface]
@@ -1505,6 +1517,27 @@ def _curve_extreme_points(curve, ranges: np.ndarray) -> np.ndarray:
         inside = (cand >= t0[:, :, None]) & (cand <= t1[:, :, None])
         return curve.evaluate(cand[inside])
     return _generic_curve_extremes(curve, ranges)
+
+
+def _circle_extreme_points(curves: list, ranges: np.ndarray) -> np.ndarray:
+    """:func:`_curve_extreme_points` of many circle arcs at once: ``curves[k]`` over ``ranges[k]`` ``(k, 2)``.
+
+    Element by element the same expressions as :func:`_curve_extreme_points` and
+    ``Circle.evaluate``, so the same points (in another order).
+    """
+    R = np.array([c.radius for c in curves], dtype=np.float64)[:, None]
+    F = np.array([c.frame for c in curves])  # (k, 3, 3)
+    O = np.array([c.center for c in curves])
+    X, Y = F[:, 0], F[:, 1]
+    ts = np.arctan2(R * Y, R * X)
+    ts = np.concatenate([ts, ts + math.pi], axis=1)  # (k, 6)
+    t0, t1 = ranges[:, :1], ranges[:, 1:]
+    first = ts + _TWO_PI * np.ceil((t0 - ts) / _TWO_PI)
+    cand = np.stack([first, first + _TWO_PI], axis=-1)  # (k, 6, 2)
+    inside = (cand >= t0[:, :, None]) & (cand <= t1[:, :, None])
+    k = np.nonzero(inside)[0]
+    t = cand[inside]
+    return ((R[k, 0] * np.cos(t))[:, None] * X[k] + (R[k, 0] * np.sin(t))[:, None] * Y[k]) + O[k]
 
 
 def _span_samples(lo: float, hi: float, knots, generic: int) -> np.ndarray:

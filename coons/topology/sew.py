@@ -52,7 +52,7 @@ from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
 from coons.topology.shape import Solid
 
-__all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs"]
+__all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged"]
 
 #: Parameters (fractions of an edge's range) at which two curves are compared point by point.
 _PROBE = np.linspace(0.0, 1.0, 7)
@@ -687,16 +687,18 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
 
 
 # ====================================================================== B-rep -> specs
-def face_specs(shape) -> list[FaceSpec]:
+def face_specs(shape, rows=None) -> list[FaceSpec]:
     """The :class:`FaceSpec` of every face of a B-rep, in face order (inverse of :func:`sew_faces`).
 
     Straight edges without a curve get one shared :class:`~coons.kernel.analytic.Line` per edge
     (parametrised by arc length; p-curves re-expressed accordingly).  Both uses of an edge
-    refer to the same curve object.
+    refer to the same curve object (among the faces of one call).
 
     Parameters
     ----------
     shape : Solid or BRep
+    rows : sequence of int, optional
+        Only these faces, in this order (default: all).
 
     Returns
     -------
@@ -728,7 +730,8 @@ def face_specs(shape) -> list[FaceSpec]:
         return curves[e]
 
     out = []
-    for f in range(b.n_faces):
+    for f in (range(b.n_faces) if rows is None else rows):
+        f = int(f)
         si = int(b.face_surface[f])
         loops = []
         for loop in b.face_loop_ids(f):
@@ -748,3 +751,34 @@ def face_specs(shape) -> list[FaceSpec]:
             loops.append(specs)
         out.append(FaceSpec(None if si < 0 else b.surfaces[si], bool(b.face_sense[f]), loops))
     return out
+
+
+def sewn_unchanged(b: BRep, f: int, spec: FaceSpec) -> bool:
+    """Whether face ``f`` of ``b`` is exactly ``spec``: ``face_specs(b, [f])[0]`` would equal it field by field.
+
+    True when the face's surface and every edge use's curve and p-curve are the very objects of
+    ``spec`` (no p-curve missing), with the same sense, loops in the same order, and parameter
+    ranges and tolerances equal as floats.  The Booleans use it to carry an operand face's
+    per-face data over to a result that was sewn from it (:func:`sew_faces` may have re-expressed
+    a p-curve or widened a tolerance, then this is False).
+    """
+    si = int(b.face_surface[f])
+    if si < 0 or b.surfaces[si] is not spec.surface or bool(b.face_sense[f]) != spec.sense:
+        return False
+    loops = b.face_loop_ids(f)
+    if len(loops) != len(spec.loops):
+        return False
+    curves, ranges, pcurves, tols = b.edge_curve, b.edge_range, b.edge_pcurve, b.edge_tol
+    for loop, uses in zip(loops.tolist(), spec.loops):
+        cs = b.loop_coedges(int(loop))
+        if cs.size != len(uses):
+            return False
+        for c, e in zip(cs.tolist(), uses):
+            k, side = c >> 1, c & 1
+            ci, pi = int(curves[k]), int(pcurves[k, side])
+            if ci < 0 or pi < 0 or e.pcurve is None or b.curves[ci] is not e.curve or b.pcurves[pi] is not e.pcurve:
+                return False
+            r0, r1 = float(ranges[k, 0]), float(ranges[k, 1])
+            if (e.t0, e.t1) != ((r0, r1) if side == 0 else (r1, r0)) or e.tol != float(tols[k]):
+                return False
+    return True

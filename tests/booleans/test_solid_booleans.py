@@ -606,3 +606,215 @@ def test_straight_clip_preconditions():
     assert S._clip_straight(X, caps[0], Line2D([-5, 0.1], [10, 0]), 0.0, 1.0, T) is None  # a circle bounds it
     box = S._Operand(Box(2, 2, 2), "A", T)
     assert S._clip_straight(box, 0, Trig2D([0, 0], [0.5, 0], [0, 0.5]), 0.0, 1.0, T) is None
+
+
+# ---------------------------------------------------------------------- data carried from Boolean to Boolean
+def _forget_carried() -> None:
+    """Clear every per-object cache of the pipeline (and the per-B-rep meshes and mass caches)."""
+    from coons.topology import mass, tessellate
+
+    for cache in (S._SEWN, S._FACE_DATA, S._MERGE_FAILED, S._USE_BOXES, S._USE_SAMPLES):
+        cache.clear()
+    tessellate._MESHES.clear()
+    mass._CACHE.clear()
+
+
+def _fingerprint(r: Solid) -> tuple:
+    from coons.topology.mass import face_areas
+
+    b = r.brep
+    return (b.n_faces, b.n_edges, b.n_vertices, r.volume, tuple(sorted(face_areas(b).tolist())),
+            tuple(sorted(r.surface_types())))
+
+
+def _chain(start: Solid, steps, forget: bool) -> Solid:
+    out = start
+    for op, tool in steps:
+        if forget:
+            _forget_carried()
+        out = S.boolean(out, tool, op, method="brep")
+    return out
+
+
+@settings(max_examples=6)
+@given(st.lists(st.tuples(st.integers(-3, 3), st.integers(-3, 3)), min_size=2, max_size=4, unique=True),
+       st.sampled_from([1.0, 1.5]))
+def test_chain_of_cuts_is_the_same_with_and_without_carried_data(holes, radius):
+    """Sequential cuts reuse the faces a result carries over (specs, samples, boxes, merge failures): same result as cold."""
+    plate = Box(40, 40, 6)
+    steps = [("difference", Cylinder(radius, 20).translate((5.0 * i, 5.0 * j, 0))) for i, j in holes]
+    warm = _ok(_chain(plate, steps, forget=False))
+    cold = _ok(_chain(plate, steps, forget=True))
+    assert _fingerprint(warm) == _fingerprint(cold)
+    _vol(warm, 40 * 40 * 6 - len(holes) * PI * radius**2 * 6, rtol=1e-12)
+
+
+def test_chain_of_unions_merging_faces_is_the_same_with_and_without_carried_data():
+    """Stacked cylinders: each union merges the side faces of the new one into the carried ones."""
+    steps = [("union", Cylinder(1.0, 2.0).translate((0, 0, 2.0 * k))) for k in range(1, 4)]
+    steps += [("union", Box(1, 1, 1).translate((0, 0, 9.0))), ("difference", Sphere(0.5).translate((0, 0, 9.5)))]
+    warm = _ok(_chain(Cylinder(1.0, 2.0), steps, forget=False))
+    assert S._MERGE_FAILED  # the failures of the carried face pairs are remembered
+    cold = _ok(_chain(Cylinder(1.0, 2.0), steps, forget=True))
+    assert _fingerprint(warm) == _fingerprint(cold)
+    assert _types(warm) == _types(cold)
+
+
+def test_operand_takes_carried_faces_with_the_data_a_cold_set_up_computes():
+    t = S.resolve(None)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
+    r = S.difference(r, Cylinder(1, 10).translate((5, 5, 0)), method="brep")
+    sewn = S._SEWN[r.brep]
+    warm = S._Operand(r, "A", t)
+    assert all(a is b for a, b in zip(warm.specs, sewn))  # every face carried over
+    _forget_carried()
+    cold = S._Operand(r, "A", t)
+    assert not any(a is b for a, b in zip(cold.specs, sewn))
+    for a, b in zip(warm.specs, cold.specs):
+        assert a.surface is b.surface and a.sense == b.sense
+        assert [[(e.curve, e.t0, e.t1, e.pcurve, e.tol) for e in loop] for loop in a.loops] == \
+               [[(e.curve, e.t0, e.t1, e.pcurve, e.tol) for e in loop] for loop in b.loops]
+    assert warm.uv_box == cold.uv_box
+    for name in ("polygons",):
+        for x, y in zip(getattr(warm, name), getattr(cold, name)):
+            for p, q in zip(x, y):
+                np.testing.assert_array_equal(p, q)
+    for name in ("segments", "seg_lo", "seg_hi", "lo", "hi"):
+        for x, y in zip(getattr(warm, name), getattr(cold, name)):
+            np.testing.assert_array_equal(x, y)
+    for f in range(len(warm.specs)):
+        for x, y in zip(warm.edge_boxes(f)[1:], cold.edge_boxes(f)[1:]):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_operand_reads_faces_the_sewing_changed_from_the_brep():
+    """A face whose B-rep row differs from the spec it was sewn from (here: a tolerance) is read again."""
+    t = S.resolve(None)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
+    sewn = list(S._SEWN[r.brep])
+    f0 = sewn[0]
+    e = f0.loops[0][0]
+    other = S.EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) * 2 + 1e-9)
+    sewn[0] = S.FaceSpec(f0.surface, f0.sense, [[other] + list(f0.loops[0][1:])] + [list(l) for l in f0.loops[1:]])
+    S._SEWN[r.brep] = sewn
+    op = S._Operand(r, "A", t)
+    assert op.specs[0] is not sewn[0] and op.specs[0].loops[0][0].tol == e.tol
+    assert all(a is b for a, b in zip(op.specs[1:], sewn[1:]))
+
+
+def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
+    t = S.resolve(None)
+    halves = S._Operand(Cylinder(1.0, 2.0), "A", t).specs  # two half walls and two caps: nothing merges
+    calls = []
+    real = S._merged_pair
+    monkeypatch.setattr(S, "_merged_pair", lambda *a: calls.append(a[:2]) or real(*a))
+    first = S._merge_faces(list(halves), t)
+    n = len(calls)
+    assert n > 0 and first == list(halves)
+    again = S._merge_faces(list(halves), t)
+    assert again == first and len(calls) == n  # nothing tried again
+
+
+def test_fuse_edges_keeps_untouched_faces():
+    t = S.resolve(None)
+    specs = S._Operand(Box(1, 2, 3), "A", t).specs
+    out = S._fuse_edges(list(specs), t)
+    assert all(a is b for a, b in zip(out, specs))
+
+
+def test_use_points_match_the_curves():
+    from coons.kernel.analytic import Circle, Line
+    from coons.kernel.curve import NurbsCurve
+
+    line = Line(np.zeros(3), np.array([1.0, 2.0, 0.0]))
+    circle = Circle(np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0)
+    nurbs = NurbsCurve(np.array([[0, 0, 0], [1, 2, 0], [3, 1, 1.0]]), [0, 0, 0, 1, 1, 1], 2)
+    uses = [S.EdgeSpec(line, 0.0, 1.5), S.EdgeSpec(circle, 2.0, 0.5), S.EdgeSpec(nurbs, 0.2, 0.9),
+            S.EdgeSpec(nurbs, 0.9, 0.2), S.EdgeSpec(line, 0.0, 1.5)]
+    pts = S._UsePoints()
+    got = pts.get(uses)
+    for e, P in zip(uses, got):
+        ref = np.asarray(e.curve.evaluate(np.array([e.t0, e.t1, 0.5 * (e.t0 + e.t1)])))
+        np.testing.assert_allclose(P, ref, rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(pts.get(uses[::-1]), got[::-1])  # from the cache
+    assert pts.get([]).shape == (0, 3, 3)
+
+
+@settings(max_examples=20)
+@given(st.lists(st.tuples(st.floats(-12, 12), st.floats(-12, 12), st.floats(-4, 4)), min_size=0, max_size=12),
+       st.floats(1e-7, 0.5))
+def test_clear_uses_is_the_per_use_box_test(points, ptol):
+    """The array test of _clear_uses against the box test of each use alone."""
+    t = S.resolve(None)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
+    edges = [e for spec in S._Operand(r, "A", t).specs for loop in spec.loops for e in loop]
+    P = np.array(points, dtype=np.float64).reshape(-1, 3)
+    tol = np.full(P.shape[0], ptol)
+    orig_edges = {id(e): 1 + (k % 2) for k, e in enumerate(edges)}  # alternate operands; 0 for none
+    orig_edges[id(edges[0])] = 0
+    foreign_of = {1: (P, tol), 2: (P[: P.shape[0] // 2], tol[: P.shape[0] // 2])}
+    for face_foreign in (None, (P, tol)):
+        got = S._clear_uses(edges, face_foreign, foreign_of, orig_edges, t)
+        for k, e in enumerate(edges):
+            g = orig_edges.get(id(e), 0)
+            foreign = face_foreign if face_foreign is not None else foreign_of.get(g)
+            box = S._edge_box(e)
+            expect = False
+            if foreign is not None and box is not None:
+                pad = (foreign[1] + max(t.linear, e.tol or 0.0))[:, None]
+                expect = not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1))
+            assert bool(got[k]) == expect
+
+
+def _pieces(a: Solid, b: Solid) -> list:
+    t = S.resolve(None)
+    A, B = S._Operand(a, "A", t), S._Operand(b, "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, cuts_b = S._intersect(A, B, I, J, t)
+    return [spec for _, spec in S._split(A, cuts_a, t) + S._split(B, cuts_b, t)]
+
+
+@pytest.mark.parametrize("make", [
+    lambda: (Box(10, 10, 10), Cylinder(3, 20)),
+    lambda: (S.difference(Box(40, 40, 6), *[Cylinder(1.5, 20).translate((8.0 * i, 8.0 * j, 0)) for i in (-1, 0, 1)
+                                            for j in (-1, 0, 1)]), Cylinder(1.0, 20).translate((4, 4, 0))),
+    lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
+    lambda: (Cylinder(2, 20), Cylinder(1.5, 20, direction=(1, 0, 0)).translate((0, 0, 1))),
+    lambda: (Torus(4, 1), Box(3, 3, 3).translate((4, 0, 0))),
+    lambda: (Cone(2, 0.5, 4), Box(2, 2, 2).translate((0, 0, 2))),
+])
+def test_batched_interior_points_are_the_single_ones(make):
+    """_interior_points gives exactly _interior_point's point and normal wherever it answers."""
+    t = S.resolve(None)
+    specs = _pieces(*make())
+    got = S._interior_points([(spec, None) for spec in specs], t)
+    assert sum(g is not None for g in got) >= len(specs) // 2
+    for spec, g in zip(specs, got):
+        if g is not None:
+            P, N = S._interior_point(spec, t)
+            np.testing.assert_array_equal(g[0], P)
+            np.testing.assert_array_equal(g[1], N)
+    # With segments to avoid (shifted by periods on periodic surfaces) as well.
+    avoid = [np.array([[[0.0, 0.0], [1e-3, 1e-3]]]) for _ in specs]
+    got = S._interior_points(list(zip(specs, avoid)), t)
+    for spec, av, g in zip(specs, avoid, got):
+        if g is not None:
+            P, N = S._interior_point(spec, t, av)
+            np.testing.assert_array_equal(g[0], P)
+            np.testing.assert_array_equal(g[1], N)
+
+
+def test_prefilled_samples_are_the_single_ones():
+    """_prefill_samples samples Line2D and Trig2D p-curves of many uses at once exactly as _edge_uv does."""
+    specs = _pieces(S.difference(Box(20, 20, 5), Cylinder(2, 10).translate((3, 0, 0))), Cylinder(1.5, 10))
+    uses = [(e, spec.surface) for spec in specs for loop in spec.loops for e in loop]
+    for e, _ in uses:
+        S._USE_SAMPLES.pop(e, None)
+    S._prefill_samples(specs)
+    kinds = {type(e.pcurve).__name__ for e, _ in uses}
+    assert {"Line2D", "Trig2D"} <= kinds
+    for e, surface in uses:
+        if type(e.pcurve).__name__ in ("Line2D", "Trig2D"):
+            got = S._USE_SAMPLES[e]
+            assert got[0] is surface
+            np.testing.assert_array_equal(got[1], S._edge_uv(e, surface, S._LOOP_SAMPLES))

@@ -937,3 +937,28 @@ def test_adaptive_quadrature_error_branches(monkeypatch):
     monkeypatch.setattr(mass, "_nurbs_integrand", lambda S, u, v, x0, ncols: np.full((u.size, ncols), np.nan))
     with pytest.raises(ConvergenceError, match=r"non-finite integrand on face\(s\) \[\d"):
         mass_properties(dataclasses.replace(b))
+
+
+def test_circle_extremes_in_one_pass_are_the_per_curve_ones():
+    """_circle_extreme_points of many arcs at once gives the points of _curve_extreme_points curve by curve."""
+    from coons.booleans.solid import difference
+    from coons.topology import mass
+    from coons.topology.primitives import Box, Cylinder
+
+    r = difference(Box(20, 20, 4), *[Cylinder(1.5, 10).translate((6.0 * i, 5.0 * i - 3, 0))
+                                      for i in (-1, 0, 1)])
+    b = r.brep
+    rows = np.flatnonzero(b.edge_curve >= 0)
+    circles = [k for k in rows.tolist() if type(b.curves[int(b.edge_curve[k])]).__name__ == "Circle"]
+    assert len(circles) >= 6
+    got = mass._circle_extreme_points([b.curves[int(b.edge_curve[k])] for k in circles], b.edge_range[circles])
+    ref = np.concatenate([mass._curve_extreme_points(b.curves[int(b.edge_curve[k])], b.edge_range[[k]]) for k in circles])
+    np.testing.assert_array_equal(np.sort(got.view([("x", float), ("y", float), ("z", float)]).ravel()),
+                                  np.sort(ref.view([("x", float), ("y", float), ("z", float)]).ravel()))
+    mass._CACHE.clear()
+    lo, hi = mass.bounding_box(b)
+    per_curve = [b.vertex_point] + [mass._curve_extreme_points(b.curves[int(b.edge_curve[k])], b.edge_range[[k]])
+                                    for k in rows.tolist()]
+    P = np.concatenate([p.reshape(-1, 3) for p in per_curve])
+    np.testing.assert_array_equal(lo, P.min(axis=0))
+    np.testing.assert_array_equal(hi, P.max(axis=0))

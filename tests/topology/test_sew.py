@@ -403,3 +403,42 @@ def test_closed_form_distances_to_arcs_and_segments_match_dense_sampling(seed):
     sampled = float(np.linalg.norm(L.evaluate(tt) - p, axis=-1).min())
     d = _line_distance(L, p, lo, hi)
     assert d <= sampled + 1e-12 and sampled - d <= (hi - lo) / 20000
+
+
+# ---------------------------------------------------------------------- face rows and sewn_unchanged
+def test_face_specs_of_chosen_rows():
+    from coons.topology.sew import face_specs as fs
+
+    c = Cylinder(1.0, 2.0)
+    every = fs(c)
+    some = fs(c, rows=[2, 0])
+    assert len(some) == 2
+    for mine, ref in zip(some, [every[2], every[0]]):
+        assert mine.surface is ref.surface and mine.sense == ref.sense
+        assert [[(e.curve, e.t0, e.t1, e.pcurve, e.tol) for e in loop] for loop in mine.loops] == \
+               [[(e.curve, e.t0, e.t1, e.pcurve, e.tol) for e in loop] for loop in ref.loops]
+
+
+def test_sewn_unchanged_recognises_exactly_the_sewn_specs():
+    from coons.topology.sew import sewn_unchanged
+
+    specs = face_specs(Cylinder(1.0, 2.0))
+    s = sew_faces(specs)
+    b = s.brep
+    # Re-sewing the specs of a B-rep gives back its curves, p-curves, ranges and tolerances.
+    assert all(sewn_unchanged(b, f, spec) for f, spec in enumerate(specs))
+    assert not sewn_unchanged(b, 0, specs[1])  # another face
+    f0 = specs[0]
+    e = f0.loops[0][0]
+    flipped = FaceSpec(f0.surface, not f0.sense, f0.loops)
+    assert not sewn_unchanged(b, 0, flipped)
+    for changed in (EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) + 1e-9),  # another tolerance
+                    EdgeSpec(e.curve, e.t0, e.t1, None, e.tol),  # no p-curve
+                    EdgeSpec(e.curve, e.t0, e.t1 + 1e-12, e.pcurve, e.tol)):  # another range
+        other = FaceSpec(f0.surface, f0.sense, [[changed] + list(f0.loops[0][1:])] + [list(l) for l in f0.loops[1:]])
+        assert not sewn_unchanged(b, 0, other)
+    # A face whose surface is not given (an implicit plane) is never "unchanged".
+    box = Box(1, 1, 1)
+    bs = face_specs(box)
+    nb = sew_faces([FaceSpec(None, sp.sense, sp.loops) for sp in bs]).brep
+    assert not any(sewn_unchanged(nb, f, FaceSpec(None, sp.sense, sp.loops)) for f, sp in enumerate(bs))

@@ -64,6 +64,7 @@ also how OCCT's ``IntAna_QuadQuadGeo`` treats them); conic arcs: The NURBS Book 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -111,6 +112,10 @@ _POLE_INSET = 1.5e-8
 _OFFSET = 1.0 / math.pi
 #: Samples on which a branch's achieved tolerance is measured.
 _CHECK_SAMPLES = 65
+#: Their positions as fractions of the branch's range, ends included (an irrational offset keeps the
+#: interior ones off the interpolation nodes of fitted p-curves).
+_CHECK_FRACTIONS = np.concatenate([[0.0], (np.arange(_CHECK_SAMPLES) + _OFFSET) / _CHECK_SAMPLES, [1.0]])
+_CHECK_FRACTIONS.setflags(write=False)
 
 
 # ---------------------------------------------------------------------------- result types
@@ -584,13 +589,21 @@ def _reversed(curve):
     return Ellipse(curve.center, -curve.axis, curve.x_dir, curve.major_radius, curve.minor_radius)
 
 
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+# Parameters spread over a curve (irrational offsets keep off apexes and poles placed at round values);
+# computed once: they depend only on whether the curve is a line.
+# Any spread does along a line: n_a × n_b keeps its side along it (apexes are handled per piece).
+_LINE_SAMPLES = _frozen((np.arange(_FORM_SAMPLES) - (_FORM_SAMPLES - 1) / 2.0 + _OFFSET) * 0.25)
+_TURN_SAMPLES = _frozen((np.arange(_FORM_SAMPLES) + _OFFSET) * (TWO_PI / _FORM_SAMPLES))
+
+
 def _sample_parameters(curve) -> np.ndarray:
-    """Parameters spread over a curve (irrational offsets keep off apexes and poles placed at round values)."""
-    k = np.arange(_FORM_SAMPLES)
-    if isinstance(curve, Line):
-        # Any spread does: n_a × n_b keeps its side along a line (apexes are handled per piece).
-        return (k - (_FORM_SAMPLES - 1) / 2.0 + _OFFSET) * 0.25
-    return (k + _OFFSET) * (TWO_PI / _FORM_SAMPLES)
+    """Parameters spread over a curve (read-only, shared)."""
+    return _LINE_SAMPLES if isinstance(curve, Line) else _TURN_SAMPLES
 
 
 def _oriented(cand: _Candidate, a, b) -> Any:
@@ -623,9 +636,17 @@ def _pole_parameters(curve, s, tol: Tolerance) -> list[float]:
 
 def _form_parameters(window: tuple[float, float]) -> np.ndarray:
     """The :data:`_FORM_SAMPLES` parameters on which a coordinate's form is fitted (off the window ends by
-    ``_OFFSET / _FORM_SAMPLES`` of it, far more than the pole inset, so no clipping applies to them)."""
-    w0, w1 = window
-    return w0 + (w1 - w0) * (np.arange(_FORM_SAMPLES) + _OFFSET) / _FORM_SAMPLES
+    ``_OFFSET / _FORM_SAMPLES`` of it, far more than the pole inset, so no clipping applies to them); read-only."""
+    return _form_basis(float(window[0]), float(window[1]))[0]
+
+
+@functools.lru_cache(maxsize=256)
+def _form_basis(w0: float, w1: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, basis)``: the form parameters of the window ``[w0, w1]`` and the basis ``(1, t, cos t, sin t)``
+    ``(_FORM_SAMPLES, 4)`` on them, both read-only.  Cached: every circle not cut at a pole has the window
+    ``[0, 2π]``, and the same window serves both surfaces of a pair."""
+    t = w0 + (w1 - w0) * (np.arange(_FORM_SAMPLES) + _OFFSET) / _FORM_SAMPLES
+    return _frozen(t), _frozen(np.stack([np.ones_like(t), t, np.cos(t), np.sin(t)], axis=-1))
 
 
 def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"]:
@@ -679,16 +700,17 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
         coef = np.array([[u0 - sgn * t[0], sgn, 0.0, 0.0], [v0, 0.0, 0.0, 0.0]])
     else:
         return None
-    basis = np.stack([np.ones_like(t), t, np.cos(t), np.sin(t)], axis=-1)
+    basis = _form_basis(float(window[0]), float(window[1]))[1]
+    # Both coordinates' sizes on the samples in one product.
+    sizes = np.max(np.abs(basis @ coef.T), axis=0).tolist()
     out = []
-    for i in (0, 1):
-        c = coef[i]
-        scale = max(1.0, float(np.max(np.abs(basis @ c))), abs(window[0]), abs(window[1]))
+    for i, row in enumerate(coef.tolist()):  # four Python floats: cheaper than numpy on so few
+        scale = max(1.0, sizes[i], abs(window[0]), abs(window[1]))
         small = tol.solver * scale
-        c = np.where(np.abs(c) <= small, 0.0, c)
+        c = [0.0 if abs(x) <= small else x for x in row]
         if full and abs(c[1] - round(c[1])) <= small:
-            c[1] = round(c[1])
-        out.append(_Coord.exact_form(surface, curve, i, window, full, c))
+            c[1] = float(round(c[1]))
+        out.append(_Coord.exact_form(surface, curve, i, window, full, np.array(c)))
     return out
 
 
@@ -785,6 +807,8 @@ class _Coord:
         if self.exact and d == 0.0:
             r, phi = math.hypot(al, be), math.atan2(be, al)
             targets = self._targets(bound, o - r, o + r)
+            if targets.size == 0:
+                return np.zeros(0)  # the bound lies beyond the coordinate's range
             c = np.clip((targets - o) / r, -1.0, 1.0)
             base = np.concatenate([phi + np.arccos(c), phi - np.arccos(c)])
             k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
@@ -1063,12 +1087,14 @@ def _runs(br: np.ndarray, ok: np.ndarray, hard: np.ndarray, wrap: bool) -> list[
 def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool) -> IntersectionCurve:
     """The branch with its measured deviation (the fits' own, and on samples between their nodes)."""
     # An irrational offset keeps the samples off the interpolation nodes of fitted p-curves.
-    t = s0 + (s1 - s0) * np.concatenate([[0.0], (np.arange(_CHECK_SAMPLES) + _OFFSET) / _CHECK_SAMPLES, [1.0]])
+    t = s0 + (s1 - s0) * _CHECK_FRACTIONS
     P = curve.evaluate(t)
     Pa = a.evaluate(*pcurves[0].evaluate(t).T)
     Pb = b.evaluate(*pcurves[1].evaluate(t).T)
-    dev = max(float(np.max(np.linalg.norm(Pa - P, axis=-1))), float(np.max(np.linalg.norm(Pb - P, axis=-1))),
-              float(np.max(np.linalg.norm(Pa - Pb, axis=-1))), fit_dev)
+    # The three pairwise distances in one reduction (the largest norm is the root of the largest
+    # squared norm: sqrt is monotone and correctly rounded, so this equals the max of the norms).
+    gaps = np.stack([Pa - P, Pb - P, Pa - Pb])
+    dev = max(math.sqrt(float(np.max(np.add.reduce(gaps * gaps, axis=-1)))), fit_dev)
     return IntersectionCurve(curve, s0, s1, pcurves[0], pcurves[1], closed, dev, tangent)
 
 

@@ -254,14 +254,19 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _sine(d1: np.ndarray, d2: np.ndarray) -> float:
-    """|sin| of the angle between two unit directions."""
-    return float(np.linalg.norm(_cross(d1, d2)))
+    """|sin| of the angle between two unit directions (Python floats: numpy's per-call cost exceeds the
+    arithmetic on one pair of 3-vectors)."""
+    a0, a1, a2 = d1.tolist()
+    b0, b1, b2 = d2.tolist()
+    return math.hypot(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
 
 
 def _off_axis(point: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> float:
-    """Distance from ``point`` to the line ``origin + s axis`` (``axis`` unit)."""
-    w = point - origin
-    return float(np.linalg.norm(w - (w @ axis) * axis))
+    """Distance from ``point`` to the line ``origin + s axis`` (``axis`` unit), in Python floats."""
+    w0, w1, w2 = (point - origin).tolist()
+    z0, z1, z2 = axis.tolist()
+    h = w0 * z0 + w1 * z1 + w2 * z2
+    return math.hypot(w0 - h * z0, w1 - h * z1, w2 - h * z2)
 
 
 def _plane_plane(a: PlanarSurface, b: PlanarSurface, tol: Tolerance) -> _Exact:
@@ -613,12 +618,37 @@ def _oriented(cand: _Candidate, a, b) -> Any:
     t = _sample_parameters(cand.curve)
     D = cand.curve.derivatives(t, 1)
     P, T = D[:, 0], D[:, 1]
-    na = a.normal(*a.closest_parameters(P).T)
-    nb = b.normal(*b.closest_parameters(P).T)
+    na = _normals(a, P)
+    nb = _normals(b, P)
     cross = _cross(na, nb)
     strength = np.linalg.norm(cross, axis=-1)
     i = int(np.argmax(strength))  # the most transversal sample decides (poles and apexes give bad normals)
     return cand.curve if float(cross[i] @ T[i]) >= 0.0 else _reversed(cand.curve)
+
+
+def _normals(s, P: np.ndarray) -> np.ndarray:
+    """``s.normal`` at the closest parameters of points ``P (k, 3)``, ``(k, 3)``.
+
+    Planes, cylinders and spheres in closed form (the same directions up to round-off, without
+    the parameter round trip, whose per-call cost dominates on the few points here): a plane's
+    normal is its axis, a cylinder's the outward unit radial ``e(u)`` of the point, a sphere's
+    the outward unit ``(P - C) / |P - C|``.  A point on the cylinder's axis or at the sphere's
+    centre (where the radial direction is undefined and ``closest_parameters`` picks a
+    convention) goes through the surface's own methods.
+    """
+    if isinstance(s, PlanarSurface):
+        return np.broadcast_to(s._frame[2], P.shape)
+    if isinstance(s, CylindricalSurface):
+        L = (P - s._origin) @ s._frame[:2].T
+        rho = np.hypot(L[:, 0], L[:, 1])
+        if np.all(rho > 0.0):
+            return (L / rho[:, None]) @ s._frame[:2]
+    elif isinstance(s, SphericalSurface):
+        w = P - s._origin
+        r = np.linalg.norm(w, axis=-1)
+        if np.all(r > 0.0):
+            return w / r[:, None]
+    return s.normal(*s.closest_parameters(P).T)
 
 
 def _pole_parameters(curve, s, tol: Tolerance) -> list[float]:
@@ -692,8 +722,7 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
         Z, Zc = surface.axis, curve._frame[2]
         if _sine(Zc, Z) > tol.solver:
             return None
-        w = curve._origin - surface._origin
-        if float(np.linalg.norm(w - (w @ Z) * Z)) > tol.solver * curve.radius:
+        if _off_axis(curve._origin, surface._origin, Z) > tol.solver * curve.radius:
             return None
         sgn = 1.0 if float(Zc @ Z) > 0.0 else -1.0
         u0, v0 = (float(x) for x in np.asarray(surface.closest_parameters(curve.evaluate(t[:1])))[0])
@@ -1004,8 +1033,8 @@ def _against(curve, t: float, a, b) -> bool:
     """Whether the curve runs against ``n_a × n_b`` at ``t``."""
     D = curve.derivatives(np.array([t]), 1)[0]
     P = D[0][None]
-    na = a.normal(*a.closest_parameters(P).T)[0]
-    nb = b.normal(*b.closest_parameters(P).T)[0]
+    na = _normals(a, P)[0]
+    nb = _normals(b, P)[0]
     return float(_cross(na, nb) @ D[1]) < 0.0
 
 

@@ -750,3 +750,92 @@ def test_closed_form_coordinates_refuse_other_curves():
     ellipse = Ellipse([0, 0, 0], [0, 1, 1], X, 1.5, 1.0)
     for curve in (tilted, off, ellipse, Line([1, 0, 0], Z)):
         assert I._closed_coords(cyl, curve, (0.0, 1.0), False, T) is None
+
+
+# ---------------------------------------------------------------------------- cheap scalar helpers
+def _random_surface(kind, o, d, x, r):
+    d = _unit_vector(d)
+    x = np.cross(d, _unit_vector(x)) if np.linalg.norm(np.cross(d, _unit_vector(x))) > 0.1 else perpendicular(d)
+    if kind == "plane":
+        return PlanarSurface(o, d, x)
+    if kind == "cylinder":
+        return CylindricalSurface(o, d, x, r)
+    return SphericalSurface(o, d, x, r)
+
+
+def perpendicular(d):
+    e = X if abs(d[0]) < 0.9 else Y
+    return np.cross(d, e)
+
+
+_VEC = st.tuples(*[st.floats(-3, 3) for _ in range(3)])
+_DIR = st.tuples(*[st.floats(-1, 1) for _ in range(3)]).filter(lambda v: np.linalg.norm(v) > 0.2)
+
+
+@settings(max_examples=60)
+@given(
+    kind=st.sampled_from(["plane", "cylinder", "sphere"]),
+    o=_VEC, d=_DIR, x=_DIR, r=st.floats(0.1, 4.0),
+    points=st.lists(_VEC, min_size=1, max_size=6),
+    on_axis=st.booleans(),
+)
+def test_closed_form_normals_match_the_surface_normals(kind, o, d, x, r, points, on_axis):
+    """``_normals`` (plane, cylinder and sphere in closed form) equals ``normal(closest_parameters(P))`` to
+    round-off, and falls back to it exactly for a point on the cylinder's axis or at the sphere's centre."""
+    import coons.kernel.intersect as I
+
+    s = _random_surface(kind, o, d, x, r)
+    P = np.array(points, dtype=float)
+    if on_axis:
+        P[0] = s._origin + 0.7 * s._frame[2] if kind == "cylinder" else s._origin
+    general = s.normal(*s.closest_parameters(P).T)
+    fast = I._normals(s, P)
+    assert fast.shape == general.shape
+    np.testing.assert_allclose(fast, general, rtol=0, atol=1e-13)
+
+
+@settings(max_examples=60)
+@given(a=_DIR, b=_DIR, p=_VEC, q=_VEC)
+def test_scalar_sine_and_axis_distance_match_numpy(a, b, p, q):
+    import coons.kernel.intersect as I
+
+    a, b, p, q = _unit_vector(a), _unit_vector(b), np.array(p), np.array(q)
+    assert I._sine(a, b) == pytest.approx(float(np.linalg.norm(np.cross(a, b))), rel=1e-13, abs=1e-15)
+    w = p - q
+    assert I._off_axis(p, q, a) == pytest.approx(float(np.linalg.norm(w - (w @ a) * a)), rel=1e-13, abs=1e-13)
+
+
+@settings(max_examples=40)
+@given(
+    kind=st.sampled_from(["plane-cylinder", "plane-sphere", "sphere-sphere", "cylinder-sphere"]),
+    q=st.tuples(*[st.floats(-1, 1) for _ in range(4)]).filter(lambda q: np.linalg.norm(q) > 0.2),
+    shift=_VEC, h=st.floats(-0.9, 0.9), r=st.floats(0.3, 2.0), flip=st.booleans(), u0=st.floats(-7, 7),
+)
+def test_random_coaxial_circles_satisfy_the_invariants(kind, q, shift, h, r, flip, u0):
+    """Circles of the closed-form coaxial pairs in random frames: on both surfaces, along ``n_a × n_b``, with an
+    honest ``tol`` (``check_result``), and the recorded ``tol`` is the largest of the three sampled distances."""
+    R = _rotation(q)
+    Zr, Xr = R @ Z, R @ X
+    O = np.array(shift)
+    sgn = -1.0 if flip else 1.0
+    box = ((u0, u0 + TWO_PI), (-5.0, 5.0))
+    if kind == "plane-cylinder":
+        a, b = PlanarSurface(O + h * Zr, sgn * Zr, Xr), CylindricalSurface(O, Zr, Xr, r)
+        box_a, box_b = PLANE_BOX, box
+    elif kind == "plane-sphere":
+        a, b = PlanarSurface(O + h * r * Zr, sgn * Zr, Xr), SphericalSurface(O, Zr, Xr, r)
+        box_a, box_b = PLANE_BOX, ((u0, u0 + TWO_PI), (-math.pi / 2, math.pi / 2))
+    elif kind == "sphere-sphere":
+        a, b = SphericalSurface(O, Zr, Xr, 1.0), SphericalSurface(O + (1.0 + h) * Zr, sgn * Zr, Xr, r)
+        box_a = box_b = None
+    else:
+        a, b = CylindricalSurface(O, sgn * Zr, Xr, r), SphericalSurface(O + h * Zr, Zr, Xr, r + 0.5)
+        box_a, box_b = box, None
+    res = run(a, b, box_a, box_b)
+    for c in res.curves:
+        t = c.t0 + (c.t1 - c.t0) * np.concatenate([[0.0], (np.arange(65) + 1.0 / math.pi) / 65, [1.0]])
+        P = c.curve.evaluate(t)
+        Pa, Pb = a.evaluate(*c.pcurve_a.evaluate(t).T), b.evaluate(*c.pcurve_b.evaluate(t).T)
+        dev = max(np.linalg.norm(Pa - P, axis=-1).max(), np.linalg.norm(Pb - P, axis=-1).max(),
+                  np.linalg.norm(Pa - Pb, axis=-1).max())
+        assert c.tol == pytest.approx(dev, rel=1e-12, abs=1e-300)

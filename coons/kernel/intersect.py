@@ -43,7 +43,11 @@ the curve; the plane's p-curve of a rational conic arc is exact (same weights).
 *Direction.*  A transversal branch runs along ``n_a × n_b``, the cross product of the
 surfaces' normals ``Su × Sv`` normalised (``a`` first).  Where ``n_a × n_b`` vanishes along a whole
 branch (``tangent=True``) the rule says nothing and the direction is unspecified (deterministic
-for given inputs): a caller that needs one orients the branch itself.
+for given inputs): a caller that needs one orients the branch itself.  The normals that orient a
+branch are those of ``normal(closest_parameters(P))``; for planes, cylinders and spheres they are
+computed in closed form (``_normals``: the same directions to round-off, without the parameter round
+trip, whose per-call cost dominated the exact pairs), with the surface's own methods on a cylinder's
+axis or at a sphere's centre.
 
 *Singular points.*  A circle through a pole of a sphere is cut at the pole (the longitude
 jumps there): a great circle through both poles gives two meridian branches.  A ruling

@@ -607,10 +607,26 @@ class BRepBuilder:
         points = np.asarray(points, dtype=np.float64)
         edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
         v_off, e_off = len(self.vpoint), len(self.ev)
-        for p in points:
-            self._new_vertex(p)
-        for a, b in edges:
-            self._new_edge(int(a) + v_off, int(b) + v_off)
+        if points.ndim == 2 and points.shape[1] == 3 and np.isfinite(points).all():
+            # What _new_vertex does per point, in bulk (its checks hold for every row at once).
+            nv = points.shape[0]
+            self.vpoint.extend(list(points))
+            self.vtol.extend([self.tol.linear] * nv)
+            self.vcoedge.extend([-1] * nv)
+            self.valive.extend([True] * nv)
+        else:  # _new_vertex names the bad point
+            for p in points:
+                self._new_vertex(p)
+        ne = edges.shape[0]
+        self.ev.extend((edges + v_off).tolist())
+        self.ealive.extend([True] * ne)
+        self.ecurve.extend([-1] * ne)
+        self.erange.extend([(0.0, 1.0)] * ne)
+        self.epcurve.extend([[-1, -1] for _ in range(ne)])
+        self.etol.extend([self.tol.linear] * ne)
+        self.nxt.extend([-1] * (2 * ne))
+        self.prv.extend([-1] * (2 * ne))
+        self.cloop.extend([-1] * (2 * ne))
         used = np.zeros((len(edges), 2), dtype=np.int64)
         face_ids: list[int] = []
         loop_ids_per_face: list[list[int]] = []

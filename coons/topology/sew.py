@@ -383,19 +383,57 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     samples: dict = {}  # first-round samples of _distance_to_curve, shared by the uses of one curve
     slow = np.ones(start.size, dtype=bool)
     slow[two.nonzero()[0][fast]] = False
+    group_of = np.cumsum(np.concatenate([[True], key[1:] != key[:-1]])) - 1  # group of each sorted use
+    reach = _reach(uses, order[slow[group_of]]) if slow.any() else None
     for s, e in zip(start[slow], stop[slow]):
         group = [int(x) for x in order[s:e]]
-        for comp in _agreeing_components(uses, group, samples):
+        for comp in _agreeing_components(uses, group, samples, reach):
             _require_pair(uses, comp, vertex)
             pairs.append(np.asarray([comp], dtype=np.int64))
     out = np.concatenate(pairs).astype(np.int64, copy=False).reshape(-1, 2)
     return out[np.argsort(out[:, 0], kind="stable")]
 
 
-def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = None) -> list[list[int]]:
+def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
+    """For the uses ``rows``, a bound on how far each curve strays from its midpoint, and the size of its numbers.
+
+    ``radius[i]`` bounds the distance from ``uses.mid[i]`` to every point of the use's curve over
+    its range: half the range for a (unit-speed) line, ``min(r · range / 2, 2 r)`` for a circle
+    (arc length from the midpoint to an end, and the diameter); ``inf`` for any other curve and
+    any use not in ``rows`` (no bound, the distance is then always measured).  ``scale[i]`` is
+    the magnitude of the coordinates and parameters that went into the use's points, for a
+    round-off margin.  Lists of Python floats, length ``len(uses)``.
+    """
+    k = len(uses)
+    radius = np.full(k, math.inf)
+    scale = np.full(k, math.inf)
+    rows = np.asarray(rows, dtype=np.int64)
+    kind = np.array([1 if type(uses.spec[i].curve) is Line else 2 if type(uses.spec[i].curve) is Circle else 0
+                     for i in rows.tolist()], dtype=np.int64)
+    half = 0.5 * np.abs(uses.t1[rows] - uses.t0[rows])
+    base = np.abs(uses.mid[rows]).max(axis=1) + np.maximum(np.abs(uses.t0[rows]), np.abs(uses.t1[rows]))
+    for code in (1, 2):
+        sel = np.flatnonzero(kind == code)
+        if not sel.size:
+            continue
+        r = rows[sel]
+        curves = [uses.spec[i].curve for i in r.tolist()]
+        if code == 1:
+            radius[r] = half[sel]
+            scale[r] = base[sel] + np.abs(np.array([c.origin for c in curves])).max(axis=1)
+        else:
+            R = np.array([float(c.radius) for c in curves])
+            radius[r] = np.minimum(R * half[sel], 2.0 * R)
+            scale[r] = base[sel] + np.abs(np.array([c.center for c in curves])).max(axis=1) + R
+    return radius.tolist(), scale.tolist()
+
+
+def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = None,
+                         reach: tuple[list[float], list[float]] | None = None) -> list[list[int]]:
     """Partition uses joining the same vertices into sets whose curves agree (union–find).
 
-    ``samples`` caches the first sampling round of :func:`_distance_to_curve` per curve and range.
+    ``samples`` caches the first sampling round of :func:`_distance_to_curve` per curve and range;
+    ``reach`` (:func:`_reach`) lets :func:`_curves_agree` reject far-apart curves without measuring.
     """
     parent = list(range(len(group)))
 
@@ -407,7 +445,7 @@ def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = N
 
     for x in range(len(group)):
         for y in range(x + 1, len(group)):
-            if find(x) != find(y) and _curves_agree(uses, group[x], group[y], samples):
+            if find(x) != find(y) and _curves_agree(uses, group[x], group[y], samples, reach):
                 parent[find(x)] = find(y)
     comps: dict[int, list[int]] = {}
     for x in range(len(group)):
@@ -415,11 +453,28 @@ def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = N
     return sorted(comps.values(), key=lambda c: c[0])
 
 
-def _curves_agree(uses: _Uses, i: int, j: int, samples: dict | None = None) -> bool:
-    """Whether uses ``i`` and ``j`` lie on one curve: each midpoint within tolerance of the other curve."""
+def _curves_agree(uses: _Uses, i: int, j: int, samples: dict | None = None,
+                  reach: tuple[list[float], list[float]] | None = None) -> bool:
+    """Whether uses ``i`` and ``j`` lie on one curve: each midpoint within tolerance of the other curve.
+
+    With ``reach`` (:func:`_reach`), midpoints farther apart than both curves can reach from
+    their own midpoints plus the tolerance are decided without measuring: by the triangle
+    inequality ``dist(mid_i, curve_j) >= |mid_i - mid_j| - radius_j`` (and the same with i, j
+    swapped), so when that bound exceeds ``thr`` by more than any round-off of the measured
+    distance could, the measurement would have said False too.
+    """
     thr = max(uses.tol[i], uses.tol[j])
-    if np.linalg.norm(uses.mid[i] - uses.mid[j]) <= thr:
+    d = np.linalg.norm(uses.mid[i] - uses.mid[j])
+    if d <= thr:
         return True  # same parametric midpoint (the common case: a shared curve object)
+    if reach is not None:
+        radius, scale = reach
+        # 1e-9 relative to the numbers involved is far above the few ulps of round-off in the
+        # measured distance (closed forms of lines and circles), so the shortcut never decides
+        # a case the measurement would decide the other way.
+        margin = 1e-9 * (1.0 + scale[i] + scale[j])
+        if float(d) - min(radius[i], radius[j]) > thr + margin:
+            return False
     return (_distance_to_curve(uses.mid[i], uses.spec[j], stop=thr, samples=samples) <= thr
             and _distance_to_curve(uses.mid[j], uses.spec[i], stop=thr, samples=samples) <= thr)
 

@@ -385,6 +385,11 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     slow[two.nonzero()[0][fast]] = False
     group_of = np.cumsum(np.concatenate([[True], key[1:] != key[:-1]])) - 1  # group of each sorted use
     reach = _reach(uses, order[slow[group_of]]) if slow.any() else None
+    four = np.flatnonzero(slow & ((stop - start) == 4))
+    if four.size:
+        got, done = _match_fours(uses, vertex, closed, order[start[four, None] + np.arange(4)], reach)
+        pairs.append(got)
+        slow[four[done]] = False
     for s, e in zip(start[slow], stop[slow]):
         group = [int(x) for x in order[s:e]]
         for comp in _agreeing_components(uses, group, samples, reach):
@@ -392,6 +397,59 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
             pairs.append(np.asarray([comp], dtype=np.int64))
     out = np.concatenate(pairs).astype(np.int64, copy=False).reshape(-1, 2)
     return out[np.argsort(out[:, 0], kind="stable")]
+
+
+#: The three ways of pairing four uses, as index pairs into a group of four (ascending use index).
+_MATCHINGS = np.array([[[0, 1], [2, 3]], [[0, 2], [1, 3]], [[0, 3], [1, 2]]])
+
+
+def _match_fours(uses: _Uses, vertex: np.ndarray, closed: np.ndarray, G: np.ndarray,
+                 reach: tuple[list[float], list[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Groups of four uses (two edges between the same two vertices, as the halves of a hole) at once.
+
+    A group is decided here only when every pair's verdict of :func:`_curves_agree` is certain
+    without measuring: the pairs of one of the three matchings have midpoints within
+    ``(1 - 1e-12)`` of their tolerance (coincident, True whichever way the norm is rounded), and
+    the four other pairs are beyond reach (the bound of :func:`_curves_agree` with its margin,
+    False).  The union–find then yields exactly that matching; each pair must also pass
+    :func:`_require_pair` (distinct end vertices, opposite directions).  Every other group is
+    left to the general path.
+
+    Parameters
+    ----------
+    G : (n, 4) int64, the uses of each group in ascending order
+
+    Returns
+    -------
+    pairs : (m, 2) int64, the edges of the decided groups
+    done : (n,) bool, which groups were decided
+    """
+    radius = np.asarray(reach[0])
+    scale = np.asarray(reach[1])
+    a = G[:, [0, 0, 0, 1, 1, 2]]  # the six pairs of a group, numbered as in ``col``
+    b = G[:, [1, 2, 3, 2, 3, 3]]
+    thr = np.maximum(uses.tol[a], uses.tol[b])
+    d = np.sqrt(np.square(uses.mid[a] - uses.mid[b]).sum(axis=-1))
+    # A few ulps separate this norm from np.linalg.norm's: 1e-12 relative keeps both on one side.
+    same = d <= thr * (1.0 - 1e-12)
+    apart = (d > thr * (1.0 + 1e-12)) & (d - np.minimum(radius[a], radius[b]) > thr + 1e-9 * (1.0 + scale[a] + scale[b]))
+    col = {(0, 1): 0, (0, 2): 1, (0, 3): 2, (1, 2): 3, (1, 3): 4, (2, 3): 5}
+    done = np.zeros(G.shape[0], dtype=bool)
+    which = np.full(G.shape[0], -1)
+    for m, ((p, q), (r, s)) in enumerate(_MATCHINGS.tolist()):
+        inside = [col[(p, q)], col[(r, s)]]
+        outside = [c for c in range(6) if c not in inside]
+        ok = same[:, inside].all(axis=1) & apart[:, outside].all(axis=1)
+        which[ok] = m
+        done |= ok
+    rows = np.flatnonzero(done)
+    M = _MATCHINGS[which[rows]]  # (k, 2, 2) positions in the group
+    P = np.take_along_axis(G[rows][:, None, :], M, axis=2)  # (k, 2, 2) use indices, first < second
+    i, j = P[..., 0], P[..., 1]
+    good = ~closed[i] & (vertex[i, 0] == vertex[j, 1])
+    ok = good.all(axis=1)
+    done[rows[~ok]] = False  # _require_pair raises there: the general path names the fault
+    return P[ok].reshape(-1, 2), done
 
 
 def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
@@ -561,6 +619,8 @@ def _require_pair(uses: _Uses, comp: list[int], vertex: np.ndarray) -> None:
         Open shell (one use), non-manifold edge (three or more), inconsistent orientation.
     """
     i = comp[0]
+    if len(comp) == 2 and vertex[i, 0] != vertex[i, 1] and vertex[i, 0] == vertex[comp[1], 1]:
+        return  # the common case, without formatting the message below
     where = f"(from {uses.start[i].tolist()} to {uses.end[i].tolist()})"
     if len(comp) == 1:
         raise TopologyError(f"{uses.name(i)} {where} matches no other edge: the shell is open there")

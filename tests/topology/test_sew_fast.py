@@ -135,3 +135,47 @@ def test_reach_shortcut_spares_the_measurements_of_hole_halves(monkeypatch):
     assert not calls  # every pair of different half circles was told apart by the bound
     np.testing.assert_array_equal(got, general_pairs(uses, vertex))
     assert calls  # the general path measures them
+
+
+# ---------------------------------------------------------------------- groups of four at once
+import pytest  # noqa: E402
+
+from coons.errors import TopologyError  # noqa: E402
+
+
+def _holed_plate(radii, xs, ys):
+    holes = [Profile.circle(r, center=(x, y)).outer for r, x, y in zip(radii, xs, ys)]
+    return extrude(Profile(Profile.rectangle(40.0, 40.0).outer, holes), 2.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.05, 1.9), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5)), min_size=1, max_size=8))
+def test_groups_of_four_match_as_the_general_path(holes):
+    # Hole i sits in its own 4 x 4 cell: holes never overlap, radii from tiny to nearly touching.
+    radii = [h[0] for h in holes]
+    xs = [-16.0 + 4.0 * (i % 8) + h[1] for i, h in enumerate(holes)]
+    ys = [-16.0 + 4.0 * (i // 8) + h[2] for i, h in enumerate(holes)]
+    solid = _holed_plate(radii, xs, ys)
+    t = resolve(None)
+    uses = sew._Uses(sew.face_specs(solid.brep), t)
+    vertex, vpoint, _ = sew._merge_vertices(uses, t)
+    np.testing.assert_array_equal(sew._match_edges(uses, vertex, vpoint, t), general_pairs(uses, vertex))
+
+
+def test_groups_of_four_with_a_wrong_way_use_raise_the_general_message(monkeypatch):
+    solid = _holed_plate([0.5, 0.7], [-5.0, 5.0], [0.0, 1.0])
+    specs = sew.face_specs(solid.brep)
+    # Reverse every loop of the first face that holds a circle: a hole half then runs the same way
+    # as its twin (inconsistent orientation inside a group of four).
+    for k, f in enumerate(specs):
+        if any(type(e.curve).__name__ == "Circle" for loop in f.loops for e in loop):
+            loops = [[sew.EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in f.loops]
+            specs[k] = sew.FaceSpec(f.surface, not f.sense, loops)
+            break
+    with pytest.raises(TopologyError) as fast:
+        sew.sew_faces(specs)
+    monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
+        np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))
+    with pytest.raises(TopologyError) as general:
+        sew.sew_faces(specs)
+    assert str(fast.value) == str(general.value)

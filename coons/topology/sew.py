@@ -744,16 +744,18 @@ def _assemble(
     b = BRepBuilder(t)
     b.assemble(vpoint, np.stack([edge_start, edge_end], axis=1), face_loops,
                face_surfaces=[f.surface for f in faces], face_senses=[f.sense for f in faces])
-    for v in range(vpoint.shape[0]):
-        b.set_vertex(v, tol=float(vtol[v]))
-    for e in range(E):
-        p, o = int(primary[e]), int(other[e])
-        sp, so = uses.spec[p], uses.spec[o]
-        thr = max(uses.tol[p], uses.tol[o])
+    for v, vt in enumerate(vtol.tolist()):
+        b.set_vertex(v, tol=vt)
+    spec, tols = uses.spec, uses.tol.tolist()
+    for e, (p, o, f) in enumerate(zip(primary.tolist(), other.tolist(), fwd.tolist())):
+        sp, so = spec[p], spec[o]
+        thr = max(tols[p], tols[o])
         b.set_edge_curve(e, sp.curve, (min(sp.t0, sp.t1), max(sp.t0, sp.t1)), tol=thr)
-        side_p = 0 if fwd[e] else 1
+        side_p = 0 if f else 1
         b.set_pcurve(2 * e + side_p, sp.pcurve)
-        b.set_pcurve(2 * e + (1 - side_p), _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})"))
+        # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
+        pc = so.pcurve if so.curve is sp.curve else _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})")
+        b.set_pcurve(2 * e + (1 - side_p), pc)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre))
 

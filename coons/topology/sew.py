@@ -15,8 +15,11 @@ meet, which edges are shared — is recovered from geometry:
    midpoints (the parametric midpoint of one within tolerance of the other curve, restricted to
    its range) are one edge.  Every edge must be used exactly twice, in opposite directions.
    The common case — two uses between two vertices with coincident midpoints, running opposite
-   ways — is decided for all groups at once; other groups (arcs sharing both vertices, as the
-   halves of a hole) go through union–find, the sampled curve of each use computed once.
+   ways — is decided for all groups at once, and so are groups of four (the two halves of a
+   hole, each used twice) whose every pair is certain without measuring: coincident midpoints,
+   or midpoints farther apart than both curves reach from their own (a triangle-inequality bound
+   for lines and circles, with a round-off margin).  Other groups go through union–find, which
+   uses the same bound before measuring a distance, the sampled curve of each use computed once.
 4. **Same parameter**: the first use's curve becomes the edge curve; the other use's p-curve is
    re-expressed in that parameter when its curve is a different object, through the affine
    parameter map fixed by the shared end points (verified on samples): ``Line2D``, ``Trig2D``

@@ -149,9 +149,9 @@ def _holed_plate(radii, xs, ys):
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.lists(st.tuples(st.floats(0.05, 1.9), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5)), min_size=1, max_size=8))
+@given(st.lists(st.tuples(st.floats(0.05, 1.4), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5)), min_size=1, max_size=8))
 def test_groups_of_four_match_as_the_general_path(holes):
-    # Hole i sits in its own 4 x 4 cell: holes never overlap, radii from tiny to nearly touching.
+    # Hole i sits in its own 4 x 4 cell, at most 0.5 off its centre: radii below 1.5 never overlap.
     radii = [h[0] for h in holes]
     xs = [-16.0 + 4.0 * (i % 8) + h[1] for i, h in enumerate(holes)]
     ys = [-16.0 + 4.0 * (i // 8) + h[2] for i, h in enumerate(holes)]

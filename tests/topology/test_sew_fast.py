@@ -179,3 +179,33 @@ def test_groups_of_four_with_a_wrong_way_use_raise_the_general_message(monkeypat
     with pytest.raises(TopologyError) as general:
         sew.sew_faces(specs)
     assert str(fast.value) == str(general.value)
+
+
+def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
+    # A plate minus cylinders (sewing with hole halves in groups of four) and sphere + sphere:
+    # the B-rep tables with every new shortcut of sewing and assembly disabled are the same.
+    import dataclasses
+
+    import coons
+    from coons.topology.builder import BRepBuilder
+
+    def cases():
+        plate = coons.Box(12, 12, 2)
+        tools = [coons.Cylinder(0.5 + 0.1 * i, 4).translate((-4.0 + 4.0 * (i % 3), -4.0 + 4.0 * (i // 3), 0.0))
+                 for i in range(6)]
+        return [coons.difference(plate, *tools), (plate - tools[0]) - tools[4],
+                coons.Sphere(5) + coons.Sphere(5).translate((4.0, 2.0, 0.5))]
+
+    fast = cases()
+    k = lambda uses, rows: ([math.inf] * len(uses), [math.inf] * len(uses))  # noqa: E731
+    monkeypatch.setattr(sew, "_reach", k)
+    monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
+        np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))
+    monkeypatch.setattr(BRepBuilder, "_assemble_loops_bulk", lambda *a, **kw: None)
+    old = cases()
+    for a, b in zip(fast, old):
+        for fld in dataclasses.fields(a.brep):
+            x, y = getattr(a.brep, fld.name), getattr(b.brep, fld.name)
+            if isinstance(x, np.ndarray):
+                np.testing.assert_array_equal(x, y, err_msg=fld.name)
+        assert a.brep.n_faces == b.brep.n_faces and np.isclose(a.volume, b.volume, rtol=1e-12, atol=0.0)

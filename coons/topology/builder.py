@@ -607,10 +607,52 @@ class BRepBuilder:
         points = np.asarray(points, dtype=np.float64)
         edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
         v_off, e_off = len(self.vpoint), len(self.ev)
-        for p in points:
-            self._new_vertex(p)
-        for a, b in edges:
-            self._new_edge(int(a) + v_off, int(b) + v_off)
+        if points.ndim == 2 and points.shape[1] == 3 and np.isfinite(points).all():
+            # What _new_vertex does per point, in bulk (its checks hold for every row at once).
+            nv = points.shape[0]
+            self.vpoint.extend(list(points))
+            self.vtol.extend([self.tol.linear] * nv)
+            self.vcoedge.extend([-1] * nv)
+            self.valive.extend([True] * nv)
+        else:  # _new_vertex names the bad point
+            for p in points:
+                self._new_vertex(p)
+        ne = edges.shape[0]
+        self.ev.extend((edges + v_off).tolist())
+        self.ealive.extend([True] * ne)
+        self.ecurve.extend([-1] * ne)
+        self.erange.extend([(0.0, 1.0)] * ne)
+        self.epcurve.extend([[-1, -1] for _ in range(ne)])
+        self.etol.extend([self.tol.linear] * ne)
+        self.nxt.extend([-1] * (2 * ne))
+        self.prv.extend([-1] * (2 * ne))
+        self.cloop.extend([-1] * (2 * ne))
+        face_ids = self._assemble_loops_bulk(edges, v_off, e_off, face_loops, face_surfaces, face_senses)
+        if face_ids is None:
+            face_ids = self._assemble_loops(edges, v_off, e_off, face_loops, face_surfaces, face_senses)
+        # Shells: connected components of faces through shared edges.
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        nf = len(face_ids)
+        ce = np.arange(2 * e_off, 2 * len(self.ev))
+        cf = np.array([self.lface[self.cloop[c]] for c in ce]) - face_ids[0] if nf else np.empty(0, int)
+        a, b = cf[0::2], cf[1::2]
+        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
+        n_comp, labels = connected_components(graph, directed=False)
+        for k in range(n_comp):
+            solid = len(self.souter)
+            shell = len(self.ssolid)
+            self.ssolid.append(solid)
+            self.salive.append(True)
+            self.souter.append(shell)
+            self.solive.append(True)
+            for fi in np.flatnonzero(labels == k):
+                self.fshell[face_ids[int(fi)]] = shell
+
+    def _assemble_loops(self, edges: np.ndarray, v_off: int, e_off: int, face_loops, face_surfaces,
+                        face_senses) -> list[int]:
+        """Faces, loops and coedge links of :meth:`assemble`, one coedge at a time; raises on bad input."""
         used = np.zeros((len(edges), 2), dtype=np.int64)
         face_ids: list[int] = []
         loop_ids_per_face: list[list[int]] = []
@@ -658,25 +700,79 @@ class BRepBuilder:
                 v = self.origin(c)
                 if self.vcoedge[v] < 0:
                     self.vcoedge[v] = c
-        # Shells: connected components of faces through shared edges.
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
+        return face_ids
 
-        nf = len(face_ids)
-        ce = np.arange(2 * e_off, 2 * len(self.ev))
-        cf = np.array([self.lface[self.cloop[c]] for c in ce]) - face_ids[0] if nf else np.empty(0, int)
-        a, b = cf[0::2], cf[1::2]
-        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
-        n_comp, labels = connected_components(graph, directed=False)
-        for k in range(n_comp):
-            solid = len(self.souter)
-            shell = len(self.ssolid)
-            self.ssolid.append(solid)
-            self.salive.append(True)
-            self.souter.append(shell)
-            self.solive.append(True)
-            for fi in np.flatnonzero(labels == k):
-                self.fshell[face_ids[int(fi)]] = shell
+    def _assemble_loops_bulk(self, edges: np.ndarray, v_off: int, e_off: int, face_loops, face_surfaces,
+                             face_senses) -> list[int] | None:
+        """:meth:`_assemble_loops` in array passes over the coedges, or None (nothing changed).
+
+        Taken only when every precondition the per-coedge path enforces is verified first: edge
+        references in range, edge vertices among the new points, consecutive coedges of a loop
+        meeting, every new edge used once each way, no empty loop.  Otherwise the per-coedge path
+        runs and raises its own message.  Then the new coedges are exactly the contiguous range
+        ``2 e_off .. 2 (e_off + E)``, so their links are written as slices.
+        """
+        ne = edges.shape[0]
+        nv_new = len(self.vpoint) - v_off
+        lens = [len(loop) for loops in face_loops for loop in loops]
+        if ne == 0 or not lens or min(lens) == 0 or edges.min() < 0 or edges.max() >= nv_new:
+            return None
+        refs = np.fromiter((int(r) for loops in face_loops for loop in loops for r in loop), dtype=np.int64,
+                           count=sum(lens))
+        if (refs == 0).any() or (np.abs(refs) > ne).any():
+            return None
+        e = np.abs(refs) - 1
+        side = (refs < 0).astype(np.int64)
+        if not (np.bincount(2 * e + side, minlength=2 * ne) == 1).all():
+            return None
+        lens_a = np.asarray(lens, dtype=np.int64)
+        first = np.cumsum(lens_a) - lens_a  # position of each loop's first coedge
+        idx = np.arange(refs.size)
+        loop_of = np.repeat(np.arange(lens_a.size), lens_a)
+        nxt = np.where(idx + 1 < first[loop_of] + lens_a[loop_of], idx + 1, first[loop_of])
+        ev = edges + v_off
+        origin = ev[e, side]
+        target = ev[e, 1 - side]
+        if not (target == origin[nxt]).all():
+            return None
+        c = 2 * (e + e_off) + side
+        # Faces and loops in input order (few; their geometry goes through the pools).
+        face_ids: list[int] = []
+        loop_ids: list[int] = []
+        for fi, loops in enumerate(face_loops):
+            f = self._new_face(-1)
+            face_ids.append(f)
+            if face_surfaces is not None:
+                self.fsurface[f] = self._pool("surfaces", face_surfaces[fi])
+            if face_senses is not None:
+                self.fsense[f] = bool(face_senses[fi])
+            for li in range(len(loops)):
+                l = self._new_loop(f)
+                loop_ids.append(l)
+                if li == 0:
+                    self.fouter[f] = l
+        lid = np.asarray(loop_ids, dtype=np.int64)
+        base = 2 * e_off
+        link = np.empty(2 * ne, dtype=np.int64)
+        back = np.empty(2 * ne, dtype=np.int64)
+        cl = np.empty(2 * ne, dtype=np.int64)
+        link[c - base] = c[nxt]
+        back[c[nxt] - base] = c
+        cl[c - base] = lid[loop_of]
+        self.nxt[base:] = link.tolist()
+        self.prv[base:] = back.tolist()
+        self.cloop[base:] = cl.tolist()
+        for l, c0 in zip(loop_ids, c[first].tolist()):
+            self.lcoedge[l] = c0
+            self.lvertex[l] = -1
+        # Each new vertex's coedge: the first new coedge (in coedge order) leaving it.
+        cs = np.arange(base, base + 2 * ne)
+        orig = ev.ravel()  # origin of coedge base + 2 e + side is ev[e, side]
+        verts, at = np.unique(orig, return_index=True)
+        for v, cv in zip(verts.tolist(), cs[at].tolist()):
+            if self.vcoedge[v] < 0:
+                self.vcoedge[v] = cv
+        return face_ids
 
     def assemble_polygons(self, points: np.ndarray, face_vertex_loops: Sequence, **kwargs: Any) -> None:
         """:meth:`assemble` with faces given as vertex loops instead of signed edge references.

@@ -25,6 +25,7 @@ import numpy as np
 
 from coons.errors import CoonsError
 from coons.kernel.analytic import Line, PlanarSurface
+from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
@@ -302,8 +303,16 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
         a = b.vertex_point[b.edge_vertex[edges[straight], 0]]
         c = b.vertex_point[b.edge_vertex[edges[straight], 1]]
         P[straight] = a[:, None, :] + s[None, :, None] * (c - a)[:, None, :]
-    for ci in np.unique(curve[~straight]):
-        rows = np.flatnonzero(curve == ci)
+    # Lines and circles (most curves of a model) in one array expression for all their edges,
+    # with the formulas of their own ``evaluate`` (the same floats); any other curve once per object.
+    curved = np.flatnonzero(~straight)
+    batched = np.array([type(b.curves[int(ci)]) in BATCHED_CURVES for ci in curve[curved].tolist()], dtype=bool)
+    rows = curved[batched]
+    if rows.size and np.isfinite(T[rows]).all():
+        P[rows] = evaluate_curves([b.curves[int(ci)] for ci in curve[rows].tolist()], T[rows])
+        curved = curved[~batched]
+    for ci in np.unique(curve[curved]):
+        rows = curved[curve[curved] == ci]
         P[rows] = b.curves[int(ci)].evaluate(T[rows])
     return T, P
 

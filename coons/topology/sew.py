@@ -15,8 +15,11 @@ meet, which edges are shared — is recovered from geometry:
    midpoints (the parametric midpoint of one within tolerance of the other curve, restricted to
    its range) are one edge.  Every edge must be used exactly twice, in opposite directions.
    The common case — two uses between two vertices with coincident midpoints, running opposite
-   ways — is decided for all groups at once; other groups (arcs sharing both vertices, as the
-   halves of a hole) go through union–find, the sampled curve of each use computed once.
+   ways — is decided for all groups at once, and so are groups of four (the two halves of a
+   hole, each used twice) whose every pair is certain without measuring: coincident midpoints,
+   or midpoints farther apart than both curves reach from their own (a triangle-inequality bound
+   for lines and circles, with a round-off margin).  Other groups go through union–find, which
+   uses the same bound before measuring a distance, the sampled curve of each use computed once.
 4. **Same parameter**: the first use's curve becomes the edge curve; the other use's p-curve is
    re-expressed in that parameter when its curve is a different object, through the affine
    parameter map fixed by the shared end points (verified on samples): ``Line2D``, ``Trig2D``
@@ -383,19 +386,115 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     samples: dict = {}  # first-round samples of _distance_to_curve, shared by the uses of one curve
     slow = np.ones(start.size, dtype=bool)
     slow[two.nonzero()[0][fast]] = False
+    group_of = np.cumsum(np.concatenate([[True], key[1:] != key[:-1]])) - 1  # group of each sorted use
+    reach = _reach(uses, order[slow[group_of]]) if slow.any() else None
+    four = np.flatnonzero(slow & ((stop - start) == 4))
+    if four.size:
+        got, done = _match_fours(uses, vertex, closed, order[start[four, None] + np.arange(4)], reach)
+        pairs.append(got)
+        slow[four[done]] = False
     for s, e in zip(start[slow], stop[slow]):
         group = [int(x) for x in order[s:e]]
-        for comp in _agreeing_components(uses, group, samples):
+        for comp in _agreeing_components(uses, group, samples, reach):
             _require_pair(uses, comp, vertex)
             pairs.append(np.asarray([comp], dtype=np.int64))
     out = np.concatenate(pairs).astype(np.int64, copy=False).reshape(-1, 2)
     return out[np.argsort(out[:, 0], kind="stable")]
 
 
-def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = None) -> list[list[int]]:
+#: The three ways of pairing four uses, as index pairs into a group of four (ascending use index).
+_MATCHINGS = np.array([[[0, 1], [2, 3]], [[0, 2], [1, 3]], [[0, 3], [1, 2]]])
+
+
+def _match_fours(uses: _Uses, vertex: np.ndarray, closed: np.ndarray, G: np.ndarray,
+                 reach: tuple[list[float], list[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Groups of four uses (two edges between the same two vertices, as the halves of a hole) at once.
+
+    A group is decided here only when every pair's verdict of :func:`_curves_agree` is certain
+    without measuring: the pairs of one of the three matchings have midpoints within
+    ``(1 - 1e-12)`` of their tolerance (coincident, True whichever way the norm is rounded), and
+    the four other pairs are beyond reach (the bound of :func:`_curves_agree` with its margin,
+    False).  The union–find then yields exactly that matching; each pair must also pass
+    :func:`_require_pair` (distinct end vertices, opposite directions).  Every other group is
+    left to the general path.
+
+    Parameters
+    ----------
+    G : (n, 4) int64, the uses of each group in ascending order
+
+    Returns
+    -------
+    pairs : (m, 2) int64, the edges of the decided groups
+    done : (n,) bool, which groups were decided
+    """
+    radius = np.asarray(reach[0])
+    scale = np.asarray(reach[1])
+    a = G[:, [0, 0, 0, 1, 1, 2]]  # the six pairs of a group, numbered as in ``col``
+    b = G[:, [1, 2, 3, 2, 3, 3]]
+    thr = np.maximum(uses.tol[a], uses.tol[b])
+    d = np.sqrt(np.square(uses.mid[a] - uses.mid[b]).sum(axis=-1))
+    # A few ulps separate this norm from np.linalg.norm's: 1e-12 relative keeps both on one side.
+    same = d <= thr * (1.0 - 1e-12)
+    apart = (d > thr * (1.0 + 1e-12)) & (d - np.minimum(radius[a], radius[b]) > thr + 1e-9 * (1.0 + scale[a] + scale[b]))
+    col = {(0, 1): 0, (0, 2): 1, (0, 3): 2, (1, 2): 3, (1, 3): 4, (2, 3): 5}
+    done = np.zeros(G.shape[0], dtype=bool)
+    which = np.full(G.shape[0], -1)
+    for m, ((p, q), (r, s)) in enumerate(_MATCHINGS.tolist()):
+        inside = [col[(p, q)], col[(r, s)]]
+        outside = [c for c in range(6) if c not in inside]
+        ok = same[:, inside].all(axis=1) & apart[:, outside].all(axis=1)
+        which[ok] = m
+        done |= ok
+    rows = np.flatnonzero(done)
+    M = _MATCHINGS[which[rows]]  # (k, 2, 2) positions in the group
+    P = np.take_along_axis(G[rows][:, None, :], M, axis=2)  # (k, 2, 2) use indices, first < second
+    i, j = P[..., 0], P[..., 1]
+    good = ~closed[i] & (vertex[i, 0] == vertex[j, 1])
+    ok = good.all(axis=1)
+    done[rows[~ok]] = False  # _require_pair raises there: the general path names the fault
+    return P[ok].reshape(-1, 2), done
+
+
+def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
+    """For the uses ``rows``, a bound on how far each curve strays from its midpoint, and the size of its numbers.
+
+    ``radius[i]`` bounds the distance from ``uses.mid[i]`` to every point of the use's curve over
+    its range: half the range for a (unit-speed) line, ``min(r · range / 2, 2 r)`` for a circle
+    (arc length from the midpoint to an end, and the diameter); ``inf`` for any other curve and
+    any use not in ``rows`` (no bound, the distance is then always measured).  ``scale[i]`` is
+    the magnitude of the coordinates and parameters that went into the use's points, for a
+    round-off margin.  Lists of Python floats, length ``len(uses)``.
+    """
+    k = len(uses)
+    radius = np.full(k, math.inf)
+    scale = np.full(k, math.inf)
+    rows = np.asarray(rows, dtype=np.int64)
+    kind = np.array([1 if type(uses.spec[i].curve) is Line else 2 if type(uses.spec[i].curve) is Circle else 0
+                     for i in rows.tolist()], dtype=np.int64)
+    half = 0.5 * np.abs(uses.t1[rows] - uses.t0[rows])
+    base = np.abs(uses.mid[rows]).max(axis=1) + np.maximum(np.abs(uses.t0[rows]), np.abs(uses.t1[rows]))
+    for code in (1, 2):
+        sel = np.flatnonzero(kind == code)
+        if not sel.size:
+            continue
+        r = rows[sel]
+        curves = [uses.spec[i].curve for i in r.tolist()]
+        if code == 1:
+            radius[r] = half[sel]
+            scale[r] = base[sel] + np.abs(np.array([c.origin for c in curves])).max(axis=1)
+        else:
+            R = np.array([float(c.radius) for c in curves])
+            radius[r] = np.minimum(R * half[sel], 2.0 * R)
+            scale[r] = base[sel] + np.abs(np.array([c.center for c in curves])).max(axis=1) + R
+    return radius.tolist(), scale.tolist()
+
+
+def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = None,
+                         reach: tuple[list[float], list[float]] | None = None) -> list[list[int]]:
     """Partition uses joining the same vertices into sets whose curves agree (union–find).
 
-    ``samples`` caches the first sampling round of :func:`_distance_to_curve` per curve and range.
+    ``samples`` caches the first sampling round of :func:`_distance_to_curve` per curve and range;
+    ``reach`` (:func:`_reach`) lets :func:`_curves_agree` reject far-apart curves without measuring.
     """
     parent = list(range(len(group)))
 
@@ -407,7 +506,7 @@ def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = N
 
     for x in range(len(group)):
         for y in range(x + 1, len(group)):
-            if find(x) != find(y) and _curves_agree(uses, group[x], group[y], samples):
+            if find(x) != find(y) and _curves_agree(uses, group[x], group[y], samples, reach):
                 parent[find(x)] = find(y)
     comps: dict[int, list[int]] = {}
     for x in range(len(group)):
@@ -415,11 +514,28 @@ def _agreeing_components(uses: _Uses, group: list[int], samples: dict | None = N
     return sorted(comps.values(), key=lambda c: c[0])
 
 
-def _curves_agree(uses: _Uses, i: int, j: int, samples: dict | None = None) -> bool:
-    """Whether uses ``i`` and ``j`` lie on one curve: each midpoint within tolerance of the other curve."""
+def _curves_agree(uses: _Uses, i: int, j: int, samples: dict | None = None,
+                  reach: tuple[list[float], list[float]] | None = None) -> bool:
+    """Whether uses ``i`` and ``j`` lie on one curve: each midpoint within tolerance of the other curve.
+
+    With ``reach`` (:func:`_reach`), midpoints farther apart than both curves can reach from
+    their own midpoints plus the tolerance are decided without measuring: by the triangle
+    inequality ``dist(mid_i, curve_j) >= |mid_i - mid_j| - radius_j`` (and the same with i, j
+    swapped), so when that bound exceeds ``thr`` by more than any round-off of the measured
+    distance could, the measurement would have said False too.
+    """
     thr = max(uses.tol[i], uses.tol[j])
-    if np.linalg.norm(uses.mid[i] - uses.mid[j]) <= thr:
+    d = np.linalg.norm(uses.mid[i] - uses.mid[j])
+    if d <= thr:
         return True  # same parametric midpoint (the common case: a shared curve object)
+    if reach is not None:
+        radius, scale = reach
+        # 1e-9 relative to the numbers involved is far above the few ulps of round-off in the
+        # measured distance (closed forms of lines and circles), so the shortcut never decides
+        # a case the measurement would decide the other way.
+        margin = 1e-9 * (1.0 + scale[i] + scale[j])
+        if float(d) - min(radius[i], radius[j]) > thr + margin:
+            return False
     return (_distance_to_curve(uses.mid[i], uses.spec[j], stop=thr, samples=samples) <= thr
             and _distance_to_curve(uses.mid[j], uses.spec[i], stop=thr, samples=samples) <= thr)
 
@@ -506,6 +622,8 @@ def _require_pair(uses: _Uses, comp: list[int], vertex: np.ndarray) -> None:
         Open shell (one use), non-manifold edge (three or more), inconsistent orientation.
     """
     i = comp[0]
+    if len(comp) == 2 and vertex[i, 0] != vertex[i, 1] and vertex[i, 0] == vertex[comp[1], 1]:
+        return  # the common case, without formatting the message below
     where = f"(from {uses.start[i].tolist()} to {uses.end[i].tolist()})"
     if len(comp) == 1:
         raise TopologyError(f"{uses.name(i)} {where} matches no other edge: the shell is open there")
@@ -629,16 +747,18 @@ def _assemble(
     b = BRepBuilder(t)
     b.assemble(vpoint, np.stack([edge_start, edge_end], axis=1), face_loops,
                face_surfaces=[f.surface for f in faces], face_senses=[f.sense for f in faces])
-    for v in range(vpoint.shape[0]):
-        b.set_vertex(v, tol=float(vtol[v]))
-    for e in range(E):
-        p, o = int(primary[e]), int(other[e])
-        sp, so = uses.spec[p], uses.spec[o]
-        thr = max(uses.tol[p], uses.tol[o])
+    for v, vt in enumerate(vtol.tolist()):
+        b.set_vertex(v, tol=vt)
+    spec, tols = uses.spec, uses.tol.tolist()
+    for e, (p, o, f) in enumerate(zip(primary.tolist(), other.tolist(), fwd.tolist())):
+        sp, so = spec[p], spec[o]
+        thr = max(tols[p], tols[o])
         b.set_edge_curve(e, sp.curve, (min(sp.t0, sp.t1), max(sp.t0, sp.t1)), tol=thr)
-        side_p = 0 if fwd[e] else 1
+        side_p = 0 if f else 1
         b.set_pcurve(2 * e + side_p, sp.pcurve)
-        b.set_pcurve(2 * e + (1 - side_p), _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})"))
+        # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
+        pc = so.pcurve if so.curve is sp.curve else _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})")
+        b.set_pcurve(2 * e + (1 - side_p), pc)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre))
 

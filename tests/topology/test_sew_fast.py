@@ -41,3 +41,171 @@ def test_fast_matching_equals_the_general_path():
     resewn = sew.sew_faces(specs, t)
     assert resewn.brep.n_edges == solid.brep.n_edges
     np.testing.assert_allclose(resewn.volume, solid.volume, rtol=1e-14)
+
+
+# ---------------------------------------------------------------------- reach shortcut
+import math  # noqa: E402
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from coons.kernel.analytic import Circle, Line  # noqa: E402
+from coons.kernel.curve import NurbsCurve  # noqa: E402
+
+
+def _uses_of(curves_ranges, t):
+    """A _Uses over single-use loops (only the per-use arrays are read by the matching helpers)."""
+    faces = [sew.FaceSpec(None, True, [[sew.EdgeSpec(c, a, b, None, tol)]]) for c, a, b, tol in curves_ranges]
+    return sew._Uses(faces, t)
+
+
+@settings(max_examples=60)
+@given(
+    st.lists(st.floats(0.0, 2 * math.pi), min_size=2, max_size=6),
+    st.floats(1e-3, 1e3),
+    st.tuples(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3), st.floats(-1e3, 1e3)),
+    st.floats(-1e2, 1e2),
+    st.sampled_from([None, 1e-9, 1e-4, 0.5]),
+)
+def test_reach_shortcut_gives_the_measured_verdict(cuts, r, centre, shift, tol):
+    # Arcs of one circle (and of a copy turned by ``shift``) and chords between them: every pair
+    # decided by the shortcut must be decided the same way by the measurement.
+    t = resolve(None)
+    angles = sorted(set(cuts))
+    c1 = Circle(centre, (0.0, 0.0, 1.0), (1.0, 0.0, 0.0), r)
+    items = []
+    for a, b in zip(angles, angles[1:]):
+        if b - a > 1e-9:
+            items.append((c1, a, b, tol))
+            items.append((c1, b + shift * 1e-12, a, tol))  # nearly the same range, reversed
+            p, q = np.asarray(c1.evaluate(a)), np.asarray(c1.evaluate(b))
+            if np.linalg.norm(q - p) > 0:
+                items.append((Line(p, q - p), 0.0, float(np.linalg.norm(q - p)), tol))
+    items.append((Line(centre, (1.0, 0.0, 0.0)), shift, shift + r, tol))
+    items.append((Line(centre, (0.0, 1.0, 0.0)), -r, r, tol))
+    uses = _uses_of(items, t)
+    reach = sew._reach(uses, np.arange(len(uses)))
+    for i in range(len(uses)):
+        for j in range(len(uses)):
+            if i != j:
+                assert sew._curves_agree(uses, i, j, {}, reach) == sew._curves_agree(uses, i, j, {})
+
+
+def test_reach_is_unbounded_for_other_curves_and_unlisted_uses():
+    t = resolve(None)
+    nc = NurbsCurve(np.array([[0.0, 0, 0], [1, 1, 0], [2, 0, 0]]), [0, 0, 0, 1, 1, 1], 2)
+    line = Line((0.0, 0, 0), (1.0, 0, 0))
+    uses = _uses_of([(nc, 0.0, 1.0, None), (line, 0.0, 2.0, None), (line, 2.0, 0.0, None)], t)
+    radius, scale = sew._reach(uses, np.array([0, 1]))
+    assert math.isinf(radius[0]) and math.isinf(scale[0])  # no bound for a NURBS curve
+    assert radius[1] == 1.0 and math.isfinite(scale[1])
+    assert math.isinf(radius[2])  # not asked for
+
+
+def test_reach_matching_equals_matching_without_it():
+    # The plate-with-holes groups of four (two half circles each used twice) through the
+    # union-find with and without the shortcut.
+    holes = [Profile.circle(0.4 + 0.1 * i, center=(-4.0 + 2.0 * i, 0.5 * (i % 2))).outer for i in range(5)]
+    solid = extrude(Profile(Profile.rectangle(12.0, 4.0).outer, holes), 2.0)
+    t = resolve(None)
+    uses = sew._Uses(sew.face_specs(solid.brep), t)
+    vertex, _, _ = sew._merge_vertices(uses, t)
+    reach = sew._reach(uses, np.arange(len(uses)))
+    vs, ve = vertex[:, 0], vertex[:, 1]
+    lo, hi = np.minimum(vs, ve), np.maximum(vs, ve)
+    n4 = 0
+    for key in sorted(set(zip(lo.tolist(), hi.tolist()))):
+        group = np.flatnonzero((lo == key[0]) & (hi == key[1])).tolist()
+        n4 += len(group) == 4
+        assert sew._agreeing_components(uses, group, {}, reach) == sew._agreeing_components(uses, group)
+    assert n4 >= 5
+
+
+def test_reach_shortcut_spares_the_measurements_of_hole_halves(monkeypatch):
+    holes = [Profile.circle(0.5, center=(-3.0 + 3.0 * i, 0.0)).outer for i in range(3)]
+    solid = extrude(Profile(Profile.rectangle(12.0, 4.0).outer, holes), 2.0)
+    t = resolve(None)
+    specs = sew.face_specs(solid.brep)
+    calls = []
+    real = sew._distance_to_curve
+    monkeypatch.setattr(sew, "_distance_to_curve", lambda *a, **k: calls.append(1) or real(*a, **k))
+    uses = sew._Uses(specs, t)
+    vertex, vpoint, _ = sew._merge_vertices(uses, t)
+    got = sew._match_edges(uses, vertex, vpoint, t)
+    assert not calls  # every pair of different half circles was told apart by the bound
+    np.testing.assert_array_equal(got, general_pairs(uses, vertex))
+    assert calls  # the general path measures them
+
+
+# ---------------------------------------------------------------------- groups of four at once
+import pytest  # noqa: E402
+
+from coons.errors import TopologyError  # noqa: E402
+
+
+def _holed_plate(radii, xs, ys):
+    holes = [Profile.circle(r, center=(x, y)).outer for r, x, y in zip(radii, xs, ys)]
+    return extrude(Profile(Profile.rectangle(40.0, 40.0).outer, holes), 2.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.05, 1.4), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5)), min_size=1, max_size=8))
+def test_groups_of_four_match_as_the_general_path(holes):
+    # Hole i sits in its own 4 x 4 cell, at most 0.5 off its centre: radii below 1.5 never overlap.
+    radii = [h[0] for h in holes]
+    xs = [-16.0 + 4.0 * (i % 8) + h[1] for i, h in enumerate(holes)]
+    ys = [-16.0 + 4.0 * (i // 8) + h[2] for i, h in enumerate(holes)]
+    solid = _holed_plate(radii, xs, ys)
+    t = resolve(None)
+    uses = sew._Uses(sew.face_specs(solid.brep), t)
+    vertex, vpoint, _ = sew._merge_vertices(uses, t)
+    np.testing.assert_array_equal(sew._match_edges(uses, vertex, vpoint, t), general_pairs(uses, vertex))
+
+
+def test_groups_of_four_with_a_wrong_way_use_raise_the_general_message(monkeypatch):
+    solid = _holed_plate([0.5, 0.7], [-5.0, 5.0], [0.0, 1.0])
+    specs = sew.face_specs(solid.brep)
+    # Reverse every loop of the first face that holds a circle: a hole half then runs the same way
+    # as its twin (inconsistent orientation inside a group of four).
+    for k, f in enumerate(specs):
+        if any(type(e.curve).__name__ == "Circle" for loop in f.loops for e in loop):
+            loops = [[sew.EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in f.loops]
+            specs[k] = sew.FaceSpec(f.surface, not f.sense, loops)
+            break
+    with pytest.raises(TopologyError) as fast:
+        sew.sew_faces(specs)
+    monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
+        np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))
+    with pytest.raises(TopologyError) as general:
+        sew.sew_faces(specs)
+    assert str(fast.value) == str(general.value)
+
+
+def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
+    # A plate minus cylinders (sewing with hole halves in groups of four) and sphere + sphere:
+    # the B-rep tables with every new shortcut of sewing and assembly disabled are the same.
+    import dataclasses
+
+    import coons
+    from coons.topology.builder import BRepBuilder
+
+    def cases():
+        plate = coons.Box(12, 12, 2)
+        tools = [coons.Cylinder(0.5 + 0.1 * i, 4).translate((-4.0 + 4.0 * (i % 3), -4.0 + 4.0 * (i // 3), 0.0))
+                 for i in range(6)]
+        return [coons.difference(plate, *tools), (plate - tools[0]) - tools[4],
+                coons.Sphere(5) + coons.Sphere(5).translate((4.0, 2.0, 0.5))]
+
+    fast = cases()
+    k = lambda uses, rows: ([math.inf] * len(uses), [math.inf] * len(uses))  # noqa: E731
+    monkeypatch.setattr(sew, "_reach", k)
+    monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
+        np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))
+    monkeypatch.setattr(BRepBuilder, "_assemble_loops_bulk", lambda *a, **kw: None)
+    old = cases()
+    for a, b in zip(fast, old):
+        for fld in dataclasses.fields(a.brep):
+            x, y = getattr(a.brep, fld.name), getattr(b.brep, fld.name)
+            if isinstance(x, np.ndarray):
+                np.testing.assert_array_equal(x, y, err_msg=fld.name)
+        assert a.brep.n_faces == b.brep.n_faces and np.isclose(a.volume, b.volume, rtol=1e-12, atol=0.0)

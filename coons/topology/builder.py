@@ -650,6 +650,15 @@ class BRepBuilder:
             for fi in np.flatnonzero(labels == k):
                 self.fshell[face_ids[int(fi)]] = shell
 
+    def _assembled_face(self, fi: int, face_surfaces, face_senses) -> int:
+        """A new face for input face ``fi`` of :meth:`assemble`, with its pooled surface and its sense."""
+        f = self._new_face(-1)
+        if face_surfaces is not None:
+            self.fsurface[f] = self._pool("surfaces", face_surfaces[fi])
+        if face_senses is not None:
+            self.fsense[f] = bool(face_senses[fi])
+        return f
+
     def _assemble_loops(self, edges: np.ndarray, v_off: int, e_off: int, face_loops, face_surfaces,
                         face_senses) -> list[int]:
         """Faces, loops and coedge links of :meth:`assemble`, one coedge at a time; raises on bad input."""
@@ -657,12 +666,8 @@ class BRepBuilder:
         face_ids: list[int] = []
         loop_ids_per_face: list[list[int]] = []
         for fi, loops in enumerate(face_loops):
-            f = self._new_face(-1)
+            f = self._assembled_face(fi, face_surfaces, face_senses)
             face_ids.append(f)
-            if face_surfaces is not None:
-                self.fsurface[f] = self._pool("surfaces", face_surfaces[fi])
-            if face_senses is not None:
-                self.fsense[f] = bool(face_senses[fi])
             lids = []
             for li, loop in enumerate(loops):
                 l = self._new_loop(f)
@@ -740,12 +745,8 @@ class BRepBuilder:
         face_ids: list[int] = []
         loop_ids: list[int] = []
         for fi, loops in enumerate(face_loops):
-            f = self._new_face(-1)
+            f = self._assembled_face(fi, face_surfaces, face_senses)
             face_ids.append(f)
-            if face_surfaces is not None:
-                self.fsurface[f] = self._pool("surfaces", face_surfaces[fi])
-            if face_senses is not None:
-                self.fsense[f] = bool(face_senses[fi])
             for li in range(len(loops)):
                 l = self._new_loop(f)
                 loop_ids.append(l)

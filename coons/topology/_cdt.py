@@ -385,10 +385,7 @@ class _Mesh:
                 continue
             s1 = self.T[t1][j1]
             s2 = next(v for v in self.T[t2] if v != u and v != w)
-            # Only a strictly convex quad (u, s2, w, s1) may flip: the stack holds edges not opposite
-            # the new point too, and Qhull's start is Delaunay only to its precision, so an illegal
-            # edge of a non-convex quad can come up; flipping it would fold two triangles over.
-            if incircle(P[u], P[w], P[s1], P[s2]) > 0 and self.orient(u, s2, s1) > 0 and self.orient(s2, w, s1) > 0:
+            if incircle(P[u], P[w], P[s1], P[s2]) > 0:
                 self.flip(t1, j1)
                 stack += [(u, s2), (s2, w), (w, s1), (s1, u)]
 

@@ -264,6 +264,21 @@ def test_flat_triangles_are_flipped_away():
         _remove_flat(lonely, np.array([0]))
 
 
+def test_a_corrupt_neighbour_table_raises_instead_of_walking_forever():
+    # Two triangles around vertex 0 that name each other as the next one counter-clockwise while
+    # neither holds the edge asked for, and the walk's start is not in their cycle: before the
+    # bound, triangle_with_edge turned around vertex 0 forever (as on Qhull's folded output).
+    from coons.errors import ConvergenceError
+
+    P = np.array([[0, 0], [1, 0], [0, 1], [-1, 0], [0, -1]], dtype=float)
+    T = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4]])
+    N = np.array([[-1, 2, -1], [-1, 2, -1], [-1, 1, -1]])  # 1 and 2 point at each other; 0 enters the loop
+    mesh = _Mesh(P, T, N)
+    mesh.vt[0] = 0
+    with pytest.raises(ConvergenceError, match="do not close a fan"):
+        mesh.triangle_with_edge(0, 4)  # no edge 0 -> 4 leaves vertex 0 in these triangles
+
+
 # ---------------------------------------------------------------------- incremental insertion
 @given(star_polygons(), st.integers(0, 2**31 - 1))
 def test_insertion_gives_the_same_triangulation_as_building_at_once(poly, seed):

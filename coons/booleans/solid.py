@@ -62,15 +62,27 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    plate — ``_split_islands`` builds the holed face and one island per cycle directly); each cut must then
    bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
-5. ``_classify`` (stage ``"classify"``): one interior point per piece (the sample of a grid over
-   the piece's parameter box that lies inside the trim polygon farthest from its boundary,
-   mapped to space; the first grid of all pieces in array passes, ``_interior_points``)
-   against the other solid by
+5. ``_classify`` (stage ``"classify"``), cheapest way first.  *Local*: a piece bounded by a
+   cut along a branch stretch that lies inside both faces of its pair (a ``_Link`` recorded by
+   ``_intersect``; none for a branch repeated by two faces of the other operand, i.e. along its
+   edge) takes its side from the first-order geometry at a point ``q`` of that cut: with ``T``
+   the cut's tangent in the piece's loop direction and ``N`` the outward normals,
+   ``d = N_X × T`` points into the piece, which is IN when ``d · N_Y < 0``; used only where the
+   surfaces cross at an angle (``|sin| >= 1e-2``) and ``q`` is clear of the other face's loops,
+   all candidates in one pass per curve, p-curve and surface object (``_local_status``).
+   *Propagated*: a face in no broad-phase pair (it and its edges are away from the other
+   boundary) takes the status of a classified piece across one of its edges (``_propagate``).
+   *By a point*, the rest (tangent contact, coincident faces, faces near the other boundary
+   but not cut, whole shells far from it): one interior point per piece (the sample of a
+   grid over the piece's parameter box that lies inside the trim polygon farthest from its
+   boundary, mapped to space; the first grid of all pieces in array passes,
+   ``_interior_points``) against the other solid by
    :class:`~coons.booleans.classify.Classifier` (winding number far from the boundary, exact
    projection near it); a point *on* the other boundary compares the outward normals.  Pieces
-   of faces in no broad-phase pair are classified by their first vertex instead (they are far
-   from the other boundary), and the classifier builds its per-face data only for faces near
-   the query points, on the operand's own tessellation.
+   of free faces are classified by their first vertex instead (they are far from the other
+   boundary), and the classifier builds its per-face data only for faces near the query
+   points, on the operand's own tessellation.  ``tests/booleans/test_local_classification.py``
+   holds the first two ways to the third on the seeded pairs of the OCCT comparison.
 6. ``_select`` by the table (B's kept pieces reversed in a difference: sense flipped, loops
    reversed, each EdgeSpec's ``t0, t1`` swapped)
 
@@ -105,8 +117,10 @@ Status and limitations
   (most agree to ``1e-15``; marched curves — crossing cylinders, offset spheres, the Steinmetz
   solid — to ``1e-8``) and against OCCT; OCCT itself is off by ``1e-5`` on crossing cylinders
   and offset spheres and wrong on a few (a lens of spheres along x, torus ∪ cylinder).
-* Classification is one point per piece, all pieces of an operand in one vectorised call;
-  classes are not propagated across uncut edges.
+* Classification is local at transversal cuts and propagated to faces far from the other
+  solid; only the remaining pieces (tangent contact, coincident faces, uncut faces near the
+  other boundary, shells far from it) take one point each, all of an operand in one
+  vectorised call.  Propagation does not cross edges of faces near the other solid.
 * Cost: a Boolean still costs the whole of both operands in the tessellation of ``_Operand``
   (the classifier's winding numbers need the whole mesh) and in ``sew_faces`` (matching and
   the full check), and array passes over all edge uses in the T-junction, merge and fuse
@@ -349,11 +363,12 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     A = _Operand(a, "A", t)
     B = _Operand(b, "B", t)
     I, J = _broad_phase(A, B)
-    cuts_a, cuts_b = _intersect(A, B, I, J, t)
+    links: dict[int, list[_Link]] = {}
+    cuts_a, cuts_b = _intersect(A, B, I, J, t, links)
     pieces_a = _split(A, cuts_a, t)
     pieces_b = _split(B, cuts_b, t)
-    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I), cuts=cuts_a)
-    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J), cuts=cuts_b)
+    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I), cuts=cuts_a, links=links, side=0)
+    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J), cuts=cuts_b, links=links, side=1)
     faces = _select(op, pieces_a, status_a, pieces_b, status_b)
     if not faces:
         return Solid.empty()
@@ -643,8 +658,27 @@ def _broad_phase(A: _Operand, B: _Operand) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------------- intersect
-def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolerance):
+class _Link:
+    """A transversal stretch of an intersection branch inside both of its faces (phase 5's local test).
+
+    The branch curve over ``[s0, s1]`` runs inside face ``faces[0]`` of A (with p-curve
+    ``pcurves[0]``) and inside face ``faces[1]`` of B (``pcurves[1]``): a cut on both.
+    """
+
+    __slots__ = ("s0", "s1", "faces", "pcurves")
+
+    def __init__(self, s0: float, s1: float, faces: tuple[int, int], pcurves: tuple) -> None:
+        self.s0, self.s1, self.faces, self.pcurves = s0, s1, faces, pcurves
+
+
+def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolerance,
+               links: dict[int, list[_Link]] | None = None):
     """Cuts per face of A and of B: ``(dict face -> list of EdgeSpec, same for B)``.
+
+    ``links`` (when given) receives, per branch curve object (``id``), the :class:`_Link` of
+    every range that became a cut on both faces of its pair; a curve that repeats another
+    cut of the same face (a branch along an edge of the other operand, found by both faces of
+    that edge) has none: which face of the other operand it lies in is then ambiguous.
 
     Raises
     ------
@@ -680,6 +714,8 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                             cuts_a.setdefault(i, []).append(EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
                         if wb == "inside":
                             cuts_b.setdefault(j, []).append(EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
+                        if wa == "inside" and wb == "inside" and links is not None:
+                            links.setdefault(id(c.curve), []).append(_Link(s0, s1, (i, j), (c.pcurve_a, c.pcurve_b)))
         except BooleanError:
             raise
         except (CoonsError, ValueError, ArithmeticError) as exc:  # numpy's LinAlgError is a ValueError
@@ -687,13 +723,17 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                 f"face {i} of A ({_kind(X)}) and face {j} of B ({_kind(Y)}): {type(exc).__name__}: {exc}",
                 stage="intersect", diagnostics={"face_a": i, "face_b": j, "error": str(exc)},
             ) from exc
+    repeated: set[int] = set()
     for X, cuts in ((A, cuts_a), (B, cuts_b)):
         for f in list(cuts):
-            cuts[f] = _unique_cuts(cuts[f], t)
+            cuts[f] = _unique_cuts(cuts[f], t, repeated)
             if not cuts[f]:
                 del cuts[f]
                 continue
             _check_cut_ends(X, f, cuts[f], B if X is A else A, t)
+    if links is not None:
+        for key in repeated:
+            links.pop(key, None)
     return cuts_a, cuts_b
 
 
@@ -1024,11 +1064,12 @@ def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
     return bool(np.max(np.linalg.norm(P - P[0], axis=1)) > t.linear)
 
 
-def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance) -> list[EdgeSpec]:
+def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None = None) -> list[EdgeSpec]:
     """Drop cuts that repeat an earlier one (same end points and midpoint within tolerance, either way).
 
     Candidates are found by a k-d tree on the midpoints (within the widest cut tolerance), so the
-    cost is about linear in the number of cuts.
+    cost is about linear in the number of cuts.  ``repeated`` (when given) receives the ``id``
+    of the curve of every cut that repeats or is repeated by another.
     """
     from scipy.spatial import cKDTree
 
@@ -1059,6 +1100,8 @@ def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance) -> list[EdgeSpec]:
         for a, b in zip(p[same].tolist(), q[same].tolist()):
             if not dropped[a] and not dropped[b]:
                 dropped[b] = True
+            if repeated is not None:
+                repeated.update((id(cuts[a].curve), id(cuts[b].curve)))
     return [c for k, c in enumerate(cuts) if not dropped[k]]
 
 
@@ -1276,19 +1319,22 @@ def _unpaired(n: int, idx: np.ndarray) -> np.ndarray:
 
 
 def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: Tolerance,
-              free: np.ndarray | None = None, cuts: dict[int, list[EdgeSpec]] | None = None) -> np.ndarray:
+              free: np.ndarray | None = None, cuts: dict[int, list[EdgeSpec]] | None = None,
+              links: dict[int, list[_Link]] | None = None, side: int = 0) -> np.ndarray:
     """Status of every piece of X with respect to solid Y (``(k,)`` int8 of OUT/IN/ON_SAME/ON_OPPOSITE).
 
-    Each piece is classified by an interior point (:func:`_interior_point`) clear of its
-    boundary and of the cuts of its face (``cuts``, face -> cuts) that bound no piece: the
-    lines of tangent contact with Y that ``split_face`` dropped, on which the point would be
-    *on* Y.
+    Three ways, cheapest first (the module docstring, phase 5):
 
-    A piece of a face in ``free`` (no broad-phase pair: the face is farther from Y's boundary
-    than the boxes' padding everywhere) is classified by any of its points, its first vertex,
-    instead of a searched interior point; all such pieces still go through the classifier in
-    the one vectorised call, and should one of them come out on Y's boundary, it is redone with
-    an interior point.
+    1. *Local*: a piece bounded by a cut along a transversal stretch of a branch inside both
+       faces of its pair (``links``, :func:`_intersect`; ``side`` 0 when X is A, 1 when X is B)
+       takes its side from the first-order geometry at a point ``q`` of that cut
+       (:func:`_local_status`): IN when the direction into the piece, ``N_X × T``, points
+       against Y's outward normal there.
+    2. *Propagated*: a piece of a face in ``free`` (no broad-phase pair: the face and its edges
+       are farther from Y's boundary than the boxes' padding) takes the status of a piece across
+       one of its edges (the same curve object over an overlapping range), found so far: near
+       that edge both lie on the same side of Y.
+    3. *By a point*: the rest by :func:`_classify_points`, against Y's classifier.
 
     Raises
     ------
@@ -1296,13 +1342,183 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
         (stage ``"classify"``) no interior point found, or a point on an edge of Y (the piece
         should have been split there).
     """
+    status = np.full(len(pieces), -1, dtype=np.int8)
+    if links:
+        _local_status(pieces, Y, links, side, t, status)
+    if free is not None:
+        _propagate(pieces, free, status)
+    rest = np.flatnonzero(status < 0)
+    if rest.size:
+        dangling = _dangling_cuts(pieces, cuts or {})
+        status[rest] = _classify_points([pieces[k] for k in rest.tolist()], rest.tolist(), X, Y, t, free, dangling)
+    return status
+
+
+#: Smallest ``|sin|`` of the angle between the direction into a piece and the other solid's
+#: tangent plane at a cut for the local test (:func:`_local_status`); shallower cuts (near
+#: tangency) are classified by a point.
+_LOCAL_SIN = 1e-2
+#: The local test's point must lie this many tolerances clear of the other face's boundary (its
+#: padded segment boxes), so that the face is the other solid's whole boundary near it.
+_LOCAL_CLEARANCE = 10.0
+
+
+def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[int, list[_Link]], side: int,
+                  t: Tolerance, status: np.ndarray) -> None:
+    """Fill ``status`` of the pieces bounded by a linked cut (see :func:`_classify`, way 1).
+
+    For a cut edge use of a piece over a range overlapping a link's, ``q = C(s)`` at the middle
+    of the overlap lies inside the piece's face and inside face ``Y_j`` of the link.  Loops run
+    counter-clockwise about the outward normal (``docs/brep.md``), so ``d = N_X × T`` (``T`` the
+    tangent in the use's direction) points into the piece; when ``|d · N_Y| >= _LOCAL_SIN`` the
+    surfaces cross there and the piece lies inside Y near ``q`` iff ``d · N_Y < 0``, and a piece
+    lies wholly on one side.  ``q`` must also be clear of ``Y_j``'s loops (its parameter lies
+    outside the padded boxes of the loop segments, enlarged by :data:`_LOCAL_CLEARANCE`
+    tolerances), where Y's boundary near ``q`` is ``Y_j`` alone.  Pieces with no such cut keep -1.
+    Every candidate use of every piece is evaluated in one pass per curve, p-curve and surface
+    object (a plate's face with a hundred hole discs is one surface call).
+    """
+    cand: list[tuple[int, FaceSpec, EdgeSpec, float, int, object]] = []
+    for k, (f, spec) in enumerate(pieces):
+        for loop in spec.loops:
+            for e in loop:
+                got = links.get(id(e.curve))
+                if got is None:
+                    continue
+                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+                for ln in got:
+                    a, b = max(lo, ln.s0), min(hi, ln.s1)
+                    if ln.faces[side] == f and b > a:
+                        cand.append((k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side]))
+    if not cand:
+        return
+    n = len(cand)
+    s = np.array([c[3] for c in cand])
+    ok = np.ones(n, dtype=bool)
+    T, uv_x, uv_y = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 2))
+    n_x, Su, Sv = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+
+    def grouped(key, fill) -> None:
+        groups: dict[int, list[int]] = {}
+        for i, c in enumerate(cand):
+            groups.setdefault(id(key(c)), []).append(i)
+        for rows in groups.values():
+            r = np.asarray(rows)
+            try:
+                fill(key(cand[rows[0]]), r)
+            except (CoonsError, ValueError, ArithmeticError):
+                ok[r] = False
+
+    def tangent(curve, r):
+        T[r] = np.asarray(curve.derivatives(s[r], 1), dtype=np.float64).reshape(r.size, 2, 3)[:, 1]
+
+    def on_x(pc, r):
+        uv_x[r] = np.asarray(pc.evaluate(s[r]), dtype=np.float64).reshape(r.size, 2)
+
+    def on_y(pc, r):
+        uv_y[r] = np.asarray(pc.evaluate(s[r]), dtype=np.float64).reshape(r.size, 2)
+
+    def normal_x(S, r):
+        n_x[r] = np.asarray(S.normal(uv_x[r, 0], uv_x[r, 1]), dtype=np.float64).reshape(r.size, 3)
+
+    def frame_y(S, r):
+        D = np.asarray(S.derivatives(uv_y[r, 0], uv_y[r, 1], 1), dtype=np.float64).reshape(r.size, 2, 2, 3)
+        Su[r], Sv[r] = D[:, 1, 0], D[:, 0, 1]
+
+    grouped(lambda c: c[2].curve, tangent)
+    grouped(lambda c: c[2].pcurve, on_x)
+    grouped(lambda c: c[5], on_y)
+    grouped(lambda c: c[1].surface, normal_x)
+    grouped(lambda c: Y.specs[c[4]].surface, frame_y)
+    forward = np.array([c[2].t1 > c[2].t0 for c in cand])
+    sense_x = np.array([1.0 if c[1].sense else -1.0 for c in cand])
+    sense_y = np.array([1.0 if Y.specs[c[4]].sense else -1.0 for c in cand])
+    T = np.where(forward[:, None], T, -T)
+    d = np.cross(sense_x[:, None] * n_x, T)
+    n_y = np.cross(Su, Sv)
+    sd, sn = np.linalg.norm(d, axis=1), np.linalg.norm(n_y, axis=1)
+    speed = np.stack([np.linalg.norm(Su, axis=1), np.linalg.norm(Sv, axis=1)], axis=1)
+    ok &= (sd > 0) & (sn > 0) & np.all(speed > 0, axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(sn)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = sense_y * np.einsum("ij,ij->i", d, n_y) / (sd * sn)
+        ok &= np.abs(cos) >= _LOCAL_SIN
+        # Clear of Y_j's loops: outside every padded segment box enlarged by the clearance in the
+        # parameter plane (a space distance over the surface's speeds there).
+        m = _LOCAL_CLEARANCE * np.array([max(t.linear, c[2].tol or 0.0) for c in cand])[:, None] / speed
+    by_face: dict[int, list[int]] = {}
+    for i in np.flatnonzero(ok).tolist():
+        by_face.setdefault(cand[i][4], []).append(i)
+    for j, rows in by_face.items():
+        r = np.asarray(rows)
+        lo, hi = Y.seg_lo[j], Y.seg_hi[j]
+        q, mr = uv_y[r][:, None, :], m[r][:, None, :]
+        near = np.any(np.all((q >= lo[None] - mr) & (q <= hi[None] + mr), axis=2), axis=1)
+        ok[r[near]] = False
+    for i in np.flatnonzero(ok).tolist():
+        k = cand[i][0]
+        if status[k] < 0:
+            status[k] = IN if cos[i] < 0 else OUT
+
+
+def _propagate(pieces: list[tuple[int, FaceSpec]], free: np.ndarray, status: np.ndarray) -> None:
+    """Give unclassified pieces of free faces the status of a classified piece across an edge (:func:`_classify`, way 2)."""
+    todo = [k for k, (f, _) in enumerate(pieces) if free[f] and status[k] < 0]
+    if not todo:
+        return
+    spans: dict[int, list[tuple[float, float, int]]] = {}  # curve id -> (lo, hi, status) of classified uses
+
+    def add(k: int) -> None:
+        for loop in pieces[k][1].loops:
+            for e in loop:
+                spans.setdefault(id(e.curve), []).append((min(e.t0, e.t1), max(e.t0, e.t1), int(status[k])))
+
+    for k in np.flatnonzero(status >= 0).tolist():
+        add(k)
+    changed = True
+    while changed and todo:
+        changed, left = False, []
+        for k in todo:
+            st = -1
+            for loop in pieces[k][1].loops:
+                for e in loop:
+                    lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+                    for a, b, s in spans.get(id(e.curve), ()):
+                        if min(hi, b) > max(lo, a):
+                            st = s
+                            break
+                    if st >= 0:
+                        break
+                if st >= 0:
+                    break
+            if st >= 0:
+                status[k] = st
+                add(k)
+                changed = True
+            else:
+                left.append(k)
+        todo = left
+
+
+def _classify_points(pieces: list[tuple[int, FaceSpec]], ids: list[int], X: _Operand, Y: _Operand, t: Tolerance,
+                     free: np.ndarray | None, dangling: dict[int, list[EdgeSpec]]) -> np.ndarray:
+    """Status of pieces by one point each against Y's classifier (:func:`_classify`, way 3).
+
+    ``ids`` are the pieces' numbers among all pieces of X (for the messages).
+
+    Each piece is classified by an interior point (:func:`_interior_point`) clear of its
+    boundary and of the cuts of its face that bound no piece (``dangling``): the lines of
+    tangent contact with Y that ``split_face`` dropped, on which the point would be *on* Y.
+
+    A piece of a face in ``free`` is classified by any of its points, its first vertex,
+    instead of a searched interior point; all such pieces still go through the classifier in
+    the one vectorised call, and should one of them come out on Y's boundary, it is redone with
+    an interior point.
+    """
     from coons.booleans.classify import INSIDE, ON
 
     P = np.empty((len(pieces), 3))
     N = np.empty((len(pieces), 3))
     quick = np.zeros(len(pieces), dtype=bool)
-
-    dangling = _dangling_cuts(pieces, cuts or {})
 
     def avoid_of(f: int, spec: FaceSpec) -> np.ndarray | None:
         if f not in dangling:
@@ -1319,8 +1535,8 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
                 avoid = np.concatenate([_polyline_segments(_edge_uv(c, spec.surface, _LOOP_SAMPLES)) for c in dangling[f]])
             P[k], N[k] = _interior_point(spec, t, avoid)
         except CoonsError as exc:
-            raise BooleanError(f"operand {X.name}, piece {k} of face {f}: {exc}", stage="classify",
-                               diagnostics={"operand": X.name, "face": f, "piece": k}) from exc
+            raise BooleanError(f"operand {X.name}, piece {ids[k]} of face {f}: {exc}", stage="classify",
+                               diagnostics={"operand": X.name, "face": f, "piece": ids[k]}) from exc
 
     searched = []
     for k, (f, spec) in enumerate(pieces):
@@ -1351,9 +1567,10 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
         if bad.size:
             k = int(bad[0])
             raise BooleanError(
-                f"operand {X.name}, piece {k} of face {pieces[k][0]}: its interior point {P[k].tolist()} lies on an "
-                f"edge of operand {Y.name}; expected the piece to be split there",
-                stage="classify", diagnostics={"operand": X.name, "face": pieces[k][0], "piece": k, "point": P[k].tolist()})
+                f"operand {X.name}, piece {ids[k]} of face {pieces[k][0]}: its interior point {P[k].tolist()} lies on "
+                f"an edge of operand {Y.name}; expected the piece to be split there",
+                stage="classify", diagnostics={"operand": X.name, "face": pieces[k][0], "piece": ids[k],
+                                               "point": P[k].tolist()})
         same = np.einsum("ij,ij->i", N[on], normal[on]) > 0.0
         status[on] = np.where(same, ON_SAME, ON_OPPOSITE)
     return status

@@ -171,7 +171,7 @@ from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
-from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces, sewn_unchanged
+from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces, sewn_unchanged_faces
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -409,9 +409,8 @@ class _Operand:
         specs: list[FaceSpec | None] = [None] * F
         sewn = _SEWN.get(b)
         if sewn is not None and len(sewn) == F:
-            for f, spec in enumerate(sewn):
-                if sewn_unchanged(b, f, spec):
-                    specs[f] = spec
+            for f in np.flatnonzero(sewn_unchanged_faces(b, sewn)).tolist():
+                specs[f] = sewn[f]
         missing = [f for f in range(F) if specs[f] is None]
         for f, spec in zip(missing, face_specs(solid, rows=missing) if missing else []):
             S = spec.surface if spec.surface is not None else surface_of(b, f)
@@ -1343,8 +1342,8 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
         should have been split there).
     """
     status = np.full(len(pieces), -1, dtype=np.int8)
-    if links:
-        _local_status(pieces, Y, links, side, t, status)
+    if links and cuts:
+        _local_status(pieces, Y, links, side, t, status, cut=cuts)
     if free is not None:
         _propagate(pieces, free, status)
     rest = np.flatnonzero(status < 0)
@@ -1364,7 +1363,7 @@ _LOCAL_CLEARANCE = 10.0
 
 
 def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[int, list[_Link]], side: int,
-                  t: Tolerance, status: np.ndarray) -> None:
+                  t: Tolerance, status: np.ndarray, cut: dict | None = None) -> None:
     """Fill ``status`` of the pieces bounded by a linked cut (see :func:`_classify`, way 1).
 
     For a cut edge use of a piece over a range overlapping a link's, ``q = C(s)`` at the middle
@@ -1376,10 +1375,13 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
     outside the padded boxes of the loop segments, enlarged by :data:`_LOCAL_CLEARANCE`
     tolerances), where Y's boundary near ``q`` is ``Y_j`` alone.  Pieces with no such cut keep -1.
     Every candidate use of every piece is evaluated in one pass per curve, p-curve and surface
-    object (a plate's face with a hundred hole discs is one surface call).
+    object (a plate's face with a hundred hole discs is one surface call).  ``cut`` (when given)
+    holds the faces that were split: only their pieces have cut edges.
     """
     cand: list[tuple[int, FaceSpec, EdgeSpec, float, int, object]] = []
     for k, (f, spec) in enumerate(pieces):
+        if cut is not None and f not in cut:
+            continue
         for loop in spec.loops:
             for e in loop:
                 got = links.get(id(e.curve))
@@ -1461,42 +1463,32 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
 
 
 def _propagate(pieces: list[tuple[int, FaceSpec]], free: np.ndarray, status: np.ndarray) -> None:
-    """Give unclassified pieces of free faces the status of a classified piece across an edge (:func:`_classify`, way 2)."""
-    todo = [k for k, (f, _) in enumerate(pieces) if free[f] and status[k] < 0]
-    if not todo:
-        return
-    spans: dict[int, list[tuple[float, float, int]]] = {}  # curve id -> (lo, hi, status) of classified uses
+    """Give unclassified pieces of free faces the status of a classified piece across an edge (:func:`_classify`, way 2).
 
-    def add(k: int) -> None:
+    A breadth-first search from the classified pieces over the free ones; two pieces are
+    neighbours when they use the same curve object over overlapping ranges.
+    """
+    targets: dict[int, list[tuple[float, float, int]]] = {}  # curve id -> (lo, hi, piece) of unclassified free uses
+    for k, (f, spec) in enumerate(pieces):
+        if free[f] and status[k] < 0:
+            for loop in spec.loops:
+                for e in loop:
+                    targets.setdefault(id(e.curve), []).append((min(e.t0, e.t1), max(e.t0, e.t1), k))
+    if not targets:
+        return
+    queue = np.flatnonzero(status >= 0).tolist()
+    while queue:
+        k = queue.pop()
         for loop in pieces[k][1].loops:
             for e in loop:
-                spans.setdefault(id(e.curve), []).append((min(e.t0, e.t1), max(e.t0, e.t1), int(status[k])))
-
-    for k in np.flatnonzero(status >= 0).tolist():
-        add(k)
-    changed = True
-    while changed and todo:
-        changed, left = False, []
-        for k in todo:
-            st = -1
-            for loop in pieces[k][1].loops:
-                for e in loop:
-                    lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                    for a, b, s in spans.get(id(e.curve), ()):
-                        if min(hi, b) > max(lo, a):
-                            st = s
-                            break
-                    if st >= 0:
-                        break
-                if st >= 0:
-                    break
-            if st >= 0:
-                status[k] = st
-                add(k)
-                changed = True
-            else:
-                left.append(k)
-        todo = left
+                got = targets.get(id(e.curve))
+                if not got:
+                    continue
+                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+                for a, b, k2 in got:
+                    if status[k2] < 0 and min(hi, b) > max(lo, a):
+                        status[k2] = status[k]
+                        queue.append(k2)
 
 
 def _classify_points(pieces: list[tuple[int, FaceSpec]], ids: list[int], X: _Operand, Y: _Operand, t: Tolerance,

@@ -442,3 +442,21 @@ def test_sewn_unchanged_recognises_exactly_the_sewn_specs():
     bs = face_specs(box)
     nb = sew_faces([FaceSpec(None, sp.sense, sp.loops) for sp in bs]).brep
     assert not any(sewn_unchanged(nb, f, FaceSpec(None, sp.sense, sp.loops)) for f, sp in enumerate(bs))
+
+
+def test_sewn_unchanged_faces_is_sewn_unchanged_of_each_face():
+    """The bulk form answers face by face as the single one, on a part where some faces changed."""
+    from coons.topology.sew import sewn_unchanged, sewn_unchanged_faces
+
+    specs = face_specs(Cylinder(1.0, 2.0)) + face_specs(Box(1, 1, 1).translate((5.0, 0.0, 0.0)))
+    b = sew_faces(specs).brep
+    e = specs[1].loops[0][0]
+    mixed = list(specs)
+    mixed[1] = FaceSpec(specs[1].surface, specs[1].sense,
+                        [[EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) + 1e-9)] + list(specs[1].loops[0][1:])]
+                        + [list(l) for l in specs[1].loops[1:]])
+    mixed[3] = specs[4]  # another face's spec in this row
+    got = sewn_unchanged_faces(b, mixed)
+    assert got.tolist() == [sewn_unchanged(b, f, sp) for f, sp in enumerate(mixed)]
+    assert not got[1] and not got[3] and got[0] and got[2] and got[4:].all()
+    assert sewn_unchanged_faces(b, [specs[2], specs[0]], rows=[2, 0]).tolist() == [True, True]

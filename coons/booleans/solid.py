@@ -1124,6 +1124,8 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
         try:
             pieces = _split_islands(X, f, cuts[f], t)
             if pieces is None:
+                pieces = _split_chords(X, f, cuts[f], t)
+            if pieces is None:
                 pieces = split_face(spec, cuts[f], t)
         except (CoonsError, ValueError, ArithmeticError) as exc:
             raise BooleanError(
@@ -1225,6 +1227,149 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
         islands.append(FaceSpec(spec.surface, spec.sense, [uses]))
         out_loops.append([EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)])
     return [FaceSpec(spec.surface, spec.sense, out_loops)] + islands
+
+
+def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> list[FaceSpec] | None:
+    """The pieces of face ``f`` when its cuts are straight chords across a straight-sided face, else None.
+
+    The common case of a tool crossing a wall (a hole's half-cylinder cut by the two faces of
+    the plate it passes through): the face lies on a plane or a cylinder and has one loop, every
+    edge use and every cut has a ``Line2D`` p-curve (within ``tol.linear``), each cut runs from
+    one side of the loop polygon to another, ending inside a side and crossing it at a sine of at
+    least :data:`_STRAIGHT_MIN_SINE`, and the cuts keep more than :data:`_STRAIGHT_CLEARANCE`
+    tolerances from each other, from the polygon's vertices and from every other side (in the
+    isometric coordinates of :func:`_clip_straight`).  Each chord then splits the one region
+    whose loop holds both its ends into two (the loop from one end to the other and the chord
+    back), the sides split at the chords' ends (the exact crossing of two lines, whose 3-D
+    points must agree with the cut's ends within the tolerances).  Anything else returns None
+    (``split_face`` decides).
+    """
+    from coons.kernel.analytic import Circle, CylindricalSurface
+
+    spec = X.specs[f]
+    S = spec.surface
+    if len(spec.loops) != 1 or not cuts:
+        return None
+    if isinstance(S, PlanarSurface):
+        sp = np.array([1.0, 1.0])
+    elif isinstance(S, CylindricalSurface):
+        sp = np.array([float(S.radius), 1.0])
+    else:
+        return None
+    loop = spec.loops[0]
+    if any(type(e.pcurve) is not Line2D or (e.tol or 0.0) > t.linear for e in loop) \
+            or any(type(c.pcurve) is not Line2D for c in cuts):
+        return None
+    m, n = len(loop), len(cuts)
+    # Sides (m) and chords (n) as segments a + w (b - a), w in [0, 1], in isometric coordinates.
+    sa = np.array([e.pcurve.origin + e.t0 * e.pcurve.direction for e in loop]) * sp
+    sb = np.array([e.pcurve.origin + e.t1 * e.pcurve.direction for e in loop]) * sp
+    ca = np.array([c.pcurve.origin + c.t0 * c.pcurve.direction for c in cuts]) * sp
+    cb = np.array([c.pcurve.origin + c.t1 * c.pcurve.direction for c in cuts]) * sp
+    scale = 1.0 + float(max(np.max(np.abs(sa)), np.max(np.abs(ca)), np.max(np.abs(cb))))
+    margin = _STRAIGHT_CLEARANCE * max(t.linear, max(c.tol or 0.0 for c in cuts)) + 1e-12 * scale
+    SE, CE = sb - sa, cb - ca
+    SL, CL = np.hypot(SE[:, 0], SE[:, 1]), np.hypot(CE[:, 0], CE[:, 1])
+    if np.any(SL <= 2.0 * margin) or np.any(CL <= 2.0 * margin):
+        return None
+    # Chord–side crossings: (n, m) cross products and the fractions along both.
+    W = sa[None] - ca[:, None]
+    cross = CE[:, None, 0] * SE[None, :, 1] - CE[:, None, 1] * SE[None, :, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wc = (W[..., 0] * SE[None, :, 1] - W[..., 1] * SE[None, :, 0]) / cross  # along the chord
+        ws = (W[..., 0] * CE[:, None, 1] - W[..., 1] * CE[:, None, 0]) / cross  # along the side
+    # Each chord end: exactly one side within the margin of it, crossed properly there.
+    ends = np.zeros((n, 2), dtype=np.int64)
+    tau = np.zeros((n, 2))
+    for k in range(n):
+        for which, P in ((0, ca[k]), (1, cb[k])):
+            w = np.clip(np.einsum("mj,mj->m", P - sa, SE) / (SL * SL), 0.0, 1.0)
+            d = np.hypot(*(P - sa - w[:, None] * SE).T)
+            near = np.flatnonzero(d <= margin)
+            if near.size != 1:
+                return None
+            i = int(near[0])
+            if not (abs(cross[k, i]) >= _STRAIGHT_MIN_SINE * CL[k] * SL[i]) or not np.isfinite(ws[k, i]):
+                return None
+            if not (ws[k, i] * SL[i] > margin and (1.0 - ws[k, i]) * SL[i] > margin):
+                return None  # at or near a vertex
+            ends[k, which] = i
+            e = loop[i]
+            tau[k, which] = e.t0 + float(ws[k, i]) * (e.t1 - e.t0)
+        # Away from its end sides the chord meets no side and no vertex.
+        inner = np.ones(m, dtype=bool)
+        inner[ends[k]] = False
+        meets = (wc[k] >= -1e-12) & (wc[k] <= 1.0 + 1e-12) & (ws[k] >= -1e-12) & (ws[k] <= 1.0 + 1e-12)
+        if np.any(meets & inner):
+            return None
+        w = np.clip(np.einsum("mj,j->m", sa - ca[k], CE[k]) / (CL[k] * CL[k]), 0.0, 1.0)
+        if np.any(np.hypot(*(sa - ca[k] - w[:, None] * CE[k]).T) <= margin):
+            return None
+    # Chords apart from each other (no crossing, no touching).
+    for k in range(n):
+        for l in range(k + 1, n):
+            P = np.stack([ca[l], cb[l]])
+            w = np.clip(((P - ca[k]) @ CE[k]) / (CL[k] * CL[k]), 0.0, 1.0)
+            Q = np.stack([ca[k], cb[k]])
+            v = np.clip(((Q - ca[l]) @ CE[l]) / (CL[l] * CL[l]), 0.0, 1.0)
+            dist = min(float(np.min(np.hypot(*(P - ca[k] - w[:, None] * CE[k]).T))),
+                       float(np.min(np.hypot(*(Q - ca[l] - v[:, None] * CE[l]).T))))
+            c = CE[k, 0] * CE[l, 1] - CE[k, 1] * CE[l, 0]
+            if c != 0.0:
+                D = ca[l] - ca[k]
+                x = (D[0] * CE[l, 1] - D[1] * CE[l, 0]) / c
+                y = (D[0] * CE[k, 1] - D[1] * CE[k, 0]) / c
+                if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0:
+                    return None
+            if dist <= margin:
+                return None
+    # The split parameters are those of the cut ends' feet on the side's 3-D curve (the face
+    # across that edge finds the same from the same point, so its split matches exactly), and
+    # must agree with the plane solution.
+    for k, c in enumerate(cuts):
+        Pc = np.asarray(c.curve.evaluate(np.array([c.t0, c.t1])), dtype=np.float64).reshape(2, 3)
+        for which in (0, 1):
+            i = int(ends[k, which])
+            e = loop[i]
+            if not isinstance(e.curve, (Line, Circle)):
+                return None
+            x = float(np.asarray(e.curve.closest_parameters(Pc[which][None]), dtype=np.float64).reshape(-1)[0])
+            if isinstance(e.curve, Circle):  # into the use's period
+                x = tau[k, which] + math.remainder(x - tau[k, which], 2.0 * math.pi)
+            if abs(x - tau[k, which]) * SL[i] / abs(e.t1 - e.t0) > margin:
+                return None
+            Pe = np.asarray(e.curve.evaluate(x), dtype=np.float64).reshape(3)
+            if np.linalg.norm(Pe - Pc[which]) > max(t.linear, c.tol or 0.0, e.tol or 0.0):
+                return None
+            tau[k, which] = x
+    # The loop as (use, start node) items with every side split at its chord ends; node ids:
+    # 2 k + which for chord ends, -1 for the loop's own vertices.
+    items: list[tuple[EdgeSpec, int]] = []
+    for i, e in enumerate(loop):
+        at = [(float(tau[k, w_]), 2 * k + w_) for k in range(n) for w_ in (0, 1) if ends[k, w_] == i]
+        at.sort(key=lambda p: p[0], reverse=e.t1 < e.t0)
+        if any(abs(a[0] - b[0]) * SL[i] / abs(e.t1 - e.t0) <= margin for a, b in zip(at, at[1:])):
+            return None
+        prev, node = e.t0, -1
+        for tt, nd in at:
+            items.append((EdgeSpec(e.curve, prev, tt, e.pcurve, e.tol), node))
+            prev, node = tt, nd
+        items.append((EdgeSpec(e.curve, prev, e.t1, e.pcurve, e.tol), node))
+    regions: list[list[tuple[EdgeSpec, int]]] = [items]
+    for k, c in enumerate(cuts):
+        p, q = 2 * k, 2 * k + 1
+        for r, R in enumerate(regions):
+            starts = [nd for _, nd in R]
+            if p in starts or q in starts:
+                break
+        if p not in starts or q not in starts:
+            return None
+        i, j = starts.index(p), starts.index(q)
+        path1 = R[i:j] if i < j else R[i:] + R[:j]
+        path2 = R[j:i] if j < i else R[j:] + R[:i]
+        back = EdgeSpec(c.curve, c.t1, c.t0, c.pcurve, c.tol)
+        regions[r:r + 1] = [path1 + [(back, q)], path2 + [(c, p)]]
+    return [FaceSpec(S, spec.sense, [[e for e, _ in R]]) for R in regions]
 
 
 def _self_crossing(seg: np.ndarray) -> bool:

@@ -384,13 +384,16 @@ def test_stage_errors_name_the_faces(monkeypatch):
 
     with monkeypatch.context() as m:
         m.setattr(split, "split_face", fail_split)
-        # (the box's faces take the direct island path; the cylinder's faces go through split_face)
+        # (the box's faces take the direct island path; the cylinder's faces, without the direct
+        # chord path, go through split_face)
+        m.setattr(S, "_split_chords", lambda *a: None)
         with pytest.raises(BooleanError, match=r"\[split\] operand B, face \d+ \(cylinder\) split by \d+ cut") as ei:
             S.difference(box, cyl)
         assert ei.value.stage == "split"
 
     with monkeypatch.context() as m:  # a split that ignores its cuts leaves a hole's rim unused
         m.setattr(split, "split_face", lambda face, cuts, tol=None: [face])
+        m.setattr(S, "_split_chords", lambda *a: None)
         with pytest.raises(BooleanError, match=r"\[split\] operand B, face \d+ \(cylinder\): cut 0 from .* bounds the "
                                                r"pieces for 0 times its length; expected 2") as ei:
             S.difference(box, cyl)
@@ -818,3 +821,74 @@ def test_prefilled_samples_are_the_single_ones():
             got = S._USE_SAMPLES[e]
             assert got[0] is surface
             np.testing.assert_array_equal(got[1], S._edge_uv(e, surface, S._LOOP_SAMPLES))
+
+
+# ---------------------------------------------------------------------- direct chord split
+def _piece_signature(pieces):
+    """Each piece as its sorted loop vertices in space (rounded), the list sorted: equal regions, equal lists."""
+    out = []
+    for p in pieces:
+        pts = []
+        for loop in p.loops:
+            for e in loop:
+                pts.append(tuple(np.round(np.asarray(e.curve.evaluate(e.t0), dtype=float).reshape(3), 9) + 0.0))
+        out.append(tuple(sorted(pts)))
+    return sorted(out)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.05, 0.95), st.floats(0.05, 0.95), st.booleans()), min_size=1, max_size=4,
+                unique_by=lambda x: round(x[0], 2)))
+def test_chord_split_is_split_face_on_a_planar_face(chords):
+    """Straight chords across a box face from its bottom side to its top side, in random order and
+    direction: the direct chord split gives the regions of ``split_face``."""
+    from coons.kernel.analytic import Line
+    from coons.kernel.onsurface import pcurve_on
+    from coons.topology.split import split_face
+
+    t = S.resolve(None)
+    X = S._Operand(Box(4.0, 6.0, 2.0), "A", t)
+    f = 0  # the top face z = 1, x in [-2, 2], y in [-3, 3]
+    bottoms = sorted(c[0] for c in chords)
+    tops = sorted(c[1] for c in chords)
+    xs = [(-2.0 + 4.0 * b, -2.0 + 4.0 * q) for b, q in zip(bottoms, tops)]
+    if any(abs(a[0] - b[0]) < 0.05 or abs(a[1] - b[1]) < 0.05 for a, b in zip(xs, xs[1:])):
+        return  # chords closer than the test's resolution
+    cuts = []
+    for (x0, x1), (_, _, flip) in zip(xs, chords):
+        P, Q = np.array([x0, -3.0, 1.0]), np.array([x1, 3.0, 1.0])
+        if flip:
+            P, Q = Q, P
+        L = float(np.linalg.norm(Q - P))
+        line = Line(P, (Q - P) / L)
+        pc, _ = pcurve_on(X.specs[f].surface, line, 0.0, L, tol=t)
+        cuts.append(S.EdgeSpec(line, 0.0, L, pc, t.linear))
+    direct = S._split_chords(X, f, cuts, t)
+    assert direct is not None and len(direct) == len(cuts) + 1
+    assert _piece_signature(direct) == _piece_signature(split_face(X.specs[f], cuts, t))
+    # Every piece's loop closes and runs counter-clockwise about the outward normal (+z).
+    for p in direct:
+        V = np.array([np.asarray(e.curve.evaluate(e.t0), dtype=float).reshape(3) for e in p.loops[0]])
+        W = np.array([np.asarray(e.curve.evaluate(e.t1), dtype=float).reshape(3) for e in p.loops[0]])
+        np.testing.assert_allclose(W, np.roll(V, -1, axis=0), atol=1e-12)
+        assert 0.5 * np.sum(V[:, 0] * np.roll(V[:, 1], -1) - np.roll(V[:, 0], -1) * V[:, 1]) > 0
+
+
+def test_chord_split_declines_crossing_and_vertex_chords():
+    from coons.kernel.analytic import Line
+    from coons.kernel.onsurface import pcurve_on
+
+    t = S.resolve(None)
+    X = S._Operand(Box(4.0, 6.0, 2.0), "A", t)
+
+    def cut(P, Q):
+        P, Q = np.asarray(P, float), np.asarray(Q, float)
+        L = float(np.linalg.norm(Q - P))
+        line = Line(P, (Q - P) / L)
+        return S.EdgeSpec(line, 0.0, L, pcurve_on(X.specs[0].surface, line, 0.0, L, tol=t)[0], t.linear)
+
+    crossing = [cut((-1, -3, 1), (1, 3, 1)), cut((1, -3, 1), (-1, 3, 1))]
+    assert S._split_chords(X, 0, crossing, t) is None
+    assert S._split_chords(X, 0, [cut((-2, -3, 1), (1, 3, 1))], t) is None  # from a corner
+    assert S._split_chords(X, 0, [cut((-1, -3, 1), (0, 0, 1))], t) is None  # ends inside the face
+    assert S._split_chords(X, 0, [cut((-1, -3, 1), (1, 3, 1))], t) is not None

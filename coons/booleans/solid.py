@@ -59,8 +59,10 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    a dangling end means a missing branch and raises here rather than as an open shell later.
 4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
    form separate simple closed cycles clear of the face's loops — a hole drilled through a
-   plate — ``_split_islands`` builds the holed face and one island per cycle directly); each cut must then
-   bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
+   plate — ``_split_islands`` builds the holed face and one island per cycle directly; when the
+   cuts are straight chords across a straight-sided plane or cylinder face — a hole's wall
+   crossing a plate — ``_split_chords`` splits the loop at the chords' ends directly); each cut
+   must then bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
 5. ``_classify`` (stage ``"classify"``), cheapest way first.  *Local*: a piece bounded by a
    cut along a branch stretch that lies inside both faces of its pair (a ``_Link`` recorded by

@@ -15,8 +15,9 @@ Notation
     The operands; ``R`` the result.  ``X`` is a face of A, ``Y`` a face of B, each a
     :class:`~coons.topology.sew.FaceSpec` (surface, sense, loops of EdgeSpecs with p-curves).
 face pair ``(i, j)``
-    Face ``i`` of A and face ``j`` of B whose bounding boxes (from a tessellation, enlarged by
-    its deflection) overlap.
+    Face ``i`` of A and face ``j`` of B whose space boxes (``_face_box``: the boxes of the
+    face's edge curves joined with the surface's interior extremes over the face, padded by the
+    edge tolerances and ``tol.linear``) overlap.
 parameter box
     The bounding box of a face's trim loops in its surface's parameter plane, enlarged by 1 %
     but never past a sphere's pole or a cone's apex (beyond them the parametrisation covers the
@@ -37,10 +38,19 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
 ------------------------------------------------------------------------------------------------
 1. ``_Operand`` (stage ``"input"``): :func:`~coons.topology.sew.face_specs` of each solid, with
    implicit planes given a Newell plane and missing p-curves computed by
-   :func:`~coons.kernel.onsurface.pcurve_on`; face boxes in space (tessellation) and in the
-   parameter plane (sampled p-curves).  A face of an earlier Boolean's result that
-   :func:`~coons.topology.sew.sewn_unchanged` confirms is exactly the spec it was sewn from
-   (``_SEWN``) is that spec, with its per-face data (``_FACE_DATA``) already computed.
+   :func:`~coons.kernel.onsurface.pcurve_on`; face boxes in space and in the parameter plane
+   (sampled p-curves).  A space box (``_face_box``) holds the exact face without tessellating
+   it: the box of its edges' curves (:func:`~coons.kernel.curve_intersect.curve_box`) holds the
+   image of the trim boundary, and a coordinate's extremes inside the face are critical
+   points, which add nothing on planes, cylinders and cones (a coordinate is affine along a
+   ruling, so constant along the ruling through a critical point, up to the boundary), are the
+   points with normal ``±e_k`` (and the poles) on spheres and tori, and are bounded by the
+   control points of the spans the face covers on NURBS surfaces; a face with an edge curve
+   or a surface of another type takes its box from the operand's tessellation instead.  The
+   pipeline tessellates an operand only when its classifier is first needed (``_Operand.mesh``).
+   A face of an earlier Boolean's result that :func:`~coons.topology.sew.sewn_unchanged`
+   confirms is exactly the spec it was sewn from (``_SEWN``) is that spec, with its per-face
+   data (``_FACE_DATA``, its space box included) already computed.
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
    a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
@@ -124,8 +134,9 @@ Status and limitations
   solid; only the remaining pieces (tangent contact, coincident faces, uncut faces near the
   other boundary, shells far from it) take one point each, all of an operand in one
   vectorised call.  Propagation does not cross edges of faces near the other solid.
-* Cost: a Boolean still costs the whole of both operands in the tessellation of ``_Operand``
-  (the classifier's winding numbers need the whole mesh) and in ``sew_faces`` (matching and
+* Cost: an operand is tessellated only when its classifier is needed (``_Operand.mesh``: some
+  piece not decided locally, by propagation or by boxes); a Boolean still costs the whole of
+  both operands in ``sew_faces`` (matching and
   the full check), and array passes over all edge uses in the T-junction, merge and fuse
   passes, so sequential cuts into a large part still grow with its size; the plate of the
   benchmark is far slower than OCCT (``benchmarks/results/booleans_brep.md``).
@@ -134,12 +145,14 @@ Status and limitations
   compares warm and cold chains): a result remembers the completed face specs it was sewn
   from (``_SEWN``), and the next Boolean takes every face whose B-rep row is exactly its spec
   (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
-  that spec's parameter box, rings and segments (``_FACE_DATA``); loop samples and space boxes
-  are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a split face
-  keep; a pair of face specs found unmergeable is not tried again (``_MERGE_FAILED``).  Reused
-  as well: an operand's mesh when it was tessellated before (meshes are cached per B-rep; a
-  result with voids shares the mesh its void nesting made).  Local: the end tolerance of a cut
-  and the T-junction pass only look at boundary edges whose box
+  that spec's parameter box, space box, rings and segments (``_FACE_DATA``); loop samples and
+  space boxes are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a
+  split face keep (a split face's new space box joins its kept edges' boxes); a pair of face
+  specs found unmergeable is not tried again (``_MERGE_FAILED``).  Reused as well: an
+  operand's mesh when it was tessellated before (meshes are cached per B-rep; a result with
+  voids shares the mesh its void nesting made).  Local: the face boxes of the broad phase
+  (per face spec, from its edges, no tessellation); the end tolerance of a cut and the
+  T-junction pass only look at boundary edges whose box
   (:func:`~coons.kernel.curve_intersect.curve_box`) is near the points in question.
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
@@ -396,13 +409,12 @@ class _Operand:
     Attributes
     ----------
     specs : list of FaceSpec, every face with a surface and every edge use with a p-curve
-    lo, hi : (F, 3) space boxes of the faces
+    lo, hi : (F, 3) space boxes of the faces (:func:`_face_box`), padded by their edge tolerances and ``t.linear``
     uv_box : list of ((u0, u1), (v0, v1)) enlarged parameter boxes
     """
 
     def __init__(self, solid: Solid, name: str, t: Tolerance) -> None:
         from coons.booleans.classify import surface_of
-        from coons.topology.tessellate import tessellate
 
         self.solid, self.name, self.t = solid, name, t
         b = solid.brep
@@ -424,17 +436,6 @@ class _Operand:
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
             specs[f] = FaceSpec(S, spec.sense, loops)
         self.specs: list[FaceSpec] = specs
-        mesh = self.mesh = tessellate(solid, tol=t)
-        diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
-        # Tessellation deflection (the tessellator's default) plus the edges' own tolerances: the
-        # exact face lies within this of its triangles.
-        pad = 1e-3 * diag + float(np.max(b.edge_tol, initial=0.0)) + t.linear
-        lo = np.full((F, 3), np.inf)
-        hi = np.full((F, 3), -np.inf)
-        X = mesh.vertices[mesh.triangles]
-        np.minimum.at(lo, mesh.face_ids, X.min(axis=1))
-        np.maximum.at(hi, mesh.face_ids, X.max(axis=1))
-        self.lo, self.hi = lo - pad, hi + pad
         _prefill_samples([spec for spec in self.specs if spec not in _FACE_DATA])
         self._data = [_face_data(spec, t) for spec in self.specs]
         self.uv_box = [d.uv_box for d in self._data]
@@ -442,7 +443,41 @@ class _Operand:
         self.segments = [d.seg for d in self._data]
         self.seg_lo = [d.seg_lo for d in self._data]
         self.seg_hi = [d.seg_hi for d in self._data]
+        # Space boxes from each face's own geometry (:func:`_face_box`, cached with its data: a
+        # face carried over unchanged from an earlier result costs nothing here); the rare face
+        # without a proven box (an edge curve curve_box does not bound, a surface type
+        # _interior_extremes does not know) takes its box from the operand's tessellation.
+        no_box = [f for f, d in enumerate(self._data) if d.box is None]
+        if no_box:
+            mesh_box = self._mesh_boxes()
+            box = np.stack([mesh_box[f] if d.box is None else d.box for f, d in enumerate(self._data)])
+        else:
+            box = np.stack([d.box for d in self._data]) if F else np.empty((0, 2, 3))
+        self.lo, self.hi = box[:, 0], box[:, 1]
         self._classifier = None
+
+    @functools.cached_property
+    def mesh(self):
+        """The operand's tessellation at the tessellator's default deflection, made on first use
+        (by the classifier, or for a face without a proven box); cached per B-rep by ``tessellate``."""
+        from coons.topology.tessellate import tessellate
+
+        return tessellate(self.solid, tol=self.t)
+
+    def _mesh_boxes(self) -> np.ndarray:
+        """``(F, 2, 3)`` face boxes from :attr:`mesh`, padded by its deflection, the edges'
+        tolerances and ``t.linear`` (the exact face lies within that of its triangles)."""
+        mesh, b = self.mesh, self.solid.brep
+        F = b.n_faces
+        diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+        # The tessellator's default deflection is 1e-3 of the diagonal.
+        pad = 1e-3 * diag + float(np.max(b.edge_tol, initial=0.0)) + self.t.linear
+        lo = np.full((F, 3), np.inf)
+        hi = np.full((F, 3), -np.inf)
+        X = mesh.vertices[mesh.triangles]
+        np.minimum.at(lo, mesh.face_ids, X.min(axis=1))
+        np.maximum.at(hi, mesh.face_ids, X.max(axis=1))
+        return np.stack([lo - pad, hi + pad], axis=1)
 
     def edge_boxes(self, f: int) -> tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]:
         """Face ``f``'s edge uses in loop order, their space boxes ``lo, hi (k, 3)`` (:func:`_edge_box`,
@@ -462,10 +497,12 @@ class _Operand:
 
     @property
     def classifier(self):
+        """The :class:`~coons.booleans.classify.Classifier` of the operand, built on first use; its
+        winding numbers need the whole tessellation (:attr:`mesh`), which is made only then."""
         from coons.booleans.classify import Classifier
 
         if self._classifier is None:
-            self._classifier = Classifier(self.solid, self.t, mesh=self.mesh)  # the same tessellation
+            self._classifier = Classifier(self.solid, self.t, mesh=self.mesh)
         return self._classifier
 
 
@@ -605,10 +642,11 @@ class _FaceData:
 
     ``uv_box`` the enlarged parameter box, ``samples`` (:func:`_edge_samples`), ``rings``
     (:func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
-    ``seg_lo, seg_hi (s, 2)``, and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand).
+    ``seg_lo, seg_hi (s, 2)``, ``box (2, 3)`` the padded space box (:func:`_face_box`, None where
+    none is proven) and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand).
     """
 
-    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "edge_boxes", "__weakref__")
+    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "box", "edge_boxes", "__weakref__")
 
 
 #: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
@@ -648,8 +686,119 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     d.seg = _frozen(seg)
     d.seg_lo = _frozen(seg.min(axis=1) - pad)
     d.seg_hi = _frozen(seg.max(axis=1) + pad)
+    d.box = _face_box(spec, d, t)
     _FACE_DATA[spec] = d
     return d
+
+
+def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance) -> np.ndarray | None:
+    """A box ``(2, 3)`` (rows ``lo, hi``) containing the face, padded by its edges' tolerances
+    and ``t.linear``; None when an edge's curve has no proven box (:func:`_use_box`) or the
+    surface's type is not handled (:func:`_interior_extremes`).
+
+    Each coordinate ``x_k ∘ S`` is a smooth function of ``(u, v)`` on the face's parameter
+    region ``D`` (compact), so its extremes lie on ``∂D`` or at interior critical points.  The
+    image of ``∂D`` lies within the edge tolerances of the edge curves (``S(pcurve(t)) ≈
+    curve(t)``; a gap at a pole maps to the vertex there), boxed by :func:`_use_box`.  The
+    critical points add nothing on a plane (``x_k`` affine in ``(u, v)``), a cylinder or a cone
+    (``x_k`` is affine along each ruling ``u = const``, so where its gradient vanishes it is
+    constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
+    them for spheres and tori and bounds NURBS surfaces by their control points.
+    """
+    boxes = []
+    tol = 0.0
+    for loop in spec.loops:
+        for e in loop:
+            box = _use_box(e)
+            if box is None:
+                return None
+            boxes.append(box)
+            tol = max(tol, e.tol or 0.0)
+    B = np.stack(boxes)
+    lo, hi = B[:, 0].min(axis=0), B[:, 1].max(axis=0)
+    # The parameter box that surely holds D: the samples' segment boxes (padded by the chords
+    # of the curved p-curves) and the enlarged uv_box.
+    ub = (min(d.uv_box[0][0], float(d.seg_lo[:, 0].min())), max(d.uv_box[0][1], float(d.seg_hi[:, 0].max())))
+    vb = (min(d.uv_box[1][0], float(d.seg_lo[:, 1].min())), max(d.uv_box[1][1], float(d.seg_hi[:, 1].max())))
+    P = _interior_extremes(spec.surface, ub, vb)
+    if P is None:
+        return None
+    if P.shape[0]:
+        lo, hi = np.minimum(lo, P.min(axis=0)), np.maximum(hi, P.max(axis=0))
+    pad = tol + t.linear
+    return _frozen(np.stack([lo - pad, hi + pad]))
+
+
+#: Parameter slack of the critical-point tests of :func:`_interior_extremes`: many times the
+#: rounding of ``atan2`` and ``hypot`` on angles up to a few π (a wider test only adds points).
+_ANGLE_SLACK = 1e-12
+
+
+def _interior_extremes(S, ub: tuple[float, float], vb: tuple[float, float]) -> np.ndarray | None:
+    """Points ``(k, 3)`` of ``S`` whose box, joined with the box of the face's boundary, contains
+    every point of ``S`` over a face whose parameter region lies in ``ub × vb``; None for a
+    surface type not handled.
+
+    Planes, cylinders, cones: none (see :func:`_face_box`).  Spheres and tori: the points where
+    the outward normal is ``±e_k`` (``∇(x_k ∘ S) = 0`` there, ``S`` being an immersion), those of
+    ``ub × vb`` (periodic directions shifted by whole periods), and the sphere's poles when
+    ``vb`` reaches them (where ``Su = 0`` every ``x_k ∘ S`` may be critical).  With the frame
+    column ``(a, b, c)`` of ``e_k`` and ``h = hypot(a, b)``, the normal ``cos v e(u) + sin v Z``
+    is ``s e_k`` (``s = ±1``) at ``u = atan2(sσ b, sσ a)``, ``v = atan2(s c, σ h)``, ``σ = ±1``
+    (only ``σ = 1`` on a sphere, whose ``v`` stays in ``[-π/2, π/2]``); when ``h = 0`` the critical
+    set is the whole circle ``v = ±π/2``, where ``x_k`` does not depend on ``u``.  NURBS surfaces:
+    the control points of the spans meeting ``ub × vb`` (the local convex hull property of
+    NURBS surfaces, whose weights are positive; The NURBS Book §4.4).
+    """
+    from coons.kernel.analytic import ConicalSurface, CylindricalSurface, SphericalSurface, ToroidalSurface
+    from coons.kernel.surface import NurbsSurface
+
+    if isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface)):
+        return np.zeros((0, 3))
+    if isinstance(S, NurbsSurface):
+        nu, nv = S.shape
+        i0, i1 = _span_indices(S.knots_u, S.degree_u, nu, *ub)
+        j0, j1 = _span_indices(S.knots_v, S.degree_v, nv, *vb)
+        P = S.control_points[i0:i1, j0:j1].reshape(-1, S.dimension)
+        return np.stack([P.min(axis=0), P.max(axis=0)])
+    sphere = isinstance(S, SphericalSurface)
+    if not sphere and not isinstance(S, ToroidalSurface):
+        return None
+    F = S.frame
+    a, b, c = F[0], F[1], F[2]  # per coordinate k: e_k in the frame
+    h = np.hypot(a, b)
+    sig = (1.0,) if sphere else (1.0, -1.0)
+    U, V, free_u = [], [], []
+    for s in (1.0, -1.0):
+        for sg in sig:
+            U.append(np.arctan2(s * sg * b, s * sg * a))
+            V.append(np.arctan2(s * c, sg * h))
+            free_u.append(h == 0.0)
+    U, V, free_u = np.concatenate(U), np.concatenate(V), np.concatenate(free_u)
+    if sphere:
+        U = np.append(U, [0.0, 0.0])
+        V = np.append(V, [math.pi / 2, -math.pi / 2])
+        free_u = np.append(free_u, [True, True])
+    keep = (free_u | _in_periodic(U, ub)) & (_in_periodic(V, vb) if not sphere else
+                                            (V >= vb[0] - _ANGLE_SLACK) & (V <= vb[1] + _ANGLE_SLACK))
+    if not np.any(keep):
+        return np.zeros((0, 3))
+    return np.asarray(S.evaluate(U[keep], V[keep]), dtype=np.float64).reshape(-1, 3)
+
+
+def _in_periodic(x: np.ndarray, box: tuple[float, float]) -> np.ndarray:
+    """``(k,)`` bool: some ``x + 2π m`` lies in ``box`` widened by ``_ANGLE_SLACK``."""
+    lo, hi = box[0] - _ANGLE_SLACK, box[1] + _ANGLE_SLACK
+    first = x + 2.0 * math.pi * np.ceil((lo - x) / (2.0 * math.pi))  # the first shift at or above lo
+    return first <= hi
+
+
+def _span_indices(knots: np.ndarray, p: int, n: int, a: float, b: float) -> tuple[int, int]:
+    """The control-point index slice ``[i0, i1)`` of the basis functions nonzero somewhere on
+    ``[a, b]`` (knot spans of ``a`` and ``b`` clamped to the ``n`` control points' spans)."""
+    sa = min(max(int(np.searchsorted(knots, a, side="right")) - 1, p), n - 1)
+    sb = min(max(int(np.searchsorted(knots, b, side="right")) - 1, p), n - 1)
+    return sa - p, sb + 1
 
 
 # ---------------------------------------------------------------------- broad phase

@@ -705,6 +705,92 @@ def test_operand_reads_faces_the_sewing_changed_from_the_brep():
     assert all(a is b for a, b in zip(op.specs[1:], sewn[1:]))
 
 
+# ---------------------------------------------------------------------- face boxes of the broad phase
+def _boxed_solids() -> list[tuple[str, Solid]]:
+    """Solids covering every surface type of the face boxes, placed in general position (a rotation about a skew
+    axis): planes, cylinders, cones (frustum and pointed), spheres (poles off the axes), tori, NURBS (a loft), and
+    a Boolean result (sphere cut into a box: faces with holes and cut edges)."""
+    from coons.topology.profile import Profile
+    from coons.topology.sweep import loft
+
+    def placed(s: Solid) -> Solid:
+        return s.rotate((0.1, 0.2, 0.3), (1.0, 2.0, 3.0), 37.0).translate((0.5, -1.0, 2.0))
+
+    lofted = loft([Profile.circle(1.0), Profile.circle(0.6, plane=((0, 0, 1.5), (0, 0, 1))),
+                   Profile.circle(0.9, plane=((0, 0, 3.0), (0, 0, 1)))])
+    return [("box", placed(Box(4, 3, 2))), ("cylinder", placed(Cylinder(1.5, 4))),
+            ("frustum", placed(Cone(2, 0.5, 3))), ("cone", placed(Cone(2, 0, 3))),
+            ("sphere", Sphere(2)), ("placed sphere", placed(Sphere(2))),
+            ("torus", Torus(3, 1)), ("placed torus", placed(Torus(3, 1))), ("loft", placed(lofted)),
+            ("box - sphere", S.difference(Box(4, 4, 4), Sphere(1.5).translate((2, 2, 2)), method="brep"))]
+
+
+@pytest.mark.parametrize("name,solid", _boxed_solids(), ids=lambda x: x if isinstance(x, str) else "")
+def test_face_boxes_hold_their_faces_and_are_exact_on_analytic_surfaces(name, solid):
+    """Each face's broad-phase box (from its edges and the surface's interior critical points, without a
+    tessellation) holds every vertex of a fine tessellation of the face; on analytic surfaces it is the face's
+    extent padded by its edge tolerances and t.linear (within the deflection), and the boxes join to the exact
+    bounding box of the solid."""
+    from coons.kernel.surface import NurbsSurface
+    from coons.topology.tessellate import tessellate
+
+    _forget_carried()
+    t = S.resolve(None)
+    X = S._Operand(solid, "A", t)
+    assert "mesh" not in X.__dict__  # no tessellation for the boxes
+    d = 1e-3
+    m = tessellate(solid, deflection=d)
+    V = m.vertices[m.triangles]  # (n, 3, 3)
+    pads = np.array([max(e.tol or 0.0 for loop in spec.loops for e in loop) + t.linear for spec in X.specs])
+    analytic = np.array([not isinstance(spec.surface, NurbsSurface) for spec in X.specs])
+    for f in range(len(X.specs)):
+        P = V[m.face_ids == f].reshape(-1, 3)
+        assert np.all(P >= X.lo[f]) and np.all(P <= X.hi[f]), (name, f, type(X.specs[f].surface).__name__)
+        if analytic[f]:
+            np.testing.assert_allclose(X.lo[f] + pads[f], P.min(axis=0), rtol=0, atol=2 * d)
+            np.testing.assert_allclose(X.hi[f] - pads[f], P.max(axis=0), rtol=0, atol=2 * d)
+    if analytic.all():
+        exact = solid.bounding_box()
+        np.testing.assert_allclose((X.lo + pads[:, None]).min(axis=0), exact[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose((X.hi - pads[:, None]).max(axis=0), exact[1], rtol=0, atol=1e-12)
+
+
+def test_face_without_a_proven_box_takes_it_from_the_tessellation(monkeypatch):
+    """A surface type the face boxes do not handle (here: spheres, made unhandled) falls back to the operand's
+    tessellation for that face alone; the Boolean is unchanged."""
+    _forget_carried()
+    t = S.resolve(None)
+    expected = S.difference(Box(4, 4, 4), Sphere(1.5).translate((2, 2, 2)), method="brep")
+    _forget_carried()
+    real = S._interior_extremes
+    monkeypatch.setattr(S, "_interior_extremes",
+                        lambda surf, ub, vb: None if type(surf).__name__ == "SphericalSurface" else real(surf, ub, vb))
+    ball = Sphere(1.5).translate((2, 2, 2))
+    X = S._Operand(ball, "B", t)
+    assert "mesh" in X.__dict__
+    mesh_box = X._mesh_boxes()
+    np.testing.assert_array_equal(np.stack([X.lo, X.hi], axis=1), mesh_box)
+    cube = S._Operand(Box(4, 4, 4), "A", t)
+    assert "mesh" not in cube.__dict__
+    r = _ok(S.difference(Box(4, 4, 4), ball, method="brep"))
+    assert _fingerprint(r) == _fingerprint(expected)
+
+
+def test_nurbs_face_box_takes_the_control_points_of_the_spans_it_covers():
+    """Only the spans of the parameter box count: a face over one span of a two-span patch ignores the other
+    span's control points (here lifted far away)."""
+    from coons.kernel.surface import NurbsSurface
+
+    cp = np.zeros((3, 2, 3))
+    cp[:, :, 0] = [[0, 0], [1, 1], [2, 2]]
+    cp[:, :, 1] = [[0, 1], [0, 1], [0, 1]]
+    cp[2, :, 2] = 50.0  # the second span's last row
+    N = NurbsSurface(cp, [0, 0, 0.5, 1, 1], [0, 0, 1, 1], 1, 1)
+    np.testing.assert_array_equal(S._interior_extremes(N, (0.0, 0.4), (0.0, 1.0)), [[0, 0, 0], [1, 1, 0]])
+    np.testing.assert_array_equal(S._interior_extremes(N, (-0.1, 1.1), (0.0, 1.0)), [[0, 0, 0], [2, 1, 50]])
+    np.testing.assert_array_equal(S._interior_extremes(N, (0.6, 0.9), (0.0, 1.0)), [[1, 0, 0], [2, 1, 50]])
+
+
 def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     t = S.resolve(None)
     halves = S._Operand(Cylinder(1.0, 2.0), "A", t).specs  # two half walls and two caps: nothing merges

@@ -1273,9 +1273,10 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
             out.append((f, spec))
             continue
         try:
-            pieces = _split_islands(X, f, cuts[f], t)
+            # (the chord test declines closed or curved cuts at once: try it first)
+            pieces = _split_chords(X, f, cuts[f], t)
             if pieces is None:
-                pieces = _split_chords(X, f, cuts[f], t)
+                pieces = _split_islands(X, f, cuts[f], t)
             if pieces is None:
                 pieces = split_face(spec, cuts[f], t)
         except (CoonsError, ValueError, ArithmeticError) as exc:
@@ -1429,33 +1430,34 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> li
     with np.errstate(divide="ignore", invalid="ignore"):
         wc = (W[..., 0] * SE[None, :, 1] - W[..., 1] * SE[None, :, 0]) / cross  # along the chord
         ws = (W[..., 0] * CE[:, None, 1] - W[..., 1] * CE[:, None, 0]) / cross  # along the side
-    # Each chord end: exactly one side within the margin of it, crossed properly there.
-    ends = np.zeros((n, 2), dtype=np.int64)
-    tau = np.zeros((n, 2))
-    for k in range(n):
-        for which, P in ((0, ca[k]), (1, cb[k])):
-            w = np.clip(np.einsum("mj,mj->m", P - sa, SE) / (SL * SL), 0.0, 1.0)
-            d = np.hypot(*(P - sa - w[:, None] * SE).T)
-            near = np.flatnonzero(d <= margin)
-            if near.size != 1:
-                return None
-            i = int(near[0])
-            if not (abs(cross[k, i]) >= _STRAIGHT_MIN_SINE * CL[k] * SL[i]) or not np.isfinite(ws[k, i]):
-                return None
-            if not (ws[k, i] * SL[i] > margin and (1.0 - ws[k, i]) * SL[i] > margin):
-                return None  # at or near a vertex
-            ends[k, which] = i
-            e = loop[i]
-            tau[k, which] = e.t0 + float(ws[k, i]) * (e.t1 - e.t0)
-        # Away from its end sides the chord meets no side and no vertex.
-        inner = np.ones(m, dtype=bool)
-        inner[ends[k]] = False
-        meets = (wc[k] >= -1e-12) & (wc[k] <= 1.0 + 1e-12) & (ws[k] >= -1e-12) & (ws[k] <= 1.0 + 1e-12)
-        if np.any(meets & inner):
-            return None
-        w = np.clip(np.einsum("mj,j->m", sa - ca[k], CE[k]) / (CL[k] * CL[k]), 0.0, 1.0)
-        if np.any(np.hypot(*(sa - ca[k] - w[:, None] * CE[k]).T) <= margin):
-            return None
+    # Each chord end: exactly one side within the margin of it, crossed properly there, away
+    # from the side's ends (all 2 n ends against all m sides at once; end 2 k + which).
+    P = np.stack([ca, cb], axis=1).reshape(-1, 2)
+    w = np.clip(np.einsum("emj,mj->em", P[:, None, :] - sa[None], SE) / (SL * SL), 0.0, 1.0)
+    dist = np.hypot(*np.moveaxis(P[:, None, :] - sa[None] - w[..., None] * SE[None], -1, 0))
+    near = dist <= margin
+    if not np.all(near.sum(axis=1) == 1):
+        return None
+    side = np.argmax(near, axis=1)
+    kk = np.repeat(np.arange(n), 2)
+    cr, wsi = cross[kk, side], ws[kk, side]
+    if not np.all(np.abs(cr) >= _STRAIGHT_MIN_SINE * CL[kk] * SL[side]) or not np.all(np.isfinite(wsi)):
+        return None
+    if not np.all((wsi * SL[side] > margin) & ((1.0 - wsi) * SL[side] > margin)):
+        return None  # at or near a vertex
+    ends = side.reshape(n, 2)
+    t_0 = np.array([loop[i].t0 for i in side.tolist()])
+    t_1 = np.array([loop[i].t1 for i in side.tolist()])
+    tau = (t_0 + wsi * (t_1 - t_0)).reshape(n, 2)
+    # Away from its end sides a chord meets no side, and no vertex comes near it.
+    inner = np.ones((n, m), dtype=bool)
+    inner[np.arange(n)[:, None], ends] = False
+    lo, hi = -1e-12, 1.0 + 1e-12
+    if np.any((wc >= lo) & (wc <= hi) & (ws >= lo) & (ws <= hi) & inner):
+        return None
+    w = np.clip(np.einsum("kmj,kj->km", sa[None] - ca[:, None], CE) / (CL * CL)[:, None], 0.0, 1.0)
+    if np.any(np.hypot(*np.moveaxis(sa[None] - ca[:, None] - w[..., None] * CE[:, None], -1, 0)) <= margin):
+        return None
     # Chords apart from each other (no crossing, no touching).
     for k in range(n):
         for l in range(k + 1, n):

@@ -570,6 +570,58 @@ class BRepBuilder:
         """Attach the p-curve of one side of an edge (same parameter as the 3-D curve)."""
         self.epcurve[coedge >> 1][coedge & 1] = self._pool("pcurves", pcurve)
 
+    def _pool_many(self, kind: str, objs: Sequence[Any]) -> list[int]:
+        """:meth:`_pool` of each object in turn (the same pool order)."""
+        index, pool, out = self._pool_index, getattr(self, kind), []
+        for obj in objs:
+            if obj is None:
+                out.append(-1)
+                continue
+            key = (kind, id(obj))
+            i = index.get(key)
+            if i is None:
+                pool.append(obj)
+                i = index[key] = len(pool) - 1
+            out.append(i)
+        return out
+
+    def set_vertex_tols(self, vertices: np.ndarray, tols: np.ndarray) -> None:
+        """:meth:`set_vertex` with ``tol`` for many vertices at once."""
+        vtol = self.vtol
+        for v, x in zip(np.asarray(vertices, dtype=np.int64).tolist(), np.asarray(tols, dtype=np.float64).tolist()):
+            vtol[v] = x
+
+    def set_edge_curves(self, edges: np.ndarray, curves: Sequence[Any], t_ranges: np.ndarray,
+                        tols: np.ndarray | None = None) -> None:
+        """:meth:`set_edge_curve` for many edges at once, in order (curves pooled in that order).
+
+        Raises
+        ------
+        InvalidInputError
+            A range that does not increase (the first such edge is named; nothing is set).
+        """
+        edges = np.asarray(edges, dtype=np.int64).ravel()
+        r = np.asarray(t_ranges, dtype=np.float64).reshape(-1, 2)
+        bad = np.flatnonzero(~(r[:, 0] < r[:, 1]))
+        if bad.size:
+            k = int(bad[0])
+            raise InvalidInputError(f"edge {int(edges[k])}: curve range must increase, got ({r[k, 0]!r}, {r[k, 1]!r})")
+        idx = self._pool_many("curves", curves)
+        ecurve, erange, etol = self.ecurve, self.erange, self.etol
+        el, rl = edges.tolist(), r.tolist()
+        for e, i, (t0, t1) in zip(el, idx, rl):
+            ecurve[e] = i
+            erange[e] = (t0, t1)
+        if tols is not None:
+            for e, x in zip(el, np.asarray(tols, dtype=np.float64).tolist()):
+                etol[e] = x
+
+    def set_pcurves(self, coedges: np.ndarray, pcurves: Sequence[Any]) -> None:
+        """:meth:`set_pcurve` for many coedges at once, in order (p-curves pooled in that order)."""
+        ep = self.epcurve
+        for c, i in zip(np.asarray(coedges, dtype=np.int64).tolist(), self._pool_many("pcurves", pcurves)):
+            ep[c >> 1][c & 1] = i
+
     def set_face_surface(self, face: int, surface: Any, sense: bool = True) -> None:
         self.fsurface[face] = self._pool("surfaces", surface)
         self.fsense[face] = bool(sense)

@@ -6,7 +6,9 @@ sense, loops of :class:`EdgeSpec` in loop order), and returns the checked
 the Booleans' last phase: faces arrive as independent pieces, and the topology — which ends
 meet, which edges are shared — is recovered from geometry:
 
-1. **Vertices**: the end points of all edge uses are clustered with a k-d tree
+1. **Vertices**: the end points of all edge uses (evaluated once per face spec and remembered
+   with it, :func:`use_points`: the faces a Boolean passes through unchanged are not evaluated
+   again) are clustered with a k-d tree
    (``scipy.spatial.cKDTree.query_pairs``) — two ends within ``max(tol.linear, edge tolerances)``
    are one vertex; clusters are the connected components.  The vertex sits at the cluster mean
    and records the largest distance to it as its tolerance.
@@ -51,6 +53,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
+from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
 from coons.topology.shape import Solid
@@ -236,50 +239,25 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
 
 
 class _Uses:
-    """Flat arrays over all edge uses (coedges) in face, loop, position order."""
+    """Flat arrays over all edge uses (coedges) in face, loop, position order.
+
+    Gathered from the per-face tables of :func:`_face_uses` (cached per face spec): the faces a
+    Boolean result carries over unchanged from its operand are not evaluated again.
+    """
 
     def __init__(self, faces: list[FaceSpec], t: Tolerance) -> None:
-        self.spec: list[EdgeSpec] = []
-        where = []
-        for fi, f in enumerate(faces):
-            for li, loop in enumerate(f.loops):
-                for pi, e in enumerate(loop):
-                    self.spec.append(e)
-                    where.append((fi, li, pi, len(loop)))
-        w = np.asarray(where, dtype=np.int64)
-        self.face, self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2], w[:, 3]
+        tables = _face_uses(faces)
+        self.spec: list[EdgeSpec] = [e for f in faces for loop in f.loops for e in loop]
         k = len(self.spec)
-        self.t0 = np.array([e.t0 for e in self.spec])
-        self.t1 = np.array([e.t1 for e in self.spec])
-        self.tol = np.array([t.linear if e.tol is None else max(e.tol, t.linear) for e in self.spec])
-        # Start, end and midpoint of every use: lines and circles (most edges) in one batch, any
-        # other curve in one evaluation per distinct curve object.
-        self.start = np.empty((k, 3))
-        self.end = np.empty((k, 3))
-        self.mid = np.empty((k, 3))
-        simple = np.array([type(e.curve) in BATCHED_CURVES for e in self.spec], dtype=bool)
-        rs = np.flatnonzero(simple)
-        tt = np.stack([self.t0[rs], self.t1[rs], 0.5 * (self.t0[rs] + self.t1[rs])], axis=1)
-        P = evaluate_curves([self.spec[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
-        if P is not None and np.isfinite(P).all():
-            self.start[rs], self.end[rs], self.mid[rs] = P[:, 0], P[:, 1], P[:, 2]
-        else:  # the per-curve path below names the use whose curve or range is bad
-            simple[:] = False
-        groups: dict[int, list[int]] = {}
-        for i in np.flatnonzero(~simple).tolist():
-            groups.setdefault(id(self.spec[i].curve), []).append(i)
-        for rows in groups.values():
-            r = np.asarray(rows)
-            curve = self.spec[rows[0]].curve
-            tt = np.concatenate([self.t0[r], self.t1[r], 0.5 * (self.t0[r] + self.t1[r])])
-            try:
-                P = np.asarray(curve.evaluate(tt), dtype=np.float64).reshape(3, r.size, 3)
-            except (ValueError, TypeError, ArithmeticError) as exc:
-                i = rows[0]
-                raise InvalidInputError(f"{self.name(i)}: its curve cannot be evaluated on its range: {exc}") from None
-            if not np.all(np.isfinite(P)):
-                raise InvalidInputError(f"{self.name(rows[0])}: its curve evaluates to non-finite points")
-            self.start[r], self.end[r], self.mid[r] = P[0], P[1], P[2]
+        counts = [x.where.shape[0] for x in tables]
+        w = np.concatenate([x.where for x in tables])
+        self.face = np.repeat(np.arange(len(faces), dtype=np.int64), counts)
+        self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2]
+        r = np.concatenate([x.ranges for x in tables])
+        self.t0, self.t1 = r[:, 0], r[:, 1]
+        self.tol = np.maximum(r[:, 2], t.linear)
+        P = np.concatenate([x.points for x in tables])
+        self.start, self.end, self.mid = P[:, 0], P[:, 1], P[:, 2]
         # Index of the next use in the same loop.
         idx = np.arange(k)
         self.next = np.where(self.pos + 1 < self.loop_len, idx + 1, idx - self.pos)
@@ -289,6 +267,110 @@ class _Uses:
 
     def __len__(self) -> int:
         return len(self.spec)
+
+
+class _FaceUses:
+    """The edge uses of one face spec as arrays, in loop order (:func:`_face_uses`).
+
+    ``where (k, 3)`` int64: loop, position in the loop and loop length of each use; ``ranges
+    (k, 3)``: ``t0, t1`` and the use's own tolerance (``EdgeSpec.tol``, 0 for None); ``points
+    (k, 3, 3)``: start, end and midpoint (the curve at ``t0``, ``t1`` and ``(t0 + t1) / 2``).
+    All read-only.
+    """
+
+    __slots__ = ("where", "ranges", "points")
+
+
+#: Face spec -> its :class:`_FaceUses`.  A spec is immutable and so are its curves when they are
+#: values (frozen dataclasses, as every curve of coons): the table never goes stale, and the
+#: faces a Boolean result carries over from an operand (the same spec objects) are read once
+#: for a chain of Booleans.  Entries die with their spec.
+_FACE_USES = IdentityMemo()
+
+
+def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
+    """The :class:`_FaceUses` of each face, those not cached yet computed together.
+
+    Start, end and midpoint of every use: lines and circles (most edges) in one batch
+    (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas element by element), any
+    other curve in one evaluation per distinct curve object.  A face is cached only when all its
+    curves are values (:func:`~coons.topology._memo.is_value`).
+
+    Raises
+    ------
+    InvalidInputError
+        A curve that cannot be evaluated on its use's range or gives non-finite points (named by
+        face, loop and edge).
+    """
+    out: list[_FaceUses | None] = _FACE_USES.get_many(faces)
+    missing = [i for i, x in enumerate(out) if x is None]
+    if not missing:
+        return out  # type: ignore[return-value]
+    spec: list[EdgeSpec] = []
+    where = []
+    counts = []
+    for fi in missing:
+        n = 0
+        for li, loop in enumerate(faces[fi].loops):
+            for pi, e in enumerate(loop):
+                spec.append(e)
+                where.append((fi, li, pi, len(loop)))
+            n += len(loop)
+        counts.append(n)
+    w = np.asarray(where, dtype=np.int64)
+    k = len(spec)
+    ranges = np.array([(e.t0, e.t1, e.tol or 0.0) for e in spec], dtype=np.float64).reshape(k, 3)
+    t0, t1 = ranges[:, 0], ranges[:, 1]
+
+    def name(i: int) -> str:
+        return f"face {int(w[i, 0])}, loop {int(w[i, 1])}, edge {int(w[i, 2])}"
+
+    P = np.empty((k, 3, 3))
+    simple = np.array([type(e.curve) in BATCHED_CURVES for e in spec], dtype=bool)
+    rs = np.flatnonzero(simple)
+    tt = np.stack([t0[rs], t1[rs], 0.5 * (t0[rs] + t1[rs])], axis=1)
+    Q = evaluate_curves([spec[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
+    if Q is not None and np.isfinite(Q).all():
+        P[rs] = Q
+    else:  # the per-curve path below names the use whose curve or range is bad
+        simple[:] = False
+    groups: dict[int, list[int]] = {}
+    for i in np.flatnonzero(~simple).tolist():
+        groups.setdefault(id(spec[i].curve), []).append(i)
+    for rows in groups.values():
+        r = np.asarray(rows)
+        curve = spec[rows[0]].curve
+        tt = np.concatenate([t0[r], t1[r], 0.5 * (t0[r] + t1[r])])
+        try:
+            Q = np.asarray(curve.evaluate(tt), dtype=np.float64).reshape(3, r.size, 3)
+        except (ValueError, TypeError, ArithmeticError) as exc:
+            raise InvalidInputError(f"{name(rows[0])}: its curve cannot be evaluated on its range: {exc}") from None
+        if not np.all(np.isfinite(Q)):
+            raise InvalidInputError(f"{name(rows[0])}: its curve evaluates to non-finite points")
+        P[r] = Q.transpose(1, 0, 2)
+    value = [is_value(e.curve) for e in spec]
+    first = 0
+    for fi, n in zip(missing, counts):
+        sl = slice(first, first + n)
+        first += n
+        x = _FaceUses()
+        x.where, x.ranges, x.points = (_read_only(a[sl].copy()) for a in (w[:, 1:], ranges, P))
+        out[fi] = x
+        if all(value[sl]):
+            _FACE_USES.set(faces[fi], x)
+    return out  # type: ignore[return-value]
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def use_points(faces: Sequence[FaceSpec]) -> np.ndarray:
+    """Start, end and midpoint ``(k, 3, 3)`` of every edge use of ``faces`` in face, loop, position
+    order, as :func:`sew_faces` sees them (cached per face spec, see :func:`_face_uses`)."""
+    tables = _face_uses(faces)
+    return np.concatenate([x.points for x in tables]) if tables else np.empty((0, 3, 3))
 
 
 def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -747,18 +829,24 @@ def _assemble(
     b = BRepBuilder(t)
     b.assemble(vpoint, np.stack([edge_start, edge_end], axis=1), face_loops,
                face_surfaces=[f.surface for f in faces], face_senses=[f.sense for f in faces])
-    for v, vt in enumerate(vtol.tolist()):
-        b.set_vertex(v, tol=vt)
-    spec, tols = uses.spec, uses.tol.tolist()
-    for e, (p, o, f) in enumerate(zip(primary.tolist(), other.tolist(), fwd.tolist())):
-        sp, so = spec[p], spec[o]
-        thr = max(tols[p], tols[o])
-        b.set_edge_curve(e, sp.curve, (min(sp.t0, sp.t1), max(sp.t0, sp.t1)), tol=thr)
-        side_p = 0 if f else 1
-        b.set_pcurve(2 * e + side_p, sp.pcurve)
-        # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
-        pc = so.pcurve if so.curve is sp.curve else _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})")
-        b.set_pcurve(2 * e + (1 - side_p), pc)
+    b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
+    spec = uses.spec
+    sp = [spec[p] for p in primary.tolist()]
+    so = [spec[o] for o in other.tolist()]
+    thr = np.maximum(uses.tol[primary], uses.tol[other])
+    b.set_edge_curves(np.arange(E), [e.curve for e in sp],
+                      np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
+                                np.maximum(uses.t0[primary], uses.t1[primary])], axis=1), thr)
+    # The primary use's p-curve, then the other's, edge by edge (the pool order of one call each).
+    # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
+    thr_l = thr.tolist()
+    pcs: list[Any] = []
+    for e, (a, o) in enumerate(zip(sp, so)):
+        pcs.append(a.pcurve)
+        pcs.append(o.pcurve if o.curve is a.curve else
+                   _pcurve_in(a, o, thr_l[e], f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})"))
+    side_p = np.where(fwd, 0, 1)
+    b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre))
 

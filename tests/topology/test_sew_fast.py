@@ -209,3 +209,39 @@ def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
             if isinstance(x, np.ndarray):
                 np.testing.assert_array_equal(x, y, err_msg=fld.name)
         assert a.brep.n_faces == b.brep.n_faces and np.isclose(a.volume, b.volume, rtol=1e-12, atol=0.0)
+
+
+# ---------------------------------------------------------------------- per-face use tables
+class _Wrapped:
+    """A curve that is not a value (not a frozen dataclass): what is computed from it is not remembered."""
+
+    def __init__(self, curve):
+        self.curve = curve
+
+    def evaluate(self, t):
+        return self.curve.evaluate(t)
+
+
+def test_face_use_tables_are_the_uses_points_and_are_remembered_per_face_spec():
+    from coons.topology import _memo
+    from coons.topology.primitives import Box, Cylinder, Sphere
+
+    _memo.clear_all()
+    specs = sew.face_specs(Cylinder(1.0, 2.0).brep) + sew.face_specs(Sphere(0.5).brep)
+    first = sew._face_uses(specs)
+    again = sew._face_uses(specs)
+    assert all(x is y for x, y in zip(first, again))  # remembered, not recomputed
+    for f, x in zip(specs, first):
+        uses = [e for loop in f.loops for e in loop]
+        assert x.where.tolist() == [[li, pi, len(loop)] for li, loop in enumerate(f.loops) for pi in range(len(loop))]
+        np.testing.assert_array_equal(x.ranges, [[e.t0, e.t1, e.tol or 0.0] for e in uses])
+        for e, P in zip(uses, x.points):
+            np.testing.assert_array_equal(P, e.curve.evaluate(np.array([e.t0, e.t1, 0.5 * (e.t0 + e.t1)])))
+    box = sew.face_specs(Box(1, 2, 3).brep)
+    odd = sew.FaceSpec(box[0].surface, box[0].sense,
+                       [[sew.EdgeSpec(_Wrapped(e.curve), e.t0, e.t1, e.pcurve, e.tol) for e in box[0].loops[0]]])
+    x, y = sew._face_uses([odd]), sew._face_uses([odd])
+    assert x[0] is not y[0]  # not a value: computed each time
+    np.testing.assert_array_equal(x[0].points, sew._face_uses([box[0]])[0].points)
+    resewn = sew.sew_faces([odd] + box[1:])
+    np.testing.assert_allclose(resewn.volume, 6.0, rtol=1e-14)

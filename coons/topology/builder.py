@@ -688,7 +688,8 @@ class BRepBuilder:
 
         nf = len(face_ids)
         ce = np.arange(2 * e_off, 2 * len(self.ev))
-        cf = np.array([self.lface[self.cloop[c]] for c in ce]) - face_ids[0] if nf else np.empty(0, int)
+        cf = np.asarray(self.lface, dtype=np.int64)[np.asarray(self.cloop[ce[0]:], dtype=np.int64)] - face_ids[0] \
+            if nf and ce.size else np.empty(0, np.int64)
         a, b = cf[0::2], cf[1::2]
         graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
         n_comp, labels = connected_components(graph, directed=False)
@@ -793,18 +794,19 @@ class BRepBuilder:
         if not (target == origin[nxt]).all():
             return None
         c = 2 * (e + e_off) + side
-        # Faces and loops in input order (few; their geometry goes through the pools).
-        face_ids: list[int] = []
-        loop_ids: list[int] = []
-        for fi, loops in enumerate(face_loops):
-            f = self._assembled_face(fi, face_surfaces, face_senses)
-            face_ids.append(f)
-            for li in range(len(loops)):
-                l = self._new_loop(f)
-                loop_ids.append(l)
-                if li == 0:
-                    self.fouter[f] = l
-        lid = np.asarray(loop_ids, dtype=np.int64)
+        # Faces in input order (their geometry goes through the pools), then their loops, face by
+        # face: the rows _new_loop would add, with their first coedges.
+        face_ids = [self._assembled_face(fi, face_surfaces, face_senses) for fi in range(len(face_loops))]
+        n_loops = [len(loops) for loops in face_loops]
+        l0 = len(self.lface)
+        lid = np.arange(l0, l0 + lens_a.size, dtype=np.int64)
+        self.lface.extend(np.repeat(np.asarray(face_ids, dtype=np.int64), n_loops).tolist())
+        self.lcoedge.extend(c[first].tolist())
+        self.lvertex.extend([-1] * lens_a.size)
+        self.lalive.extend([True] * lens_a.size)
+        for f, l, k in zip(face_ids, (l0 + np.cumsum(n_loops) - n_loops).tolist(), n_loops):
+            if k:
+                self.fouter[f] = l  # the first loop is the outer one
         base = 2 * e_off
         link = np.empty(2 * ne, dtype=np.int64)
         back = np.empty(2 * ne, dtype=np.int64)
@@ -815,9 +817,6 @@ class BRepBuilder:
         self.nxt[base:] = link.tolist()
         self.prv[base:] = back.tolist()
         self.cloop[base:] = cl.tolist()
-        for l, c0 in zip(loop_ids, c[first].tolist()):
-            self.lcoedge[l] = c0
-            self.lvertex[l] = -1
         # Each new vertex's coedge: the first new coedge (in coedge order) leaving it.
         cs = np.arange(base, base + 2 * ne)
         orig = ev.ravel()  # origin of coedge base + 2 e + side is ev[e, side]

@@ -258,6 +258,8 @@ class _Uses:
         self.tol = np.maximum(r[:, 2], t.linear)
         P = np.concatenate([x.points for x in tables])
         self.start, self.end, self.mid = P[:, 0], P[:, 1], P[:, 2]
+        self.kind = np.concatenate([x.kind for x in tables])
+        self.frame = np.concatenate([x.frame for x in tables])
         # Index of the next use in the same loop.
         idx = np.arange(k)
         self.next = np.where(self.pos + 1 < self.loop_len, idx + 1, idx - self.pos)
@@ -269,16 +271,22 @@ class _Uses:
         return len(self.spec)
 
 
+#: Curve kinds of :class:`_FaceUses` (others are 0).
+_LINE, _CIRCLE = 1, 2
+
+
 class _FaceUses:
     """The edge uses of one face spec as arrays, in loop order (:func:`_face_uses`).
 
     ``where (k, 3)`` int64: loop, position in the loop and loop length of each use; ``ranges
     (k, 3)``: ``t0, t1`` and the use's own tolerance (``EdgeSpec.tol``, 0 for None); ``points
-    (k, 3, 3)``: start, end and midpoint (the curve at ``t0``, ``t1`` and ``(t0 + t1) / 2``).
-    All read-only.
+    (k, 3, 3)``: start, end and midpoint (the curve at ``t0``, ``t1`` and ``(t0 + t1) / 2``);
+    ``kind (k,)``: the curve is a :class:`Line` (``_LINE``), a :class:`Circle` (``_CIRCLE``) or
+    another curve (0); ``frame (k, 4)``: a line's origin or a circle's centre, and its radius (0
+    otherwise), which :func:`_reach` bounds the curves by.  All read-only.
     """
 
-    __slots__ = ("where", "ranges", "points")
+    __slots__ = ("where", "ranges", "points", "kind", "frame")
 
 
 #: Face spec -> its :class:`_FaceUses`.  A spec is immutable and so are its curves when they are
@@ -348,13 +356,22 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
         if not np.all(np.isfinite(Q)):
             raise InvalidInputError(f"{name(rows[0])}: its curve evaluates to non-finite points")
         P[r] = Q.transpose(1, 0, 2)
+    kind = np.array([_LINE if type(e.curve) is Line else _CIRCLE if type(e.curve) is Circle else 0 for e in spec],
+                    dtype=np.int8)
+    frame = np.zeros((k, 4))
+    for code, attr in ((_LINE, "origin"), (_CIRCLE, "center")):
+        rows = np.flatnonzero(kind == code)
+        if rows.size:
+            frame[rows, :3] = [getattr(spec[i].curve, attr) for i in rows.tolist()]
+            if code == _CIRCLE:
+                frame[rows, 3] = [float(spec[i].curve.radius) for i in rows.tolist()]
     value = [is_value(e.curve) for e in spec]
     first = 0
     for fi, n in zip(missing, counts):
         sl = slice(first, first + n)
         first += n
         x = _FaceUses()
-        x.where, x.ranges, x.points = (_read_only(a[sl].copy()) for a in (w[:, 1:], ranges, P))
+        x.where, x.ranges, x.points, x.kind, x.frame = (_read_only(a[sl].copy()) for a in (w[:, 1:], ranges, P, kind, frame))
         out[fi] = x
         if all(value[sl]):
             _FACE_USES.set(faces[fi], x)
@@ -551,23 +568,21 @@ def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
     radius = np.full(k, math.inf)
     scale = np.full(k, math.inf)
     rows = np.asarray(rows, dtype=np.int64)
-    kind = np.array([1 if type(uses.spec[i].curve) is Line else 2 if type(uses.spec[i].curve) is Circle else 0
-                     for i in rows.tolist()], dtype=np.int64)
+    kind = uses.kind[rows]
     half = 0.5 * np.abs(uses.t1[rows] - uses.t0[rows])
     base = np.abs(uses.mid[rows]).max(axis=1) + np.maximum(np.abs(uses.t0[rows]), np.abs(uses.t1[rows]))
-    for code in (1, 2):
+    for code in (_LINE, _CIRCLE):
         sel = np.flatnonzero(kind == code)
         if not sel.size:
             continue
         r = rows[sel]
-        curves = [uses.spec[i].curve for i in r.tolist()]
-        if code == 1:
+        if code == _LINE:
             radius[r] = half[sel]
-            scale[r] = base[sel] + np.abs(np.array([c.origin for c in curves])).max(axis=1)
+            scale[r] = base[sel] + np.abs(uses.frame[r, :3]).max(axis=1)
         else:
-            R = np.array([float(c.radius) for c in curves])
+            R = uses.frame[r, 3]
             radius[r] = np.minimum(R * half[sel], 2.0 * R)
-            scale[r] = base[sel] + np.abs(np.array([c.center for c in curves])).max(axis=1) + R
+            scale[r] = base[sel] + np.abs(uses.frame[r, :3]).max(axis=1) + R
     return radius.tolist(), scale.tolist()
 
 

@@ -686,3 +686,62 @@ def test_identity_memo_forgets_dead_objects_and_takes_only_values():
     memo.set(other, 4)
     clear_all()
     assert memo.get(other) is None
+
+
+def test_segment_pairs_are_the_sweep_pairs_of_loops_that_can_meet():
+    """The loop-aware broad phase of the trim check: the pairs of the plain sweep whose loops are one
+    or have overlapping boxes, in the sweep's order (so the first crossing of each face is the same)."""
+    from coons.topology.check import _cycle_labels, _segment_pairs, _sweep_pairs
+
+    rng = np.random.default_rng(7)
+    for trial in range(30):
+        A, nxt, face = [], [], []
+        n = 0
+        for f in range(int(rng.integers(1, 4))):
+            for _ in range(int(rng.integers(1, 6))):  # loops: jittered polygons of random size and place
+                m = int(rng.integers(3, 12))
+                c = rng.uniform(-5, 5, 2)
+                r = rng.uniform(0.2, 3.0)
+                ang = np.sort(rng.uniform(0, 2 * np.pi, m))
+                A.append(c + r * np.stack([np.cos(ang), np.sin(ang)], axis=1) + rng.normal(0, 0.3, (m, 2)))
+                nxt.append(n + (np.arange(m) + 1) % m)
+                face.append(np.full(m, f))
+                n += m
+        A, nxt, face = np.concatenate(A), np.concatenate(nxt), np.concatenate(face)
+        B = A[nxt]
+        i, j = _sweep_pairs(A, B, face)
+        ring = _cycle_labels(nxt)
+        lo, hi = np.minimum(A, B), np.maximum(A, B)
+        rlo = {r: lo[ring == r].min(axis=0) for r in np.unique(ring)}
+        rhi = {r: hi[ring == r].max(axis=0) for r in np.unique(ring)}
+        meet = np.array([ring[a] == ring[b] or bool(np.all(np.maximum(rlo[ring[a]], rlo[ring[b]])
+                                                            <= np.minimum(rhi[ring[a]], rhi[ring[b]])))
+                         for a, b in zip(i.tolist(), j.tolist())], dtype=bool)
+        gi, gj = _segment_pairs(A, B, face, nxt, chunk=int(rng.integers(1, 50)))
+        np.testing.assert_array_equal(gi, i[meet])
+        np.testing.assert_array_equal(gj, j[meet])
+
+
+def test_plate_with_many_holes_checks_clean_and_finds_a_crossing_hole():
+    """Many loops in one face (the trim check's loop-aware broad phase): clean, and a hole moved onto
+    its neighbour is found."""
+    from coons.topology.profile import Profile
+    from coons.topology.sweep import extrude
+
+    holes = [Profile.circle(0.6, center=(-4.0 + 2.0 * i, -4.0 + 2.0 * k)).outer for i in range(5) for k in range(5)]
+    ok = extrude(Profile(Profile.rectangle(12.0, 12.0).outer, holes), 1.0)
+    assert check(ok).ok
+    b = ok.brep
+    cap = int(np.argmax(np.diff(b.face_loop_ptr)))  # a cap: the face with all the holes
+    hole = int(b.face_loops[b.face_loop_ptr[cap] + 8])
+
+    def move_hole(c):  # the p-curves of one hole of the cap, 1.0 towards its neighbour (radius 0.6)
+        for co in b.loop_coedges(hole).tolist():
+            e, side = co >> 1, co & 1
+            pc = c["pcurves"][int(c["edge_pcurve"][e, side])]
+            shift = np.array([1.0, 0.0])
+            moved = Trig2D(pc.center + shift, pc.a, pc.b) if isinstance(pc, Trig2D) else Line2D(pc.origin + shift, pc.direction)
+            c["pcurves"].append(moved)
+            c["edge_pcurve"][e, side] = len(c["pcurves"]) - 1
+
+    assert "self-intersecting-trim" in codes(corrupted(b, move_hole))

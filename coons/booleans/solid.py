@@ -120,7 +120,8 @@ Status and limitations
   (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
   that spec's parameter box, rings and segments (``_FACE_DATA``); loop samples and space boxes
   are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a split face
-  keep; a pair of face specs found unmergeable is not tried again (``_MERGE_FAILED``).  The
+  keep; a pair of face specs found unmergeable is not tried again (``_MERGE_FAILED``), nor a
+  face spec found not to lie on another face's surface (``_NOT_ON``).  The
   end and mid points of a face's uses are one table per face spec
   (:func:`~coons.topology.sew.use_points`), read by the T-junction, merge and fuse passes and
   by sewing; the checker remembers its same-parameter measurements per curve, p-curve,
@@ -163,7 +164,7 @@ from coons.kernel._common import used_ids
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo
+from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
 from coons.topology.sew import EdgeSpec, FaceSpec, _face_uses, face_specs, sew_faces, sewn_unchanged, use_points
 from coons.topology.shape import Solid
@@ -1771,7 +1772,7 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
         if idx.size == 0:
             continue
         P, ptol = face_foreign if key == -1 else foreign_of[key]
-        B = np.stack([b for b in boxes if b is not None])  # (n, 2, 3)
+        B = np.concatenate([b for b in boxes if b is not None]).reshape(-1, 2, 3)
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
         for s0 in range(0, idx.size, step):
             pad = (ptol[None, :] + thr[idx[s0 : s0 + step], None])[..., None]  # (n, m, 1)
@@ -1923,7 +1924,8 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 continue
             memo = (up, uq, t)
             known = _MERGE_FAILED.get(A)
-            if known is not None and memo in known.get(B, ()):
+            known = known.get(id(B)) if known is not None else None
+            if known is not None and known[0]() is B and memo in known[1]:
                 continue  # found unmergeable by an earlier Boolean on the same two face specs
             failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
             seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
@@ -1934,7 +1936,7 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 continue
             merged = _merged_pair(A, B, up, uq, t)
             if merged is None:
-                _MERGE_FAILED.setdefault(A, weakref.WeakKeyDictionary()).setdefault(B, set()).add(memo)
+                _merge_failed(A, B, memo)
                 continue
             faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
             changed = True
@@ -1947,7 +1949,20 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
 #: (immutable) specs, the two uses and the tolerance, so a Boolean result's faces that pass through
 #: the next Boolean unchanged (the same spec objects, see ``_SEWN``) are not tried again: the two
 #: halves of every hole's wall in a plate would otherwise be re-tested by every later cut.
-_MERGE_FAILED: "weakref.WeakKeyDictionary[FaceSpec, weakref.WeakKeyDictionary]" = weakref.WeakKeyDictionary()
+_MERGE_FAILED = IdentityMemo()
+
+
+def _merge_failed(A: FaceSpec, B: FaceSpec, memo: tuple) -> None:
+    """Remember in :data:`_MERGE_FAILED` that ``A`` and ``B`` do not merge across the uses of ``memo``.
+
+    Per A, a dict on ``id(B)`` holding a weak reference to B (checked on look-up: a recycled id
+    never finds another face's entry) and the set of failed use pairs.
+    """
+    known = _MERGE_FAILED.setdefault(A, dict)
+    got = known.get(id(B))
+    if got is None or got[0]() is not B:
+        got = known[id(B)] = (weakref.ref(B), set())
+    got[1].add(memo)
 
 
 def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, int], t: Tolerance) -> FaceSpec | None:
@@ -2003,8 +2018,24 @@ def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
     """Face B on surface S (the same point set as B's surface), or None when B does not lie on S.
 
     The p-curves are recomputed by ``pcurve_on`` and the sense follows from comparing the normals
-    at an interior point of B.
+    at an interior point of B.  A function of B, S and ``t`` alone (all immutable): a None is
+    remembered (:data:`_NOT_ON`), as a face carried over from an operand meets the same
+    neighbouring surface again in every later Boolean (a plate's side faces and its top).
     """
+    if any(s is S and u == t for s, u in _NOT_ON.get(B, ())):
+        return None
+    out = _moved(B, S, t)
+    if out is None and is_value(S):
+        _NOT_ON.set(B, _NOT_ON.get(B, ()) + ((S, t),))
+    return out
+
+
+#: Face spec -> ``((surface, tol), ...)`` on which :func:`_moved_to` found it does not lie.
+_NOT_ON = IdentityMemo()
+
+
+def _moved(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
+    """:func:`_moved_to`, computed."""
     from coons.kernel.onsurface import pcurve_on
 
     try:

@@ -82,7 +82,7 @@ class BRepBuilder:
         self.surfaces: list[Any] = []
         self.curves: list[Any] = []
         self.pcurves: list[Any] = []
-        self._pool_index: dict[tuple[str, int], int] = {}
+        self._pool_index: dict[str, dict[int, int]] = {"surfaces": {}, "curves": {}, "pcurves": {}}
 
     # ================================================================ small helpers
     def _new_vertex(self, point) -> int:
@@ -543,12 +543,13 @@ class BRepBuilder:
     def _pool(self, kind: str, obj: Any) -> int:
         if obj is None:
             return -1
-        key = (kind, id(obj))
-        if key not in self._pool_index:
+        index = self._pool_index[kind]
+        key = id(obj)
+        if key not in index:
             pool = getattr(self, kind)
             pool.append(obj)
-            self._pool_index[key] = len(pool) - 1
-        return self._pool_index[key]
+            index[key] = len(pool) - 1
+        return index[key]
 
     def set_vertex(self, vertex: int, point=None, tol: float | None = None) -> None:
         if point is not None:
@@ -572,16 +573,15 @@ class BRepBuilder:
 
     def _pool_many(self, kind: str, objs: Sequence[Any]) -> list[int]:
         """:meth:`_pool` of each object in turn (the same pool order)."""
-        index, pool, out = self._pool_index, getattr(self, kind), []
+        index, pool, out = self._pool_index[kind], getattr(self, kind), []
         for obj in objs:
             if obj is None:
                 out.append(-1)
                 continue
-            key = (kind, id(obj))
-            i = index.get(key)
+            i = index.get(id(obj))
             if i is None:
                 pool.append(obj)
-                i = index[key] = len(pool) - 1
+                i = index[id(obj)] = len(pool) - 1
             out.append(i)
         return out
 

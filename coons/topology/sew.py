@@ -6,9 +6,10 @@ sense, loops of :class:`EdgeSpec` in loop order), and returns the checked
 the Booleans' last phase: faces arrive as independent pieces, and the topology — which ends
 meet, which edges are shared — is recovered from geometry:
 
-1. **Vertices**: the end points of all edge uses (evaluated once per face spec and remembered
-   with it, :func:`use_points`: the faces a Boolean passes through unchanged are not evaluated
-   again) are clustered with a k-d tree
+1. **Vertices**: the end points of all edge uses (evaluated once per face spec and per edge
+   use and remembered with them, :func:`use_points`: the faces a Boolean passes through
+   unchanged, and the uses a changed face keeps, are not evaluated again) are clustered with a
+   k-d tree
    (``scipy.spatial.cKDTree.query_pairs``) — two ends within ``max(tol.linear, edge tolerances)``
    are one vertex; clusters are the connected components.  The vertex sits at the cluster mean
    and records the largest distance to it as its tolerance.
@@ -297,12 +298,9 @@ _FACE_USES = IdentityMemo()
 
 
 def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
-    """The :class:`_FaceUses` of each face, those not cached yet computed together.
+    """The :class:`_FaceUses` of each face, those not cached yet gathered together (:func:`_use_rows`).
 
-    Start, end and midpoint of every use: lines and circles (most edges) in one batch
-    (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas element by element), any
-    other curve in one evaluation per distinct curve object.  A face is cached only when all its
-    curves are values (:func:`~coons.topology._memo.is_value`).
+    A face is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`).
 
     Raises
     ------
@@ -325,29 +323,78 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
                 where.append((fi, li, pi, len(loop)))
             n += len(loop)
         counts.append(n)
-    w = np.asarray(where, dtype=np.int64)
+    w = np.asarray(where, dtype=np.int64).reshape(-1, 4)
+    R = _use_rows(spec, w)
+    value = [is_value(e.curve) for e in spec]
+    first = 0
+    for fi, n in zip(missing, counts):
+        sl = slice(first, first + n)
+        first += n
+        x = _FaceUses()
+        x.where = _read_only(w[sl, 1:].copy())
+        x.points = _read_only(R[sl, :9].reshape(n, 3, 3))
+        x.ranges = _read_only(R[sl, 9:12].copy())
+        x.kind = _read_only(R[sl, 12].astype(np.int8))
+        x.frame = _read_only(R[sl, 13:].copy())
+        out[fi] = x
+        if all(value[sl]):
+            _FACE_USES.set(faces[fi], x)
+    return out  # type: ignore[return-value]
+
+
+#: Edge use -> its row of :func:`_use_rows` (read-only), for the uses whose curve is a value: the
+#: faces a Boolean changes (a plate's top gaining a hole) keep most of their uses.
+_USE_ROWS = IdentityMemo()
+
+
+def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
+    """Per use, the row ``(17,)``: start, end and midpoint (9, the curve at ``t0``, ``t1`` and
+    ``(t0 + t1) / 2``), ``t0, t1`` and the use's own tolerance (0 for None), its curve kind and
+    frame (:class:`_FaceUses`).  Remembered per use (:data:`_USE_ROWS`); the others computed
+    together: lines and circles (most edges) in one batch
+    (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas element by element), any
+    other curve in one evaluation per distinct curve object.  ``w (k, 4)``: face, loop, position
+    and loop length of each use, to name a bad one.
+
+    Raises
+    ------
+    InvalidInputError
+        A curve that cannot be evaluated on its use's range or gives non-finite points.
+    """
     k = len(spec)
-    ranges = np.array([(e.t0, e.t1, e.tol or 0.0) for e in spec], dtype=np.float64).reshape(k, 3)
+    got = _USE_ROWS.get_many(spec)
+    need = [i for i, g in enumerate(got) if g is None]
+    out = np.empty((k, 17))
+    have = np.ones(k, dtype=bool)
+    have[need] = False
+    if have.any():
+        out[have] = np.concatenate([g for g in got if g is not None]).reshape(-1, 17)
+    if not need:
+        return out
+    sub = [spec[i] for i in need]
+    wn = w[need]
+    n = len(sub)
+    ranges = np.array([(e.t0, e.t1, e.tol or 0.0) for e in sub], dtype=np.float64).reshape(n, 3)
     t0, t1 = ranges[:, 0], ranges[:, 1]
 
     def name(i: int) -> str:
-        return f"face {int(w[i, 0])}, loop {int(w[i, 1])}, edge {int(w[i, 2])}"
+        return f"face {int(wn[i, 0])}, loop {int(wn[i, 1])}, edge {int(wn[i, 2])}"
 
-    P = np.empty((k, 3, 3))
-    simple = np.array([type(e.curve) in BATCHED_CURVES for e in spec], dtype=bool)
+    P = np.empty((n, 3, 3))
+    simple = np.array([type(e.curve) in BATCHED_CURVES for e in sub], dtype=bool)
     rs = np.flatnonzero(simple)
     tt = np.stack([t0[rs], t1[rs], 0.5 * (t0[rs] + t1[rs])], axis=1)
-    Q = evaluate_curves([spec[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
+    Q = evaluate_curves([sub[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
     if Q is not None and np.isfinite(Q).all():
         P[rs] = Q
     else:  # the per-curve path below names the use whose curve or range is bad
         simple[:] = False
     groups: dict[int, list[int]] = {}
     for i in np.flatnonzero(~simple).tolist():
-        groups.setdefault(id(spec[i].curve), []).append(i)
+        groups.setdefault(id(sub[i].curve), []).append(i)
     for rows in groups.values():
         r = np.asarray(rows)
-        curve = spec[rows[0]].curve
+        curve = sub[rows[0]].curve
         tt = np.concatenate([t0[r], t1[r], 0.5 * (t0[r] + t1[r])])
         try:
             Q = np.asarray(curve.evaluate(tt), dtype=np.float64).reshape(3, r.size, 3)
@@ -356,26 +403,21 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
         if not np.all(np.isfinite(Q)):
             raise InvalidInputError(f"{name(rows[0])}: its curve evaluates to non-finite points")
         P[r] = Q.transpose(1, 0, 2)
-    kind = np.array([_LINE if type(e.curve) is Line else _CIRCLE if type(e.curve) is Circle else 0 for e in spec],
-                    dtype=np.int8)
-    frame = np.zeros((k, 4))
+    kind = np.array([_LINE if type(e.curve) is Line else _CIRCLE if type(e.curve) is Circle else 0 for e in sub],
+                    dtype=np.float64)
+    frame = np.zeros((n, 4))
     for code, attr in ((_LINE, "origin"), (_CIRCLE, "center")):
         rows = np.flatnonzero(kind == code)
         if rows.size:
-            frame[rows, :3] = [getattr(spec[i].curve, attr) for i in rows.tolist()]
+            frame[rows, :3] = [getattr(sub[i].curve, attr) for i in rows.tolist()]
             if code == _CIRCLE:
-                frame[rows, 3] = [float(spec[i].curve.radius) for i in rows.tolist()]
-    value = [is_value(e.curve) for e in spec]
-    first = 0
-    for fi, n in zip(missing, counts):
-        sl = slice(first, first + n)
-        first += n
-        x = _FaceUses()
-        x.where, x.ranges, x.points, x.kind, x.frame = (_read_only(a[sl].copy()) for a in (w[:, 1:], ranges, P, kind, frame))
-        out[fi] = x
-        if all(value[sl]):
-            _FACE_USES.set(faces[fi], x)
-    return out  # type: ignore[return-value]
+                frame[rows, 3] = [float(sub[i].curve.radius) for i in rows.tolist()]
+    new = np.concatenate([P.reshape(n, 9), ranges, kind[:, None], frame], axis=1)
+    out[need] = new
+    for e, row in zip(sub, new):
+        if is_value(e.curve):
+            _USE_ROWS.set(e, _read_only(row.copy()))
+    return out
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -834,11 +876,12 @@ def _assemble(
     is_left[left] = True
     ref = np.where(is_left, edge_of + 1, -(edge_of + 1))
     face_loops: list[list[list[int]]] = []
+    refs = ref.tolist()
     i = 0
     for f in faces:
         loops = []
         for loop in f.loops:
-            loops.append(ref[i : i + len(loop)].tolist())
+            loops.append(refs[i : i + len(loop)])
             i += len(loop)
         face_loops.append(loops)
     b = BRepBuilder(t)

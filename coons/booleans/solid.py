@@ -166,7 +166,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
-from coons.topology.sew import EdgeSpec, FaceSpec, _face_uses, face_specs, sew_faces, sewn_unchanged, use_points
+from coons.topology.sew import EdgeSpec, FaceSpec, _face_uses, face_specs, sew_faces, sewn_unchanged
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -372,10 +372,10 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
     # edges): their operand.
     orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
-    points = _UsePoints()  # the uses' end and mid points, shared by the passes below
+    # (the uses' end and mid points: per face spec, sew.use_points, read by the three passes and sewing)
     faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
     faces = _merge(faces, t)
-    faces = _fuse_edges(faces, t, points)
+    faces = _fuse_edges(faces, t)
     out = _sew(faces, t)
     _SEWN[out.brep] = faces
     return out
@@ -2187,10 +2187,6 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
     or two collinear :class:`Line` edges whose p-curves are :class:`Line2D` on one line.  Closed
     edges are never created (the vertex stays when the fused edge would end where it starts).
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     tables = _face_uses(faces)  # the uses' points of the faces as they come, cached per face spec
     loops: dict[int, list[list[EdgeSpec]]] = {}  # the loops of the faces changed so far, as lists
     points = points if points is not None else _UsePoints()  # only a fused use is new in a round
@@ -2210,10 +2206,7 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
         face_of = np.repeat(np.arange(len(faces)), counts)
         where_a = np.concatenate(where)
         starts_a = np.concatenate(starts)
-        pairs = cKDTree(starts_a).query_pairs(r=t.linear, output_type="ndarray")
-        n = starts_a.shape[0]
-        g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        _, label = connected_components(g, directed=False)
+        label = _point_clusters(starts_a, t.linear)
         count = np.bincount(label)
         order = np.argsort(label, kind="stable")  # the uses leaving each vertex, ascending
         first = np.cumsum(count) - count
@@ -2247,6 +2240,36 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
     return [FaceSpec(f.surface, f.sense, loops[fi]) if fi in loops else f for fi, f in enumerate(faces)]
 
 
+def _point_clusters(X: np.ndarray, r: float) -> np.ndarray:
+    """Cluster label ``(n,)`` of points ``X (n, 3)``: the connected components of the pairs within ``r``,
+    numbered in the order of their first point.
+
+    Points at exactly the same place (the ends of uses of one curve object) are one point to the
+    k-d tree (most vertices of a model are met by several uses).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
+    Xs = X[order]
+    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
+    point_of = np.empty(X.shape[0], dtype=np.int64)
+    point_of[order] = np.cumsum(distinct) - 1
+    U = Xs[distinct]
+    pairs = cKDTree(U).query_pairs(r=r, output_type="ndarray")
+    m = U.shape[0]
+    g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    nc, label = connected_components(g, directed=False)
+    label = label[point_of]
+    # Numbered by their first point, as the components of all the points would be.
+    first = np.full(nc, X.shape[0], dtype=np.int64)
+    np.minimum.at(first, label, np.arange(X.shape[0]))
+    rank = np.empty(nc, dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(nc)
+    return rank[label]
+
+
 class _UsePoints:
     """Start, end and midpoint ``(3, 3)`` of edge uses, by curve object and range, evaluated once.
 
@@ -2257,19 +2280,6 @@ class _UsePoints:
 
     def __init__(self) -> None:
         self._got: dict[tuple[int, float, float], tuple[object, np.ndarray]] = {}
-
-    @staticmethod
-    def faces(faces: list[FaceSpec]) -> np.ndarray:
-        """``(k, 3, 3)``: start, end and midpoint of every use of ``faces`` in face, loop, position
-        order, from the per-face tables that sewing reads too (cached per face spec:
-        :func:`~coons.topology.sew.use_points`)."""
-        return use_points(faces)
-
-    @staticmethod
-    def tolerances(faces: list[FaceSpec]) -> np.ndarray:
-        """``(k,)``: the own tolerance of every use of ``faces`` (``EdgeSpec.tol``, 0 for None), in the same order."""
-        tables = _face_uses(faces)
-        return np.concatenate([x.ranges[:, 2] for x in tables]) if tables else np.empty(0)
 
     def get(self, uses: list[EdgeSpec]) -> np.ndarray:
         """``(k, 3, 3)``: start, end and midpoint of each use."""

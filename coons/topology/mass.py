@@ -608,14 +608,16 @@ def _tables(b: BRep) -> _Tables:
     shapes, coefs = [], []
     for pc, got in zip(b.pcurves, _PCURVE_ROWS.get_many(b.pcurves)):
         if got is None:
-            got = _pcurve_row(pc)
+            kind, row = _pcurve_row(pc)
+            got = (kind, _read_only(np.array(row, dtype=np.float64)))
             if is_value(pc):
                 _PCURVE_ROWS.set(pc, got)
         shapes.append(got[0])
         coefs.append(got[1])
     shapes.append(_P_MISSING)
-    coefs.append(_ZEROS8)
-    shape, coef = np.array(shapes, dtype=np.int8), np.array(coefs)  # classified as _classify_shapes does
+    coefs.append(np.zeros(8))
+    # (classified as _classify_shapes does)
+    shape, coef = np.array(shapes, dtype=np.int8), np.concatenate(coefs).reshape(len(coefs), 8)
     curved = np.array([not isinstance(c, Line) for c in b.curves] + [False]).take(b.edge_curve)
     fs = b.face_surface
     implicit = fs.size > 0 and int(fs.min()) < 0
@@ -659,11 +661,16 @@ def _pcurve_row(pc) -> tuple[int, list[float]]:
     return (_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD), _ZEROS8
 
 
-#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row`: the per-object rows of
-#: :class:`_Tables`, which a B-rep sewn from the faces of another (a Boolean's result) shares
-#: with it.  Rows are lists, never modified.
+#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (its row as a read-only
+#: array): the per-object rows of :class:`_Tables`, which a B-rep sewn from the faces of another
+#: (a Boolean's result) shares with it.  Rows are never modified.
 _SURFACE_ROWS = IdentityMemo()
 _PCURVE_ROWS = IdentityMemo()
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 def _flat_nets(nets: list) -> np.ndarray:

@@ -448,13 +448,27 @@ def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     k = len(uses)
     X = np.concatenate([uses.start, uses.end])
     ptol = np.concatenate([uses.tol, uses.tol])
-    pairs = cKDTree(X).query_pairs(r=float(ptol.max()), output_type="ndarray")
-    if pairs.size:
-        d = np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1)
-        pairs = pairs[d <= np.maximum(ptol[pairs[:, 0]], ptol[pairs[:, 1]])]
     n = X.shape[0]
-    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    # Ends at exactly the same point (the uses of one curve object meeting there: most of them)
+    # are one vertex whatever their tolerances; the distinct points are clustered, each with the
+    # largest tolerance of its ends (two points are within max(tol_i, tol_j) of some pair of their
+    # ends exactly when within the larger of those two maxima).
+    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
+    Xs = X[order]
+    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
+    at = np.flatnonzero(distinct)
+    point_of = np.empty(n, dtype=np.int64)
+    point_of[order] = np.cumsum(distinct) - 1
+    U = Xs[at]
+    utol = np.maximum.reduceat(ptol[order], at)
+    pairs = cKDTree(U).query_pairs(r=float(ptol.max()), output_type="ndarray")
+    if pairs.size:
+        d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
+        pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
+    m = U.shape[0]
+    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
     nv, label = connected_components(g, directed=False)
+    label = label[point_of]
     # Number vertices by first appearance so that vertex ids follow the input order.
     first = np.full(nv, n, dtype=np.int64)
     order_pts = np.concatenate([np.arange(k) * 2, np.arange(k) * 2 + 1])  # start of use i before its end

@@ -840,3 +840,20 @@ def test_prefilled_samples_are_the_single_ones():
             got = S._USE_SAMPLES[e]
             assert got[0] is surface
             np.testing.assert_array_equal(got[1], S._edge_uv(e, surface, S._LOOP_SAMPLES))
+
+
+@settings(max_examples=30)
+@given(st.lists(st.tuples(st.integers(0, 4), st.integers(0, 4), st.integers(0, 1)), min_size=1, max_size=40),
+       st.integers(0, 2**31 - 1))
+def test_point_clusters_are_the_components_of_all_pairs(cells, seed):
+    """_point_clusters (distinct points to the k-d tree) labels as scipy's components of all points do."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(seed)
+    X = np.array(cells, dtype=np.float64) * 1e-7 + (rng.random((len(cells), 1)) < 0.2) * rng.normal(0, 3e-8, (len(cells), 3))
+    r = 1e-7
+    pairs = cKDTree(X).query_pairs(r=r, output_type="ndarray")
+    g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(len(X), len(X)))
+    np.testing.assert_array_equal(S._point_clusters(X, r), connected_components(g, directed=False)[1])

@@ -22,7 +22,8 @@ operator                effect                                      inverse
 Coedge ids follow :mod:`coons.topology.brep`: ``c = 2 e + side``; ``mev``/``mef``/``mekr``
 take the coedge *after which* the new edge is inserted (it ends at the vertex where the
 new edge starts).  Geometry is attached with :meth:`set_vertex`, :meth:`set_edge_curve`,
-:meth:`set_pcurve` and :meth:`set_face_surface`.  :meth:`assemble` builds a whole shell
+:meth:`set_pcurve` and :meth:`set_face_surface` (for many entities at once, in the same pool
+order: :meth:`set_vertex_tols`, :meth:`set_edge_curves`, :meth:`set_pcurves`).  :meth:`assemble` builds a whole shell
 from face loops at once — the structure a sequence of Euler operators would produce, with
 Euler–Poincaré verified rather than assumed; it serves meshes, importers and the
 Boolean's sewing.  :meth:`build` compacts killed entities, checks every invariant and

@@ -40,6 +40,12 @@ def is_value(obj: Any) -> bool:
     return got
 
 
+class _Ref(weakref.ref):
+    """A weak reference that knows its entry's key (one shared callback removes dead entries)."""
+
+    __slots__ = ("key",)
+
+
 class IdentityMemo:
     """``object -> value`` by identity, weakly: an entry dies with its object.
 
@@ -50,7 +56,15 @@ class IdentityMemo:
     """
 
     def __init__(self) -> None:
-        self._data: dict[int, tuple[weakref.ref, Any]] = {}
+        self._data: dict[int, tuple[_Ref, Any]] = {}
+        data = self._data
+
+        def forget(ref: _Ref) -> None:
+            got = data.get(ref.key)
+            if got is not None and got[0] is ref:
+                del data[ref.key]
+
+        self._forget = forget
         _ALL.add(self)
 
     def get(self, obj: Any, default: Any = None) -> Any:
@@ -72,15 +86,9 @@ class IdentityMemo:
         """Remember ``value`` for ``obj``, which must be a value (:func:`is_value`)."""
         if not is_value(obj):
             raise TypeError(f"IdentityMemo keys must be immutable values (frozen dataclasses), got {type(obj).__name__}")
-        key = id(obj)
-        data = self._data
-
-        def forget(ref: weakref.ref, key: int = key) -> None:
-            got = data.get(key)
-            if got is not None and got[0] is ref:
-                del data[key]
-
-        data[key] = (weakref.ref(obj, forget), value)
+        ref = _Ref(obj, self._forget)
+        ref.key = id(obj)
+        self._data[ref.key] = (ref, value)
 
     def setdefault(self, obj: Any, factory: Callable[[], Any]) -> Any:
         """The value for ``obj``, made by ``factory()`` and remembered when absent."""

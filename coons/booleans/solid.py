@@ -136,10 +136,10 @@ Status and limitations
   vectorised call.  Propagation does not cross edges of faces near the other solid.
 * Cost: an operand is tessellated only when its classifier is needed (``_Operand.mesh``: some
   piece not decided locally, by propagation or by boxes); a Boolean still costs the whole of
-  both operands in ``sew_faces`` (matching and
-  the full check), and array passes over all edge uses in the T-junction, merge and fuse
-  passes, so sequential cuts into a large part still grow with its size; the plate of the
-  benchmark is far slower than OCCT (``benchmarks/results/booleans_brep.md``).
+  both operands in ``sew_faces`` (vertex clustering, matching and the topological checks over
+  all faces), and array passes over all edge uses in the T-junction, merge and fuse passes,
+  so sequential cuts into a large part still grow with its size, if slowly; the plate of the
+  benchmark is far slower than OCCT in one call (``benchmarks/results/booleans_brep.md``).
   Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
   depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
   compares warm and cold chains): a result remembers the completed face specs it was sewn
@@ -148,12 +148,18 @@ Status and limitations
   that spec's parameter box, space box, rings and segments (``_FACE_DATA``); loop samples and
   space boxes are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a
   split face keep (a split face's new space box joins its kept edges' boxes); a pair of face
-  specs found unmergeable is not tried again (``_MERGE_FAILED``).  Reused as well: an
-  operand's mesh when it was tessellated before (meshes are cached per B-rep; a result with
-  voids shares the mesh its void nesting made).  Local: the face boxes of the broad phase
-  (per face spec, from its edges, no tessellation); the end tolerance of a cut and the
-  T-junction pass only look at boundary edges whose box
-  (:func:`~coons.kernel.curve_intersect.curve_box`) is near the points in question.
+  specs found unmergeable is not tried again (``_MERGE_FAILED``), nor a face spec found not to
+  lie on another face's surface (``_NOT_ON``).  The end and mid points of a face's uses are
+  one table per face spec (:func:`~coons.topology.sew.use_points`), read by the T-junction,
+  merge and fuse passes and by sewing; the checker remembers its same-parameter measurements
+  per curve, p-curve, surface and range (:mod:`coons.topology.check`), so the faces carried
+  over are not sampled again, while every invariant is still verified on the whole result.
+  Reused as well: an operand's mesh when it was tessellated before (meshes are cached per
+  B-rep; a result with voids shares the mesh its void nesting made).  Local: the face boxes of
+  the broad phase (per face spec, from its edges, no tessellation); the end tolerance of a cut
+  and the T-junction pass only look at boundary edges whose box
+  (:func:`~coons.kernel.curve_intersect.curve_box`) is near the points in question, and the
+  T-junction pass finds the vertices near an unchanged face's box through a k-d tree.
 * Tangent contact along a curve gives cuts like any other branch; results touching themselves
   along a curve are non-manifold and raise at ``"sew"`` (a cylinder hole tangent to the outer
   wall).  Lumps touching at a point inside their faces (two spheres) stay separate shells.  An
@@ -186,8 +192,9 @@ from coons.kernel._common import used_ids
 from coons.kernel.analytic import Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
+from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
-from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces, sewn_unchanged_faces
+from coons.topology.sew import EdgeSpec, FaceSpec, _face_uses, face_specs, sew_faces, sewn_unchanged_faces, use_points
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -394,10 +401,10 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
     # edges): their operand.
     orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
-    points = _UsePoints()  # the uses' end and mid points, shared by the three passes below
-    faces = _split_edges_at_vertices(faces, t, orig, orig_edges, points)
-    faces = _merge(faces, t, points)
-    faces = _fuse_edges(faces, t, points)
+    # (the uses' end and mid points: per face spec, sew.use_points, read by the three passes and sewing)
+    faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
+    faces = _merge(faces, t)
+    faces = _fuse_edges(faces, t)
     out = _sew(faces, t)
     _SEWN[out.brep] = faces
     return out
@@ -2132,7 +2139,7 @@ def reversed_face(spec: FaceSpec) -> FaceSpec:
 
 # ---------------------------------------------------------------------- T-junctions
 def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None,
-                             orig_edges: dict | None = None, points: _UsePoints | None = None) -> list[FaceSpec]:
+                             orig_edges: dict | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -2155,50 +2162,58 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
 
     orig = orig or {}
     orig_edges = orig_edges or {}
-    points = points if points is not None else _UsePoints()
-    starts = points.get([e for f in faces for loop in f.loops for e in loop])[:, 0].reshape(-1, 3)
-    # A vertex is as uncertain as the widest tolerance of the uses meeting there.
-    start_tol = np.array([max(t.linear, e.tol or 0.0) for f in faces for loop in f.loops for e in loop])
-    if starts.shape[0] == 0:
+    if not faces:
         return faces
-    start_tol = _cluster_max(starts, start_tol)
+    tables = _face_uses(faces)  # the uses' points and tolerances, cached per face spec
+    starts = np.concatenate([x.points[:, 0] for x in tables])
+    # A vertex is as uncertain as the widest tolerance of the uses meeting there.
+    use_tol = np.maximum(np.concatenate([x.ranges[:, 2] for x in tables]), t.linear)
+    start_tol = _cluster_max(starts, use_tol)
+    first = np.cumsum([0] + [len(x.where) for x in tables])
     # An unchanged face or edge use of an operand can only meet vertices not of that operand
-    # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.
-    group = np.array([orig_edges.get(id(e), 0) for f in faces for loop in f.loops for e in loop], dtype=np.int64)
+    # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.  Every use of
+    # an unchanged face is an unchanged use of its operand.
+    info_of = [orig.get(id(f)) for f in faces]
+    group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), np.diff(first))
+    for k, f in enumerate(faces):
+        if info_of[k] is None:
+            group[first[k] : first[k + 1]] = [orig_edges.get(id(e), 0) for loop in f.loops for e in loop]
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
-    tree = cKDTree(starts)
-    # Which unchanged faces have a foreign vertex in their box, all in array passes (after many
-    # cuts most faces of a plate are unchanged and far from the new vertices).
-    kept = [k for k, f in enumerate(faces) if id(f) in orig]
-    near_any = np.zeros(len(faces), dtype=bool)
+    tree = None
+    # The foreign vertices in the box of each unchanged face (after many cuts most faces of a
+    # plate are unchanged and far from the new vertices; :func:`_foreign_in_boxes`).
+    kept = [k for k, i in enumerate(info_of) if i is not None]
+    face_foreign: dict[int, np.ndarray] = {}
     if kept:
-        info = [orig[id(faces[k])] for k in kept]
+        info = [info_of[k] for k in kept]
         g_of = np.array([i[0] for i in info], dtype=np.int64)
-        LO = np.array([i[1] for i in info], dtype=np.float64)
-        HI = np.array([i[2] for i in info], dtype=np.float64)
-        step = max(1, _CLEAR_CHUNK // max(1, starts.shape[0]))
-        for s0 in range(0, len(kept), step):
-            sl = slice(s0, s0 + step)
-            # (the same comparisons as the per-face test below, for a block of faces)
-            box_in = np.all((starts[None] >= LO[sl, None, :] - start_tol[None, :, None])
-                            & (starts[None] <= HI[sl, None, :] + start_tol[None, :, None]), axis=2)
-            near_any[np.asarray(kept[sl])] = np.any(box_in & (group[None, :] != g_of[sl, None]), axis=1)
+        LO = np.array([i[1] for i in info], dtype=np.float64).reshape(-1, 3)
+        HI = np.array([i[2] for i in info], dtype=np.float64).reshape(-1, 3)
+        for g in (1, 2):
+            sel = np.flatnonzero(g_of == g)
+            foreign = np.flatnonzero(group != g)
+            if sel.size and foreign.size:
+                for k, inside in zip(sel.tolist(), _foreign_in_boxes(LO[sel], HI[sel], starts, start_tol, foreign)):
+                    if inside.size:
+                        face_foreign[kept[k]] = inside
     out = []
     changed_any = False
     for k, f in enumerate(faces):
-        info = orig.get(id(f))
-        face_foreign = None
-        if info is not None:
-            if not near_any[k]:
+        near = None
+        if info_of[k] is not None:
+            inside = face_foreign.get(k)
+            if inside is None:
                 out.append(f)  # no foreign vertex near this face
                 continue
-            g, lo, hi = info
-            other = group != g
-            inside = other & np.all((starts >= lo - start_tol[:, None]) & (starts <= hi + start_tol[:, None]), axis=1)
-            face_foreign = starts[inside], start_tol[inside]
+            near = starts[inside], start_tol[inside]
+        sl = slice(int(first[k]), int(first[k + 1]))
+        clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of)
+        if clear.all():
+            out.append(f)  # no vertex can split any of its uses
+            continue
         loops = []
         face_changed = False
-        clear = iter(_clear_uses([e for loop in f.loops for e in loop], face_foreign, foreign_of, orig_edges, t).tolist())
+        clear = iter(clear.tolist())
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
@@ -2211,6 +2226,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 c = X.mean(axis=0)
                 rad = float(np.max(np.linalg.norm(X - c, axis=1)))
                 # Chords of 16 steps deviate little; the radius is padded by the chord error bound.
+                if tree is None:
+                    tree = cKDTree(starts)
                 cand = tree.query_ball_point(c, rad * 1.05 + thr)
                 params: list[float] = []
                 if cand:
@@ -2246,29 +2263,32 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     return out if changed_any else faces
 
 
-def _clear_uses(edges: list[EdgeSpec], face_foreign, foreign_of: dict, orig_edges: dict, t: Tolerance) -> np.ndarray:
+def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict) -> np.ndarray:
     """``(k,)`` bool: which of a face's edge uses no vertex can split (see :func:`_split_edges_at_vertices`).
 
-    An unchanged edge use can only be split by a foreign vertex (``face_foreign``, the foreign
-    vertices in an unchanged face's box, else ``foreign_of[operand of the use]``; a new use has
-    none and is never clear): a use is clear when no such vertex lies in its box
-    (:func:`_use_box`) padded by both tolerances.  All uses of one group against all their
-    foreign vertices in one array test (a plate face with many holes has many edges).
+    ``group (k,)``: the operand of each use (0 for a new one), ``thr (k,)`` its tolerance
+    (at least ``tol.linear``).  An unchanged edge use can only be split by a foreign vertex
+    (``face_foreign``, the foreign vertices in an unchanged face's box, else
+    ``foreign_of[operand of the use]``; a new use has none and is never clear): a use is clear
+    when no such vertex lies in its box (:func:`_use_box`) padded by both tolerances.  All uses
+    of one group against all their foreign vertices in one array test (a plate face with many
+    holes has many edges).
     """
     clear = np.zeros(len(edges), dtype=bool)
-    groups: dict[int, list[int]] = {}
-    for i, e in enumerate(edges):
-        key = -1 if face_foreign is not None else orig_edges.get(id(e), 0)
-        if key in foreign_of or key == -1:
-            if _use_box(e) is not None:
-                groups.setdefault(key, []).append(i)
-    for key, idx in groups.items():
+    keys = np.full(len(edges), -1, dtype=np.int64) if face_foreign is not None else group
+    for key in np.unique(keys).tolist():
+        if key != -1 and key not in foreign_of:
+            continue
+        rows = np.flatnonzero(keys == key).tolist()
+        boxes = _use_boxes([edges[i] for i in rows])
+        idx = np.array([i for i, b in zip(rows, boxes) if b is not None], dtype=np.int64)
+        if idx.size == 0:
+            continue
         P, ptol = face_foreign if key == -1 else foreign_of[key]
-        thr = np.array([max(t.linear, edges[i].tol or 0.0) for i in idx])
-        B = np.stack([_use_box(edges[i]) for i in idx])  # (n, 2, 3)
+        B = np.concatenate([b for b in boxes if b is not None]).reshape(-1, 2, 3)
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
-        for s0 in range(0, len(idx), step):
-            pad = (ptol[None, :] + thr[s0 : s0 + step, None])[..., None]  # (n, m, 1)
+        for s0 in range(0, idx.size, step):
+            pad = (ptol[None, :] + thr[idx[s0 : s0 + step], None])[..., None]  # (n, m, 1)
             Bs = B[s0 : s0 + step, None]
             near = np.all((P[None] >= Bs[:, :, 0] - pad) & (P[None] <= Bs[:, :, 1] + pad), axis=2).any(axis=1)
             clear[idx[s0 : s0 + step]] = ~near
@@ -2279,23 +2299,64 @@ def _clear_uses(edges: list[EdgeSpec], face_foreign, foreign_of: dict, orig_edge
 _CLEAR_CHUNK = 1 << 18
 
 
+def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.ndarray,
+                      cand: np.ndarray) -> list[np.ndarray]:
+    """Per box ``lo[i], hi[i] (3,)``, the points ``P[j]`` of ``cand`` (ascending indices) inside it
+    padded by their tolerance ``ptol[j]`` (``lo - ptol <= P <= hi + ptol`` in every coordinate),
+    ascending.
+
+    A k-d tree of the candidate points proposes those within a ball around each box's centre
+    that holds the whole padded box (half its diagonal plus ``√3`` times the largest tolerance,
+    with a margin for round-off); the box test itself decides.  Boxes times points would grow
+    with the square of a part's size: every unchanged face of a plate against every vertex.
+    """
+    from scipy.spatial import cKDTree
+
+    n = lo.shape[0]
+    if cand.size == 0:
+        return [cand] * n
+    Q, qt = P[cand], ptol[cand]
+    centre = 0.5 * (lo + hi)
+    half = 0.5 * np.linalg.norm(hi - lo, axis=1)
+    scale = np.abs(centre).max(axis=1) + half
+    radius = half + 2.0 * float(qt.max()) + 1e-9 * (1.0 + scale)
+    hits = cKDTree(Q).query_ball_point(centre, radius, return_sorted=True)
+    out = []
+    for i, h in enumerate(hits):
+        h = np.asarray(h, dtype=np.int64)
+        if h.size:
+            pad = qt[h, None]
+            ok = np.all((Q[h] >= lo[i] - pad) & (Q[h] <= hi[i] + pad), axis=1)
+            h = h[ok]
+        out.append(cand[h])
+    return out
+
+
 def _use_box(e: EdgeSpec) -> np.ndarray | None:
     """:func:`_edge_box` of an edge use, cached per use (an EdgeSpec is immutable).
 
     The uses of the faces a Boolean result carries over to the next Boolean are the same
     objects (``_SEWN``): their boxes are computed once for a chain of cuts.
     """
-    got = _USE_BOXES.get(e, _NO_BOX)
-    if got is _NO_BOX:
-        got = _edge_box(e)
-        if got is not None:
-            got = _frozen(np.asarray(got, dtype=np.float64))
-        _USE_BOXES[e] = got
-    return got
+    return _use_boxes([e])[0]
+
+
+def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
+    """:func:`_use_box` of each use (one memo look-up for all)."""
+    out = _USE_BOXES.get_many(edges)
+    for k, got in enumerate(out):
+        if got is None:
+            e = edges[k]
+            got = _edge_box(e)
+            got = _NO_BOX if got is None else _frozen(np.asarray(got, dtype=np.float64))
+            _USE_BOXES.set(e, got)
+            out[k] = got
+    return [None if got is _NO_BOX else got for got in out]
 
 
 _NO_BOX = object()
-_USE_BOXES: "weakref.WeakKeyDictionary[EdgeSpec, np.ndarray | None]" = weakref.WeakKeyDictionary()
+#: Edge use -> its :func:`_edge_box` (``_NO_BOX`` for none).
+_USE_BOXES = IdentityMemo()
 
 
 def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
@@ -2304,6 +2365,8 @@ def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
+    if tol.size == 0 or tol.min() == tol.max():
+        return tol.copy()  # one tolerance: every cluster's largest is that
     pairs = cKDTree(X).query_pairs(r=float(tol.max()), output_type="ndarray")
     if pairs.size:
         d = np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1)
@@ -2317,9 +2380,9 @@ def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- merge
-def _merge(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
+def _merge(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
     """Merge neighbouring faces on one surface with one sense (see the module docstring)."""
-    return _merge_faces(faces, t, points)
+    return _merge_faces(faces, t)
 
 
 def _same_surface(S1, S2, t: Tolerance) -> bool:
@@ -2333,56 +2396,60 @@ def _same_surface(S1, S2, t: Tolerance) -> bool:
         return False
 
 
-def _merge_faces(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None = None) -> list[FaceSpec]:
-    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense
-    (``points``: the use points known so far, shared with the neighbouring phases)."""
+def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense."""
     from scipy.spatial import cKDTree
 
     faces = list(faces)
     failed: set[tuple] = set()  # pairs of uses already tried (their faces are kept alive in ``seen``)
     seen: list[tuple[FaceSpec, FaceSpec]] = []
-    # A merged face keeps the uses of its two faces (B's perhaps with other p-curves, never other
-    # curves or ranges): after the first round nothing is evaluated again.
-    points = points if points is not None else _UsePoints()
+    kinds: dict[type, int] = {}
+    # The uses' points come from the per-face tables (:func:`~coons.topology.sew.use_points`):
+    # faces carried over from an operand are not evaluated again, a merged face once.
     changed = True
     while changed:
         changed = False
-        uses = []  # (face, loop, pos, (start, end, mid))
-        for fi, f in enumerate(faces):
-            for li, loop in enumerate(f.loops):
-                for pi, e in enumerate(loop):
-                    uses.append((fi, li, pi, e))
-        if len(uses) < 2:
+        tables = _face_uses(faces)
+        counts = [len(x.where) for x in tables]
+        if sum(counts) < 2:
             break
-        P3 = points.get([u[3] for u in uses])
-        uses = [(fi, li, pi, P3[k]) for k, (fi, li, pi, _) in enumerate(uses)]
-        M = P3[:, 2]
-        pairs = cKDTree(M).query_pairs(r=max(t.linear, 1e-12), output_type="ndarray")
-        for p, q in pairs.tolist():
-            fp, fq = uses[p][0], uses[q][0]
-            if fp == fq:
-                continue
+        face_of = np.repeat(np.arange(len(faces)), counts)
+        W = np.concatenate([x.where for x in tables])  # loop, position, loop length
+        tol = np.concatenate([x.ranges[:, 2] for x in tables])
+        P3 = np.concatenate([x.points for x in tables])  # start, end, mid
+        pairs = cKDTree(P3[:, 2]).query_pairs(r=max(t.linear, 1e-12), output_type="ndarray").reshape(-1, 2)
+        # Only uses of two faces on surfaces of one type that run between the same two points
+        # the opposite way can be merged across; the test of the loop below, all pairs at once
+        # with a margin (it passes every pair the exact test passes, which then decides).
+        kind = np.array([kinds.setdefault(type(f.surface), len(kinds)) for f in faces], dtype=np.int64)[face_of]
+        p, q = pairs[:, 0], pairs[:, 1]
+        reach = np.square(np.maximum(np.maximum(tol[p], tol[q]), t.linear) * (1.0 + 1e-9))
+        keep = ((face_of[p] != face_of[q]) & (kind[p] == kind[q])
+                & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
+                & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
+        face_l, where_l = face_of.tolist(), W[:, :2].tolist()
+        for p, q in pairs[keep].tolist():
+            fp, fq = face_l[p], face_l[q]
             A, B = faces[fp], faces[fq]
-            if type(A.surface) is not type(B.surface):
-                continue
-            key = (id(A), uses[p][1], uses[p][2], id(B), uses[q][1], uses[q][2])
+            up, uq = tuple(where_l[p]), tuple(where_l[q])
+            key = (id(A), up, id(B), uq)
             if key in failed:
-                continue
-            failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
-            seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
-            up, uq = uses[p][1:3], uses[q][1:3]
-            ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
-            Pa, Pb = uses[p][3], uses[q][3]
-            thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
-            if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
                 continue
             memo = (up, uq, t)
             known = _MERGE_FAILED.get(A)
-            if known is not None and memo in known.get(B, ()):
+            known = known.get(id(B)) if known is not None else None
+            if known is not None and known[0]() is B and memo in known[1]:
                 continue  # found unmergeable by an earlier Boolean on the same two face specs
+            failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
+            seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
+            ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+            Pa, Pb = P3[p], P3[q]
+            thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
+            if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
+                continue
             merged = _merged_pair(A, B, up, uq, t)
             if merged is None:
-                _MERGE_FAILED.setdefault(A, weakref.WeakKeyDictionary()).setdefault(B, set()).add(memo)
+                _merge_failed(A, B, memo)
                 continue
             faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
             changed = True
@@ -2395,7 +2462,20 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None 
 #: (immutable) specs, the two uses and the tolerance, so a Boolean result's faces that pass through
 #: the next Boolean unchanged (the same spec objects, see ``_SEWN``) are not tried again: the two
 #: halves of every hole's wall in a plate would otherwise be re-tested by every later cut.
-_MERGE_FAILED: "weakref.WeakKeyDictionary[FaceSpec, weakref.WeakKeyDictionary]" = weakref.WeakKeyDictionary()
+_MERGE_FAILED = IdentityMemo()
+
+
+def _merge_failed(A: FaceSpec, B: FaceSpec, memo: tuple) -> None:
+    """Remember in :data:`_MERGE_FAILED` that ``A`` and ``B`` do not merge across the uses of ``memo``.
+
+    Per A, a dict on ``id(B)`` holding a weak reference to B (checked on look-up: a recycled id
+    never finds another face's entry) and the set of failed use pairs.
+    """
+    known = _MERGE_FAILED.setdefault(A, dict)
+    got = known.get(id(B))
+    if got is None or got[0]() is not B:
+        got = known[id(B)] = (weakref.ref(B), set())
+    got[1].add(memo)
 
 
 def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, int], t: Tolerance) -> FaceSpec | None:
@@ -2451,8 +2531,24 @@ def _moved_to(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
     """Face B on surface S (the same point set as B's surface), or None when B does not lie on S.
 
     The p-curves are recomputed by ``pcurve_on`` and the sense follows from comparing the normals
-    at an interior point of B.
+    at an interior point of B.  A function of B, S and ``t`` alone (all immutable): a None is
+    remembered (:data:`_NOT_ON`), as a face carried over from an operand meets the same
+    neighbouring surface again in every later Boolean (a plate's side faces and its top).
     """
+    if any(s is S and u == t for s, u in _NOT_ON.get(B, ())):
+        return None
+    out = _moved(B, S, t)
+    if out is None and is_value(S):
+        _NOT_ON.set(B, _NOT_ON.get(B, ()) + ((S, t),))
+    return out
+
+
+#: Face spec -> ``((surface, tol), ...)`` on which :func:`_moved_to` found it does not lie.
+_NOT_ON = IdentityMemo()
+
+
+def _moved(B: FaceSpec, S, t: Tolerance) -> FaceSpec | None:
+    """:func:`_moved_to`, computed."""
     from coons.kernel.onsurface import pcurve_on
 
     try:
@@ -2604,33 +2700,36 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
     or two collinear :class:`Line` edges whose p-curves are :class:`Line2D` on one line.  Closed
     edges are never created (the vertex stays when the fused edge would end where it starts).
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    loops = [[list(loop) for loop in f.loops] for f in faces]
-    changed: set[int] = set()
+    tables = _face_uses(faces)  # the uses' points of the faces as they come, cached per face spec
+    loops: dict[int, list[list[EdgeSpec]]] = {}  # the loops of the faces changed so far, as lists
     points = points if points is not None else _UsePoints()  # only a fused use is new in a round
     for _ in range(64):  # each round removes at least one vertex; a bound against surprises
-        where, uses = [], []
-        for fi, fl in enumerate(loops):
-            for li, loop in enumerate(fl):
-                for pi, e in enumerate(loop):
-                    where.append((fi, li, pi))
-                    uses.append(e)
-        starts_a = points.get(uses)[:, 0]
-        pairs = cKDTree(starts_a).query_pairs(r=t.linear, output_type="ndarray")
-        n = starts_a.shape[0]
-        g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        _, label = connected_components(g, directed=False)
+        starts, where = [], []
+        for fi, x in enumerate(tables):
+            fl = loops.get(fi)
+            if fl is None:
+                starts.append(x.points[:, 0])
+                where.append(x.where[:, :2])
+            else:
+                uses = [e for loop in fl for e in loop]
+                starts.append(points.get(uses)[:, 0])
+                where.append(np.array([(li, pi) for li, loop in enumerate(fl) for pi in range(len(loop))],
+                                      dtype=np.int64).reshape(-1, 2))
+        counts = [w.shape[0] for w in where]
+        face_of = np.repeat(np.arange(len(faces)), counts)
+        where_a = np.concatenate(where)
+        starts_a = np.concatenate(starts)
+        label = _point_clusters(starts_a, t.linear)
         count = np.bincount(label)
+        order = np.argsort(label, kind="stable")  # the uses leaving each vertex, ascending
+        first = np.cumsum(count) - count
         fused = False
         for v in np.flatnonzero(count == 2).tolist():
-            leaving = np.flatnonzero(label == v).tolist()
+            leaving = order[first[v] : first[v] + 2].tolist()
             plan = []
             for k in leaving:
-                fi, li, pi = where[k]
-                loop = loops[fi][li]
+                fi, li, pi = int(face_of[k]), int(where_a[k, 0]), int(where_a[k, 1])
+                loop = loops[fi][li] if fi in loops else faces[fi].loops[li]
                 if len(loop) < 3:
                     break
                 prev = loop[pi - 1]
@@ -2641,16 +2740,47 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
             if len(plan) != 2 or plan[0][:2] == plan[1][:2]:
                 continue
             for fi, li, pi, joined in plan:
+                if fi not in loops:
+                    loops[fi] = [list(loop) for loop in faces[fi].loops]
                 loop = loops[fi][li]
                 loop[pi - 1] = joined
                 del loop[pi]
-                changed.add(fi)
             fused = True
             break  # indices changed: recompute
         if not fused:
             break
     # Untouched faces stay the same objects (the next Boolean recognises them, see _SEWN).
-    return [FaceSpec(f.surface, f.sense, fl) if fi in changed else f for fi, (f, fl) in enumerate(zip(faces, loops))]
+    return [FaceSpec(f.surface, f.sense, loops[fi]) if fi in loops else f for fi, f in enumerate(faces)]
+
+
+def _point_clusters(X: np.ndarray, r: float) -> np.ndarray:
+    """Cluster label ``(n,)`` of points ``X (n, 3)``: the connected components of the pairs within ``r``,
+    numbered in the order of their first point.
+
+    Points at exactly the same place (the ends of uses of one curve object) are one point to the
+    k-d tree (most vertices of a model are met by several uses).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
+    Xs = X[order]
+    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
+    point_of = np.empty(X.shape[0], dtype=np.int64)
+    point_of[order] = np.cumsum(distinct) - 1
+    U = Xs[distinct]
+    pairs = cKDTree(U).query_pairs(r=r, output_type="ndarray")
+    m = U.shape[0]
+    g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    nc, label = connected_components(g, directed=False)
+    label = label[point_of]
+    # Numbered by their first point, as the components of all the points would be.
+    first = np.full(nc, X.shape[0], dtype=np.int64)
+    np.minimum.at(first, label, np.arange(X.shape[0]))
+    rank = np.empty(nc, dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(nc)
+    return rank[label]
 
 
 class _UsePoints:

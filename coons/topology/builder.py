@@ -22,7 +22,8 @@ operator                effect                                      inverse
 Coedge ids follow :mod:`coons.topology.brep`: ``c = 2 e + side``; ``mev``/``mef``/``mekr``
 take the coedge *after which* the new edge is inserted (it ends at the vertex where the
 new edge starts).  Geometry is attached with :meth:`set_vertex`, :meth:`set_edge_curve`,
-:meth:`set_pcurve` and :meth:`set_face_surface`.  :meth:`assemble` builds a whole shell
+:meth:`set_pcurve` and :meth:`set_face_surface` (for many entities at once, in the same pool
+order: :meth:`set_vertex_tols`, :meth:`set_edge_curves`, :meth:`set_pcurves`).  :meth:`assemble` builds a whole shell
 from face loops at once — the structure a sequence of Euler operators would produce, with
 Euler–Poincaré verified rather than assumed; it serves meshes, importers and the
 Boolean's sewing.  :meth:`build` compacts killed entities, checks every invariant and
@@ -82,7 +83,7 @@ class BRepBuilder:
         self.surfaces: list[Any] = []
         self.curves: list[Any] = []
         self.pcurves: list[Any] = []
-        self._pool_index: dict[tuple[str, int], int] = {}
+        self._pool_index: dict[str, dict[int, int]] = {"surfaces": {}, "curves": {}, "pcurves": {}}
 
     # ================================================================ small helpers
     def _new_vertex(self, point) -> int:
@@ -543,12 +544,13 @@ class BRepBuilder:
     def _pool(self, kind: str, obj: Any) -> int:
         if obj is None:
             return -1
-        key = (kind, id(obj))
-        if key not in self._pool_index:
+        index = self._pool_index[kind]
+        key = id(obj)
+        if key not in index:
             pool = getattr(self, kind)
             pool.append(obj)
-            self._pool_index[key] = len(pool) - 1
-        return self._pool_index[key]
+            index[key] = len(pool) - 1
+        return index[key]
 
     def set_vertex(self, vertex: int, point=None, tol: float | None = None) -> None:
         if point is not None:
@@ -569,6 +571,57 @@ class BRepBuilder:
     def set_pcurve(self, coedge: int, pcurve: Any) -> None:
         """Attach the p-curve of one side of an edge (same parameter as the 3-D curve)."""
         self.epcurve[coedge >> 1][coedge & 1] = self._pool("pcurves", pcurve)
+
+    def _pool_many(self, kind: str, objs: Sequence[Any]) -> list[int]:
+        """:meth:`_pool` of each object in turn (the same pool order)."""
+        index, pool, out = self._pool_index[kind], getattr(self, kind), []
+        for obj in objs:
+            if obj is None:
+                out.append(-1)
+                continue
+            i = index.get(id(obj))
+            if i is None:
+                pool.append(obj)
+                i = index[id(obj)] = len(pool) - 1
+            out.append(i)
+        return out
+
+    def set_vertex_tols(self, vertices: np.ndarray, tols: np.ndarray) -> None:
+        """:meth:`set_vertex` with ``tol`` for many vertices at once."""
+        vtol = self.vtol
+        for v, x in zip(np.asarray(vertices, dtype=np.int64).tolist(), np.asarray(tols, dtype=np.float64).tolist()):
+            vtol[v] = x
+
+    def set_edge_curves(self, edges: np.ndarray, curves: Sequence[Any], t_ranges: np.ndarray,
+                        tols: np.ndarray | None = None) -> None:
+        """:meth:`set_edge_curve` for many edges at once, in order (curves pooled in that order).
+
+        Raises
+        ------
+        InvalidInputError
+            A range that does not increase (the first such edge is named; nothing is set).
+        """
+        edges = np.asarray(edges, dtype=np.int64).ravel()
+        r = np.asarray(t_ranges, dtype=np.float64).reshape(-1, 2)
+        bad = np.flatnonzero(~(r[:, 0] < r[:, 1]))
+        if bad.size:
+            k = int(bad[0])
+            raise InvalidInputError(f"edge {int(edges[k])}: curve range must increase, got ({r[k, 0]!r}, {r[k, 1]!r})")
+        idx = self._pool_many("curves", curves)
+        ecurve, erange, etol = self.ecurve, self.erange, self.etol
+        el, rl = edges.tolist(), r.tolist()
+        for e, i, (t0, t1) in zip(el, idx, rl):
+            ecurve[e] = i
+            erange[e] = (t0, t1)
+        if tols is not None:
+            for e, x in zip(el, np.asarray(tols, dtype=np.float64).tolist()):
+                etol[e] = x
+
+    def set_pcurves(self, coedges: np.ndarray, pcurves: Sequence[Any]) -> None:
+        """:meth:`set_pcurve` for many coedges at once, in order (p-curves pooled in that order)."""
+        ep = self.epcurve
+        for c, i in zip(np.asarray(coedges, dtype=np.int64).tolist(), self._pool_many("pcurves", pcurves)):
+            ep[c >> 1][c & 1] = i
 
     def set_face_surface(self, face: int, surface: Any, sense: bool = True) -> None:
         self.fsurface[face] = self._pool("surfaces", surface)
@@ -636,7 +689,8 @@ class BRepBuilder:
 
         nf = len(face_ids)
         ce = np.arange(2 * e_off, 2 * len(self.ev))
-        cf = np.array([self.lface[self.cloop[c]] for c in ce]) - face_ids[0] if nf else np.empty(0, int)
+        cf = np.asarray(self.lface, dtype=np.int64)[np.asarray(self.cloop[ce[0]:], dtype=np.int64)] - face_ids[0] \
+            if nf and ce.size else np.empty(0, np.int64)
         a, b = cf[0::2], cf[1::2]
         graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
         n_comp, labels = connected_components(graph, directed=False)
@@ -741,18 +795,19 @@ class BRepBuilder:
         if not (target == origin[nxt]).all():
             return None
         c = 2 * (e + e_off) + side
-        # Faces and loops in input order (few; their geometry goes through the pools).
-        face_ids: list[int] = []
-        loop_ids: list[int] = []
-        for fi, loops in enumerate(face_loops):
-            f = self._assembled_face(fi, face_surfaces, face_senses)
-            face_ids.append(f)
-            for li in range(len(loops)):
-                l = self._new_loop(f)
-                loop_ids.append(l)
-                if li == 0:
-                    self.fouter[f] = l
-        lid = np.asarray(loop_ids, dtype=np.int64)
+        # Faces in input order (their geometry goes through the pools), then their loops, face by
+        # face: the rows _new_loop would add, with their first coedges.
+        face_ids = [self._assembled_face(fi, face_surfaces, face_senses) for fi in range(len(face_loops))]
+        n_loops = [len(loops) for loops in face_loops]
+        l0 = len(self.lface)
+        lid = np.arange(l0, l0 + lens_a.size, dtype=np.int64)
+        self.lface.extend(np.repeat(np.asarray(face_ids, dtype=np.int64), n_loops).tolist())
+        self.lcoedge.extend(c[first].tolist())
+        self.lvertex.extend([-1] * lens_a.size)
+        self.lalive.extend([True] * lens_a.size)
+        for f, l, k in zip(face_ids, (l0 + np.cumsum(n_loops) - n_loops).tolist(), n_loops):
+            if k:
+                self.fouter[f] = l  # the first loop is the outer one
         base = 2 * e_off
         link = np.empty(2 * ne, dtype=np.int64)
         back = np.empty(2 * ne, dtype=np.int64)
@@ -763,9 +818,6 @@ class BRepBuilder:
         self.nxt[base:] = link.tolist()
         self.prv[base:] = back.tolist()
         self.cloop[base:] = cl.tolist()
-        for l, c0 in zip(loop_ids, c[first].tolist()):
-            self.lcoedge[l] = c0
-            self.lvertex[l] = -1
         # Each new vertex's coedge: the first new coedge (in coedge order) leaving it.
         cs = np.arange(base, base + 2 * ne)
         orig = ev.ravel()  # origin of coedge base + 2 e + side is ev[e, side]

@@ -9,7 +9,14 @@ polyhedral faces, self-intersecting trim loops, faces lying on the left of their
 shells enclose positive volume, voids negative).  It does not repair anything.
 
 Geometric checks sample each edge at a fixed number of parameters (``samples``); a sampled
-check can miss a deviation between samples, so tolerances are verified, not proven.  The
+check can miss a deviation between samples, so tolerances are verified, not proven.  What the
+same-parameter check measures along a coedge (the p-curve samples, the surface's speed there,
+the largest distance from the 3-D curve, the curve's end points) depends only on its curve,
+p-curve, surface, edge range and ``samples``, all immutable values: it is remembered per those
+(``_SAME_PARAMETER``, weakly keyed by the p-curve) and compared against the coedge's own edge
+and vertex tolerances every time, so a B-rep sharing most of its geometry with one checked
+before (a Boolean's result and its operand) samples only its new coedges.  Every other check,
+topological and geometric (trims, orientation, volumes), runs on the whole model.  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
 :func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
@@ -29,6 +36,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
+from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]
@@ -154,14 +162,21 @@ def _check_pointers(b: BRep, out: list[Problem]) -> None:
 
 
 def _cycle_lengths(perm: np.ndarray) -> np.ndarray:
-    """Length of the cycle of the permutation ``perm`` through each element (pointer doubling).
+    """Length of the cycle of the permutation ``perm`` through each element (pointer doubling,
+    :func:`_cycle_labels`).  About 2–3 times faster than labelling the components of the
+    permutation graph with scipy (the polyhedral Booleans check every result)."""
+    label = _cycle_labels(perm)
+    return np.bincount(label, minlength=label.size)[label]
+
+
+def _cycle_labels(perm: np.ndarray) -> np.ndarray:
+    """The least element of the cycle of the permutation ``perm`` through each element (pointer doubling).
 
     ``label`` holds the minimum over the window ``i, σ(i), …, σ^(2^r − 1)(i)``; each round doubles
     the window (``label = min(label, label[σ^(2^r)])``, ``σ^(2^(r+1)) = σ^(2^r) ∘ σ^(2^r)``).  When a
     round changes nothing the labels are stable for every later round (``label[σ^(2^(r+1))(i)] =
     label[σ^(2^r)(σ^(2^r)(i))] = label[i]``), so they already are the minima of whole cycles;
-    ``⌈log2(longest cycle)⌉ + 1`` rounds at most.  About 2–3 times faster than labelling the
-    components of the permutation graph with scipy (the polyhedral Booleans check every result).
+    ``⌈log2(longest cycle)⌉ + 1`` rounds at most.
     """
     n = perm.shape[0]
     label = np.arange(n)
@@ -172,7 +187,7 @@ def _cycle_lengths(perm: np.ndarray) -> np.ndarray:
             break
         np.minimum(label, lp, out=label)
         p = p[p]
-    return np.bincount(label, minlength=n)[label]
+    return label
 
 
 #: Steps walked along every cycle by :func:`_cycle_lengths_at` before the long ones go to pointer doubling.
@@ -338,8 +353,11 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.nda
     """``pcurves[which[k]]`` at the parameters ``T[k]``, ``(k, n, 2)``, lines and ellipses in array time;
     and whether each is a :class:`Line2D`, ``(k,)``."""
     out = np.empty(T.shape + (2,))
-    kind = np.array([0 if isinstance(p, Line2D) else 1 if isinstance(p, Trig2D) else 2 for p in pcurves] + [2])
-    k = kind[which]
+    which = np.asarray(which, dtype=np.int64)
+    ids, inv = np.unique(which, return_inverse=True)
+    kind = np.array([0 if isinstance(pcurves[i], Line2D) else 1 if isinstance(pcurves[i], Trig2D) else 2
+                     for i in ids.tolist()], dtype=np.int64)
+    k = kind[inv.reshape(-1)] if ids.size else np.empty(0, dtype=np.int64)
     rows = np.flatnonzero(k == 0)
     if rows.size:
         O = np.array([pcurves[i].origin for i in which[rows]])
@@ -357,33 +375,99 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.nda
     return out, k == 0
 
 
+class _Sampled:
+    """What the same-parameter check measured along one coedge (:func:`_check_geometry`).
+
+    ``curve`` and ``surface`` are the objects it was measured on (held, so that their ids in the
+    cache key stay theirs); ``row`` packs (:func:`_packed`) the p-curve at the check parameters
+    ``uv (samples, 2)``, ``speed (samples,)`` ``max(|Su|, |Sv|)`` there, ``dev`` the largest
+    distance between ``surface(uv)`` and the curve at those parameters, ``ends (2, 3)`` the curve
+    at the first and last parameter, and whether the p-curve is a :class:`Line2D`.
+    """
+
+    __slots__ = ("curve", "surface", "row")
+
+
+def _packed(uv: np.ndarray, speed: np.ndarray, dev: np.ndarray, ends: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Rows ``(m, 3 samples + 8)`` holding ``uv (m, samples, 2)``, ``speed (m, samples)``, ``dev (m,)``,
+    ``ends (m, 2, 3)`` and ``line (m,)`` (as 0 or 1)."""
+    m = dev.shape[0]
+    return np.concatenate([uv.reshape(m, -1), speed, dev[:, None], ends.reshape(m, 6), line[:, None]], axis=1)
+
+
+def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
+    """``uv, speed, dev, ends, line`` of rows made by :func:`_packed`."""
+    m, S = R.shape[0], samples
+    return (R[:, : 2 * S].reshape(m, S, 2), R[:, 2 * S : 3 * S], R[:, 3 * S], R[:, 3 * S + 1 : 3 * S + 7].reshape(m, 2, 3),
+            R[:, 3 * S + 7] != 0.0)
+
+
+#: P-curve -> ``{(id(curve), id(surface), t0, t1, samples): _Sampled}``: what the same-parameter
+#: check measured along coedges with that p-curve.  Every measurement of a :class:`_Sampled` is a
+#: function of the p-curve, the 3-D curve, the surface, the edge range and the number of samples
+#: alone, all immutable values: a coedge of a later B-rep with the same five (a face a Boolean
+#: passes through unchanged keeps its curve, p-curve and surface objects) has the same
+#: measurements, which are compared against its own edge and vertex tolerances again.  Entries die
+#: with their p-curve; the curve and surface are held by the entry (their ids stay theirs).
+_SAME_PARAMETER = IdentityMemo()
+
+
 def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> _PcurveSamples:
     # Only edges with a 3-D curve or a p-curve on a surface are sampled: a straight edge without
     # p-curves is the segment between its vertices, nothing about it can deviate.
     has_pc = (b.edge_pcurve >= 0) & (b.face_surface[b.edge_face] >= 0)  # (E, 2)
     rows = np.flatnonzero((b.edge_curve >= 0) | has_pc.any(axis=1))
-    T, P = _edge_samples(b, samples, rows)
-    ev = b.edge_vertex[rows]
-    ends = b.vertex_point[ev]  # (k, 2, 3)
-    allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
-    gap = np.linalg.norm(P[:, [0, -1], :] - ends, axis=-1)
-    bad = np.argwhere(gap > allow)
-    for r, k in bad[:10]:
-        out.append(Problem("vertex-off-edge", "edge", int(rows[r]),
-                           f"its {'start' if k == 0 else 'end'} is {gap[r, k]:.3g} from vertex {int(ev[r, k])} "
-                           f"(allowed {allow[r, k]:.3g})"))
     # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance, every p-curve sample of
-    # the model in one batch (surfaces of one structure evaluated together).
+    # the model in one batch (surfaces of one structure evaluated together).  A coedge whose
+    # curve, p-curve, surface and range were measured before (by the check of an earlier B-rep
+    # that shares them: the faces a Boolean passes through unchanged) takes those measurements
+    # (:data:`_SAME_PARAMETER`); only the others are sampled.
     rr, side = np.nonzero(has_pc[rows])
     e = rows[rr]
     pi = b.edge_pcurve[e, side]
     f = b.edge_face[e, side]
     n = rr.size
-    uv, line = _pcurves_at(b.pcurves, pi, T[rr])
-    D = derivatives_surfaces(b.surfaces, np.repeat(b.face_surface[f], samples), uv[..., 0].ravel(),
-                             uv[..., 1].ravel(), 1).reshape(n, samples, 2, 2, 3)
-    dev = np.linalg.norm(D[:, :, 0, 0] - P[rr], axis=-1).max(axis=1)
-    speed = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
+    si = b.face_surface[f]
+    ci = b.edge_curve[e]
+    hit, H = _cached_samples(b, pi, ci, si, e, samples)
+    miss = np.ones(n, dtype=bool)
+    miss[hit] = False
+    miss = np.flatnonzero(miss)
+    uv_h, speed_h, dev_h, ends_h, line_h = _unpacked(H, samples)
+    # Edges to sample: those with a coedge to measure, and those with a curve but no p-curve on a surface.
+    done = np.zeros(rows.size, dtype=bool)
+    done[rr] = True
+    done[rr[miss]] = False
+    sub = np.flatnonzero(~done)
+    Ts, Ps = _edge_samples(b, samples, rows[sub])
+    at = np.full(rows.size, -1, dtype=np.int64)
+    at[sub] = np.arange(sub.size)
+    ends_pts = np.empty((rows.size, 2, 3))
+    ends_pts[rr[hit]] = ends_h  # (both uses of an edge measure the same curve over the same range)
+    ends_pts[sub] = Ps[:, [0, -1]]
+    ev = b.edge_vertex[rows]
+    ends = b.vertex_point[ev]  # (k, 2, 3)
+    allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
+    gap = np.linalg.norm(ends_pts - ends, axis=-1)
+    bad = np.argwhere(gap > allow)
+    for r, k in bad[:10]:
+        out.append(Problem("vertex-off-edge", "edge", int(rows[r]),
+                           f"its {'start' if k == 0 else 'end'} is {gap[r, k]:.3g} from vertex {int(ev[r, k])} "
+                           f"(allowed {allow[r, k]:.3g})"))
+    uv = np.empty((n, samples, 2))
+    speed = np.empty((n, samples))
+    dev = np.empty(n)
+    line = np.empty(n, dtype=bool)
+    uv[hit], speed[hit], dev[hit], line[hit] = uv_h, speed_h, dev_h, line_h
+    if miss.size:
+        Tm, Pm = Ts[at[rr[miss]]], Ps[at[rr[miss]]]
+        uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], Tm)
+        D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), uv_m[..., 0].ravel(),
+                                 uv_m[..., 1].ravel(), 1).reshape(miss.size, samples, 2, 2, 3)
+        dev_m = np.linalg.norm(D[:, :, 0, 0] - Pm, axis=-1).max(axis=1)
+        speed_m = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
+        uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m
+        _remember_samples(b, miss, pi, ci, si, e, samples, _packed(uv_m, speed_m, dev_m, Pm[:, [0, -1]], line_m))
     for k in np.flatnonzero(dev > b.edge_tol[e] + t.linear):
         out.append(Problem("pcurve-deviation", "edge", int(e[k]),
                            f"p-curve in face {int(f[k])} is {dev[k]:.3g} from the 3-D curve (edge tolerance "
@@ -426,6 +510,52 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
         for f, d in zip(implicit[dev > t.linear][:10], dev[dev > t.linear][:10]):
             out.append(Problem("non-planar-face", "face", int(f), f"vertices are up to {d:.3g} off the face's plane"))
     return table
+
+
+def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
+                    samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """The coedges (p-curve ``pi``, curve ``ci``, surface ``si``, edge ``e``) measured before:
+    their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``."""
+    idx: list[int] = []
+    got: list[np.ndarray] = []
+    if len(_SAME_PARAMETER) and pi.size:
+        pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
+        r = b.edge_range[e]
+        found = _SAME_PARAMETER.get_many([pcurves[p] for p in pi.tolist()])
+        for k, (entries, c, s, r0, r1) in enumerate(zip(found, ci.tolist(), si.tolist(), r[:, 0].tolist(),
+                                                        r[:, 1].tolist())):
+            if entries is None or c < 0:
+                continue
+            curve, surface = curves[c], surfaces[s]
+            h = entries.get((id(curve), id(surface), r0, r1, samples))
+            if h is not None and h.curve is curve and h.surface is surface:
+                idx.append(k)
+                got.append(h.row)
+    if not idx:
+        return np.empty(0, dtype=np.int64), np.empty((0, 3 * samples + 8))
+    return np.array(idx, dtype=np.int64), np.concatenate(got).reshape(len(got), -1)
+
+
+def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
+                      samples: int, R: np.ndarray) -> None:
+    """Store the measurements ``R`` (:func:`_packed`, in the order of ``rows``) of the coedges
+    ``rows`` (of the arrays of :func:`_check_geometry`) whose curve, p-curve and surface are values."""
+    pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
+    r = b.edge_range[e[rows]].tolist()
+    for k, (p, c, s) in enumerate(zip(pi[rows].tolist(), ci[rows].tolist(), si[rows].tolist())):
+        if c < 0:
+            continue
+        pcurve, curve, surface = pcurves[p], curves[c], surfaces[s]
+        if not (is_value(pcurve) and is_value(curve) and is_value(surface)):
+            continue
+        h = _Sampled()
+        h.curve, h.surface, h.row = curve, surface, _read_only(R[k].copy())
+        _SAME_PARAMETER.setdefault(pcurve, dict)[(id(curve), id(surface), r[k][0], r[k][1], samples)] = h
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 # ---------------------------------------------------------------------- trims
@@ -621,7 +751,7 @@ def _crossings(parts: list[tuple[np.ndarray, ...]]) -> dict[int, tuple[int, int,
     nxt = np.concatenate([p[3] + o for p, o in zip(parts, offsets)])
     coedge = np.concatenate([p[4] for p in parts])
     eps = np.concatenate([p[5] for p in parts])
-    i, j = _sweep_pairs(A, B, face)
+    i, j = _segment_pairs(A, B, face, nxt)
     if i.size == 0:
         return {}
     keep = (nxt[i] != j) & (nxt[j] != i)
@@ -762,28 +892,21 @@ def _face_segments(b: BRep, f: int, samples: int, t: Tolerance) -> tuple[np.ndar
             np.concatenate(cc), np.full(n, eps))
 
 
-def _sweep_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, chunk: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
+def _sweep_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, chunk: int = 1 << 22,
+                 keys: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of segments of one face whose boxes overlap (sweep and prune along ``u``).
 
     Each face's ``u`` is mapped monotonically into ``[face, face + 1)`` so that one sort and one
     ``searchsorted`` serve all faces at once; a monotone map keeps ``lo_j <= hi_i`` as a
-    (possibly larger) candidate set, never a smaller one.
+    (possibly larger) candidate set, never a smaller one.  Pairs ``(i, j)`` come with ``i``
+    before ``j`` in the sweep order, ordered by ``i``'s position, then ``j``'s.  ``keys``:
+    :func:`_sweep_keys` of the segments when the caller has them.
     """
     lo = np.minimum(A, B)
     hi = np.maximum(A, B)
-    ids, local = np.unique(face, return_inverse=True)
-    fmin = np.full(ids.size, np.inf)
-    fmax = np.full(ids.size, -np.inf)
-    np.minimum.at(fmin, local, lo[:, 0])
-    np.maximum.at(fmax, local, hi[:, 0])
-    span = np.maximum(fmax - fmin, np.finfo(float).tiny) * 2.0  # factor 2: normalised values stay below 1/2
-    g_lo = local + (lo[:, 0] - fmin[local]) / span[local]
-    g_hi = local + (hi[:, 0] - fmin[local]) / span[local]
-    order = np.argsort(g_lo, kind="stable")
-    gs = g_lo[order]
-    end = np.searchsorted(gs, g_hi[order], side="right")
-    count = np.maximum(end - np.arange(order.size) - 1, 0)
-    I, J = [], []
+    g_lo, g_hi, order = _sweep_keys(lo, hi, face) if keys is None else keys
+    count = _sweep_counts(g_lo, g_hi, order)
+    I, J = [np.empty(0, dtype=np.int64)], [np.empty(0, dtype=np.int64)]
     start = 0
     while start < order.size:
         # Grow the block while the number of candidate pairs stays within ``chunk``.
@@ -799,6 +922,84 @@ def _sweep_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, chunk: int = 1 
         J.append(j[v_ok])
         start = stop
     return np.concatenate(I), np.concatenate(J)
+
+
+def _sweep_keys(lo: np.ndarray, hi: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sweep coordinates of boxes ``lo, hi (n, 2)``: ``u`` of each group mapped monotonically into
+    ``[group, group + 1/2)`` (``g_lo, g_hi``), and the boxes in sweep order (``g_lo`` ascending, stable)."""
+    ids, local = np.unique(group, return_inverse=True)
+    fmin = np.full(ids.size, np.inf)
+    fmax = np.full(ids.size, -np.inf)
+    np.minimum.at(fmin, local, lo[:, 0])
+    np.maximum.at(fmax, local, hi[:, 0])
+    span = np.maximum(fmax - fmin, np.finfo(float).tiny) * 2.0  # factor 2: normalised values stay below 1/2
+    g_lo = local + (lo[:, 0] - fmin[local]) / span[local]
+    g_hi = local + (hi[:, 0] - fmin[local]) / span[local]
+    return g_lo, g_hi, np.argsort(g_lo, kind="stable")
+
+
+def _sweep_counts(g_lo: np.ndarray, g_hi: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Per position of the sweep order, the number of later boxes it is paired with before the ``v`` test."""
+    end = np.searchsorted(g_lo[order], g_hi[order], side="right")
+    return np.maximum(end - np.arange(order.size) - 1, 0)
+
+
+#: Candidate pairs per segment of the sweep over whole faces above which :func:`_segment_pairs`
+#: sweeps loop by loop instead (the loop-by-loop passes cost a few more array calls).
+_LOOP_SWEEP_RATIO = 16
+
+
+def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarray,
+                   chunk: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs of :func:`_sweep_pairs` whose rings (the cycles of ``nxt``: the loops) are one or have
+    overlapping boxes, in the same order.
+
+    Two segments of different loops can only cross where the loops' boxes overlap.  A face with
+    many holes (a plate after many cuts) has every segment overlap, along ``u``, all the holes of
+    its column: sweeping the whole face costs segments times holes per column, while sweeping
+    each loop, and the segments of each pair of loops whose boxes overlap, costs about the
+    segments.  That is done when the sweep over faces would test more than
+    :data:`_LOOP_SWEEP_RATIO` candidates per segment.  Every pair whose boxes overlap is found
+    either way, so the crossings found, and the first crossing of each face in pair order, are
+    those of :func:`_sweep_pairs`.
+    """
+    lo, hi = np.minimum(A, B), np.maximum(A, B)
+    keys = _sweep_keys(lo, hi, face)
+    if nxt.size == 0 or nxt.min() < 0 or _sweep_counts(*keys).sum() <= _LOOP_SWEEP_RATIO * A.shape[0]:
+        return _sweep_pairs(A, B, face, chunk, keys)
+    ring = _cycle_labels(nxt)
+    members = np.argsort(ring, kind="stable")  # the segments ring by ring
+    starts = np.flatnonzero(np.concatenate([[True], ring[members[1:]] != ring[members[:-1]]]))
+    cnt = np.diff(np.append(starts, members.size))
+    rinv = np.empty(ring.size, dtype=np.int64)
+    rinv[members] = np.repeat(np.arange(starts.size), cnt)
+    rlo = np.minimum.reduceat(lo[members], starts, axis=0)
+    rhi = np.maximum.reduceat(hi[members], starts, axis=0)
+    parts = [_sweep_pairs(A, B, rinv, chunk)]  # within each loop
+    RI, RJ = _sweep_pairs(rlo, rhi, face[members[starts]], chunk)  # loops of one face with overlapping boxes
+    if RI.size:
+        sizes = cnt[RI] + cnt[RJ]
+        grp = np.repeat(np.arange(RI.size), sizes)
+        k = np.arange(grp.size) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+        a = cnt[RI][grp]
+        seg = members[np.where(k < a, starts[RI][grp] + k, starts[RJ][grp] + k - a)]
+        i, j = _sweep_pairs(A[seg], B[seg], grp, chunk)  # the segments of each loop pair together
+        i, j = seg[i], seg[j]
+        cross = rinv[i] != rinv[j]
+        parts.append((i[cross], j[cross]))
+    i = np.concatenate([p[0] for p in parts])
+    j = np.concatenate([p[1] for p in parts])
+    # The pairs as the sweep over faces takes them: its orientation, its test and its order.
+    g_lo, g_hi, order = keys
+    rank = np.empty(order.size, dtype=np.int64)
+    rank[order] = np.arange(order.size)
+    swap = rank[i] > rank[j]
+    i, j = np.where(swap, j, i), np.where(swap, i, j)
+    keep = ((g_lo[j] <= g_hi[i]) & (np.maximum(lo[i, 1], lo[j, 1]) <= np.minimum(hi[i, 1], hi[j, 1]))
+            & (face[i] == face[j]))
+    i, j = i[keep], j[keep]
+    o = np.lexsort((rank[j], rank[i]))
+    return i[o], j[o]
 
 
 def _check_orientation(b: BRep, t: Tolerance, out: list[Problem]) -> None:

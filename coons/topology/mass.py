@@ -6,7 +6,9 @@ uses to verify orientation); :func:`face_areas` the area of every face; :func:`b
 the axis-aligned box of the exact geometry (vertices, edge curves and face surfaces; not the
 control nets).  Everything is computed from the B-rep's own geometry: nothing is
 tessellated, and no quantity depends on a deflection.  Results are cached per B-rep (B-reps
-are immutable).  The module does not compute properties of open shells or
+are immutable); the coefficient rows of each surface and p-curve are remembered per object
+(they depend on it alone), so B-reps sharing geometry (a Boolean's result and its operands)
+build their tables without reading every object again.  The module does not compute properties of open shells or
 lower-dimensional sets (curve lengths, wire centroids), does not weight by density, and does
 not repair orientation (an inside-out B-rep has negative volume).  Faces must lie on planes
 (implicit or :class:`PlanarSurface`), the analytic surfaces of :mod:`coons.kernel.analytic`
@@ -143,6 +145,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
+from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
@@ -592,43 +595,29 @@ def _tables(b: BRep) -> _Tables:
     if T is not None:
         return T
     codes, rows = [], []
-    for S in b.surfaces:
-        if isinstance(S, PlanarSurface):
-            k, p, org = _C_PLANE, [0.0, 0.0, 0.0, 0.0, 0.0], S.origin
-        elif isinstance(S, CylindricalSurface):
-            k, p, org = _C_REV_LINEAR, [S.radius, 0.0, 0.0, 1.0, 0.0], S.origin
-        elif isinstance(S, ConicalSurface):
-            a = S.semi_angle
-            k, p, org = _C_REV_LINEAR, [S.radius, math.sin(a), 0.0, math.cos(a), 0.0], S.origin
-        elif isinstance(S, SphericalSurface):
-            k, p, org = _C_REV_CIRCULAR, [0.0, 0.0, S.radius, 0.0, S.radius], S.center
-        elif isinstance(S, ToroidalSurface):
-            k, p, org = _C_REV_CIRCULAR, [S.major_radius, 0.0, S.minor_radius, 0.0, S.minor_radius], S.center
-        else:
-            codes.append(_C_NURBS if isinstance(S, NurbsSurface) else _C_OTHER)
-            rows.append(_NO_SURFACE_ROW)
-            continue
-        codes.append(k)
-        rows.append(org.tolist() + S.frame.ravel().tolist() + p)
+    for S, got in zip(b.surfaces, _SURFACE_ROWS.get_many(b.surfaces)):
+        if got is None:
+            got = _surface_row(S)
+            if is_value(S):
+                _SURFACE_ROWS.set(S, got)
+        codes.append(got[0])
+        rows.append(got[1])
     codes.append(_C_PLANE)
     rows.append(_IMPLICIT_PLANE_ROW)
     code = np.array(codes, dtype=np.int8)
     shapes, coefs = [], []
-    for pc in b.pcurves:
-        if isinstance(pc, Line2D):
-            du, dv = pc.direction.tolist()
-            shapes.append(_P_ISO_V if dv == 0.0 else _P_CONST_U if du == 0.0 else _P_LINE)
-            coefs.append(pc.origin.tolist() + [du, dv] + _ZEROS4)
-        elif isinstance(pc, Trig2D):
-            a, bb = pc.a.tolist(), pc.b.tolist()
-            shapes.append(_P_ISO_V if a[1] == 0.0 and bb[1] == 0.0 else _P_TRIG)
-            coefs.append(pc.center.tolist() + _ZEROS2 + a + bb)
-        else:
-            shapes.append(_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD)
-            coefs.append(_ZEROS8)
+    for pc, got in zip(b.pcurves, _PCURVE_ROWS.get_many(b.pcurves)):
+        if got is None:
+            kind, row = _pcurve_row(pc)
+            got = (kind, _read_only(np.array(row, dtype=np.float64)))
+            if is_value(pc):
+                _PCURVE_ROWS.set(pc, got)
+        shapes.append(got[0])
+        coefs.append(got[1])
     shapes.append(_P_MISSING)
-    coefs.append(_ZEROS8)
-    shape, coef = np.array(shapes, dtype=np.int8), np.array(coefs)  # classified as _classify_shapes does
+    coefs.append(np.zeros(8))
+    # (classified as _classify_shapes does)
+    shape, coef = np.array(shapes, dtype=np.int8), np.concatenate(coefs).reshape(len(coefs), 8)
     curved = np.array([not isinstance(c, Line) for c in b.curves] + [False]).take(b.edge_curve)
     fs = b.face_surface
     implicit = fs.size > 0 and int(fs.min()) < 0
@@ -641,6 +630,47 @@ def _tables(b: BRep) -> _Tables:
                        and bool((fs.take(b.coedge_face.reshape(-1, 2)[curved]) < 0).any()))
     T = cache["tables"] = _Tables(code, np.array(rows), flat, has_planes, curved, implicit_curved, shape, coef)
     return T
+
+
+def _surface_row(S) -> tuple[int, list[float]]:
+    """The face code and the row of :class:`_Tables` of one surface (a function of the surface alone)."""
+    if isinstance(S, PlanarSurface):
+        k, p, org = _C_PLANE, [0.0, 0.0, 0.0, 0.0, 0.0], S.origin
+    elif isinstance(S, CylindricalSurface):
+        k, p, org = _C_REV_LINEAR, [S.radius, 0.0, 0.0, 1.0, 0.0], S.origin
+    elif isinstance(S, ConicalSurface):
+        a = S.semi_angle
+        k, p, org = _C_REV_LINEAR, [S.radius, math.sin(a), 0.0, math.cos(a), 0.0], S.origin
+    elif isinstance(S, SphericalSurface):
+        k, p, org = _C_REV_CIRCULAR, [0.0, 0.0, S.radius, 0.0, S.radius], S.center
+    elif isinstance(S, ToroidalSurface):
+        k, p, org = _C_REV_CIRCULAR, [S.major_radius, 0.0, S.minor_radius, 0.0, S.minor_radius], S.center
+    else:
+        return (_C_NURBS if isinstance(S, NurbsSurface) else _C_OTHER), _NO_SURFACE_ROW
+    return k, org.tolist() + S.frame.ravel().tolist() + p
+
+
+def _pcurve_row(pc) -> tuple[int, list[float]]:
+    """The shape and the coefficient row of :class:`_Tables` of one p-curve (a function of the p-curve alone)."""
+    if isinstance(pc, Line2D):
+        du, dv = pc.direction.tolist()
+        return (_P_ISO_V if dv == 0.0 else _P_CONST_U if du == 0.0 else _P_LINE), pc.origin.tolist() + [du, dv] + _ZEROS4
+    if isinstance(pc, Trig2D):
+        a, bb = pc.a.tolist(), pc.b.tolist()
+        return (_P_ISO_V if a[1] == 0.0 and bb[1] == 0.0 else _P_TRIG), pc.center.tolist() + _ZEROS2 + a + bb
+    return (_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD), _ZEROS8
+
+
+#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (its row as a read-only
+#: array): the per-object rows of :class:`_Tables`, which a B-rep sewn from the faces of another
+#: (a Boolean's result) shares with it.  Rows are never modified.
+_SURFACE_ROWS = IdentityMemo()
+_PCURVE_ROWS = IdentityMemo()
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 def _flat_nets(nets: list) -> np.ndarray:

@@ -6,7 +6,10 @@ sense, loops of :class:`EdgeSpec` in loop order), and returns the checked
 the Booleans' last phase: faces arrive as independent pieces, and the topology — which ends
 meet, which edges are shared — is recovered from geometry:
 
-1. **Vertices**: the end points of all edge uses are clustered with a k-d tree
+1. **Vertices**: the end points of all edge uses (evaluated once per face spec and per edge
+   use and remembered with them, :func:`use_points`: the faces a Boolean passes through
+   unchanged, and the uses a changed face keeps, are not evaluated again) are clustered with a
+   k-d tree
    (``scipy.spatial.cKDTree.query_pairs``) — two ends within ``max(tol.linear, edge tolerances)``
    are one vertex; clusters are the connected components.  The vertex sits at the cluster mean
    and records the largest distance to it as its tolerance.
@@ -51,6 +54,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
+from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
 from coons.topology.shape import Solid
@@ -237,50 +241,27 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
 
 
 class _Uses:
-    """Flat arrays over all edge uses (coedges) in face, loop, position order."""
+    """Flat arrays over all edge uses (coedges) in face, loop, position order.
+
+    Gathered from the per-face tables of :func:`_face_uses` (cached per face spec): the faces a
+    Boolean result carries over unchanged from its operand are not evaluated again.
+    """
 
     def __init__(self, faces: list[FaceSpec], t: Tolerance) -> None:
-        self.spec: list[EdgeSpec] = []
-        where = []
-        for fi, f in enumerate(faces):
-            for li, loop in enumerate(f.loops):
-                for pi, e in enumerate(loop):
-                    self.spec.append(e)
-                    where.append((fi, li, pi, len(loop)))
-        w = np.asarray(where, dtype=np.int64)
-        self.face, self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2], w[:, 3]
+        tables = _face_uses(faces)
+        self.spec: list[EdgeSpec] = [e for f in faces for loop in f.loops for e in loop]
         k = len(self.spec)
-        self.t0 = np.array([e.t0 for e in self.spec])
-        self.t1 = np.array([e.t1 for e in self.spec])
-        self.tol = np.array([t.linear if e.tol is None else max(e.tol, t.linear) for e in self.spec])
-        # Start, end and midpoint of every use: lines and circles (most edges) in one batch, any
-        # other curve in one evaluation per distinct curve object.
-        self.start = np.empty((k, 3))
-        self.end = np.empty((k, 3))
-        self.mid = np.empty((k, 3))
-        simple = np.array([type(e.curve) in BATCHED_CURVES for e in self.spec], dtype=bool)
-        rs = np.flatnonzero(simple)
-        tt = np.stack([self.t0[rs], self.t1[rs], 0.5 * (self.t0[rs] + self.t1[rs])], axis=1)
-        P = evaluate_curves([self.spec[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
-        if P is not None and np.isfinite(P).all():
-            self.start[rs], self.end[rs], self.mid[rs] = P[:, 0], P[:, 1], P[:, 2]
-        else:  # the per-curve path below names the use whose curve or range is bad
-            simple[:] = False
-        groups: dict[int, list[int]] = {}
-        for i in np.flatnonzero(~simple).tolist():
-            groups.setdefault(id(self.spec[i].curve), []).append(i)
-        for rows in groups.values():
-            r = np.asarray(rows)
-            curve = self.spec[rows[0]].curve
-            tt = np.concatenate([self.t0[r], self.t1[r], 0.5 * (self.t0[r] + self.t1[r])])
-            try:
-                P = np.asarray(curve.evaluate(tt), dtype=np.float64).reshape(3, r.size, 3)
-            except (ValueError, TypeError, ArithmeticError) as exc:
-                i = rows[0]
-                raise InvalidInputError(f"{self.name(i)}: its curve cannot be evaluated on its range: {exc}") from None
-            if not np.all(np.isfinite(P)):
-                raise InvalidInputError(f"{self.name(rows[0])}: its curve evaluates to non-finite points")
-            self.start[r], self.end[r], self.mid[r] = P[0], P[1], P[2]
+        counts = [x.where.shape[0] for x in tables]
+        w = np.concatenate([x.where for x in tables])
+        self.face = np.repeat(np.arange(len(faces), dtype=np.int64), counts)
+        self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2]
+        r = np.concatenate([x.ranges for x in tables])
+        self.t0, self.t1 = r[:, 0], r[:, 1]
+        self.tol = np.maximum(r[:, 2], t.linear)
+        P = np.concatenate([x.points for x in tables])
+        self.start, self.end, self.mid = P[:, 0], P[:, 1], P[:, 2]
+        self.kind = np.concatenate([x.kind for x in tables])
+        self.frame = np.concatenate([x.frame for x in tables])
         # Index of the next use in the same loop.
         idx = np.arange(k)
         self.next = np.where(self.pos + 1 < self.loop_len, idx + 1, idx - self.pos)
@@ -290,6 +271,166 @@ class _Uses:
 
     def __len__(self) -> int:
         return len(self.spec)
+
+
+#: Curve kinds of :class:`_FaceUses` (others are 0).
+_LINE, _CIRCLE = 1, 2
+
+
+class _FaceUses:
+    """The edge uses of one face spec as arrays, in loop order (:func:`_face_uses`).
+
+    ``where (k, 3)`` int64: loop, position in the loop and loop length of each use; ``ranges
+    (k, 3)``: ``t0, t1`` and the use's own tolerance (``EdgeSpec.tol``, 0 for None); ``points
+    (k, 3, 3)``: start, end and midpoint (the curve at ``t0``, ``t1`` and ``(t0 + t1) / 2``);
+    ``kind (k,)``: the curve is a :class:`Line` (``_LINE``), a :class:`Circle` (``_CIRCLE``) or
+    another curve (0); ``frame (k, 4)``: a line's origin or a circle's centre, and its radius (0
+    otherwise), which :func:`_reach` bounds the curves by.  All read-only.
+    """
+
+    __slots__ = ("where", "ranges", "points", "kind", "frame")
+
+
+#: Face spec -> its :class:`_FaceUses`.  A spec is immutable and so are its curves when they are
+#: values (frozen dataclasses, as every curve of coons): the table never goes stale, and the
+#: faces a Boolean result carries over from an operand (the same spec objects) are read once
+#: for a chain of Booleans.  Entries die with their spec.
+_FACE_USES = IdentityMemo()
+
+
+def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
+    """The :class:`_FaceUses` of each face, those not cached yet gathered together (:func:`_use_rows`).
+
+    A face is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`).
+
+    Raises
+    ------
+    InvalidInputError
+        A curve that cannot be evaluated on its use's range or gives non-finite points (named by
+        face, loop and edge).
+    """
+    out: list[_FaceUses | None] = _FACE_USES.get_many(faces)
+    missing = [i for i, x in enumerate(out) if x is None]
+    if not missing:
+        return out  # type: ignore[return-value]
+    spec: list[EdgeSpec] = []
+    where = []
+    counts = []
+    for fi in missing:
+        n = 0
+        for li, loop in enumerate(faces[fi].loops):
+            for pi, e in enumerate(loop):
+                spec.append(e)
+                where.append((fi, li, pi, len(loop)))
+            n += len(loop)
+        counts.append(n)
+    w = np.asarray(where, dtype=np.int64).reshape(-1, 4)
+    R = _use_rows(spec, w)
+    value = [is_value(e.curve) for e in spec]
+    first = 0
+    for fi, n in zip(missing, counts):
+        sl = slice(first, first + n)
+        first += n
+        x = _FaceUses()
+        x.where = _read_only(w[sl, 1:].copy())
+        x.points = _read_only(R[sl, :9].reshape(n, 3, 3))
+        x.ranges = _read_only(R[sl, 9:12].copy())
+        x.kind = _read_only(R[sl, 12].astype(np.int8))
+        x.frame = _read_only(R[sl, 13:].copy())
+        out[fi] = x
+        if all(value[sl]):
+            _FACE_USES.set(faces[fi], x)
+    return out  # type: ignore[return-value]
+
+
+#: Edge use -> its row of :func:`_use_rows` (read-only), for the uses whose curve is a value: the
+#: faces a Boolean changes (a plate's top gaining a hole) keep most of their uses.
+_USE_ROWS = IdentityMemo()
+
+
+def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
+    """Per use, the row ``(17,)``: start, end and midpoint (9, the curve at ``t0``, ``t1`` and
+    ``(t0 + t1) / 2``), ``t0, t1`` and the use's own tolerance (0 for None), its curve kind and
+    frame (:class:`_FaceUses`).  Remembered per use (:data:`_USE_ROWS`); the others computed
+    together: lines and circles (most edges) in one batch
+    (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas element by element), any
+    other curve in one evaluation per distinct curve object.  ``w (k, 4)``: face, loop, position
+    and loop length of each use, to name a bad one.
+
+    Raises
+    ------
+    InvalidInputError
+        A curve that cannot be evaluated on its use's range or gives non-finite points.
+    """
+    k = len(spec)
+    got = _USE_ROWS.get_many(spec)
+    need = [i for i, g in enumerate(got) if g is None]
+    out = np.empty((k, 17))
+    have = np.ones(k, dtype=bool)
+    have[need] = False
+    if have.any():
+        out[have] = np.concatenate([g for g in got if g is not None]).reshape(-1, 17)
+    if not need:
+        return out
+    sub = [spec[i] for i in need]
+    wn = w[need]
+    n = len(sub)
+    ranges = np.array([(e.t0, e.t1, e.tol or 0.0) for e in sub], dtype=np.float64).reshape(n, 3)
+    t0, t1 = ranges[:, 0], ranges[:, 1]
+
+    def name(i: int) -> str:
+        return f"face {int(wn[i, 0])}, loop {int(wn[i, 1])}, edge {int(wn[i, 2])}"
+
+    P = np.empty((n, 3, 3))
+    simple = np.array([type(e.curve) in BATCHED_CURVES for e in sub], dtype=bool)
+    rs = np.flatnonzero(simple)
+    tt = np.stack([t0[rs], t1[rs], 0.5 * (t0[rs] + t1[rs])], axis=1)
+    Q = evaluate_curves([sub[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
+    if Q is not None and np.isfinite(Q).all():
+        P[rs] = Q
+    else:  # the per-curve path below names the use whose curve or range is bad
+        simple[:] = False
+    groups: dict[int, list[int]] = {}
+    for i in np.flatnonzero(~simple).tolist():
+        groups.setdefault(id(sub[i].curve), []).append(i)
+    for rows in groups.values():
+        r = np.asarray(rows)
+        curve = sub[rows[0]].curve
+        tt = np.concatenate([t0[r], t1[r], 0.5 * (t0[r] + t1[r])])
+        try:
+            Q = np.asarray(curve.evaluate(tt), dtype=np.float64).reshape(3, r.size, 3)
+        except (ValueError, TypeError, ArithmeticError) as exc:
+            raise InvalidInputError(f"{name(rows[0])}: its curve cannot be evaluated on its range: {exc}") from None
+        if not np.all(np.isfinite(Q)):
+            raise InvalidInputError(f"{name(rows[0])}: its curve evaluates to non-finite points")
+        P[r] = Q.transpose(1, 0, 2)
+    kind = np.array([_LINE if type(e.curve) is Line else _CIRCLE if type(e.curve) is Circle else 0 for e in sub],
+                    dtype=np.float64)
+    frame = np.zeros((n, 4))
+    for code, attr in ((_LINE, "origin"), (_CIRCLE, "center")):
+        rows = np.flatnonzero(kind == code)
+        if rows.size:
+            frame[rows, :3] = [getattr(sub[i].curve, attr) for i in rows.tolist()]
+            if code == _CIRCLE:
+                frame[rows, 3] = [float(sub[i].curve.radius) for i in rows.tolist()]
+    new = np.concatenate([P.reshape(n, 9), ranges, kind[:, None], frame], axis=1)
+    out[need] = new
+    for e, row in zip(sub, new):
+        if is_value(e.curve):
+            _USE_ROWS.set(e, _read_only(row.copy()))
+    return out
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def use_points(faces: Sequence[FaceSpec]) -> np.ndarray:
+    """Start, end and midpoint ``(k, 3, 3)`` of every edge use of ``faces`` in face, loop, position
+    order, as :func:`sew_faces` sees them (cached per face spec, see :func:`_face_uses`)."""
+    tables = _face_uses(faces)
+    return np.concatenate([x.points for x in tables]) if tables else np.empty((0, 3, 3))
 
 
 def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -308,13 +449,27 @@ def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     k = len(uses)
     X = np.concatenate([uses.start, uses.end])
     ptol = np.concatenate([uses.tol, uses.tol])
-    pairs = cKDTree(X).query_pairs(r=float(ptol.max()), output_type="ndarray")
-    if pairs.size:
-        d = np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1)
-        pairs = pairs[d <= np.maximum(ptol[pairs[:, 0]], ptol[pairs[:, 1]])]
     n = X.shape[0]
-    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    # Ends at exactly the same point (the uses of one curve object meeting there: most of them)
+    # are one vertex whatever their tolerances; the distinct points are clustered, each with the
+    # largest tolerance of its ends (two points are within max(tol_i, tol_j) of some pair of their
+    # ends exactly when within the larger of those two maxima).
+    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
+    Xs = X[order]
+    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
+    at = np.flatnonzero(distinct)
+    point_of = np.empty(n, dtype=np.int64)
+    point_of[order] = np.cumsum(distinct) - 1
+    U = Xs[at]
+    utol = np.maximum.reduceat(ptol[order], at)
+    pairs = cKDTree(U).query_pairs(r=float(ptol.max()), output_type="ndarray")
+    if pairs.size:
+        d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
+        pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
+    m = U.shape[0]
+    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
     nv, label = connected_components(g, directed=False)
+    label = label[point_of]
     # Number vertices by first appearance so that vertex ids follow the input order.
     first = np.full(nv, n, dtype=np.int64)
     order_pts = np.concatenate([np.arange(k) * 2, np.arange(k) * 2 + 1])  # start of use i before its end
@@ -470,23 +625,21 @@ def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
     radius = np.full(k, math.inf)
     scale = np.full(k, math.inf)
     rows = np.asarray(rows, dtype=np.int64)
-    kind = np.array([1 if type(uses.spec[i].curve) is Line else 2 if type(uses.spec[i].curve) is Circle else 0
-                     for i in rows.tolist()], dtype=np.int64)
+    kind = uses.kind[rows]
     half = 0.5 * np.abs(uses.t1[rows] - uses.t0[rows])
     base = np.abs(uses.mid[rows]).max(axis=1) + np.maximum(np.abs(uses.t0[rows]), np.abs(uses.t1[rows]))
-    for code in (1, 2):
+    for code in (_LINE, _CIRCLE):
         sel = np.flatnonzero(kind == code)
         if not sel.size:
             continue
         r = rows[sel]
-        curves = [uses.spec[i].curve for i in r.tolist()]
-        if code == 1:
+        if code == _LINE:
             radius[r] = half[sel]
-            scale[r] = base[sel] + np.abs(np.array([c.origin for c in curves])).max(axis=1)
+            scale[r] = base[sel] + np.abs(uses.frame[r, :3]).max(axis=1)
         else:
-            R = np.array([float(c.radius) for c in curves])
+            R = uses.frame[r, 3]
             radius[r] = np.minimum(R * half[sel], 2.0 * R)
-            scale[r] = base[sel] + np.abs(np.array([c.center for c in curves])).max(axis=1) + R
+            scale[r] = base[sel] + np.abs(uses.frame[r, :3]).max(axis=1) + R
     return radius.tolist(), scale.tolist()
 
 
@@ -738,28 +891,35 @@ def _assemble(
     is_left[left] = True
     ref = np.where(is_left, edge_of + 1, -(edge_of + 1))
     face_loops: list[list[list[int]]] = []
+    refs = ref.tolist()
     i = 0
     for f in faces:
         loops = []
         for loop in f.loops:
-            loops.append(ref[i : i + len(loop)].tolist())
+            loops.append(refs[i : i + len(loop)])
             i += len(loop)
         face_loops.append(loops)
     b = BRepBuilder(t)
     b.assemble(vpoint, np.stack([edge_start, edge_end], axis=1), face_loops,
                face_surfaces=[f.surface for f in faces], face_senses=[f.sense for f in faces])
-    for v, vt in enumerate(vtol.tolist()):
-        b.set_vertex(v, tol=vt)
-    spec, tols = uses.spec, uses.tol.tolist()
-    for e, (p, o, f) in enumerate(zip(primary.tolist(), other.tolist(), fwd.tolist())):
-        sp, so = spec[p], spec[o]
-        thr = max(tols[p], tols[o])
-        b.set_edge_curve(e, sp.curve, (min(sp.t0, sp.t1), max(sp.t0, sp.t1)), tol=thr)
-        side_p = 0 if f else 1
-        b.set_pcurve(2 * e + side_p, sp.pcurve)
-        # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
-        pc = so.pcurve if so.curve is sp.curve else _pcurve_in(sp, so, thr, f"{uses.name(o)} (shared with {uses.name(p)})")
-        b.set_pcurve(2 * e + (1 - side_p), pc)
+    b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
+    spec = uses.spec
+    sp = [spec[p] for p in primary.tolist()]
+    so = [spec[o] for o in other.tolist()]
+    thr = np.maximum(uses.tol[primary], uses.tol[other])
+    b.set_edge_curves(np.arange(E), [e.curve for e in sp],
+                      np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
+                                np.maximum(uses.t0[primary], uses.t1[primary])], axis=1), thr)
+    # The primary use's p-curve, then the other's, edge by edge (the pool order of one call each).
+    # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
+    thr_l = thr.tolist()
+    pcs: list[Any] = []
+    for e, (a, o) in enumerate(zip(sp, so)):
+        pcs.append(a.pcurve)
+        pcs.append(o.pcurve if o.curve is a.curve else
+                   _pcurve_in(a, o, thr_l[e], f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})"))
+    side_p = np.where(fwd, 0, 1)
+    b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre))
 

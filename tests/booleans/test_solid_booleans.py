@@ -614,10 +614,11 @@ def test_straight_clip_preconditions():
 # ---------------------------------------------------------------------- data carried from Boolean to Boolean
 def _forget_carried() -> None:
     """Clear every per-object cache of the pipeline (and the per-B-rep meshes and mass caches)."""
-    from coons.topology import mass, tessellate
+    from coons.topology import _memo, mass, tessellate
 
     for cache in (S._SEWN, S._FACE_DATA, S._MERGE_FAILED, S._USE_BOXES, S._USE_SAMPLES):
         cache.clear()
+    _memo.clear_all()
     tessellate._MESHES.clear()
     mass._CACHE.clear()
 
@@ -842,8 +843,10 @@ def test_clear_uses_is_the_per_use_box_test(points, ptol):
     orig_edges = {id(e): 1 + (k % 2) for k, e in enumerate(edges)}  # alternate operands; 0 for none
     orig_edges[id(edges[0])] = 0
     foreign_of = {1: (P, tol), 2: (P[: P.shape[0] // 2], tol[: P.shape[0] // 2])}
+    group = np.array([orig_edges.get(id(e), 0) for e in edges], dtype=np.int64)
+    thr = np.array([max(t.linear, e.tol or 0.0) for e in edges])
     for face_foreign in (None, (P, tol)):
-        got = S._clear_uses(edges, face_foreign, foreign_of, orig_edges, t)
+        got = S._clear_uses(edges, group, thr, face_foreign, foreign_of)
         for k, e in enumerate(edges):
             g = orig_edges.get(id(e), 0)
             foreign = face_foreign if face_foreign is not None else foreign_of.get(g)
@@ -853,6 +856,25 @@ def test_clear_uses_is_the_per_use_box_test(points, ptol):
                 pad = (foreign[1] + max(t.linear, e.tol or 0.0))[:, None]
                 expect = not np.any(np.all((foreign[0] >= box[0] - pad) & (foreign[0] <= box[1] + pad), axis=1))
             assert bool(got[k]) == expect
+
+
+@settings(max_examples=30)
+@given(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10), st.floats(-10, 10)), min_size=0, max_size=40),
+       st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10), st.floats(-10, 10), st.floats(0, 6),
+                          st.floats(0, 6), st.floats(0, 0.5)), min_size=1, max_size=8),
+       st.floats(0.0, 0.5), st.integers(0, 3))
+def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, stride):
+    """The k-d tree proposal of _foreign_in_boxes loses no point of the padded box test."""
+    P = np.array(points, dtype=np.float64).reshape(-1, 3)
+    tol = np.full(P.shape[0], ptol) * (1.0 + np.arange(P.shape[0]) % 3)  # unequal tolerances
+    B = np.array(boxes, dtype=np.float64)
+    lo, hi = B[:, :3], B[:, :3] + B[:, 3:]  # boxes of any shape, flat ones included
+    cand = np.arange(0, P.shape[0], 1 + stride)
+    got = S._foreign_in_boxes(lo, hi, P, tol, cand)
+    for i in range(lo.shape[0]):
+        pad = tol[cand, None]
+        inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
+        np.testing.assert_array_equal(got[i], cand[inside])
 
 
 def _pieces(a: Solid, b: Solid) -> list:
@@ -978,3 +1000,20 @@ def test_chord_split_declines_crossing_and_vertex_chords():
     assert S._split_chords(X, 0, [cut((-2, -3, 1), (1, 3, 1))], t) is None  # from a corner
     assert S._split_chords(X, 0, [cut((-1, -3, 1), (0, 0, 1))], t) is None  # ends inside the face
     assert S._split_chords(X, 0, [cut((-1, -3, 1), (1, 3, 1))], t) is not None
+
+
+@settings(max_examples=30)
+@given(st.lists(st.tuples(st.integers(0, 4), st.integers(0, 4), st.integers(0, 1)), min_size=1, max_size=40),
+       st.integers(0, 2**31 - 1))
+def test_point_clusters_are_the_components_of_all_pairs(cells, seed):
+    """_point_clusters (distinct points to the k-d tree) labels as scipy's components of all points do."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(seed)
+    X = np.array(cells, dtype=np.float64) * 1e-7 + (rng.random((len(cells), 1)) < 0.2) * rng.normal(0, 3e-8, (len(cells), 3))
+    r = 1e-7
+    pairs = cKDTree(X).query_pairs(r=r, output_type="ndarray")
+    g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(len(X), len(X)))
+    np.testing.assert_array_equal(S._point_clusters(X, r), connected_components(g, directed=False)[1])

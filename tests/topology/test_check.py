@@ -606,3 +606,142 @@ def test_bulk_assemble_equals_per_vertex_assemble(monkeypatch):
         if isinstance(a, np.ndarray):
             np.testing.assert_array_equal(a, b, err_msg=fld.name)
     assert fast.n_shells == 2
+
+
+# ============================================================================ remembered measurements
+def _shifted_curve(b: BRep, offset: float, tol: float) -> BRep:
+    """``b`` with the 3-D line of edge 0 moved by ``offset`` across itself and that edge's tolerance ``tol``."""
+    from coons.kernel.analytic import Line
+
+    cols = columns(b)
+    line = cols["curves"][int(cols["edge_curve"][0])]
+    assert isinstance(line, Line)
+    across = np.cross(line.direction, [0.3, 0.5, 0.7])
+    cols["curves"].append(Line(line.origin + offset * across / np.linalg.norm(across), line.direction))
+    cols["edge_curve"][0] = len(cols["curves"]) - 1
+    cols["edge_tol"][0] = tol
+    return BRep(**cols)
+
+
+def test_geometry_check_remembers_measurements_not_verdicts():
+    """A coedge measured before (same curve, p-curve, surface and range: a face a Boolean passes
+    through unchanged) takes its measurements from the memo, never its verdict: a later B-rep with
+    the same geometry and a smaller edge tolerance is still reported."""
+    from coons.topology import _memo
+    from coons.topology.check import _SAME_PARAMETER, _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    _memo.clear_all()
+    loose = _shifted_curve(Box(1, 2, 3).brep, 1e-4, 1e-3)
+    assert check(loose).ok
+    assert len(_SAME_PARAMETER) == len(loose.pcurves)  # every coedge measured and remembered
+    tight = dataclasses.replace(loose, edge_tol=np.where(np.arange(loose.n_edges) == 0, 1e-6, loose.edge_tol))
+    warm = _check_geometry(tight, T, 9, out := [])
+    assert {p.code for p in out} == {"vertex-off-edge", "pcurve-deviation"} and {p.index for p in out} == {0}
+    _memo.clear_all()
+    cold = _check_geometry(tight, T, 9, out_cold := [])
+    assert [str(p) for p in out] == [str(p) for p in out_cold]
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
+
+
+@pytest.mark.parametrize("make", [lambda: Cylinder(1.0, 2.0), lambda: Sphere(1.5), lambda: Torus(3.0, 1.0),
+                                  lambda: Cone(1.0, 0.5, 2.0)])
+def test_geometry_check_with_remembered_measurements_equals_a_cold_check(make):
+    """Half the coedges remembered (a B-rep measured before and one moved vertex apart), the other
+    half measured: the same table and problems as a cold check, and a moved vertex is still found."""
+    from coons.topology import _memo
+    from coons.topology.check import _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    b = make().brep
+    _memo.clear_all()
+    assert check(b).ok
+    moved = corrupted(b, lambda c: c["vertex_point"].__setitem__(0, c["vertex_point"][0] + 1e-3))
+    warm = _check_geometry(moved, T, 9, out := [])
+    _memo.clear_all()
+    cold = _check_geometry(moved, T, 9, out_cold := [])
+    assert [str(p) for p in out] == [str(p) for p in out_cold] and "vertex-off-edge" in {p.code for p in out}
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
+
+
+def test_identity_memo_forgets_dead_objects_and_takes_only_values():
+    from coons.topology._memo import IdentityMemo, clear_all, is_value
+
+    memo = IdentityMemo()
+    line = Line2D([0.0, 0.0], [1.0, 0.0])
+    memo.set(line, 1)
+    assert memo.get(line) == 1 and memo.get_many([line, Line2D([0.0, 0.0], [1.0, 0.0])]) == [1, None]
+    assert memo.setdefault(line, lambda: 2) == 1
+    del line
+    import gc
+
+    gc.collect()
+    assert len(memo) == 0  # the entry died with its p-curve
+    assert is_value(Line2D([0.0, 0.0], [1.0, 0.0])) and not is_value([1.0])
+    with pytest.raises(TypeError, match="immutable values"):
+        memo.set([1.0], 3)
+    other = Line2D([0.0, 1.0], [1.0, 0.0])
+    memo.set(other, 4)
+    clear_all()
+    assert memo.get(other) is None
+
+
+def test_segment_pairs_are_the_sweep_pairs_of_loops_that_can_meet():
+    """The loop-aware broad phase of the trim check: the pairs of the plain sweep whose loops are one
+    or have overlapping boxes, in the sweep's order (so the first crossing of each face is the same)."""
+    from coons.topology.check import _cycle_labels, _segment_pairs, _sweep_pairs
+
+    rng = np.random.default_rng(7)
+    for trial in range(30):
+        A, nxt, face = [], [], []
+        n = 0
+        for f in range(int(rng.integers(1, 4))):
+            for _ in range(int(rng.integers(1, 6))):  # loops: jittered polygons of random size and place
+                m = int(rng.integers(3, 12))
+                c = rng.uniform(-5, 5, 2)
+                r = rng.uniform(0.2, 3.0)
+                ang = np.sort(rng.uniform(0, 2 * np.pi, m))
+                A.append(c + r * np.stack([np.cos(ang), np.sin(ang)], axis=1) + rng.normal(0, 0.3, (m, 2)))
+                nxt.append(n + (np.arange(m) + 1) % m)
+                face.append(np.full(m, f))
+                n += m
+        A, nxt, face = np.concatenate(A), np.concatenate(nxt), np.concatenate(face)
+        B = A[nxt]
+        i, j = _sweep_pairs(A, B, face)
+        ring = _cycle_labels(nxt)
+        lo, hi = np.minimum(A, B), np.maximum(A, B)
+        rlo = {r: lo[ring == r].min(axis=0) for r in np.unique(ring)}
+        rhi = {r: hi[ring == r].max(axis=0) for r in np.unique(ring)}
+        meet = np.array([ring[a] == ring[b] or bool(np.all(np.maximum(rlo[ring[a]], rlo[ring[b]])
+                                                            <= np.minimum(rhi[ring[a]], rhi[ring[b]])))
+                         for a, b in zip(i.tolist(), j.tolist())], dtype=bool)
+        gi, gj = _segment_pairs(A, B, face, nxt, chunk=int(rng.integers(1, 50)))
+        np.testing.assert_array_equal(gi, i[meet])
+        np.testing.assert_array_equal(gj, j[meet])
+
+
+def test_plate_with_many_holes_checks_clean_and_finds_a_crossing_hole():
+    """Many loops in one face (the trim check's loop-aware broad phase): clean, and a hole moved onto
+    its neighbour is found."""
+    from coons.topology.profile import Profile
+    from coons.topology.sweep import extrude
+
+    holes = [Profile.circle(0.6, center=(-4.0 + 2.0 * i, -4.0 + 2.0 * k)).outer for i in range(5) for k in range(5)]
+    ok = extrude(Profile(Profile.rectangle(12.0, 12.0).outer, holes), 1.0)
+    assert check(ok).ok
+    b = ok.brep
+    cap = int(np.argmax(np.diff(b.face_loop_ptr)))  # a cap: the face with all the holes
+    hole = int(b.face_loops[b.face_loop_ptr[cap] + 8])
+
+    def move_hole(c):  # the p-curves of one hole of the cap, 1.0 towards its neighbour (radius 0.6)
+        for co in b.loop_coedges(hole).tolist():
+            e, side = co >> 1, co & 1
+            pc = c["pcurves"][int(c["edge_pcurve"][e, side])]
+            shift = np.array([1.0, 0.0])
+            moved = Trig2D(pc.center + shift, pc.a, pc.b) if isinstance(pc, Trig2D) else Line2D(pc.origin + shift, pc.direction)
+            c["pcurves"].append(moved)
+            c["edge_pcurve"][e, side] = len(c["pcurves"]) - 1
+
+    assert "self-intersecting-trim" in codes(corrupted(b, move_hole))

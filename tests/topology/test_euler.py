@@ -161,3 +161,37 @@ def test_assemble_tetrahedron_and_check_catches_inward_orientation():
     b.assemble(P, E, inward)
     report = check(b.build(check=False))
     assert report.codes() == {"inward-shell"}, report.summary()
+
+
+def test_bulk_geometry_setters_equal_the_setters_one_by_one():
+    """set_vertex_tols / set_edge_curves / set_pcurves: the tables and pools (in pool order) of the
+    per-entity setters called in the same order; a range that does not increase is refused."""
+    from coons.kernel.analytic import Line
+    from coons.kernel.pcurve import Line2D
+
+    P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    E = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]]
+    faces = [[[-3, -2, -1]], [[1, 5, -4]], [[2, 6, -5]], [[3, 4, -6]]]
+    lines = [Line(P[a], P[b] - P[a]) for a, b in E]
+    shared = Line2D([0.0, 0.0], [1.0, 0.0])  # one p-curve object used twice: pooled once
+    pcs = [shared if k in (0, 5) else Line2D([0.1 * k, 0.0], [0.0, 1.0]) for k in range(12)]
+    order = [2 * e + s for e in range(6) for s in ((0, 1) if e % 2 else (1, 0))]
+    one, bulk = BRepBuilder(), BRepBuilder()
+    for b in (one, bulk):
+        b.assemble(P, E, faces)
+    for v in range(4):
+        one.set_vertex(v, tol=1e-6 * (v + 1))
+    for e in range(6):
+        one.set_edge_curve(e, lines[e], (0.0, 1.0), tol=1e-5 * e)
+    for k, c in enumerate(order):
+        one.set_pcurve(c, pcs[k])
+    bulk.set_vertex_tols(np.arange(4), 1e-6 * (np.arange(4) + 1))
+    bulk.set_edge_curves(np.arange(6), lines, np.tile([0.0, 1.0], (6, 1)), 1e-5 * np.arange(6))
+    bulk.set_pcurves(np.array(order), pcs)
+    a, b = one.build(check=False), bulk.build(check=False)
+    for name in ("vertex_tol", "edge_curve", "edge_range", "edge_pcurve", "edge_tol"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert all(x is y for x, y in zip(a.curves, b.curves)) and len(a.curves) == len(b.curves) == 6
+    assert all(x is y for x, y in zip(a.pcurves, b.pcurves)) and len(a.pcurves) == len(b.pcurves) == 11
+    with pytest.raises(InvalidInputError, match="edge 4: curve range must increase"):
+        BRepBuilder().set_edge_curves([3, 4], lines[:2], [[0.0, 1.0], [1.0, 1.0]])

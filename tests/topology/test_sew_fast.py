@@ -209,3 +209,76 @@ def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
             if isinstance(x, np.ndarray):
                 np.testing.assert_array_equal(x, y, err_msg=fld.name)
         assert a.brep.n_faces == b.brep.n_faces and np.isclose(a.volume, b.volume, rtol=1e-12, atol=0.0)
+
+
+# ---------------------------------------------------------------------- per-face use tables
+class _Wrapped:
+    """A curve that is not a value (not a frozen dataclass): what is computed from it is not remembered."""
+
+    def __init__(self, curve):
+        self.curve = curve
+
+    def evaluate(self, t):
+        return self.curve.evaluate(t)
+
+
+def test_face_use_tables_are_the_uses_points_and_are_remembered_per_face_spec():
+    from coons.topology import _memo
+    from coons.topology.primitives import Box, Cylinder, Sphere
+
+    _memo.clear_all()
+    specs = sew.face_specs(Cylinder(1.0, 2.0).brep) + sew.face_specs(Sphere(0.5).brep)
+    first = sew._face_uses(specs)
+    again = sew._face_uses(specs)
+    assert all(x is y for x, y in zip(first, again))  # remembered, not recomputed
+    for f, x in zip(specs, first):
+        uses = [e for loop in f.loops for e in loop]
+        assert x.where.tolist() == [[li, pi, len(loop)] for li, loop in enumerate(f.loops) for pi in range(len(loop))]
+        np.testing.assert_array_equal(x.ranges, [[e.t0, e.t1, e.tol or 0.0] for e in uses])
+        for e, P in zip(uses, x.points):
+            np.testing.assert_array_equal(P, e.curve.evaluate(np.array([e.t0, e.t1, 0.5 * (e.t0 + e.t1)])))
+    box = sew.face_specs(Box(1, 2, 3).brep)
+    odd = sew.FaceSpec(box[0].surface, box[0].sense,
+                       [[sew.EdgeSpec(_Wrapped(e.curve), e.t0, e.t1, e.pcurve, e.tol) for e in box[0].loops[0]]])
+    x, y = sew._face_uses([odd]), sew._face_uses([odd])
+    assert x[0] is not y[0]  # not a value: computed each time
+    np.testing.assert_array_equal(x[0].points, sew._face_uses([box[0]])[0].points)
+    resewn = sew.sew_faces([odd] + box[1:])
+    np.testing.assert_allclose(resewn.volume, 6.0, rtol=1e-14)
+
+
+@settings(max_examples=40)
+@given(st.lists(st.tuples(st.integers(0, 5), st.integers(0, 5), st.floats(0.0, 2e-3)), min_size=1, max_size=30),
+       st.integers(0, 2**31 - 1))
+def test_merge_vertices_clusters_as_all_pairs_do(ends, seed):
+    """Vertices of use ends: connected components of ends within the larger of their two tolerances,
+    numbered by first appearance (ends at one exact point are clustered once)."""
+    rng = np.random.default_rng(seed)
+    grid = np.array([(a, b, 0.0) for a, b, _ in ends]) * 1e-3  # many exact repeats, some within tolerance
+    k = len(ends)
+    start = grid + (rng.random((k, 1)) < 0.3) * rng.normal(0, 5e-4, (k, 3))
+    end = start[rng.permutation(k)]
+    tol = np.maximum([tl for _, _, tl in ends], 1e-7)
+
+    class Uses:  # only the arrays _merge_vertices reads
+        def __len__(self):
+            return k
+
+    uses = Uses()
+    uses.start, uses.end, uses.tol = start, end, tol
+    t = resolve(None)
+    vertex, points, tols = sew._merge_vertices(uses, t)
+    X = np.concatenate([start, end])
+    ptol = np.concatenate([tol, tol])
+    n = X.shape[0]
+    near = np.linalg.norm(X[:, None] - X[None], axis=-1) <= np.maximum(ptol[:, None], ptol[None])
+    label = np.arange(n)
+    for _ in range(n):  # transitive closure by repeated min over neighbours
+        label = np.array([label[near[i]].min() for i in range(n)])
+    order = np.concatenate([np.arange(k) * 2, np.arange(k) * 2 + 1])
+    first = {}
+    for pos in np.argsort(order, kind="stable"):
+        first.setdefault(int(label[pos]), len(first))
+    expect = np.array([first[int(x)] for x in label])
+    np.testing.assert_array_equal(vertex, np.stack([expect[:k], expect[k:]], axis=1))
+    assert points.shape == (len(first), 3) and np.all(tols >= t.linear)

@@ -1,0 +1,108 @@
+"""Memos keyed weakly by immutable geometry objects, for what sewing, checking and mass properties
+compute from one curve, p-curve, surface or face spec alone.
+
+Geometry in coons is a value (frozen dataclasses over read-only arrays), so anything computed from
+such an object alone never goes stale: a B-rep built from the faces of an earlier one (the faces a
+Boolean passes through unchanged keep their curve, p-curve and surface objects) finds it again.
+:class:`IdentityMemo` holds one entry per object, dropped when the object dies; only values
+(:func:`is_value`) may be keys.  A result that also depends on other inputs (a parameter range, a
+second object) is stored under a key of those inside the entry, by the caller.  Results never
+depend on what is remembered, only the time does; :func:`clear_all` forgets everything.
+"""
+
+from __future__ import annotations
+
+import weakref
+from typing import Any, Callable, Iterable
+
+__all__ = ["IdentityMemo", "clear_all", "is_value"]
+
+_VALUE_TYPES: dict[type, bool] = {}
+#: Every memo made, so that :func:`clear_all` (benchmarks, tests comparing warm and cold runs)
+#: reaches them all.
+_ALL: "weakref.WeakSet[IdentityMemo]" = weakref.WeakSet()
+
+
+def clear_all() -> None:
+    """Forget every :class:`IdentityMemo` (results never depend on them, only the time does)."""
+    for memo in list(_ALL):
+        memo.clear()
+
+
+def is_value(obj: Any) -> bool:
+    """Whether ``obj`` is an immutable value: an instance of a frozen dataclass (every curve, p-curve,
+    surface and face spec of coons), so that what is computed from it alone may be remembered."""
+    kind = type(obj)
+    got = _VALUE_TYPES.get(kind)
+    if got is None:
+        params = getattr(kind, "__dataclass_params__", None)
+        got = _VALUE_TYPES[kind] = params is not None and bool(params.frozen)
+    return got
+
+
+class _Ref(weakref.ref):
+    """A weak reference that knows its entry's key (one shared callback removes dead entries)."""
+
+    __slots__ = ("key",)
+
+
+class IdentityMemo:
+    """``object -> value`` by identity, weakly: an entry dies with its object.
+
+    A dict on ``id`` holding a weak reference to each key object (checked on every lookup, so a
+    recycled id never finds another object's entry; the reference's callback removes the entry).
+    Lookups cost one dict access, unlike :class:`weakref.WeakKeyDictionary`, which makes a new
+    weak reference for each: the checker looks up every coedge of a model.
+    """
+
+    def __init__(self) -> None:
+        self._data: dict[int, tuple[_Ref, Any]] = {}
+        data = self._data
+
+        def forget(ref: _Ref) -> None:
+            got = data.get(ref.key)
+            if got is not None and got[0] is ref:
+                del data[ref.key]
+
+        self._forget = forget
+        _ALL.add(self)
+
+    def get(self, obj: Any, default: Any = None) -> Any:
+        got = self._data.get(id(obj))
+        if got is None or got[0]() is not obj:
+            return default
+        return got[1]
+
+    def get_many(self, objs: Iterable[Any]) -> list:
+        """:meth:`get` of each object (None where absent), in one call."""
+        data = self._data
+        out = []
+        for obj in objs:
+            got = data.get(id(obj))
+            out.append(None if got is None or got[0]() is not obj else got[1])
+        return out
+
+    def set(self, obj: Any, value: Any) -> None:
+        """Remember ``value`` for ``obj``, which must be a value (:func:`is_value`)."""
+        if not is_value(obj):
+            raise TypeError(f"IdentityMemo keys must be immutable values (frozen dataclasses), got {type(obj).__name__}")
+        ref = _Ref(obj, self._forget)
+        ref.key = id(obj)
+        self._data[ref.key] = (ref, value)
+
+    def setdefault(self, obj: Any, factory: Callable[[], Any]) -> Any:
+        """The value for ``obj``, made by ``factory()`` and remembered when absent."""
+        got = self.get(obj, _MISSING)
+        if got is _MISSING:
+            got = factory()
+            self.set(obj, got)
+        return got
+
+    def clear(self) -> None:
+        self._data.clear()
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+
+_MISSING = object()

@@ -194,7 +194,8 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
-from coons.topology.sew import EdgeSpec, FaceSpec, _face_uses, face_specs, sew_faces, sewn_unchanged_faces, use_points
+from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, sew_faces,
+                               sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -2361,20 +2362,10 @@ _USE_BOXES = IdentityMemo()
 
 def _cluster_max(X: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """Per point, the largest tolerance in its cluster (points within ``max(tol_i, tol_j)``, transitively), as sewing merges them."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     if tol.size == 0 or tol.min() == tol.max():
         return tol.copy()  # one tolerance: every cluster's largest is that
-    pairs = cKDTree(X).query_pairs(r=float(tol.max()), output_type="ndarray")
-    if pairs.size:
-        d = np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1)
-        pairs = pairs[d <= np.maximum(tol[pairs[:, 0]], tol[pairs[:, 1]])]
-    n = X.shape[0]
-    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    k, label = connected_components(g, directed=False)
-    top = np.zeros(k)
+    label = point_clusters(X, tol)
+    top = np.zeros(int(label.max()) + 1)
     np.maximum.at(top, label, tol)
     return top[label]
 
@@ -2755,32 +2746,8 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
 
 def _point_clusters(X: np.ndarray, r: float) -> np.ndarray:
     """Cluster label ``(n,)`` of points ``X (n, 3)``: the connected components of the pairs within ``r``,
-    numbered in the order of their first point.
-
-    Points at exactly the same place (the ends of uses of one curve object) are one point to the
-    k-d tree (most vertices of a model are met by several uses).
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
-    Xs = X[order]
-    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
-    point_of = np.empty(X.shape[0], dtype=np.int64)
-    point_of[order] = np.cumsum(distinct) - 1
-    U = Xs[distinct]
-    pairs = cKDTree(U).query_pairs(r=r, output_type="ndarray")
-    m = U.shape[0]
-    g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    nc, label = connected_components(g, directed=False)
-    label = label[point_of]
-    # Numbered by their first point, as the components of all the points would be.
-    first = np.full(nc, X.shape[0], dtype=np.int64)
-    np.minimum.at(first, label, np.arange(X.shape[0]))
-    rank = np.empty(nc, dtype=np.int64)
-    rank[np.argsort(first)] = np.arange(nc)
-    return rank[label]
+    numbered in the order of their first point (:func:`~coons.topology.sew.point_clusters`)."""
+    return point_clusters(X, np.full(X.shape[0], float(r)))
 
 
 class _UsePoints:

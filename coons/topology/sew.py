@@ -60,7 +60,7 @@ from coons.topology.builder import BRepBuilder
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
-           "sewn_unchanged_faces"]
+           "sewn_unchanged_faces", "point_clusters"]
 
 #: Parameters (fractions of an edge's range) at which two curves are compared point by point.
 _PROBE = np.linspace(0.0, 1.0, 7)
@@ -433,6 +433,47 @@ def use_points(faces: Sequence[FaceSpec]) -> np.ndarray:
     return np.concatenate([x.points for x in tables]) if tables else np.empty((0, 3, 3))
 
 
+def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = None) -> np.ndarray:
+    """Cluster labels ``(n,)`` of points ``X (n, 3)``: the connected components of the pairs of points
+    within ``max(tol_i, tol_j)`` of each other, numbered in the order of their first point by
+    ``rank (n,)`` (default: the points' order).
+
+    Points at exactly the same place (the ends of the uses of one curve object meeting there:
+    most of them) are one point to the k-d tree, with the largest of their tolerances (two
+    points are within ``max(tol_i, tol_j)`` of some pair of their copies exactly when within the
+    larger of those two maxima), so the labels are those of the components of all the points.
+    Sewing's vertices and the Booleans' T-junction and fuse passes cluster with it.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = X.shape[0]
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
+    Xs = X[order]
+    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
+    at = np.flatnonzero(distinct)
+    point_of = np.empty(n, dtype=np.int64)
+    point_of[order] = np.cumsum(distinct) - 1
+    U = Xs[at]
+    utol = np.maximum.reduceat(np.asarray(tol, dtype=np.float64)[order], at)
+    pairs = cKDTree(U).query_pairs(r=float(utol.max()), output_type="ndarray")
+    if pairs.size:
+        d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
+        pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
+    m = U.shape[0]
+    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    nc, label = connected_components(g, directed=False)
+    label = label[point_of]
+    first = np.full(nc, n, dtype=np.int64)
+    np.minimum.at(first, label, np.arange(n) if rank is None else rank)
+    out = np.empty(nc, dtype=np.int64)
+    out[np.argsort(first, kind="stable")] = np.arange(nc)
+    return out[label]
+
+
 def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cluster the use ends into vertices.
 
@@ -442,41 +483,12 @@ def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     points : (V, 3) float64, cluster means
     tols : (V,) float64, ``max(tol.linear, largest distance of a member from the mean)``
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     k = len(uses)
     X = np.concatenate([uses.start, uses.end])
     ptol = np.concatenate([uses.tol, uses.tol])
-    n = X.shape[0]
-    # Ends at exactly the same point (the uses of one curve object meeting there: most of them)
-    # are one vertex whatever their tolerances; the distinct points are clustered, each with the
-    # largest tolerance of its ends (two points are within max(tol_i, tol_j) of some pair of their
-    # ends exactly when within the larger of those two maxima).
-    order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
-    Xs = X[order]
-    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
-    at = np.flatnonzero(distinct)
-    point_of = np.empty(n, dtype=np.int64)
-    point_of[order] = np.cumsum(distinct) - 1
-    U = Xs[at]
-    utol = np.maximum.reduceat(ptol[order], at)
-    pairs = cKDTree(U).query_pairs(r=float(ptol.max()), output_type="ndarray")
-    if pairs.size:
-        d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
-        pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
-    m = U.shape[0]
-    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    nv, label = connected_components(g, directed=False)
-    label = label[point_of]
-    # Number vertices by first appearance so that vertex ids follow the input order.
-    first = np.full(nv, n, dtype=np.int64)
-    order_pts = np.concatenate([np.arange(k) * 2, np.arange(k) * 2 + 1])  # start of use i before its end
-    np.minimum.at(first, label, order_pts)
-    rank = np.empty(nv, dtype=np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(nv)
-    label = rank[label]
+    # Vertex ids follow the input order: the start of use i before its end.
+    label = point_clusters(X, ptol, rank=np.concatenate([np.arange(k) * 2, np.arange(k) * 2 + 1]))
+    nv = int(label.max()) + 1 if label.size else 0
     count = np.bincount(label, minlength=nv)
     mean = np.zeros((nv, 3))
     np.add.at(mean, label, X)

@@ -1629,7 +1629,7 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
               links: dict[int, list[_Link]] | None = None, side: int = 0) -> np.ndarray:
     """Status of every piece of X with respect to solid Y (``(k,)`` int8 of OUT/IN/ON_SAME/ON_OPPOSITE).
 
-    Three ways, cheapest first (the module docstring, phase 5):
+    Four ways, cheapest first (the module docstring, phase 5):
 
     0. *Far*: a piece of a face whose box lies outside Y's box is OUT.
     1. *Local*: a piece bounded by a cut along a transversal stretch of a branch inside both
@@ -1650,9 +1650,11 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
         should have been split there).
     """
     status = np.full(len(pieces), -1, dtype=np.int8)
-    if free is not None and len(pieces) and len(Y.specs):
+    y_boxed = len(Y.specs) and bool(np.all(np.isfinite(Y.lo) & np.isfinite(Y.hi) & (Y.lo <= Y.hi)))
+    if free is not None and len(pieces) and y_boxed:
         # A face whose box lies outside Y's box is outside Y: most faces of a large part cut by
-        # a small tool, decided by one array test instead of one by one.
+        # a small tool, decided by one array test instead of one by one (only when every face
+        # of Y has a proper box, so that their union holds Y).
         valid = np.all(np.isfinite(X.lo) & np.isfinite(X.hi) & (X.lo <= X.hi), axis=1)
         far = np.any((X.lo > Y.hi.max(axis=0)) | (X.hi < Y.lo.min(axis=0)), axis=1) & free & valid
         status[far[np.fromiter((f for f, _ in pieces), dtype=np.int64, count=len(pieces))]] = OUT

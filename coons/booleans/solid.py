@@ -492,12 +492,16 @@ class _Operand:
         d = self._data[f]
         if d.edge_boxes is None:
             edges = [e for loop in self.specs[f].loops for e in loop]
-            lo = np.full((len(edges), 3), -np.inf)
-            hi = np.full((len(edges), 3), np.inf)
-            for k, e in enumerate(edges):
-                box = _use_box(e)
-                if box is not None:
-                    lo[k], hi[k] = box[0], box[1]
+            boxes = [_use_box(e) for e in edges]
+            if edges and all(box is not None for box in boxes):  # (one copy for a face of many edges)
+                both = np.stack(boxes)
+                lo, hi = both[:, 0].copy(), both[:, 1].copy()
+            else:
+                lo = np.full((len(edges), 3), -np.inf)
+                hi = np.full((len(edges), 3), np.inf)
+                for k, box in enumerate(boxes):
+                    if box is not None:
+                        lo[k], hi[k] = box[0], box[1]
             tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
             d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
         return d.edge_boxes

@@ -559,9 +559,20 @@ def _shift_periodic(F: _Face, uv: np.ndarray) -> np.ndarray:
 #: Below this many point–segment pairs (or with fewer than four points per row) :func:`_in_polygon`
 #: tests every pair: the row sweep's Python loop over rows does not pay.
 _ROW_SWEEP_PAIRS = 1 << 18
+#: Up to this many point–segment pairs :func:`_in_polygon` tests them in Python floats (numpy's
+#: per-call cost exceeds the arithmetic of a few points against a small face's polygon).
+_SCALAR_PAIRS = 64
 
 
-def _in_polygon(uv: np.ndarray, seg: np.ndarray) -> np.ndarray:
+def _polygon_slopes(seg: np.ndarray) -> np.ndarray:
+    """``dx / dy`` of polygon segments ``(s, 2, 2)`` (``dx`` where ``dy = 0``), as :func:`_in_polygon` uses them."""
+    a, c = seg[:, 0], seg[:, 1]
+    dy = c[:, 1] - a[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (c[:, 0] - a[:, 0]) / np.where(dy == 0, 1.0, dy)
+
+
+def _in_polygon(uv: np.ndarray, seg: np.ndarray, slope: np.ndarray | None = None) -> np.ndarray:
     """Even–odd crossing test of points ``(k, 2)`` against closed polygon segments ``(s, 2, 2)``.
 
     A point is inside when an odd number of segments straddle its horizontal line to its right
@@ -570,13 +581,17 @@ def _in_polygon(uv: np.ndarray, seg: np.ndarray) -> np.ndarray:
     sorted and each point's count found by bisection, ``O(rows · s + k log s)`` instead of the
     ``O(k · s)`` of testing every pair (a face with hundreds of holes has tens of thousands of
     segments).  The crossings and comparisons are the same floating-point operations either way.
+    ``slope``: :func:`_polygon_slopes` of ``seg`` when the caller keeps them.
     """
     if uv.shape[0] == 0:
         return np.zeros(0, dtype=bool)
     a, c = seg[:, 0], seg[:, 1]
-    dy = c[:, 1] - a[:, 1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = (c[:, 0] - a[:, 0]) / np.where(dy == 0, 1.0, dy)
+    if slope is None:
+        slope = _polygon_slopes(seg)
+    if uv.shape[0] * seg.shape[0] <= _SCALAR_PAIRS:  # the same comparisons and crossings in Python floats
+        sides = list(zip(a[:, 0].tolist(), a[:, 1].tolist(), c[:, 1].tolist(), slope.tolist()))
+        return np.array([sum(1 for ax, ay, cy, m in sides if (ay > y) != (cy > y) and x < ax + (y - ay) * m) % 2 == 1
+                         for x, y in uv.tolist()], dtype=bool)
     every = uv.shape[0] * seg.shape[0] <= _ROW_SWEEP_PAIRS
     if not every:  # (the rows are only needed, and only sorted out, for the sweep)
         ys, row = np.unique(uv[:, 1], return_inverse=True)

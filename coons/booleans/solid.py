@@ -56,17 +56,24 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
    3-D curve rebuilt by ``pcurve_on`` (``_refitted``: a fit gone wrong near a pole must not
    widen the cut's tolerance to the size of the face); every branch is clipped to both
-   trimmed faces (``clip_to_face``; answered at once by ``_clip`` when the sampled p-curve's
-   box meets no loop segment's box: the branch is then wholly inside or outside; and in closed form by
-   ``_clip_straight`` when a straight p-curve crosses a plane or cylinder face bounded by straight
-   p-curves properly, far from its vertices) and the common sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
+   trimmed faces (``clip_to_face``; in closed form by ``_clip_straight`` when a straight
+   p-curve crosses a plane or cylinder face bounded by straight p-curves properly, far from its
+   vertices, or stays clear of them; answered at once by ``_clip`` when the sampled p-curve's
+   box meets no loop segment's box: the branch is then wholly inside or outside) and the common
+   sub-ranges become cuts — on X where the piece runs inside X (not along X's boundary), on Y likewise.
    Coincident surfaces imprint each face's boundary edges onto the other (``pcurve_on`` of the
    edge curve on the other surface, ``clip_to_face``).  Isolated tangent points split nothing.
    Cuts repeated by several pairs (a curve along an edge of the other operand meets both faces of
    that edge) are kept once.  A cut's tolerance is widened to ``δ / sin φ`` at ends where it
    crosses a boundary edge at a small angle ``φ`` (both faces compute that point independently).
    Every cut end must meet another cut end, the face's boundary or an edge of the other operand;
-   a dangling end means a missing branch and raises here rather than as an open shell later.
+   a dangling end means a missing branch and raises here rather than as an open shell later
+   (``_check_cut_ends``; a face whose cut ends the end tolerance already found on its boundary,
+   with a margin for round-off, needs no check).  The small inputs of a face crossed by a few
+   branches (its polygon's sides, the cut ends, the midpoints of its cuts) are handled in Python
+   floats by the array paths' own expressions, or decided where round-off cannot change the
+   decision and left to the arrays where it could, so that every cut, tolerance and link is the
+   same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).
 4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
    form separate simple closed cycles clear of the face's loops — a hole drilled through a
    plate — ``_split_islands`` builds the holed face and one island per cycle directly; when the
@@ -189,7 +196,7 @@ import numpy as np
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
-from coons.kernel.analytic import Line, PlanarSurface
+from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value
@@ -493,12 +500,16 @@ class _Operand:
         d = self._data[f]
         if d.edge_boxes is None:
             edges = [e for loop in self.specs[f].loops for e in loop]
-            lo = np.full((len(edges), 3), -np.inf)
-            hi = np.full((len(edges), 3), np.inf)
-            for k, e in enumerate(edges):
-                box = _use_box(e)
-                if box is not None:
-                    lo[k], hi[k] = box[0], box[1]
+            boxes = [_use_box(e) for e in edges]
+            if edges and all(box is not None for box in boxes):  # (one copy for a face of many edges)
+                both = np.stack(boxes)
+                lo, hi = both[:, 0].copy(), both[:, 1].copy()
+            else:
+                lo = np.full((len(edges), 3), -np.inf)
+                hi = np.full((len(edges), 3), np.inf)
+                for k, box in enumerate(boxes):
+                    if box is not None:
+                        lo[k], hi[k] = box[0], box[1]
             tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
             d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
         return d.edge_boxes
@@ -651,10 +662,13 @@ class _FaceData:
     ``uv_box`` the enlarged parameter box, ``samples`` (:func:`_edge_samples`), ``rings``
     (:func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
     ``seg_lo, seg_hi (s, 2)``, ``box (2, 3)`` the padded space box (:func:`_face_box`, None where
-    none is proven) and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand).
+    none is proven) and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand); for
+    phase 3's clipping, filled on demand: ``slope`` the segments' :func:`_polygon_slopes` and
+    ``straight`` the closed-form clip's data (:func:`_straight_data`, False where it does not apply).
     """
 
-    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "box", "edge_boxes", "__weakref__")
+    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "box", "edge_boxes", "slope",
+                 "straight", "__weakref__")
 
 
 #: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
@@ -678,7 +692,7 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     if d is not None and d.t == t:
         return d
     d = _FaceData()
-    d.t, d.edge_boxes = t, None
+    d.t, d.edge_boxes, d.slope, d.straight = t, None, None, None
     # Each edge sampled once: for the rings and for the pads of its segments.
     d.samples = _edge_samples(spec)
     rings = d.rings = [_frozen(R) for R in _loop_rings(spec, samples=d.samples)]
@@ -848,6 +862,7 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
 
     cuts_a: dict[int, list[EdgeSpec]] = {}
     cuts_b: dict[int, list[EdgeSpec]] = {}
+    bounded: set[int] = set()  # ids of the cuts whose ends _end_tolerance found on their face's boundary
     for i, j in zip(I.tolist(), J.tolist()):
         X, Y = A.specs[i], B.specs[j]
         try:
@@ -868,11 +883,18 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                         s0, s1 = max(a0, b0), min(a1, b1)
                         if s1 <= s0 or not _long_enough(c.curve, s0, s1, t):
                             continue
-                        etol = _end_tolerance(c, (s0, s1), (A.edge_boxes(i), B.edge_boxes(j)), t)
+                        near = [[math.inf, math.inf], [math.inf, math.inf]]
+                        etol = _end_tolerance(c, (s0, s1), (A.edge_boxes(i), B.edge_boxes(j)), t, near)
+                        # Both ends within _check_cut_ends's reach of this face's boundary, for sure.
+                        reach = 10.0 * max(t.linear, etol)
                         if wa == "inside":
-                            cuts_a.setdefault(i, []).append(EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
+                            cuts_a.setdefault(i, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
+                            if max(near[0]) <= reach:
+                                bounded.add(id(e))
                         if wb == "inside":
-                            cuts_b.setdefault(j, []).append(EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
+                            cuts_b.setdefault(j, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
+                            if max(near[1]) <= reach:
+                                bounded.add(id(e))
                         if wa == "inside" and wb == "inside" and links is not None:
                             links.setdefault(id(c.curve), []).append(_Link(s0, s1, (i, j), (c.pcurve_a, c.pcurve_b)))
         except BooleanError:
@@ -889,7 +911,8 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
             if not cuts[f]:
                 del cuts[f]
                 continue
-            _check_cut_ends(X, f, cuts[f], B if X is A else A, t)
+            if not all(id(c) in bounded for c in cuts[f]):
+                _check_cut_ends(X, f, cuts[f], B if X is A else A, t)
     if links is not None:
         for key in repeated:
             links.pop(key, None)
@@ -953,33 +976,56 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
     decides the whole range.  Otherwise (near the boundary) a straight p-curve on a face bounded
     by straight p-curves is clipped in closed form (:func:`_clip_straight`) when it crosses the
     boundary properly, and else the exact ``clip_to_face`` runs.
+
+    A straight p-curve on a face that :func:`_clip_straight` takes goes there first: where the
+    sampled test would answer, the branch meets no side and stays clear of the polygon, so the
+    closed form finds no crossing and classifies one point of the same branch, which gives the
+    same answer (or declines, and the sampled test answers).
     """
     from coons.booleans.classify import _in_polygon
+    from coons.kernel.intersect import _pcurve_points
     from coons.topology.split import clip_to_face
 
+    straight = _clip_straight(X, f, pcurve, t0, t1, t)
+    if straight is not None:
+        return straight
     Q = None
     if pcurve is not None:
-        try:
-            Q = np.asarray(pcurve.evaluate(np.linspace(t0, t1, _CLEAR_SAMPLES)), dtype=np.float64)
-        except (CoonsError, ValueError, TypeError, ArithmeticError):
-            Q = None
+        kind = type(pcurve)
+        if (kind is Line2D or kind is Trig2D) and math.isfinite(t0) and math.isfinite(t1):
+            Q = _pcurve_points(pcurve, np.linspace(t0, t1, _CLEAR_SAMPLES))  # (evaluate's expressions)
+        else:
+            try:
+                Q = np.asarray(pcurve.evaluate(np.linspace(t0, t1, _CLEAR_SAMPLES)), dtype=np.float64)
+            except (CoonsError, ValueError, TypeError, ArithmeticError):
+                Q = None
     if Q is not None and Q.shape == (_CLEAR_SAMPLES, 2) and np.all(np.isfinite(Q)):
-        step = float(np.max(np.linalg.norm(np.diff(Q, axis=0), axis=1)))
+        # The largest step: the root of the largest squared step (the norms' own sums; sqrt is
+        # monotone and correctly rounded, so this is the largest norm).
+        dQ = Q[1:] - Q[:-1]
+        step = math.sqrt(float(np.max(np.add.reduce(dQ * dQ, axis=1))))
         scale = 1.0 + float(np.max(np.abs(Q)))
         lo = Q.min(axis=0) - step - 1e-9 * scale  # rounding margin of parameter values
         hi = Q.max(axis=0) + step + 1e-9 * scale
         meet = np.all((X.seg_lo[f] <= hi) & (X.seg_hi[f] >= lo), axis=1)
         if not np.any(meet):
-            inside = bool(_in_polygon(Q[_CLEAR_SAMPLES // 2][None], X.segments[f])[0])
+            inside = bool(_in_polygon(Q[_CLEAR_SAMPLES // 2][None], X.segments[f], _slopes(X, f))[0])
             if inside:
                 return [(t0, t1, "inside")]
             S = X.specs[f].surface
             if not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
                 return []  # (on a periodic surface clip_to_face may still find it a period away)
-    straight = _clip_straight(X, f, pcurve, t0, t1, t)
-    if straight is not None:
-        return straight
     return clip_to_face(X.specs[f], pcurve, t0, t1, t, curve=curve)
+
+
+def _slopes(X: _Operand, f: int) -> np.ndarray:
+    """:func:`~coons.booleans.classify._polygon_slopes` of face ``f``'s segments, computed once per face spec."""
+    d = X._data[f]
+    if d.slope is None:
+        from coons.booleans.classify import _polygon_slopes
+
+        d.slope = _frozen(_polygon_slopes(d.seg))
+    return d.slope
 
 
 #: A straight branch is clipped in closed form (:func:`_clip_straight`) only when every feature of
@@ -991,6 +1037,123 @@ _STRAIGHT_CLEARANCE = 100.0
 #: clip: at a grazing crossing a tolerance-sized error moves the crossing far along both lines, and
 #: ``clip_to_face`` re-solves it in space; such branches take that path.
 _STRAIGHT_MIN_SINE = 1e-2
+
+
+def _straight_data(X: _Operand, f: int, t: Tolerance) -> tuple | None:
+    """What :func:`_clip_straight` needs of face ``f`` alone, computed once per face spec; None when the face
+    does not qualify (not a plane or cylinder, or an edge use without a ``Line2D`` p-curve or with a
+    tolerance above ``tol.linear``, or no polygon side of positive length).
+
+    ``(speed (2,), A (k, 2), E (k, 2), L (k,), L², V (2k, 2), largest |A|, sides, size)``: the
+    sides' starts, vectors and lengths in the isometric coordinates (zero-length sides dropped),
+    their starts and ends, the largest start coordinate before the drop (as the clip's scale
+    takes it), the sides as tuples ``(A_k, E_k, L_k, L_k²)`` of Python floats and ``1 + max |V|``.
+    """
+    d = X._data[f]
+    if d.straight is None:
+        from coons.kernel.analytic import CylindricalSurface
+
+        d.straight = False
+        spec = X.specs[f]
+        S = spec.surface
+        if isinstance(S, PlanarSurface):
+            speed = (1.0, 1.0)  # the plane's frame is orthonormal
+        elif isinstance(S, CylindricalSurface):
+            speed = (float(S.radius), 1.0)
+        else:
+            return None
+        for loop in spec.loops:
+            for e in loop:
+                if not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear:
+                    return None
+        sp = np.array(speed)
+        seg = d.seg
+        A = seg[:, 0] * sp
+        E = seg[:, 1] * sp - A
+        largest = float(np.max(np.abs(A)))
+        L = np.hypot(E[:, 0], E[:, 1])
+        side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
+        A, E, L = A[side], E[side], L[side]
+        if L.size == 0:
+            return None
+        V = np.concatenate([A, A + E])
+        d.straight = tuple(_frozen(x) for x in (sp, A, E, L, L * L, V)) + (
+            largest, list(zip(A.tolist(), E.tolist(), L.tolist(), (L * L).tolist())), 1.0 + float(np.max(np.abs(V))))
+    return d.straight or None
+
+
+#: Up to this many polygon sides :func:`_clip_straight` tests them in Python floats.
+_SCALAR_SIDES = 16
+#: :func:`_straight_crossings` found a clearance it cannot tell from the margin.
+_UNDECIDED = object()
+
+
+def _straight_crossings_arrays(A, E, L, LL, V, p0, d, B, lo_t, hi_t, dn: float, margin: float) -> list[float] | None:
+    """The branch parameters where it crosses the sides properly, or None (see :func:`_clip_straight`)."""
+    d0, d1 = d.tolist()
+    W = A - p0
+    cross = d0 * E[:, 1] - d1 * E[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (W[:, 0] * E[:, 1] - W[:, 1] * E[:, 0]) / cross  # branch parameter of the crossing
+        w = (W[:, 0] * d1 - W[:, 1] * d0) / cross  # fraction along the side
+        meets = (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (s >= lo_t) & (s <= hi_t)
+    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
+        & ((1.0 - w) * L > margin) & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
+    # Every other side must not meet the branch at all (a grazing crossing, or one near an end).
+    # Then the distance between it and the branch is the least of the four end-to-segment
+    # distances (where round-off puts a meeting just outside a segment, it lies near an end and
+    # that distance is small): every polygon vertex must stay clear of the branch, and the
+    # branch's ends clear of every side (of crossing sides too: declining more is safe).
+    if np.any(meets & ~crossing):
+        return None
+    if _straight_clearance_arrays(A, E, LL, V, p0, d, B, lo_t, hi_t, dn) <= margin:
+        return None
+    return s[crossing].tolist()
+
+
+def _straight_clearance_arrays(A, E, LL, V, p0, d, B, lo_t, hi_t, dn: float) -> float:
+    """The least distance between the polygon's vertices and the branch and between its ends and the sides."""
+    tv = np.clip(((V - p0) @ d) / (dn * dn), lo_t, hi_t)
+    near = np.hypot(*(V - p0 - tv[:, None] * d).T)
+    fb = np.clip(np.einsum("bkj,kj->bk", B[:, None, :] - A[None], E) / LL, 0.0, 1.0)  # (2, k)
+    Fb = B[:, None, :] - A[None] - fb[..., None] * E[None]
+    return min(float(np.min(near)), float(np.min(np.hypot(Fb[..., 0], Fb[..., 1]))))
+
+
+def _straight_crossings(sides, p0, d, B, lo_t: float, hi_t: float, dn: float, margin: float, size: float):
+    """:func:`_straight_crossings_arrays` of a few sides in Python floats: the crossings and the tests on
+    them by the same expressions, element by element; the clearance (numpy's matrix product and
+    ``hypot`` round their own way) to within ``1e-12 size``, far above the round-off of either:
+    :data:`_UNDECIDED` where it lies that close to the margin."""
+    (p00, p01), (d0, d1) = p0, d
+    found = []
+    for (a0, a1), (e0, e1), length, _ in sides:
+        w0, w1 = a0 - p00, a1 - p01
+        cross = d0 * e1 - d1 * e0
+        if cross == 0.0:
+            continue  # (meets nothing: the arrays' 0/0 and x/0 fail every comparison but !=)
+        s = (w0 * e1 - w1 * e0) / cross
+        w = (w0 * d1 - w1 * d0) / cross
+        if not (w >= 0.0 and w <= 1.0 and s >= lo_t and s <= hi_t):
+            continue
+        if not (abs(cross) >= _STRAIGHT_MIN_SINE * dn * length and w * length > margin
+                and (1.0 - w) * length > margin and (s - lo_t) * dn > margin and (hi_t - s) * dn > margin):
+            return None
+        found.append(s)
+    least = math.inf
+    for (a0, a1), (e0, e1), _, ll in sides:
+        for v0, v1 in ((a0, a1), (a0 + e0, a1 + e1)):
+            tv = min(max(((v0 - p00) * d0 + (v1 - p01) * d1) / (dn * dn), lo_t), hi_t)
+            least = min(least, math.hypot(v0 - p00 - tv * d0, v1 - p01 - tv * d1))
+        for b0, b1 in B:
+            fb = min(max(((b0 - a0) * e0 + (b1 - a1) * e1) / ll, 0.0), 1.0)
+            least = min(least, math.hypot(b0 - a0 - fb * e0, b1 - a1 - fb * e1))
+    band = 1e-12 * size
+    if least <= margin - band:
+        return None
+    if least <= margin + band:
+        return _UNDECIDED
+    return found
 
 
 def _clip_straight(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance
@@ -1011,84 +1174,70 @@ def _clip_straight(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Toleran
     boundary returns None.  The crossings are the plane solution that ``clip_to_face``
     refines in space; both p-curves are exact within ``tol.linear`` here, so the refinement
     moves them by at most that over the sine.  An empty answer on a periodic surface also
-    returns None (as in :func:`_clip`).
+    returns None (as in :func:`_clip`).  The face's own part (:func:`_straight_data`) is
+    computed once per face; the branch's few values are Python floats.
     """
     from coons.booleans.classify import _in_polygon
-    from coons.kernel.analytic import CylindricalSurface
 
     if not isinstance(pcurve, Line2D):
         return None
-    spec = X.specs[f]
-    S = spec.surface
-    if isinstance(S, PlanarSurface):
-        speed = (1.0, 1.0)  # the plane's frame is orthonormal
-    elif isinstance(S, CylindricalSurface):
-        speed = (float(S.radius), 1.0)
-    else:
+    data = _straight_data(X, f, t)
+    if data is None:
         return None
-    for loop in spec.loops:
-        for e in loop:
-            if not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear:
-                return None
+    sp, A, E, L, LL, V, largest, sides, size = data
     lo_t, hi_t = (t0, t1) if t0 < t1 else (t1, t0)
-    sp = np.array(speed)
-    seg = X.segments[f]
     # Work in the isometric coordinates: (k, 2) side starts A and vectors E, branch p0 + s d.
-    A = seg[:, 0] * sp
-    E = seg[:, 1] * sp - A
     o, dd = pcurve.origin, pcurve.direction
     p0, d = o * sp, dd * sp
-    B = np.stack([p0 + lo_t * d, p0 + hi_t * d])  # the branch's ends
-    scale = 1.0 + max(float(np.max(np.abs(A))), float(np.max(np.abs(B))))
+    (p00, p01), (d0, d1) = p0.tolist(), d.tolist()
+    B = np.array([[p00 + lo_t * d0, p01 + lo_t * d1], [p00 + hi_t * d0, p01 + hi_t * d1]])  # the branch's ends
+    scale = 1.0 + max(largest, max(map(abs, B.ravel().tolist())))
     # clip_to_face's own band is one tolerance (tol3: the edges' and tol.linear); 1e-12 of the
     # coordinates' size covers the round-off of this arithmetic.
     margin = _STRAIGHT_CLEARANCE * t.linear + 1e-12 * scale
-    L = np.hypot(E[:, 0], E[:, 1])
-    side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
-    A, E, L = A[side], E[side], L[side]
-    if L.size == 0:
+    dn = math.hypot(d0, d1)
+    if len(sides) <= _SCALAR_SIDES:
+        found = _straight_crossings(sides, (p00, p01), (d0, d1), B.tolist(), lo_t, hi_t, dn, margin,
+                                    max(scale, size))
+        if found is None:
+            return None
+        if found is _UNDECIDED:  # a clearance within round-off of the margin: the arrays decide
+            found = _straight_crossings_arrays(A, E, L, LL, V, p0, d, B, lo_t, hi_t, dn, margin)
+    else:
+        found = _straight_crossings_arrays(A, E, L, LL, V, p0, d, B, lo_t, hi_t, dn, margin)
+    if found is None:
         return None
-    dn = math.hypot(d[0], d[1])
-    W = A - p0
-    cross = d[0] * E[:, 1] - d[1] * E[:, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (W[:, 0] * E[:, 1] - W[:, 1] * E[:, 0]) / cross  # branch parameter of the crossing
-        w = (W[:, 0] * d[1] - W[:, 1] * d[0]) / cross  # fraction along the side
-        meets = (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (s >= lo_t) & (s <= hi_t)
-    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
-        & ((1.0 - w) * L > margin) & ((s - lo_t) * dn > margin) & ((hi_t - s) * dn > margin)
-    # Every other side must not meet the branch at all (a grazing crossing, or one near an end).
-    # Then the distance between it and the branch is the least of the four end-to-segment
-    # distances (where round-off puts a meeting just outside a segment, it lies near an end and
-    # that distance is small): every polygon vertex must stay clear of the branch, and the
-    # branch's ends clear of every side (of crossing sides too: declining more is safe).
-    if np.any(meets & ~crossing):
-        return None
-    V = np.concatenate([A, A + E])
-    tv = np.clip(((V - p0) @ d) / (dn * dn), lo_t, hi_t)
-    near = np.hypot(*(V - p0 - tv[:, None] * d).T)
-    fb = np.clip(np.einsum("bkj,kj->bk", B[:, None, :] - A[None], E) / (L * L), 0.0, 1.0)  # (2, k)
-    Fb = B[:, None, :] - A[None] - fb[..., None] * E[None]
-    if min(float(np.min(near)), float(np.min(np.hypot(Fb[..., 0], Fb[..., 1])))) <= margin:
-        return None
-    br = np.concatenate([[lo_t], np.sort(s[crossing]), [hi_t]])
-    if np.any(np.diff(br) * dn <= margin):
+    # (np.sort's order of equal keys, e.g. -0.0 and 0.0, is its own: it sorts those)
+    br = [lo_t] + (np.sort(np.array(found)).tolist() if 0.0 in found else sorted(found)) + [hi_t]
+    if any((b - a) * dn <= margin for a, b in zip(br[:-1], br[1:])):
         return None  # two crossings at one place: a vertex, let the general path decide
-    mid = 0.5 * (br[:-1] + br[1:])
+    mid = np.array([0.5 * (a + b) for a, b in zip(br[:-1], br[1:])])
     Q = o[None, :] + mid[:, None] * dd[None, :]
-    inside = _in_polygon(Q, seg)
+    inside = _in_polygon(Q, X.segments[f], _slopes(X, f)).tolist()
     out: list[list] = []
     for k in range(mid.size):
         if out and out[-1][2] == inside[k]:
-            out[-1][1] = float(br[k + 1])
+            out[-1][1] = br[k + 1]
         else:
-            out.append([float(br[k]), float(br[k + 1]), bool(inside[k])])
+            out.append([br[k], br[k + 1], inside[k]])
     res = [(a, b, "inside") for a, b, ins in out if ins]
+    S = X.specs[f].surface
     if not res and (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
         return None  # (as in _clip: a period away is the general path's business)
     if t0 > t1:
         res = [(b, a, w_) for a, b, w_ in reversed(res)]
     return res
+
+
+#: Up to this many cut ends on a face :func:`_check_cut_ends` pairs them in Python floats.
+_SCALAR_ENDS = 16
+
+
+def _distance(p, q) -> float:
+    """``np.linalg.norm(p - q, axis=-1)`` of two 3-D points given as sequences of floats: the same
+    expression, ``sqrt((x² + y²) + z²)`` (numpy sums the squares along a short axis in order)."""
+    x, y, z = p[0] - q[0], p[1] - q[1], p[2] - q[2]
+    return math.sqrt((x * x + y * y) + z * z)
 
 
 def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: Tolerance) -> None:
@@ -1099,11 +1248,76 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
     cylinder); a cut ending elsewhere means a branch is missing (an incomplete surface
     intersection), which would otherwise surface later as an open shell.
 
+    The ends that meet no other end are measured against the face's edges, skipping those whose
+    proven box (:meth:`_Operand.edge_boxes`) lies farther than twice the threshold from all of
+    them (they cannot bring an end within it); when an end stays beyond the threshold, the
+    complete check (:func:`_check_cut_ends_all`: every edge, then Y's) decides and reports.  The
+    distances are those of the complete check (the same products on the same points; a line's
+    foot and distance in Python floats by the expressions of ``evaluate`` and ``np.linalg.norm``).
+
     Raises
     ------
     BooleanError
         (stage ``"intersect"``) naming the face, the dangling point and its distances.
     """
+    from coons.booleans.classify import _curve_closest
+    from coons.kernel.intersect import _curve_points
+
+    ends, thr = [], []
+    for c in cuts:
+        tt = np.array([c.t0, c.t1])
+        P = _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) else \
+            np.asarray(c.curve.evaluate(tt), dtype=np.float64)
+        lim = max(t.linear, c.tol or 0.0)
+        p, q = P.tolist()
+        gap = _distance(p, q)
+        if abs(gap - lim) <= 1e-9 * lim:  # a near tie: numpy's norm of a vector (its dot product rounds its own way)
+            gap = float(np.linalg.norm(P[0] - P[1]))
+        if gap > lim:  # closed cuts have no ends
+            ends += [p, q]
+            thr += [lim, lim]
+    if not ends:
+        return
+    # Ends meeting another end.
+    if len(ends) <= _SCALAR_ENDS:  # (np.linalg.norm along the last axis is sqrt((x² + y²) + z²))
+        todo = [i for i, (a, ta) in enumerate(zip(ends, thr))
+                if not any(j != i and _distance(a, b) <= max(ta, tb) for j, (b, tb) in enumerate(zip(ends, thr)))]
+    else:  # candidate pairs from a k-d tree (within twice the widest threshold), then the same test on them
+        from scipy.spatial import cKDTree
+
+        E, th = np.array(ends), np.array(thr)
+        met = np.zeros(len(ends), dtype=bool)
+        pairs = cKDTree(E).query_pairs(r=2.0 * float(th.max()), output_type="ndarray")
+        if pairs.size:
+            p, q = pairs[:, 0], pairs[:, 1]
+            hit = np.linalg.norm(E[p] - E[q], axis=-1) <= np.maximum(th[p], th[q])
+            met[p[hit]] = met[q[hit]] = True
+        todo = np.flatnonzero(~met).tolist()
+    if not todo:
+        return
+    Q = np.array([ends[i] for i in todo])
+    limit = [max(thr[i], t.linear) * 10.0 for i in todo]
+    edges, lo, hi, _ = X.edge_boxes(f)
+    reach = 2.0 * max(limit)
+    clear = np.all(np.any((Q[None] < lo[:, None] - reach) | (Q[None] > hi[:, None] + reach), axis=2), axis=1)
+    best = [math.inf] * len(todo)
+    for k in np.flatnonzero(~clear).tolist():
+        e = edges[k]
+        e_lo, e_hi = min(e.t0, e.t1), max(e.t0, e.t1)
+        tq = np.clip(_curve_closest(e.curve, Q, e_lo, t), e_lo, e_hi)
+        if type(e.curve) is Line:
+            O, D = e.curve.origin.tolist(), e.curve.direction.tolist()
+            d = [_distance([O[0] + s * D[0], O[1] + s * D[1], O[2] + s * D[2]], q)
+                 for s, q in zip(tq.tolist(), Q.tolist())]
+        else:
+            d = np.linalg.norm(np.asarray(e.curve.evaluate(tq)).reshape(-1, 3) - Q, axis=1).tolist()
+        best = [min(x, y) for x, y in zip(best, d)]
+    if any(b > m for b, m in zip(best, limit)):
+        _check_cut_ends_all(X, f, cuts, Y, t)
+
+
+def _check_cut_ends_all(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: Tolerance) -> None:
+    """The complete check of :func:`_check_cut_ends` (every end against every edge), which raises."""
     from coons.booleans.classify import _curve_closest
 
     ends = []
@@ -1149,12 +1363,15 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
                                             "boundary_distance": float(best[k])})
 
 
+#: Up to this many edges of a face :func:`_end_tolerance` tests their boxes in Python floats.
+_SCALAR_BOXES = 16
+
 #: Smallest sine of a crossing angle used to widen an end's tolerance: a curve grazing a boundary
 #: closer than this (0.06°) is treated as touching, its end uncertain by at most 1000 tolerances.
 _MIN_SINE = 1e-3
 
 
-def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> float:
+def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance, near: list | None = None) -> float:
     """Tolerance of a cut whose ends were found where the branch crosses the faces' boundaries.
 
     Two curves known within ``δ`` that cross at an angle ``φ`` meet at a point known along them
@@ -1164,31 +1381,94 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance) -> 
     boundary edge's tolerance), which lets sewing merge the two ends into one vertex.
 
     ``faces``: for each of the two faces, :meth:`_Operand.edge_boxes` (its edge uses, their boxes
-    and tolerances): only the edges whose box comes near an end are examined.
+    and tolerances): only the edges whose box comes near an end are examined.  ``near`` (when
+    given: per face, per end, ``inf`` to start with) receives the least distance from the end to
+    an examined edge on a line, circle or ellipse, plus a bound on the round-off by which
+    :func:`_check_cut_ends_all` may measure it differently (``1e-12`` of the coordinates' size,
+    thousands of times the few ulps of the same formulas on arrays of other shapes).
     """
+    from coons.kernel.intersect import _curve_tangents
+
     base = max(t.linear, c.tol)
-    D = np.asarray(c.curve.derivatives(np.asarray(ends, dtype=np.float64), 1), dtype=np.float64)
-    P, T = D[:, 0], D[:, 1]
-    T = T / np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-300)
+    ts = np.asarray(ends, dtype=np.float64)
+    if math.isfinite(ends[0]) and math.isfinite(ends[1]):
+        P, T = _curve_tangents(c.curve, ts)  # (derivatives' expressions)
+    else:
+        D = np.asarray(c.curve.derivatives(ts, 1), dtype=np.float64)
+        P, T = D[:, 0], D[:, 1]
+    # (np.linalg.norm's own expression along an axis)
+    T = T / np.maximum(np.sqrt(np.add.reduce(T * T, axis=1, keepdims=True)), 1e-300)
     worst = base
+    ends_list = P.tolist()
+    size = 1.0 + max(abs(x) for p in ends_list for x in p)
+    for side, (edges, lo, hi, tol) in enumerate(faces):
+        for k in _near_boxes(ends_list, P, lo, hi, 10.0 * np.maximum(base, tol)):  # an end near the edge's box
+            e = edges[k]
+            lo_t, hi_t = min(e.t0, e.t1), max(e.t0, e.t1)
+            delta = max(base, e.tol or 0.0)
+            d, sine = _end_sines(e.curve, P, T, lo_t, hi_t, 10.0 * delta, t)
+            on = [x for x, y in zip(sine, d) if y <= 10.0 * delta]  # at the ends on this boundary edge
+            if on:
+                worst = max(worst, max(delta / x for x in on))
+            if near is not None and type(e.curve) in (Line, Circle, Ellipse):
+                O = (e.curve.origin if type(e.curve) is Line else e.curve._origin).tolist()
+                slack = 1e-12 * (size + max(map(abs, O)))
+                near[side] = [min(x, y + slack) for x, y in zip(near[side], d)]
+    return worst
+
+
+def _near_boxes(points: list, P: np.ndarray, lo: np.ndarray, hi: np.ndarray, reach: np.ndarray) -> list[int]:
+    """Indices of the boxes ``[lo - reach, hi + reach]`` (``(k, 3)``, ``(k,)``) that hold one of the points ``P``
+    (``(m, 3)``, also as ``points``, a list); a few boxes in Python floats (the same comparisons)."""
+    if len(reach) > _SCALAR_BOXES:
+        far = np.any((P[None] < lo[:, None] - reach[:, None, None]) | (P[None] > hi[:, None] + reach[:, None, None]),
+                     axis=2)
+        return np.flatnonzero(~np.all(far, axis=1)).tolist()
+    out = []
+    for k, (a, b, r) in enumerate(zip(lo.tolist(), hi.tolist(), reach.tolist())):
+        a, b = [x - r for x in a], [x + r for x in b]
+        if any(a[0] <= p[0] <= b[0] and a[1] <= p[1] <= b[1] and a[2] <= p[2] <= b[2] for p in points):
+            out.append(k)
+    return out
+
+
+def _end_sines(curve, P: np.ndarray, T: np.ndarray, lo_t: float, hi_t: float, reach: float, t: Tolerance
+               ) -> tuple[list[float], list[float]]:
+    """For the ends ``P (2, 3)``, their distances to ``curve([lo_t, hi_t])`` and the sines of the angle between
+    the branch's unit tangent ``T`` there and the curve's at the foot (at least :data:`_MIN_SINE`).
+
+    A line in Python floats: the expressions of ``derivatives``, ``np.linalg.norm`` along a
+    3-vector (:func:`_distance`) and ``_cross``, one end at a time; its sines do not depend on the
+    feet, and the feet only decide whether a distance is within ``reach``: where one lies within
+    ``1e-12`` of the coordinates' size of it (numpy's matrix product rounds the projection its
+    own way, by a few ulps), the feet are taken from that product as ``closest_parameters`` does.
+    Other curves in arrays.
+    """
     from coons.booleans.classify import _curve_closest
     from coons.kernel.intersect import _cross
 
-    for edges, lo, hi, tol in faces:
-        reach = (10.0 * np.maximum(base, tol))[:, None, None]
-        far = np.any((P[None] < lo[:, None] - reach) | (P[None] > hi[:, None] + reach), axis=2)  # (k, 2)
-        for k in np.flatnonzero(~np.all(far, axis=1)).tolist():  # an end near the edge's box
-            e = edges[k]
-            lo_t, hi_t = min(e.t0, e.t1), max(e.t0, e.t1)
-            te = np.clip(_curve_closest(e.curve, P, lo_t, t), lo_t, hi_t)
-            De = np.asarray(e.curve.derivatives(te, 1), dtype=np.float64)
-            d = np.linalg.norm(De[:, 0] - P, axis=1)
-            Te = De[:, 1] / np.maximum(np.linalg.norm(De[:, 1], axis=1, keepdims=True), 1e-300)
-            sine = np.maximum(np.linalg.norm(_cross(T, Te), axis=1), _MIN_SINE)
-            near = d <= 10.0 * max(base, e.tol or 0.0)  # the end lies on this boundary edge
-            if np.any(near):
-                worst = max(worst, float(np.max(max(base, e.tol or 0.0) / sine[near])))
-    return worst
+    if type(curve) is Line:
+        O, D = curve.origin.tolist(), curve.direction.tolist()
+        ends = P.tolist()
+        te = [min(max(((p[0] - O[0]) * D[0] + (p[1] - O[1]) * D[1]) + (p[2] - O[2]) * D[2], lo_t), hi_t) for p in ends]
+        dist = [_distance([O[0] + s * D[0], O[1] + s * D[1], O[2] + s * D[2]], p) for s, p in zip(te, ends)]
+        band = 1e-12 * (1.0 + max(abs(x) for p in ends for x in p) + max(map(abs, O)))
+        if any(abs(x - reach) <= band for x in dist):
+            te = np.clip((P - curve.origin) @ curve.direction, lo_t, hi_t).tolist()
+            dist = [_distance([O[0] + s * D[0], O[1] + s * D[1], O[2] + s * D[2]], p) for s, p in zip(te, ends)]
+        size = max(math.sqrt((D[0] * D[0] + D[1] * D[1]) + D[2] * D[2]), 1e-300)
+        b0, b1, b2 = D[0] / size, D[1] / size, D[2] / size
+        sines = []
+        for a0, a1, a2 in T.tolist():
+            c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+            sines.append(max(math.sqrt((c0 * c0 + c1 * c1) + c2 * c2), _MIN_SINE))
+        return dist, sines
+    te = np.clip(_curve_closest(curve, P, lo_t, t), lo_t, hi_t)
+    De = np.asarray(curve.derivatives(te, 1), dtype=np.float64)
+    d = np.linalg.norm(De[:, 0] - P, axis=1)
+    Te = De[:, 1] / np.maximum(np.linalg.norm(De[:, 1], axis=1, keepdims=True), 1e-300)
+    sine = np.maximum(np.linalg.norm(_cross(T, Te), axis=1), _MIN_SINE)
+    return d.tolist(), sine.tolist()
 
 
 def _edge_box(e: EdgeSpec):
@@ -1219,8 +1499,35 @@ def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance)
 
 def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
     """A cut must leave the tolerance ball of its start somewhere (else it is a point)."""
+    if type(curve) in (Line, Circle, Ellipse) and math.isfinite(s0) and math.isfinite(s1):
+        from coons.kernel.intersect import _curve_points
+
+        # evaluate's points; their distances by np.linalg.norm's expression (_distance)
+        P = _curve_points(curve, np.linspace(s0, s1, 5)).tolist()
+        return max(_distance(p, P[0]) for p in P) > t.linear
     P = np.asarray(curve.evaluate(np.linspace(s0, s1, 5)))
     return bool(np.max(np.linalg.norm(P - P[0], axis=1)) > t.linear)
+
+
+#: Up to this many cuts on a face :func:`_unique_cuts` first tests in Python floats whether any two
+#: midpoints come near (a face crossed by a few branches: usually none do).
+_SCALAR_CUTS = 16
+
+
+def _apart(cuts: list[EdgeSpec], t: Tolerance) -> bool:
+    """Whether no two cuts' midpoints lie within twice the widest cut tolerance: then no two are within it, and
+    the k-d tree of :func:`_unique_cuts` (whose distances differ from these by round-off) finds no pair."""
+    from coons.kernel.intersect import _curve_points
+
+    r = 2.0 * max(max(t.linear, c.tol or 0.0) for c in cuts)
+    mids = []
+    for c in cuts:
+        tm = 0.5 * (c.t0 + c.t1)
+        if type(c.curve) in (Line, Circle, Ellipse) and math.isfinite(tm):
+            mids.append(_curve_points(c.curve, np.array([tm]))[0].tolist())
+        else:
+            mids.append(np.asarray(c.curve.evaluate(np.array([tm])), dtype=np.float64).reshape(3).tolist())
+    return all(_distance(p, q) > r for i, p in enumerate(mids) for q in mids[:i])
 
 
 def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None = None) -> list[EdgeSpec]:
@@ -1234,6 +1541,8 @@ def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None =
 
     n = len(cuts)
     if n < 2:
+        return list(cuts)
+    if n <= _SCALAR_CUTS and _apart(cuts, t):
         return list(cuts)
     P = np.empty((n, 3, 3))
     groups: dict[int, list[int]] = {}

@@ -47,12 +47,21 @@ for given inputs): a caller that needs one orients the branch itself.  The norma
 branch are those of ``normal(closest_parameters(P))``; for planes, cylinders and spheres they are
 computed in closed form (``_normals``: the same directions to round-off, without the parameter round
 trip, whose per-call cost dominated the exact pairs), with the surface's own methods on a cylinder's
-axis or at a sphere's centre.
+axis or at a sphere's centre.  A candidate that looks the same from each of its points (a circle of
+coaxial planes, cylinders and spheres; a line of planes and parallel cylinders) is oriented at one
+point where the surfaces cross there at a sine well above round-off and the misalignment the exact
+cases tolerate (``_uniform_side``): every sample would say the same.
 
 *Singular points.*  A circle through a pole of a sphere is cut at the pole (the longitude
 jumps there): a great circle through both poles gives two meridian branches.  A ruling
 through a cone's apex is cut at the apex (the cone's ``Su × Sv`` flips there, and with it the
 direction rule).
+
+*Cost.*  A closed-form pair costs a few hundred microseconds, mostly numpy's per-call overhead
+on a handful of values: where every p-curve coordinate is exact, the branch's window is clipped
+to the boxes in Python floats (``_exact_runs``), and the measured deviation evaluates the curves
+without their argument checks (``_curve_points`` and its siblings); both repeat the array
+expressions value for value, so the branches are the same bit for bit.
 
 *Tolerances.*  ``tol.linear`` decides tangency, coincidence and whether a curve passes
 through a pole or apex; ``tol.angular`` decides parallel directions.  Each branch records the
@@ -95,6 +104,7 @@ from coons.tolerance import Tolerance, resolve
 __all__ = ["IntersectionCurve", "SurfaceIntersection", "intersect_surfaces"]
 
 TWO_PI = 2.0 * math.pi
+_EPS = float(np.finfo(np.float64).eps)
 _REVOLVED = (CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface)
 _ANALYTIC = (PlanarSurface,) + _REVOLVED
 
@@ -226,10 +236,18 @@ class SurfaceIntersection:
 # ---------------------------------------------------------------------------- exact cases
 @dataclass(frozen=True)
 class _Candidate:
-    """An unclipped exact branch: the whole line, circle or ellipse (``tangent``: the surfaces touch along it)."""
+    """An unclipped exact branch: the whole line, circle or ellipse (``tangent``: the surfaces touch along it).
+
+    ``uniform``: the pair looks the same from every point of the curve (a rotation about the common
+    axis carries coaxial surfaces and their circle into themselves; a translation along a line
+    carries two planes, a plane and a cylinder parallel to it, or two parallel cylinders into
+    themselves), up to the tolerances the exact cases accept; :func:`_oriented` may then decide the
+    direction at one point (:func:`_uniform_side`).
+    """
 
     curve: Any
     tangent: bool = False
+    uniform: bool = False
 
 
 @dataclass(frozen=True)
@@ -281,7 +299,7 @@ def _plane_plane(a: PlanarSurface, b: PlanarSurface, tol: Tolerance) -> _Exact:
     # The line point closest to a's origin: n_a·x = n_a·O_a, n_b·x = n_b·O_b, d·x = d·O_a.
     M = np.stack([a.axis, b.axis, d])
     rhs = np.array([a.axis @ a.origin, b.axis @ b.origin, d @ a.origin])
-    return _Exact((_Candidate(Line(np.linalg.solve(M, rhs), d)),))
+    return _Exact((_Candidate(Line(np.linalg.solve(M, rhs), d), uniform=True),))
 
 
 def _plane_cylinder(p: PlanarSurface, c: CylindricalSurface, tol: Tolerance) -> _Exact | None:
@@ -296,7 +314,7 @@ def _plane_cylinder(p: PlanarSurface, c: CylindricalSurface, tol: Tolerance) -> 
             return _Exact((_Candidate(Line(foot, Z), tangent=True),))
         w = _unit(np.cross(Z, n))
         half = math.sqrt(R * R - delta * delta)
-        return _Exact((_Candidate(Line(foot + half * w, Z)), _Candidate(Line(foot - half * w, Z))))
+        return _Exact(tuple(_Candidate(Line(foot + sgn * half * w, Z), uniform=True) for sgn in (1.0, -1.0)))
     if _sine(n, Z) > tol.angular:
         # Oblique: the ellipse centred where the axis meets the plane, minor radius R across
         # the axis, major radius R / |cos| along the plane's steepest direction.
@@ -443,7 +461,7 @@ def _parallel_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Toler
         return _Exact((_Candidate(Line(a.origin + x * e, Z), tangent=True),))
     y = math.sqrt(max(R1 * R1 - x * x, 0.0))
     f = np.cross(Z, e)
-    return _Exact(tuple(_Candidate(Line(a.origin + x * e + sgn * y * f, Z)) for sgn in (1.0, -1.0)))
+    return _Exact(tuple(_Candidate(Line(a.origin + x * e + sgn * y * f, Z), uniform=True) for sgn in (1.0, -1.0)))
 
 
 # Meridians in the half-plane (ρ >= 0, z) about a common axis: ("line", point, direction) and
@@ -476,13 +494,22 @@ def _meridian(s, A: np.ndarray, Z: np.ndarray) -> list[tuple]:
     ]
 
 
+def _unit_meridian(U: np.ndarray) -> np.ndarray:
+    """``_unit(U)`` of a 2-D direction; a unit axis direction (a plane's or cylinder's meridian) as it is,
+    which is what the division by its norm, exactly 1, gives."""
+    u0, u1 = U.tolist()
+    if (u0 == 0.0 and abs(u1) == 1.0) or (u1 == 0.0 and abs(u0) == 1.0):
+        return U
+    return _unit(U)
+
+
 def _meet(p, q, tol: Tolerance) -> tuple[list[tuple[np.ndarray, bool]], bool]:
     """Intersections ``[(point (2,), tangent)]`` of two meridian pieces, and whether they coincide."""
     if p[0] == "circle" and q[0] == "line":
         p, q = q, p
     if p[0] == "line" and q[0] == "line":
         (_, P, U), (_, Q, V) = p, q
-        U, V = _unit(U), _unit(V)
+        U, V = _unit_meridian(U), _unit_meridian(V)
         cross = U[0] * V[1] - U[1] * V[0]
         w = Q - P
         if abs(cross) <= tol.angular:
@@ -563,7 +590,7 @@ def _coaxial(a, b, tol: Tolerance) -> _Exact | None:
         if rho <= tol.linear:
             points.append(A + z * Z)
         else:
-            candidates.append(_Candidate(Circle(A + z * Z, Z, X, rho), tangent))
+            candidates.append(_Candidate(Circle(A + z * Z, Z, X, rho), tangent, uniform=True))
     return _Exact(tuple(candidates), tuple(points))
 
 
@@ -615,10 +642,14 @@ def _sample_parameters(curve) -> np.ndarray:
     return _LINE_SAMPLES if isinstance(curve, Line) else _TURN_SAMPLES
 
 
-def _oriented(cand: _Candidate, a, b) -> Any:
+def _oriented(cand: _Candidate, a, b, tol: Tolerance) -> Any:
     """The candidate's curve, reversed if needed so that it runs along ``n_a × n_b`` (transversal branches)."""
     if cand.tangent:
         return cand.curve
+    if cand.uniform:
+        along = _uniform_side(cand.curve, a, b, tol)
+        if along is not None:
+            return cand.curve if along else _reversed(cand.curve)
     t = _sample_parameters(cand.curve)
     D = cand.curve.derivatives(t, 1)
     P, T = D[:, 0], D[:, 1]
@@ -628,6 +659,69 @@ def _oriented(cand: _Candidate, a, b) -> Any:
     strength = np.linalg.norm(cross, axis=-1)
     i = int(np.argmax(strength))  # the most transversal sample decides (poles and apexes give bad normals)
     return cand.curve if float(cross[i] @ T[i]) >= 0.0 else _reversed(cand.curve)
+
+
+#: Least sine of the angle between the surfaces at which :func:`_uniform_side` decides a uniform
+#: candidate's direction from one point (below it, the sampled rule of :func:`_oriented` runs).
+_UNIFORM_MIN_SINE = 1e-6
+#: Factor on the tolerances and round-off that bound how much ``(n_a × n_b)·T`` may vary along a
+#: uniform candidate (:func:`_uniform_side`); generous: the variation is a small multiple of them.
+_UNIFORM_SLACK = 1e3
+
+
+def _uniform_side(curve, a, b, tol: Tolerance) -> bool | None:
+    """Whether a uniform candidate's curve runs along ``n_a × n_b``, decided at its first sample, or None.
+
+    Along a uniform candidate (see :class:`_Candidate`) ``(n_a × n_b)·T`` is one value ``κ`` at every
+    sample of :func:`_oriented`, up to round-off and to the small misalignment the exact cases
+    tolerate (``tol.angular`` between axes, ``tol.linear`` off an axis, over the smallest radius
+    ``r`` involved).  Where ``|κ| / |T|`` (the sine of the angle between the surfaces) exceeds
+    :data:`_UNIFORM_MIN_SINE` plus :data:`_UNIFORM_SLACK` times those bounds, every sample has
+    the sign of the value at the first one, so the sampled rule (the most transversal sample
+    decides) gives this same answer.  Planes, cylinders and spheres only (their normals in
+    Python floats); None for other surfaces, points on a cylinder's axis or a sphere's centre, and
+    near-tangent pairs: the caller samples.
+    """
+    if isinstance(curve, Circle):
+        X, Y, _ = curve._frame.tolist()
+        C, R = curve._origin.tolist(), curve.radius
+        c, s = math.cos(_TURN_SAMPLES[0]), math.sin(_TURN_SAMPLES[0])
+        P = [C[k] + R * (c * X[k] + s * Y[k]) for k in range(3)]
+        T = [R * (c * Y[k] - s * X[k]) for k in range(3)]
+        r = R
+    elif isinstance(curve, Line):
+        O, D = curve.origin.tolist(), curve.direction.tolist()
+        t = float(_LINE_SAMPLES[0])
+        P = [O[k] + t * D[k] for k in range(3)]
+        T, r = D, math.inf
+    else:
+        return None
+    scale = 1.0 + max(map(abs, P))
+    n = []
+    for surf in (a, b):
+        if isinstance(surf, PlanarSurface):
+            n.append(surf._frame[2].tolist())
+            continue
+        if not isinstance(surf, (CylindricalSurface, SphericalSurface)):
+            return None
+        O = surf._origin.tolist()
+        w = [P[k] - O[k] for k in range(3)]
+        if isinstance(surf, CylindricalSurface):
+            Z = surf._frame[2].tolist()
+            h = w[0] * Z[0] + w[1] * Z[1] + w[2] * Z[2]
+            w = [w[k] - h * Z[k] for k in range(3)]
+        size = math.hypot(*w)
+        if size == 0.0:
+            return None
+        n.append([x / size for x in w])
+        r = min(r, surf.radius)
+        scale = max(scale, 1.0 + max(map(abs, O)))
+    (a0, a1, a2), (b0, b1, b2) = n
+    value = (a1 * b2 - a2 * b1) * T[0] + (a2 * b0 - a0 * b2) * T[1] + (a0 * b1 - a1 * b0) * T[2]
+    bound = _UNIFORM_MIN_SINE + _UNIFORM_SLACK * (tol.angular + (tol.linear + _EPS * scale) / r)
+    if abs(value) <= bound * math.hypot(*T):
+        return None
+    return value > 0.0
 
 
 def _normals(s, P: np.ndarray) -> np.ndarray:
@@ -729,13 +823,19 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
         if _off_axis(curve._origin, surface._origin, Z) > tol.solver * curve.radius:
             return None
         sgn = 1.0 if float(Zc @ Z) > 0.0 else -1.0
-        u0, v0 = (float(x) for x in np.asarray(surface.closest_parameters(curve.evaluate(t[:1])))[0])
-        coef = np.array([[u0 - sgn * t[0], sgn, 0.0, 0.0], [v0, 0.0, 0.0, 0.0]])
+        u0, v0 = _first_parameters(surface, curve, t[:1])
+        t0 = float(t[0])
+        coef = np.array([[u0 - sgn * t0, sgn, 0.0, 0.0], [v0, 0.0, 0.0, 0.0]])
+        # The sizes as the basis product below gives them: its only inexact operation is the
+        # one rounding of u0 - sgn t0 + sgn t (the products by 0, 1 and ±1 are exact).
+        o = u0 - sgn * t0
+        sizes = [max(abs(o + sgn * x) for x in t.tolist()), abs(v0)]
     else:
         return None
-    basis = _form_basis(float(window[0]), float(window[1]))[1]
-    # Both coordinates' sizes on the samples in one product.
-    sizes = np.max(np.abs(basis @ coef.T), axis=0).tolist()
+    if isinstance(surface, PlanarSurface):
+        basis = _form_basis(float(window[0]), float(window[1]))[1]
+        # Both coordinates' sizes on the samples in one product.
+        sizes = np.max(np.abs(basis @ coef.T), axis=0).tolist()
     out = []
     for i, row in enumerate(coef.tolist()):  # four Python floats: cheaper than numpy on so few
         scale = max(1.0, sizes[i], abs(window[0]), abs(window[1]))
@@ -745,6 +845,25 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
             c[1] = float(round(c[1]))
         out.append(_Coord.exact_form(surface, curve, i, window, full, np.array(c)))
     return out
+
+
+def _first_parameters(surface, curve, t: np.ndarray) -> tuple[float, float]:
+    """``surface.closest_parameters(curve.evaluate(t))`` of one parameter ``t`` ``(1,)`` as two floats.
+
+    On a cylinder, the same operations as its ``closest_parameters`` (the local coordinates by the
+    same product, then the angle of ``_angle`` in Python floats around numpy's ``arctan2``) without
+    its argument checks and array bookkeeping; other surfaces through their method.
+    """
+    P = _curve_points(curve, t)
+    if type(surface) is not CylindricalSurface:
+        return tuple(float(x) for x in np.asarray(surface.closest_parameters(P))[0])
+    x, y, z = ((P - surface._origin) @ surface._frame.T)[0].tolist()
+    u = float(np.arctan2(y, x))
+    if u < 0.0:
+        u += TWO_PI
+    if u >= TWO_PI or (x == 0.0 and y == 0.0):  # -tiny + 2π rounds to 2π; 0 on the axis
+        u = 0.0
+    return u, z
 
 
 class _Coord:
@@ -826,6 +945,15 @@ class _Coord:
         ref = np.interp(t - turn * TWO_PI, self.grid, self.ref) + turn * TWO_PI * self.turns
         return raw + TWO_PI * np.round((ref - raw) / TWO_PI)
 
+    def values(self, t: list[float]) -> list[float]:
+        """An exact coordinate at parameters ``t`` as a list: ``self(t)`` value for value (the terms of zero
+        coefficients left out, which changes at most the sign of a zero result)."""
+        o, d, al, be = self.coef.tolist()
+        if al == 0.0 and be == 0.0:
+            return [o + d * x for x in t]
+        arr = np.array(t, dtype=np.float64)
+        return [o + d * x + al * c + be * s for x, c, s in zip(t, np.cos(arr).tolist(), np.sin(arr).tolist())]
+
     def crossings(self, bound: float, t0: float, t1: float) -> np.ndarray:
         """Parameters in ``(t0, t1)`` where the coordinate equals ``bound`` (modulo 2π if periodic)."""
         if not math.isfinite(bound):
@@ -886,19 +1014,20 @@ def _shift(coord: _Coord, t_mid: float, lo: float, hi: float, slack: float) -> f
     """The multiple of 2π that moves a periodic coordinate's branch into ``[lo, hi]``."""
     if not coord.periodic or not math.isfinite(lo):
         return 0.0
-    return TWO_PI * math.ceil((lo - slack - float(coord(t_mid))) / TWO_PI)
+    value = coord.values([t_mid])[0] if coord.exact else float(coord(t_mid))
+    return TWO_PI * math.ceil((lo - slack - value) / TWO_PI)
 
 
 def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: float, surface, curve,
                    tol: Tolerance):
     """``(p-curve, deviation)`` over ``[s0, s1]`` with periodic shifts ``du, dv``: Line2D or Trig2D (deviation 0:
     measured later with the branch), or a fitted 2-D NURBS and its measured deviation."""
-    if cu.affine and cv.affine:
-        return Line2D([cu.coef[0] + du, cv.coef[0] + dv], [cu.coef[1], cv.coef[1]]), 0.0
-    if cu.trigonometric and cv.trigonometric:
-        A, B = np.array([cu.coef[2], cv.coef[2]]), np.array([cu.coef[3], cv.coef[3]])
-        if A[0] * B[1] - A[1] * B[0] != 0.0:
-            return Trig2D([cu.coef[0] + du, cv.coef[0] + dv], A, B), 0.0
+    if cu.exact and cv.exact:  # (the coefficients as Python floats: the same values, cheaper to pack)
+        (ou, su, au, bu), (ov, sv, av, bv) = cu.coef.tolist(), cv.coef.tolist()
+        if au == 0.0 and bu == 0.0 and av == 0.0 and bv == 0.0:
+            return Line2D([ou + du, ov + dv], [su, sv]), 0.0
+        if su == 0.0 and sv == 0.0 and au * bv - av * bu != 0.0:
+            return Trig2D([ou + du, ov + dv], [au, av], [bu, bv]), 0.0
     return _fitted_pcurve(lambda t: np.stack([cu(t) + du, cv(t) + dv], axis=-1), s0, s1, surface, curve, tol,
                           pointwise=True)
 
@@ -945,7 +1074,7 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
 def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[IntersectionCurve]:
     """Clip one exact curve to both boxes and return its in-box pieces with their p-curves."""
     section = isinstance(cand.curve, _ConeSection)
-    curve = cand.curve if section else _oriented(cand, a, b)
+    curve = cand.curve if section else _oriented(cand, a, b, tol)
     surfaces, boxes = (a, b), (box_a, box_b)
     # Slack of the parametric box tests: the relative round-off allowed by tol.solver.
     slack = tol.solver * max(1.0, *(abs(x) for box in boxes for r in box for x in r if math.isfinite(x)))
@@ -1002,6 +1131,8 @@ def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[Inte
             if full:
                 w0 = _start(pairs, slack)
                 w1 = w0 + TWO_PI
+            pieces = _exact_runs(pairs, w0, w1, full, slack)
+        if not isinstance(curve, Line) and pieces is None:
             # A coordinate with a box of a whole period or more must not cross the box's lower
             # bound inside a branch (the p-curve would leave the box): its crossings are seams.
             breaks, seams = [np.array([w0, w1])], [np.zeros(0)]
@@ -1031,6 +1162,90 @@ def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[Inte
                 closed = full and s1 - s0 >= TWO_PI - slack
                 out.append(_piece(curve, coords, s0, s1, a, b, boxes, slack, closed, cand.tangent, tol))
     return out
+
+
+def _exact_runs(pairs, w0: float, w1: float, full: bool, slack: float) -> list[tuple[float, float]] | None:
+    """The in-box runs of ``[w0, w1]`` when every coordinate is exact, in Python floats; None otherwise.
+
+    The same operations as the array path of :func:`_branches` (breakpoints at the box crossings
+    and seams, merged within the slack, tested at their midpoints), one value at a time: on the
+    few values of a conic's window numpy's per-call cost exceeds the arithmetic.  None also where
+    a breakpoint is zero or not finite (numpy's sort may order ``-0.0`` and ``0.0`` either way)
+    or a crossing has no scalar form (:func:`_exact_crossings`): the array path decides then.
+    """
+    if not all(c.exact for c, _ in pairs):
+        return None
+    breaks, seam = [w0, w1], []
+    seam_at_start = False
+    for c, (lo, hi) in pairs:
+        if c.periodic and hi - lo >= TWO_PI:
+            found = _exact_crossings(c, lo, w0, w1)
+            if found is None:
+                return None
+            seam += found
+            seam_at_start |= _inside_value(c.values([w0])[0], lo, lo, True, slack)
+        else:
+            for bound in (lo, hi):
+                found = _exact_crossings(c, bound, w0, w1)
+                if found is None:
+                    return None
+                breaks += found
+    values = breaks + seam
+    if 0.0 in values or not all(map(math.isfinite, values)):
+        return None
+    br = sorted(set(values))
+    br = [br[0]] + [br[i] for i in range(1, len(br)) if br[i] - br[i - 1] > slack]
+    br[-1] = w1
+    hard = [min((abs(x - b) for x in seam), default=math.inf) <= slack for b in br]
+    mid = [0.5 * (x + y) for x, y in zip(br[:-1], br[1:])]
+    ok = [True] * len(mid)
+    for c, (lo, hi) in pairs:
+        ok = [k and _inside_value(v, lo, hi, c.periodic, slack) for k, v in zip(ok, c.values(mid))]
+    return _runs(br, ok, hard, full and not seam_at_start)
+
+
+def _exact_crossings(c: "_Coord", bound: float, t0: float, t1: float) -> list[float] | None:
+    """``c.crossings(bound, t0, t1)`` of an exact coordinate as a list, by the same operations one value at a
+    time (numpy's ``arccos`` kept: its results differ from ``math.acos`` in the last bit); None where
+    its result could hold a zero (see :func:`_exact_runs`)."""
+    if not math.isfinite(bound):
+        return []
+    o, d, al, be = c.coef.tolist()
+    if al == 0.0 and be == 0.0:
+        if d == 0.0:
+            return []
+        f0, f1 = sorted((o + d * t0, o + d * t1))
+        return [(x - o) / d for x in _target_values(c.periodic, bound, f0, f1)]
+    if d != 0.0:
+        return None
+    r, phi = math.hypot(al, be), math.atan2(be, al)
+    targets = _target_values(c.periodic, bound, o - r, o + r)
+    if not targets:
+        return []
+    acos = [float(np.arccos(min(max((x - o) / r, -1.0), 1.0))) for x in targets]
+    base = [phi + x for x in acos] + [phi - x for x in acos]
+    k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
+    out = [x for x in (b + TWO_PI * k for b in base for k in range(k0, k1 + 1)) if t0 < x < t1]
+    if 0.0 in out:
+        return None
+    return sorted(set(out))
+
+
+def _target_values(periodic: bool, bound: float, f0: float, f1: float) -> list[float]:
+    """``_Coord._targets`` as a list."""
+    if not periodic:
+        return [bound] if f0 <= bound <= f1 else []
+    return [bound + TWO_PI * k for k in range(math.ceil((f0 - bound) / TWO_PI), math.floor((f1 - bound) / TWO_PI) + 1)]
+
+
+def _inside_value(value: float, lo: float, hi: float, periodic: bool, slack: float) -> bool:
+    """:func:`_inside` of one value (Python's ``%`` is numpy's ``mod``: both take ``fmod`` and add the divisor to a
+    remainder of the other sign)."""
+    if periodic:
+        if hi - lo >= TWO_PI:
+            return True
+        value = lo + (value - lo + slack) % TWO_PI - slack
+    return lo - slack <= value <= hi + slack
 
 
 def _against(curve, t: float, a, b) -> bool:
@@ -1121,14 +1336,79 @@ def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangen
     """The branch with its measured deviation (the fits' own, and on samples between their nodes)."""
     # An irrational offset keeps the samples off the interpolation nodes of fitted p-curves.
     t = s0 + (s1 - s0) * _CHECK_FRACTIONS
-    P = curve.evaluate(t)
-    Pa = a.evaluate(*pcurves[0].evaluate(t).T)
-    Pb = b.evaluate(*pcurves[1].evaluate(t).T)
+    if math.isfinite(s0) and math.isfinite(s1):  # (else evaluate raises its own error)
+        trig = (np.cos(t), np.sin(t))
+        P = _curve_points(curve, t, trig)
+        Pa = _surface_points(a, *_pcurve_points(pcurves[0], t, trig).T)
+        Pb = _surface_points(b, *_pcurve_points(pcurves[1], t, trig).T)
+    else:
+        P = curve.evaluate(t)
+        Pa = a.evaluate(*pcurves[0].evaluate(t).T)
+        Pb = b.evaluate(*pcurves[1].evaluate(t).T)
     # The three pairwise distances in one reduction (the largest norm is the root of the largest
     # squared norm: sqrt is monotone and correctly rounded, so this equals the max of the norms).
-    gaps = np.stack([Pa - P, Pb - P, Pa - Pb])
+    gaps = np.concatenate([Pa - P, Pb - P, Pa - Pb])
     dev = max(math.sqrt(float(np.max(np.add.reduce(gaps * gaps, axis=-1)))), fit_dev)
     return IntersectionCurve(curve, s0, s1, pcurves[0], pcurves[1], closed, dev, tangent)
+
+
+# The three evaluations below are those of the types' ``evaluate`` methods, expression for expression
+# (so bit for bit: tests/kernel/test_intersect.py compares them), without their argument checks:
+# ``_finished`` passes finite parameter arrays, and the checks cost more than the arithmetic on its
+# few samples.  ``trig`` is ``(cos t, sin t)`` when the caller has them.
+def _curve_points(curve, t: np.ndarray, trig=None) -> np.ndarray:
+    """``curve.evaluate(t)`` for finite ``t`` ``(k,)``: ``(k, 3)``."""
+    kind = type(curve)
+    if kind is Line:
+        return curve.origin + t[..., None] * curve.direction
+    if kind is Circle or kind is Ellipse:
+        c, s = trig if trig is not None else (np.cos(t), np.sin(t))
+        ra, rb = curve._radii()
+        X, Y, _ = curve._frame
+        return ((ra * c)[..., None] * X + (rb * s)[..., None] * Y) + curve._origin
+    return curve.evaluate(t)
+
+
+def _curve_tangents(curve, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``curve.derivatives(t, 1)`` for finite ``t`` ``(k,)`` as points and first derivatives, ``(k, 3)`` each."""
+    kind = type(curve)
+    if kind is Line:
+        return curve.origin + t[..., None] * curve.direction, np.broadcast_to(curve.direction, t.shape + (3,))
+    if kind is Circle or kind is Ellipse:
+        c, s = np.cos(t), np.sin(t)
+        ra, rb = curve._radii()
+        X, Y, _ = curve._frame
+        return (((ra * c)[..., None] * X + (rb * s)[..., None] * Y) + curve._origin,
+                (ra * -s)[..., None] * X + (rb * c)[..., None] * Y)
+    D = np.asarray(curve.derivatives(t, 1), dtype=np.float64)
+    return D[..., 0, :], D[..., 1, :]
+
+
+def _pcurve_points(pcurve, t: np.ndarray, trig=None) -> np.ndarray:
+    """``pcurve.evaluate(t)`` for finite ``t`` ``(k,)``: ``(k, 2)``."""
+    kind = type(pcurve)
+    if kind is Line2D:
+        return pcurve.origin + t[..., None] * pcurve.direction
+    if kind is Trig2D:
+        c, s = trig if trig is not None else (np.cos(t), np.sin(t))
+        return pcurve.center + c[..., None] * pcurve.a + s[..., None] * pcurve.b
+    return pcurve.evaluate(t)
+
+
+def _surface_points(surface, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``surface.evaluate(u, v)`` for finite ``u, v`` of one shape ``(k,)``: ``(k, 3)``."""
+    kind = type(surface)
+    if kind is PlanarSurface:
+        X, Y, _ = surface._frame
+        return surface.origin + u[..., None] * X + v[..., None] * Y
+    if kind in _REVOLVED:
+        X, Y, Z = surface._frame
+        e = np.cos(u)[..., None] * X + np.sin(u)[..., None] * Y
+        if kind is CylindricalSurface:  # its meridian: ρ = R (the same products as by an array of R), h = v
+            return (surface.radius * e + v[..., None] * Z) + surface._origin
+        rho, h = surface._meridian(v, 0)
+        return (rho[0][..., None] * e + h[0][..., None] * Z) + surface._origin
+    return surface.evaluate(u, v)
 
 
 # ---------------------------------------------------------------------------- dispatcher

@@ -344,8 +344,8 @@ def test_end_tolerance_examines_every_edge_near_an_end(monkeypatch):
     real = S._end_tolerance
     calls = []
 
-    def spy(c, ends, faces, t):
-        out = real(c, ends, faces, t)
+    def spy(c, ends, faces, t, *rest):
+        out = real(c, ends, faces, t, *rest)
         calls.append((c, ends, faces, t, out))
         return out
 

@@ -851,3 +851,164 @@ def test_random_coaxial_circles_satisfy_the_invariants(kind, q, shift, h, r, fli
         dev = max(np.linalg.norm(Pa - P, axis=-1).max(), np.linalg.norm(Pb - P, axis=-1).max(),
                   np.linalg.norm(Pa - Pb, axis=-1).max())
         assert c.tol == pytest.approx(dev, rel=1e-12, abs=1e-300)
+
+
+# ---------------------------------------------------------------------------- fast paths: the general code's answers
+_QUAT = st.tuples(*[st.floats(-1, 1) for _ in range(4)]).filter(lambda q: np.linalg.norm(q) > 0.2)
+
+
+def _same_intersection(r, s):
+    """Two SurfaceIntersections are the same bit for bit: every branch's curve, range, p-curves and tolerance."""
+    assert r.coincident == s.coincident and len(r.curves) == len(s.curves)
+    for x, y in ((r.points, s.points), (r.uv_a, s.uv_a), (r.uv_b, s.uv_b)):
+        np.testing.assert_array_equal(x, y)
+    for c, d in zip(r.curves, s.curves):
+        assert type(c.curve) is type(d.curve)
+        assert (c.t0, c.t1, c.closed, c.tol, c.tangent) == (d.t0, d.t1, d.closed, d.tol, d.tangent)
+        for x, y in ((c.curve, d.curve), (c.pcurve_a, d.pcurve_a), (c.pcurve_b, d.pcurve_b)):
+            assert type(x) is type(y)
+            for name, value in vars(x).items():
+                np.testing.assert_array_equal(value, vars(y)[name])
+
+
+@settings(max_examples=60)
+@given(t=st.lists(st.floats(-20, 20), min_size=1, max_size=9), q=_QUAT, o=_VEC,
+       radii=st.tuples(st.floats(0.1, 3), st.floats(0.1, 3)))
+def test_unchecked_evaluations_are_the_methods_bit_for_bit(t, q, o, radii):
+    """``_curve_points``, ``_curve_tangents``, ``_pcurve_points`` and ``_surface_points`` repeat the types' own
+    ``evaluate``/``derivatives`` expressions without their argument checks: the same floats."""
+    import coons.kernel.intersect as I
+
+    t = np.array(t)
+    R = _rotation(q)
+    Zr, Xr = R @ Z, R @ X
+    big, small = max(radii), min(radii)
+    curves = [Line(o, Zr), Circle(o, Zr, Xr, big), Ellipse(o, Zr, Xr, big, small)]
+    for c in curves:
+        np.testing.assert_array_equal(I._curve_points(c, t), c.evaluate(t))
+        P, T = I._curve_tangents(c, t)
+        D = c.derivatives(t, 1)
+        np.testing.assert_array_equal(P, D[:, 0])
+        np.testing.assert_array_equal(T, D[:, 1])
+    for pc in (Line2D(o[:2], radii), Trig2D(o[:2], [big, 0.3], [-0.2, small])):
+        np.testing.assert_array_equal(I._pcurve_points(pc, t), pc.evaluate(t))
+    surfaces = [PlanarSurface(o, Zr, Xr), CylindricalSurface(o, Zr, Xr, big), ConicalSurface(o, Zr, Xr, big, 0.4),
+                SphericalSurface(o, Zr, Xr, big), ToroidalSurface(o, Zr, Xr, big + small, small)]
+    v = np.clip(t[::-1], -1.5, 1.5)
+    for s in surfaces:
+        np.testing.assert_array_equal(I._surface_points(s, t, v), s.evaluate(t, v))
+        circle = Circle(o, Zr, Xr, big)
+        assert I._first_parameters(s, circle, t[:1]) == tuple(s.closest_parameters(circle.evaluate(t[:1]))[0].tolist())
+
+
+@settings(max_examples=80)
+@given(coef=st.tuples(st.floats(-5, 5), st.sampled_from([0.0, 1.0, -1.0, 0.7]), st.floats(-3, 3), st.floats(-3, 3)),
+       kind=st.sampled_from(["affine", "trig"]), periodic=st.booleans(),
+       bound=st.floats(-9, 9), window=st.tuples(st.floats(-7, 7), st.floats(0.01, 9)))
+def test_scalar_crossings_are_the_array_crossings(coef, kind, periodic, bound, window):
+    """``_exact_crossings`` and ``_Coord.values`` give ``crossings`` and ``__call__`` value for value."""
+    import coons.kernel.intersect as I
+
+    o, d, al, be = coef
+    coef = np.array([o, d, 0.0, 0.0] if kind == "affine" else [o, 0.0, al, be])
+    surface = CylindricalSurface([0, 0, 0], Z, X, 1.0) if periodic else PlanarSurface([0, 0, 0], Z, X)
+    c = I._Coord.exact_form(surface, None, 0, (0.0, TWO_PI), False, coef)
+    t0, t1 = window[0], window[0] + window[1]
+    found = I._exact_crossings(c, bound, t0, t1)
+    if found is not None:
+        assert found == c.crossings(bound, t0, t1).tolist()
+    t = np.linspace(t0, t1, 7)
+    assert c.values(t.tolist()) == c(t).tolist()
+
+
+def _coaxial_pair(kind, q, shift, h, r, flip, scale):
+    R = _rotation(q)
+    Zr, Xr = R @ Z, R @ X
+    O = np.array(shift) * scale
+    sgn = -1.0 if flip else 1.0
+    if kind == "plane-cylinder":
+        return PlanarSurface(O + h * scale * Zr, sgn * Zr, Xr), CylindricalSurface(O, Zr, Xr, r * scale)
+    if kind == "plane-sphere":
+        return PlanarSurface(O + h * r * scale * Zr, sgn * Zr, Xr), SphericalSurface(O, Zr, Xr, r * scale)
+    if kind == "sphere-sphere":
+        return SphericalSurface(O, Zr, Xr, scale), SphericalSurface(O + (1.0 + h) * scale * Zr, sgn * Zr, Xr, r * scale)
+    if kind == "cylinder-sphere":
+        return (CylindricalSurface(O, sgn * Zr, Xr, r * scale),
+                SphericalSurface(O + h * scale * Zr, Zr, Xr, (r + 0.5) * scale))
+    if kind == "plane-plane":
+        return PlanarSurface(O, Zr, Xr), PlanarSurface(O + h * scale * Xr, R @ _unit_vector([h, 0.3, 1.0]), Zr)
+    if kind == "plane-ruling":  # a plane parallel to the cylinder's axis
+        return PlanarSurface(O + h * r * scale * Xr, sgn * Xr, Zr), CylindricalSurface(O, Zr, Xr, r * scale)
+    # parallel cylinders
+    return CylindricalSurface(O, Zr, Xr, scale), CylindricalSurface(O + (0.5 + h) * scale * Xr, sgn * Zr, Xr, r * scale)
+
+
+_PAIR_KINDS = ["plane-cylinder", "plane-sphere", "sphere-sphere", "cylinder-sphere", "plane-plane", "plane-ruling",
+               "cylinders"]
+
+
+@settings(max_examples=120)
+@given(kind=st.sampled_from(_PAIR_KINDS), q=_QUAT, shift=st.tuples(*[st.floats(-1, 1) for _ in range(3)]),
+       h=st.floats(-0.99, 0.99), r=st.floats(0.3, 2.0), flip=st.booleans(),
+       scale=st.sampled_from([1e-3, 1.0, 1e3]), tilt=st.floats(-9e-10, 9e-10), swap=st.booleans())
+def test_uniform_candidates_are_oriented_as_the_samples_say(kind, q, shift, h, r, flip, scale, tilt, swap):
+    """A uniform candidate (coaxial circle, line of planes and cylinders) oriented at one point
+    (``_uniform_side``) runs the way the sampled rule of ``_oriented`` says, also with axes tilted within
+    ``tol.angular`` and near tangency (where it declines)."""
+    import dataclasses
+
+    import coons.kernel.intersect as I
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    a, b = _coaxial_pair(kind, q, shift, h, r, flip, scale)
+    if tilt and isinstance(b, CylindricalSurface):
+        b = CylindricalSurface(b.origin, b.axis + tilt * b.x_dir, b.x_dir, b.radius)
+    if swap:
+        a, b = b, a
+    found = I._exact(a, b, T)
+    assume(found is not None and not found.coincident)
+    for cand in found.candidates:
+        if cand.tangent or not cand.uniform:
+            continue
+        fast = I._oriented(cand, a, b, T)
+        sampled = I._oriented(dataclasses.replace(cand, uniform=False), a, b, T)
+        attr = "direction" if isinstance(cand.curve, Line) else "axis"
+        np.testing.assert_array_equal(getattr(fast, attr), getattr(sampled, attr))
+
+
+_BOX_STARTS = st.floats(-7, 7)
+
+
+@settings(max_examples=120)
+@given(kind=st.sampled_from(_PAIR_KINDS), q=_QUAT, shift=st.tuples(*[st.floats(-1, 1) for _ in range(3)]),
+       h=st.floats(-0.99, 0.99), r=st.floats(0.3, 2.0), flip=st.booleans(), u0=_BOX_STARTS,
+       width=st.sampled_from([TWO_PI, 1.0, 3.3, TWO_PI + 0.05, 0.0628]), plane_box=st.floats(0.3, 5.0))
+def test_fast_paths_give_the_general_answer(kind, q, shift, h, r, flip, u0, width, plane_box):
+    """``intersect_surfaces`` with its one-point orientation and scalar windows gives bit for bit what it gives
+    with both switched off (the sampled orientation and the array windows)."""
+    import coons.kernel.intersect as I
+
+    a, b = _coaxial_pair(kind, q, shift, h, r, flip, 1.0)
+
+    def box(s):
+        if isinstance(s, PlanarSurface):
+            return ((-plane_box, plane_box), (-plane_box, 0.5 * plane_box))
+        if isinstance(s, SphericalSurface):
+            return ((u0, u0 + width), (-math.pi / 2, math.pi / 2))
+        return ((u0, u0 + width), (-plane_box, plane_box))
+
+    def run():
+        try:
+            return intersect_surfaces(a, b, box(a), box(b))
+        except InvalidInputError as exc:  # (a line the boxes do not bound: the same error either way)
+            return str(exc)
+
+    fast = run()
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "_uniform_side", lambda *args: None)
+        m.setattr(I, "_exact_runs", lambda *args: None)
+        general = run()
+    if isinstance(fast, str) or isinstance(general, str):
+        assert fast == general
+    else:
+        _same_intersection(fast, general)

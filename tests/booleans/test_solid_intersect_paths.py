@@ -1,0 +1,215 @@
+"""Phase 3 of the curved B-rep Booleans (``coons.booleans.solid._intersect``): its cheap paths give the general answers.
+
+The clip, the cut-end tolerance, the cut-end check, the repeated-cut filter and the point-in-polygon
+test each have a path in Python floats or with an early answer for the small inputs of a face crossed
+by a few branches.  Each such path is compared here with the array path it stands for, on random
+inputs (the same floats, or the same decision), and whole Booleans are run with the switchable paths
+on and off: their cuts, links and results must be the same bit for bit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from coons.booleans import classify as C
+from coons.booleans import solid as S
+from coons.kernel.analytic import Circle, Line
+from coons.kernel.pcurve import Line2D
+from coons.tolerance import resolve
+from coons.topology.primitives import Box, Cylinder, Sphere
+from coons.topology.sew import EdgeSpec
+
+T = resolve(None)
+_COORD = st.floats(-5, 5)
+_POINT2 = st.tuples(_COORD, _COORD)
+
+
+@settings(max_examples=80)
+@given(ring=st.lists(_POINT2, min_size=1, max_size=12), points=st.lists(_POINT2, min_size=1, max_size=5),
+       snap=st.booleans())
+def test_point_in_polygon_in_floats_is_the_array_test(ring, points, snap):
+    P = np.array(ring)
+    uv = np.array(points)
+    if snap:  # points and vertices on a half grid: rays through vertices, points on sides
+        P, uv = np.round(P * 2) / 2, np.round(uv * 2) / 2
+    seg = np.stack([P, np.roll(P, -1, axis=0)], axis=1)
+    fast = C._in_polygon(uv, seg)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(C, "_SCALAR_PAIRS", -1)
+        slow = C._in_polygon(uv, seg)
+    np.testing.assert_array_equal(fast, slow)
+
+
+@settings(max_examples=80)
+@given(p=st.lists(st.tuples(_COORD, _COORD, _COORD), min_size=2, max_size=6), scale=st.sampled_from([1e-6, 1.0, 1e4]))
+def test_distance_is_numpys_norm_along_an_axis(p, scale):
+    """``_distance`` is ``np.linalg.norm(p - q, axis=-1)`` bit for bit (numpy sums a short axis in order)."""
+    P = np.array(p) * scale
+    D = np.linalg.norm(P[:, None] - P[None], axis=-1)
+    for i, a in enumerate(P.tolist()):
+        for j, b in enumerate(P.tolist()):
+            assert S._distance(a, b) == D[i, j]
+
+
+def _sides(ring):
+    P = np.array(ring)
+    seg = np.stack([P, np.roll(P, -1, axis=0)], axis=1)
+    A, E = seg[:, 0], seg[:, 1] - seg[:, 0]
+    L = np.hypot(E[:, 0], E[:, 1])
+    keep = L > 0.0
+    return A[keep], E[keep], L[keep]
+
+
+_GRID = st.integers(-5000, 5000).map(lambda k: k / 1000.0)  # (no subnormal products: no overflow in the divisions)
+_GRID2 = st.tuples(_GRID, _GRID)
+
+
+@settings(max_examples=150)
+@given(ring=st.lists(_GRID2, min_size=3, max_size=10), p0=_GRID2, d=_GRID2.filter(lambda v: math.hypot(*v) > 1e-3),
+       ends=st.tuples(st.floats(-3, 3), st.floats(0.01, 6)), snap=st.booleans())
+def test_straight_crossings_in_floats_are_the_array_crossings(ring, p0, d, ends, snap):
+    """``_straight_crossings`` finds the crossings of ``_straight_crossings_arrays`` and declines where it does."""
+    if snap:
+        ring = np.round(np.array(ring) * 2) / 2
+    A, E, L = _sides(ring)
+    if L.size == 0:
+        return
+    LL, V = L * L, np.concatenate([A, A + E])
+    p0, d = np.array(p0), np.array(d)
+    lo_t, hi_t = ends[0], ends[0] + ends[1]
+    B = np.array([p0 + lo_t * d, p0 + hi_t * d])
+    dn = math.hypot(*d)
+    scale = 1.0 + max(float(np.max(np.abs(A))), float(np.max(np.abs(B))))
+    margin = S._STRAIGHT_CLEARANCE * T.linear + 1e-12 * scale
+    sides = list(zip(A.tolist(), E.tolist(), L.tolist(), LL.tolist()))
+    fast = S._straight_crossings(sides, p0.tolist(), d.tolist(), B.tolist(), lo_t, hi_t, dn, margin,
+                                 max(scale, 1.0 + float(np.max(np.abs(V)))))
+    slow = S._straight_crossings_arrays(A, E, L, LL, V, p0, d, B, lo_t, hi_t, dn, margin)
+    if fast is not S._UNDECIDED:
+        assert fast == slow
+
+
+@settings(max_examples=80)
+@given(c=st.tuples(_COORD, _COORD, _COORD), r=st.floats(1e-8, 3), s0=st.floats(-7, 7),
+       ds=st.sampled_from([0.0, 1e-9, 4.9e-8, 5e-8, 1e-7, 0.3, 7.0]), kind=st.sampled_from(["line", "circle"]))
+def test_long_enough_in_floats_is_the_array_test(c, r, s0, ds, kind):
+    curve = Line(c, [0.3, -0.4, 1.0]) if kind == "line" else Circle(c, [0.3, -0.4, 1.0], [1, 0, 0], r)
+    s1 = s0 + (ds if kind == "circle" else ds * r)
+    P = np.asarray(curve.evaluate(np.linspace(s0, s1, 5)))
+    assert S._long_enough(curve, s0, s1, T) == bool(np.max(np.linalg.norm(P - P[0], axis=1)) > T.linear)
+
+
+def _canon(x) -> str:
+    """A canonical text of phase 3's output: floats in hex, arrays by their bytes, objects by their fields."""
+    if isinstance(x, float):
+        return float.hex(x)
+    if isinstance(x, (bool, int, str, type(None))):
+        return repr(x)
+    if isinstance(x, np.generic):
+        return _canon(x.item())
+    if isinstance(x, np.ndarray):
+        return f"{x.dtype}{x.shape}" + hashlib.sha1(np.ascontiguousarray(x).tobytes()).hexdigest()
+    if isinstance(x, (list, tuple)):
+        return "[" + ",".join(_canon(y) for y in x) + "]"
+    if isinstance(x, dict):
+        return "{" + ",".join(_canon(k) + ":" + _canon(v) for k, v in x.items()) + "}"
+    fields = getattr(x, "__slots__", None) or sorted(vars(x))
+    return type(x).__name__ + "(" + ",".join(f + "=" + _canon(getattr(x, f)) for f in fields if hasattr(x, f)) + ")"
+
+
+def _phase3(a, b):
+    """``_intersect``'s cuts and links of A = a, B = b (ids of curves replaced by their order)."""
+    A, B = S._Operand(a, "A", T), S._Operand(b, "B", T)
+    I, J = S._broad_phase(A, B)
+    links: dict = {}
+    cuts_a, cuts_b = S._intersect(A, B, I, J, T, links)
+    return _canon([cuts_a, cuts_b, list(links.values())])
+
+
+CASES = {
+    "box - cylinder": lambda: (Box(10, 10, 10), Cylinder(3, 20)),
+    "plate - 3x3 holes": lambda: (Box(40, 40, 10), S._gathered(
+        [Cylinder(2, 20).translate((-10.0 + 10 * i, -10.0 + 10 * j, 0)) for i in range(3) for j in range(3)], T)),
+    "T-junction": lambda: (Cylinder(2, 20), Cylinder(1.5, 10, direction=(1, 0, 0)).translate((5, 0, 0))),
+    "crossing cylinders": lambda: (Cylinder(2, 20), Cylinder(1.5, 20, direction=(1, 0, 0)).translate((0, 0, 1))),
+    "sphere - sphere": lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
+    "tilted hole": lambda: (Box(10, 10, 4), Cylinder(1, 30, direction=(0.3, 0.2, 1.0)).translate((0.5, -0.5, 0))),
+    "box - box": lambda: (Box(10, 10, 10), Box(4, 4, 20).translate((3, 1, 0))),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_phase_3_is_the_same_with_the_cheap_paths_switched_off(name):
+    """Cuts, their tolerances and the links are bit for bit those of the array paths, the sampled orientation,
+    the complete cut-end check and the k-d tree of repeated cuts."""
+    import coons.kernel.intersect as I
+
+    a, b = CASES[name]()
+    fast = _phase3(a, b)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "_uniform_side", lambda *args: None)
+        m.setattr(I, "_exact_runs", lambda *args: None)
+        for switch in ("_SCALAR_SIDES", "_SCALAR_CUTS", "_SCALAR_BOXES"):
+            m.setattr(S, switch, -1)
+        m.setattr(C, "_SCALAR_PAIRS", -1)
+        m.setattr(S, "_check_cut_ends", S._check_cut_ends_all)
+        S._FACE_DATA.clear()  # (the closed-form clip's per-face data is kept with the face's)
+        slow = _phase3(a, b)
+    assert fast == slow
+
+
+def test_cut_ends_found_on_the_boundary_need_no_check():
+    """``_end_tolerance`` reports for each end a bound on its distance to the face's boundary that the complete
+    check measures below: the ends of a box − cylinder cut on the cylinder lie on its seam and rims."""
+    A, B = S._Operand(Box(10, 10, 10), "A", T), S._Operand(Cylinder(3, 20), "B", T)
+    I, J = S._broad_phase(A, B)
+    checked = []
+    real = S._check_cut_ends_all
+
+    def spy(X, f, cuts, Y, t):
+        checked.append((X.name, f))
+        return real(X, f, cuts, Y, t)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_check_cut_ends_all", spy)
+        cuts_a, cuts_b = S._intersect(A, B, I, J, T, {})
+    assert not checked  # every end met another or was found on the boundary
+    # The bound holds: each end of each cut on B's faces is within the complete check's reach.
+    for f, cuts in cuts_b.items():
+        for c in cuts:
+            near = [[math.inf, math.inf], [math.inf, math.inf]]
+            face_a = next(i for i in cuts_a if any(e.curve is c.curve for e in cuts_a[i]))
+            S._end_tolerance(c, (c.t0, c.t1), (A.edge_boxes(face_a), B.edge_boxes(f)), T, near)
+            P = np.asarray(c.curve.evaluate(np.array([c.t0, c.t1])))
+            for p, bound in zip(P, near[1]):
+                if not math.isfinite(bound):
+                    continue
+                best = min(float(np.linalg.norm(np.asarray(e.curve.evaluate(
+                    np.clip(C._curve_closest(e.curve, p[None], min(e.t0, e.t1), T), min(e.t0, e.t1), max(e.t0, e.t1))
+                )).reshape(3) - p)) for loop in B.specs[f].loops for e in loop)
+                assert best <= bound
+
+
+@settings(max_examples=40)
+@given(n=st.integers(2, 6), gap=st.sampled_from([0.0, 1e-8, 3e-7, 1.0]), seed=st.integers(0, 2**16))
+def test_apart_cuts_are_those_the_tree_pairs_none_of(n, gap, seed):
+    """``_unique_cuts``'s early answer (no two midpoints near) is the k-d tree's: the same cuts, none repeated."""
+    rng = np.random.default_rng(seed)
+    cuts = []
+    for k in range(n):
+        o = rng.normal(size=3) if k == 0 or gap >= 1.0 else cuts[0].curve.origin + gap * rng.normal(size=3)
+        cuts.append(EdgeSpec(Line(o, [1.0, 0.0, 0.0]), -1.0, 1.0, Line2D([0.0, 0.0], [1.0, 0.0]), None))
+    repeated_fast: set = set()
+    fast = S._unique_cuts(cuts, T, repeated_fast)
+    repeated_slow: set = set()
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_SCALAR_CUTS", -1)
+        slow = S._unique_cuts(cuts, T, repeated_slow)
+    assert [id(c) for c in fast] == [id(c) for c in slow]
+    assert repeated_fast == repeated_slow

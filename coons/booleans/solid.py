@@ -1713,6 +1713,7 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> li
     points must agree with the cut's ends within the tolerances).  Anything else returns None
     (``split_face`` decides).
     """
+    from coons.booleans.classify import _segment_distance
     from coons.kernel.analytic import Circle, CylindricalSurface
 
     spec = X.specs[f]
@@ -1772,27 +1773,22 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> li
     lo, hi = -1e-12, 1.0 + 1e-12
     if np.any((wc >= lo) & (wc <= hi) & (ws >= lo) & (ws <= hi) & inner):
         return None
-    w = np.clip(np.einsum("kmj,kj->km", sa[None] - ca[:, None], CE) / (CL * CL)[:, None], 0.0, 1.0)
-    if np.any(np.hypot(*np.moveaxis(sa[None] - ca[:, None] - w[..., None] * CE[:, None], -1, 0)) <= margin):
+    chords = np.stack([ca, cb], axis=1)  # (n, 2, 2)
+    if np.any(_segment_distance(sa, chords) <= margin):
         return None
-    # Chords apart from each other (no crossing, no touching).
+    # Chords apart from each other: no chord end near another chord, no proper crossing.
     for k in range(n):
-        for l in range(k + 1, n):
-            P = np.stack([ca[l], cb[l]])
-            w = np.clip(((P - ca[k]) @ CE[k]) / (CL[k] * CL[k]), 0.0, 1.0)
-            Q = np.stack([ca[k], cb[k]])
-            v = np.clip(((Q - ca[l]) @ CE[l]) / (CL[l] * CL[l]), 0.0, 1.0)
-            dist = min(float(np.min(np.hypot(*(P - ca[k] - w[:, None] * CE[k]).T))),
-                       float(np.min(np.hypot(*(Q - ca[l] - v[:, None] * CE[l]).T))))
-            c = CE[k, 0] * CE[l, 1] - CE[k, 1] * CE[l, 0]
-            if c != 0.0:
-                D = ca[l] - ca[k]
-                x = (D[0] * CE[l, 1] - D[1] * CE[l, 0]) / c
-                y = (D[0] * CE[k, 1] - D[1] * CE[k, 0]) / c
-                if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0:
-                    return None
-            if dist <= margin:
-                return None
+        others = np.delete(chords, k, axis=0).reshape(-1, 2)
+        if others.size and np.any(_segment_distance(others, chords[k:k + 1]) <= margin):
+            return None
+    i, j = np.triu_indices(n, 1)
+    c = CE[i, 0] * CE[j, 1] - CE[i, 1] * CE[j, 0]
+    D = ca[j] - ca[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = (D[:, 0] * CE[j, 1] - D[:, 1] * CE[j, 0]) / c
+        y = (D[:, 0] * CE[i, 1] - D[:, 1] * CE[i, 0]) / c
+    if np.any((c != 0.0) & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0)):
+        return None
     # The split parameters are those of the cut ends' feet on the side's 3-D curve (the face
     # across that edge finds the same from the same point, so its split matches exactly), and
     # must agree with the plane solution.
@@ -3021,7 +3017,7 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
         face_of = np.repeat(np.arange(len(faces)), counts)
         where_a = np.concatenate(where)
         starts_a = np.concatenate(starts)
-        label = _point_clusters(starts_a, t.linear)
+        label = point_clusters(starts_a, np.full(starts_a.shape[0], t.linear))
         count = np.bincount(label)
         order = np.argsort(label, kind="stable")  # the uses leaving each vertex, ascending
         first = np.cumsum(count) - count
@@ -3053,12 +3049,6 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
             break
     # Untouched faces stay the same objects (the next Boolean recognises them, see _SEWN).
     return [FaceSpec(f.surface, f.sense, loops[fi]) if fi in loops else f for fi, f in enumerate(faces)]
-
-
-def _point_clusters(X: np.ndarray, r: float) -> np.ndarray:
-    """Cluster label ``(n,)`` of points ``X (n, 3)``: the connected components of the pairs within ``r``,
-    numbered in the order of their first point (:func:`~coons.topology.sew.point_clusters`)."""
-    return point_clusters(X, np.full(X.shape[0], float(r)))
 
 
 class _UsePoints:

@@ -1006,7 +1006,7 @@ def test_chord_split_declines_crossing_and_vertex_chords():
 @given(st.lists(st.tuples(st.integers(0, 4), st.integers(0, 4), st.integers(0, 1)), min_size=1, max_size=40),
        st.integers(0, 2**31 - 1))
 def test_point_clusters_are_the_components_of_all_pairs(cells, seed):
-    """_point_clusters (distinct points to the k-d tree) labels as scipy's components of all points do."""
+    """point_clusters (distinct points to the k-d tree) labels as scipy's components of all points do."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
@@ -1016,4 +1016,4 @@ def test_point_clusters_are_the_components_of_all_pairs(cells, seed):
     r = 1e-7
     pairs = cKDTree(X).query_pairs(r=r, output_type="ndarray")
     g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(len(X), len(X)))
-    np.testing.assert_array_equal(S._point_clusters(X, r), connected_components(g, directed=False)[1])
+    np.testing.assert_array_equal(S.point_clusters(X, np.full(len(X), r)), connected_components(g, directed=False)[1])

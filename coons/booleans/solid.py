@@ -499,17 +499,12 @@ class _Operand:
         infinite where it gives none) and tolerances ``(k,)``, computed once per face spec."""
         d = self._data[f]
         if d.edge_boxes is None:
-            edges = [e for loop in self.specs[f].loops for e in loop]
-            boxes = [_use_box(e) for e in edges]
-            if edges and all(box is not None for box in boxes):  # (one copy for a face of many edges)
-                both = np.stack(boxes)
-                lo, hi = both[:, 0].copy(), both[:, 1].copy()
-            else:
-                lo = np.full((len(edges), 3), -np.inf)
-                hi = np.full((len(edges), 3), np.inf)
-                for k, box in enumerate(boxes):
-                    if box is not None:
-                        lo[k], hi[k] = box[0], box[1]
+            spec = self.specs[f]
+            edges = [e for loop in spec.loops for e in loop]
+            # (the loops' stacked use boxes: one copy for a face of many holes)
+            parts = [_loop_data(loop, spec.surface, self.t) for loop in spec.loops]
+            lo = np.concatenate([ld.use_lo for ld in parts]) if parts else np.empty((0, 3))
+            hi = np.concatenate([ld.use_hi for ld in parts]) if parts else np.empty((0, 3))
             tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
             d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
         return d.edge_boxes
@@ -686,34 +681,90 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
+class _LoopData:
+    """Per-loop parts of :class:`_FaceData`, cached per loop (:func:`_loop_data`).
+
+    ``edges`` the loop's uses (identity-checked on every look-up), ``surface``, ``t``;
+    ``samples`` (:func:`_use_samples` of each use), ``ring (k, 2)``, ``seg (k, 2, 2)`` and its
+    padded boxes ``seg_lo, seg_hi``, the ring's extremes ``rmin, rmax (2,)``, the uses'
+    :func:`_use_box` ``use_lo, use_hi (k, 3)`` (infinite where there is none), ``box (2, 3)`` their
+    union (None when a use has none) and ``tol`` their largest tolerance.
+    """
+
+    __slots__ = ("edges", "surface", "t", "samples", "ring", "seg", "seg_lo", "seg_hi", "rmin", "rmax", "use_lo",
+                 "use_hi", "box", "tol")
+
+
+#: First use of a loop -> its :class:`_LoopData`.  A face gaining a hole (a plate cut again and
+#: again) keeps the very EdgeSpec objects, and so the loop data, of its other loops: its face
+#: data costs one look-up per old loop plus the work on the new one.
+_LOOP_DATA = IdentityMemo()
+
+
+def _loop_data(loop: list[EdgeSpec], S, t: Tolerance) -> _LoopData:
+    """The :class:`_LoopData` of one loop of a completed spec on surface ``S``, cached per loop."""
+    ld = _LOOP_DATA.get(loop[0])
+    if (ld is not None and ld.surface is S and ld.t == t and len(ld.edges) == len(loop)
+            and all(a is b for a, b in zip(ld.edges, loop))):
+        return ld
+    ld = _LoopData()
+    ld.edges, ld.surface, ld.t = tuple(loop), S, t
+    # Each edge sampled once: for the ring and for the pads of its segments.
+    ld.samples = [_use_samples(e, S) for e in loop]
+    R = ld.ring = _frozen(np.concatenate(ld.samples))
+    ld.rmin, ld.rmax = R.min(axis=0), R.max(axis=0)
+    seg = np.stack([R, np.roll(R, -1, axis=0)], axis=1)
+    # A sampled curved edge stays within about one chord of its samples; a straight
+    # p-curve (Line2D, sampled by its two ends) is its segment.
+    pad = np.repeat([_use_pad(e, S) for e in loop], [Ue.shape[0] for Ue in ld.samples])[:, None]
+    ld.seg = _frozen(seg)
+    ld.seg_lo = _frozen(seg.min(axis=1) - pad)
+    ld.seg_hi = _frozen(seg.max(axis=1) + pad)
+    boxes = _use_boxes(loop)
+    if all(box is not None for box in boxes):
+        B = np.stack(boxes)
+        ld.use_lo, ld.use_hi = _frozen(B[:, 0].copy()), _frozen(B[:, 1].copy())
+        ld.box = np.stack([B[:, 0].min(axis=0), B[:, 1].max(axis=0)])
+    else:
+        lo = np.full((len(loop), 3), -np.inf)
+        hi = np.full((len(loop), 3), np.inf)
+        for k, box in enumerate(boxes):
+            if box is not None:
+                lo[k], hi[k] = box[0], box[1]
+        ld.use_lo, ld.use_hi, ld.box = _frozen(lo), _frozen(hi), None
+    ld.tol = max((e.tol or 0.0 for e in loop), default=0.0)
+    _LOOP_DATA.set(loop[0], ld)
+    return ld
+
+
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
-    """The :class:`_FaceData` of a completed spec (surface set, every use with a p-curve), cached per spec."""
+    """The :class:`_FaceData` of a completed spec (surface set, every use with a p-curve), cached
+    per spec and assembled from its loops' :func:`_loop_data`."""
     d = _FACE_DATA.get(spec)
     if d is not None and d.t == t:
         return d
     d = _FaceData()
     d.t, d.edge_boxes, d.slope, d.straight = t, None, None, None
-    # Each edge sampled once: for the rings and for the pads of its segments.
-    d.samples = _edge_samples(spec)
-    rings = d.rings = [_frozen(R) for R in _loop_rings(spec, samples=d.samples)]
-    U = np.concatenate(rings)
-    (u0, v0), (u1, v1) = U.min(axis=0), U.max(axis=0)
+    S = spec.surface
+    parts = [_loop_data(loop, S, t) for loop in spec.loops]
+    d.samples = [ld.samples for ld in parts]
+    d.rings = [ld.ring for ld in parts]
+    (u0, v0) = np.min([ld.rmin for ld in parts], axis=0)
+    (u1, v1) = np.max([ld.rmax for ld in parts], axis=0)
     mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
-    d.uv_box = _within_domain(spec.surface, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1))
-    seg = np.concatenate([np.stack([R, np.roll(R, -1, axis=0)], axis=1) for R in rings])
-    # A sampled curved edge stays within about one chord of its samples; a straight
-    # p-curve (Line2D, sampled by its two ends) is its segment.
-    uses = [(e, Ue) for loop, loop_samples in zip(spec.loops, d.samples) for e, Ue in zip(loop, loop_samples)]
-    pad = np.repeat([_use_pad(e, spec.surface) for e, _ in uses], [Ue.shape[0] for _, Ue in uses])[:, None]
-    d.seg = _frozen(seg)
-    d.seg_lo = _frozen(seg.min(axis=1) - pad)
-    d.seg_hi = _frozen(seg.max(axis=1) + pad)
-    d.box = _face_box(spec, d, t)
+    d.uv_box = _within_domain(S, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1))
+    if len(parts) == 1:
+        d.seg, d.seg_lo, d.seg_hi = parts[0].seg, parts[0].seg_lo, parts[0].seg_hi
+    else:
+        d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
+        d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
+        d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
+    d.box = _face_box(spec, d, t, parts)
     _FACE_DATA[spec] = d
     return d
 
 
-def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance) -> np.ndarray | None:
+def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance, parts: list[_LoopData]) -> np.ndarray | None:
     """A box ``(2, 3)`` (rows ``lo, hi``) containing the face, padded by its edges' tolerances
     and ``t.linear``; None when an edge's curve has no proven box (:func:`_use_box`) or the
     surface's type is not handled (:func:`_interior_extremes`).
@@ -727,17 +778,11 @@ def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance) -> np.ndarray | None:
     constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
-    boxes = []
-    tol = 0.0
-    for loop in spec.loops:
-        for e in loop:
-            box = _use_box(e)
-            if box is None:
-                return None
-            boxes.append(box)
-            tol = max(tol, e.tol or 0.0)
-    B = np.stack(boxes)
+    if any(ld.box is None for ld in parts):
+        return None
+    B = np.stack([ld.box for ld in parts])
     lo, hi = B[:, 0].min(axis=0), B[:, 1].max(axis=0)
+    tol = max(ld.tol for ld in parts)
     # The parameter box that surely holds D: the samples' segment boxes (padded by the chords
     # of the curved p-curves) and the enlarged uv_box.
     ub = (min(d.uv_box[0][0], float(d.seg_lo[:, 0].min())), max(d.uv_box[0][1], float(d.seg_hi[:, 0].max())))

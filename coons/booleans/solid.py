@@ -186,7 +186,9 @@ Status and limitations
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import gc
 import logging
 import math
 import weakref
@@ -379,7 +381,29 @@ def _dispatch(a: Solid, b: Solid, op: str, t: Tolerance, method: str) -> Solid:
         from coons.booleans import polyhedral
 
         return polyhedral.boolean(a, b, op, t)
-    return _boolean(a, b, op, t)
+    with _collector_paused():
+        return _boolean(a, b, op, t)
+
+
+@contextlib.contextmanager
+def _collector_paused():
+    """Python's cyclic garbage collector off for the duration (when it was on).
+
+    The pipeline allocates many small objects (edge uses, face specs, memo entries) that live on
+    with the result, and the collector's full passes over a large part's heap find nothing to
+    collect: measured on 400 sequential cuts into a plate, 34 full passes cost 9% of the time.
+    The objects made here are freed by reference counting; any cycle among them is collected
+    by the first collection after the Boolean.  The collector is switched back on by the call
+    that switched it off (a nested or concurrent Boolean that finds it off leaves it alone).
+    """
+    if not gc.isenabled():
+        yield
+        return
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
 
 
 # ====================================================================== the pipeline
@@ -2770,11 +2794,11 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
         keep = ((face_of[p] != face_of[q]) & (kind[p] == kind[q])
                 & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
                 & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
-        face_l, where_l = face_of.tolist(), W[:, :2].tolist()
-        for p, q in pairs[keep].tolist():
-            fp, fq = face_l[p], face_l[q]
+        pairs = pairs[keep]
+        # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
+        for (p, q), (fp, fq), (up, uq) in zip(pairs.tolist(), face_of[pairs].tolist(), W[pairs, :2].tolist()):
             A, B = faces[fp], faces[fq]
-            up, uq = tuple(where_l[p]), tuple(where_l[q])
+            up, uq = tuple(up), tuple(uq)
             key = (id(A), up, id(B), uq)
             if key in failed:
                 continue

@@ -1017,3 +1017,39 @@ def test_point_clusters_are_the_components_of_all_pairs(cells, seed):
     pairs = cKDTree(X).query_pairs(r=r, output_type="ndarray")
     g = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(len(X), len(X)))
     np.testing.assert_array_equal(S.point_clusters(X, np.full(len(X), r)), connected_components(g, directed=False)[1])
+
+
+def test_collector_paused_during_the_pipeline_and_restored(monkeypatch):
+    """The cyclic collector is off inside the B-rep pipeline, back on after it (also when it
+    raises), and left off when the caller had it off."""
+    import gc
+
+    seen = []
+    real = S._boolean
+
+    def spy(a, b, op, t):
+        seen.append(gc.isenabled())
+        return real(a, b, op, t)
+
+    monkeypatch.setattr(S, "_boolean", spy)
+    a, b = Box(2, 2, 2), Cylinder(0.5, 4)
+    assert gc.isenabled()
+    r = a - b
+    assert seen == [False] and gc.isenabled()
+    assert abs(r.volume - (8 - 0.25 * np.pi * 2)) < 1e-9
+
+    def boom(a, b, op, t):
+        seen.append(gc.isenabled())
+        raise BooleanError("stage failed", stage="sew")
+
+    monkeypatch.setattr(S, "_boolean", boom)
+    with pytest.raises(BooleanError):
+        a - b
+    assert seen[-1] is False and gc.isenabled()
+    gc.disable()
+    try:
+        with pytest.raises(BooleanError):
+            a - b
+        assert not gc.isenabled()
+    finally:
+        gc.enable()

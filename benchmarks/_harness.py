@@ -131,10 +131,11 @@ def forget_coons_caches() -> None:
     repetition (untimed, or inside the timing: it costs microseconds).
     """
     from coons.booleans import solid
-    from coons.topology import _memo, mass, tessellate
+    from coons.topology import _memo, check, mass, tessellate
 
     tessellate._MESHES.clear()
     mass._CACHE.clear()
+    check._SEWN_FROM.clear()
     # What a Boolean result carries over to the next Boolean (faces sewn unchanged, their data).
     for cache in (solid._SEWN, solid._FACE_DATA, solid._MERGE_FAILED, solid._USE_BOXES, solid._USE_SAMPLES):
         cache.clear()

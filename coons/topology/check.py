@@ -15,8 +15,13 @@ the largest distance from the 3-D curve, the curve's end points) depends only on
 p-curve, surface, edge range and ``samples``, all immutable values: it is remembered per those
 (``_SAME_PARAMETER``, weakly keyed by the p-curve) and compared against the coedge's own edge
 and vertex tolerances every time, so a B-rep sharing most of its geometry with one checked
-before (a Boolean's result and its operand) samples only its new coedges.  Every other check,
-topological and geometric (trims, orientation, volumes), runs on the whole model.  The
+before (a Boolean's result and its operand) samples only its new coedges.  Likewise the trim
+checks of a face (its loops crossing, their sense against ``face_sense``) are a function of its
+surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
+specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
+sewing) skips them for a face whose spec passed them in an earlier clean check (``_TRIMS_PASSED``),
+as a plate's untouched faces do from cut to cut.  Every other check, topological and geometric
+(vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
 :func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
@@ -26,6 +31,7 @@ few array passes, not a few numpy calls per coedge.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -112,9 +118,13 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         _check_euler(b, problems)
     if geometry and topo_ok:
         table = _check_geometry(b, t, samples, problems)
-        _check_trims(b, t, samples, problems, table)
+        known = _SEWN_FROM.get(b)
+        passed = _trims_passed(known, t, samples) if known is not None else None
+        _check_trims(b, t, samples, problems, table, passed)
         if not problems:
             _check_orientation(b, t, problems)
+        if not problems and known is not None:
+            _remember_trims(known, passed, t, samples)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
               "shells": b.n_shells, "solids": b.n_solids}
     return CheckReport(tuple(problems), counts)
@@ -559,7 +569,38 @@ def _read_only(a: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- trims
-def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table: _PcurveSamples) -> None:
+#: B-rep made by :func:`~coons.topology.sew.sew_faces` -> (its face specs in face order, ``(F,)``
+#: bool: the faces equal to their spec, :func:`~coons.topology.sew.sewn_unchanged`).
+_SEWN_FROM: "weakref.WeakKeyDictionary[BRep, tuple[list, np.ndarray]]" = weakref.WeakKeyDictionary()
+#: Face spec -> the :func:`_trims_key` values with which a B-rep face equal to it passed the trim
+#: checks (in a check that found no problem at all).
+_TRIMS_PASSED = IdentityMemo()
+
+
+def _trims_passed(known: tuple[list, np.ndarray], t: Tolerance, samples: int) -> np.ndarray:
+    """``(F,)`` bool: faces equal to a spec that passed the trim checks with ``t`` and ``samples``."""
+    specs, unchanged = known
+    key = _trims_key(t, samples)
+    got = _TRIMS_PASSED.get_many(specs)
+    return unchanged & np.fromiter((g is not None and key in g for g in got), dtype=bool, count=len(specs))
+
+
+def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int) -> None:
+    """Record that the unchanged faces' specs passed the trim checks (the check found nothing)."""
+    specs, unchanged = known
+    for f in np.flatnonzero(unchanged & ~passed).tolist():
+        spec = specs[f]
+        if is_value(spec):
+            _TRIMS_PASSED.setdefault(spec, set).add(_trims_key(t, samples))
+
+
+def _trims_key(t: Tolerance, samples: int) -> tuple:
+    """What a face's trim checks depend on besides the face: the tolerance, the samples and the refinement."""
+    return t, samples, _REFINE, _REFINE_LEVELS
+
+
+def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table: _PcurveSamples,
+                 passed: np.ndarray | None = None) -> None:
     """Self-intersecting trim loops: two segments of a face's boundary polylines crossing properly.
 
     Every loop of a face is turned into a closed polyline in the face's parameter plane (its
@@ -577,7 +618,8 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     therefore sampled again :data:`_REFINE` times finer, up to :data:`_REFINE_LEVELS` times, and
     only crossings that persist are reported (a real crossing persists at every level).  A
     crossing of the true curves that the coarse chords miss is not found.  Planar faces made of
-    one loop of at most three straight edges cannot self-intersect and are skipped.
+    one loop of at most three straight edges cannot self-intersect and are skipped, and so are
+    the faces of ``passed`` (``(F,)`` bool, :func:`_trims_passed`), for crossings and orientation.
     """
     if b.n_faces == 0 or b.n_edges == 0:
         return
@@ -600,9 +642,10 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     if np.any(vec_faces):
         parts.append(_implicit_segments(b, vec_faces, t))
     on_surface = b.face_surface >= 0
+    todo = on_surface if passed is None else on_surface & ~passed  # (implicit planes never pass before)
     # Faces on surfaces: rings from the p-curve samples of the geometric check, all faces at once
     # (orientation of every one, segments of those that can cross); implicit planes face by face.
-    seg = _sampled_rings(b, np.flatnonzero(on_surface & ~simple), np.flatnonzero(on_surface & simple),
+    seg = _sampled_rings(b, np.flatnonzero(todo & ~simple), np.flatnonzero(todo & simple),
                          table, samples, t, out)
     if seg is not None:
         parts.append(seg)

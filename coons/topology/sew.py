@@ -57,6 +57,7 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
+from coons.topology.check import _SEWN_FROM, check
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
@@ -238,6 +239,8 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     _check_loops_close(uses, vertex, vpoint)
     pairs = _match_edges(uses, vertex, vpoint, t)
     return _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
+
+
 
 
 class _Uses:
@@ -888,7 +891,8 @@ def _assemble(
     pairs: np.ndarray,
     t: Tolerance,
 ) -> Solid:
-    """Build the B-rep through ``BRepBuilder.assemble`` and attach the geometry."""
+    """Build the B-rep through ``BRepBuilder.assemble`` and attach the geometry; also which faces
+    are unchanged (:func:`_unchanged_faces`)."""
     k = len(uses)
     E = pairs.shape[0]
     primary, other = pairs[:, 0], pairs[:, 1]
@@ -933,7 +937,38 @@ def _assemble(
     side_p = np.where(fwd, 0, 1)
     b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
-    return Solid(b.build(caches_from=pre))
+    brep = b.build(check=False, caches_from=pre)
+    # Which faces equal their spec, known before the check: it skips the trim checks of those
+    # whose spec passed them before (check._TRIMS_PASSED), and the next Boolean on the result
+    # reads its unchanged faces from here (sewn_unchanged_faces).
+    _SEWN_FROM[brep] = (faces, _unchanged_faces(faces, uses, primary, other, sp, so, thr))
+    report = check(brep, tol=t)
+    if not report.ok:
+        raise TopologyError("the built B-rep is invalid:\n" + report.summary())
+    return Solid(brep)
+
+
+def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, other: np.ndarray,
+                     sp: list[EdgeSpec], so: list[EdgeSpec], thr: np.ndarray) -> np.ndarray:
+    """``(F,)`` bool: the faces that :func:`sewn_unchanged` would find unchanged in the B-rep
+    :func:`_assemble` builds (every use keeps its curve, p-curve, range and tolerance).
+
+    An edge takes the primary use's curve, p-curve and range, the other use's p-curve when both
+    share the curve object, and the larger tolerance ``thr``; so the primary use is unchanged
+    when its own tolerance is ``thr``, and the other when it also shares the curve and runs over
+    the same range the other way.  A use without a curve or p-curve never is.
+    """
+    k = len(uses)
+    ok = np.zeros(k, dtype=bool)
+    own_tol = np.array([np.nan if e.tol is None else e.tol for e in uses.spec], dtype=np.float64)
+    has = np.array([e.curve is not None and e.pcurve is not None for e in uses.spec], dtype=bool)
+    shared = np.array([o.curve is a.curve for a, o in zip(sp, so)], dtype=bool)
+    ok[primary] = has[primary] & (own_tol[primary] == thr)
+    ok[other] = (has[other] & shared & (own_tol[other] == thr)
+                 & (uses.t0[other] == uses.t1[primary]) & (uses.t1[other] == uses.t0[primary]))
+    out = np.ones(len(faces), dtype=bool)
+    np.logical_and.at(out, uses.face, ok)
+    return out
 
 
 def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
@@ -1065,6 +1100,11 @@ def sewn_unchanged_faces(b: BRep, specs: Sequence[FaceSpec], rows: Sequence[int]
     uses' curve and p-curve objects, ranges and tolerances (a large part carried from Boolean
     to Boolean costs microseconds per face, not a loop of array lookups per use).
     """
+    if rows is None:
+        known = _SEWN_FROM.get(b)
+        if known is not None and len(known[0]) == len(specs) == b.n_faces and all(
+                x is y for x, y in zip(known[0], specs)):
+            return known[1].copy()
     rows = list(range(len(specs))) if rows is None else [int(r) for r in rows]
     out = np.zeros(len(rows), dtype=bool)
     face_surface, face_sense = b.face_surface.tolist(), b.face_sense.tolist()

@@ -745,3 +745,44 @@ def test_plate_with_many_holes_checks_clean_and_finds_a_crossing_hole():
             c["edge_pcurve"][e, side] = len(c["pcurves"]) - 1
 
     assert "self-intersecting-trim" in codes(corrupted(b, move_hole))
+
+
+def test_trim_checks_of_faces_that_passed_before_are_not_repeated(monkeypatch):
+    """A face sewn unchanged from a spec whose face passed the trim checks in an earlier clean
+    check (same tolerance and samples) is not checked again; any other face is: a new spec, a
+    face the sewing changed (a wider tolerance on a shared edge), another tolerance or samples."""
+    from coons.tolerance import Tolerance
+    from coons.topology.check import _SEWN_FROM
+
+    seen: list[set[int]] = []
+    real = check_module._sampled_rings
+
+    def spy(b, cross_faces, sense_faces, *args):
+        seen.append(set(cross_faces.tolist()) | set(sense_faces.tolist()))
+        return real(b, cross_faces, sense_faces, *args)
+
+    monkeypatch.setattr(check_module, "_sampled_rings", spy)
+    specs = face_specs(Cylinder(1.0, 2.0)) + face_specs(Box(1, 1, 1).translate((5.0, 0.0, 0.0)))
+    F = len(specs)
+    first = sew_faces(specs).brep
+    assert seen[-1] == set(range(F))  # nothing passed before
+    again = sew_faces(specs).brep
+    assert _SEWN_FROM[again][1].all()
+    assert seen[-1] == set()  # every face passed in the first check
+    assert check(again).ok and seen[-1] == set()
+    assert check(again, samples=17).ok and seen[-1] == set(range(F))  # other samples: checked
+    assert check(again, Tolerance(linear=2e-7)).ok and seen[-1] == set(range(F))  # other tolerance
+    # A wider tolerance on one use: its face is a new spec (whose use keeps its own tolerance, the
+    # edge's), and the face across the edge is no longer unchanged (its use's tolerance is not).
+    i = len(face_specs(Cylinder(1.0, 2.0)))
+    e = specs[i].loops[0][0]
+    mixed = list(specs)
+    mixed[i] = FaceSpec(specs[i].surface, specs[i].sense,
+                        [[EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) + 1e-6)] + list(specs[i].loops[0][1:])])
+    third = sew_faces(mixed).brep
+    changed = set(np.flatnonzero(~_SEWN_FROM[third][1]).tolist())
+    assert len(changed) == 1 and i not in changed
+    assert seen[-1] == changed | {i}
+    # A B-rep not made by sewing is checked whole.
+    assert check(first).ok and seen[-1] == set()  # (first was sewn: its record stands)
+    assert check(Cylinder(1.0, 2.0)).ok and len(seen[-1]) == 4

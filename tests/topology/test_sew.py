@@ -460,3 +460,53 @@ def test_sewn_unchanged_faces_is_sewn_unchanged_of_each_face():
     assert got.tolist() == [sewn_unchanged(b, f, sp) for f, sp in enumerate(mixed)]
     assert not got[1] and not got[3] and got[0] and got[2] and got[4:].all()
     assert sewn_unchanged_faces(b, [specs[2], specs[0]], rows=[2, 0]).tolist() == [True, True]
+
+
+def _walked(b, specs):
+    """sewn_unchanged_faces by the field-by-field walk over the B-rep (explicit rows)."""
+    from coons.topology.sew import sewn_unchanged_faces
+
+    return sewn_unchanged_faces(b, specs, rows=list(range(len(specs))))
+
+
+def test_sewing_knows_which_faces_it_left_unchanged():
+    """The mask sew_faces works out in arrays while sewing equals the walk over the built B-rep:
+    on specs sewn as they are, on specs whose shared uses disagree (a wider tolerance on one side,
+    a range differing in the last place, a curve object of its own), and on Boolean results
+    (split, merged and fused faces)."""
+    from coons.topology.sew import _SEWN_FROM, sewn_unchanged_faces
+
+    def agree(specs):
+        b = sew_faces(specs).brep
+        mask = _SEWN_FROM[b][1]
+        assert mask.tolist() == _walked(b, specs).tolist()
+        assert sewn_unchanged_faces(b, specs).tolist() == mask.tolist()  # answered from the record
+        return mask
+
+    cyl = face_specs(Cylinder(1.0, 2.0))
+    specs = cyl + face_specs(Box(1, 1, 1).translate((5.0, 0.0, 0.0)))
+    assert agree(specs).all()
+    i = len(cyl)  # a box face: its first use lies on a Line
+    e = specs[i].loops[0][0]
+    assert isinstance(e.curve, Line)
+    for changed in (EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) + 1e-9),
+                    EdgeSpec(e.curve, e.t0, np.nextafter(e.t1, np.inf), e.pcurve, e.tol),
+                    EdgeSpec(Line(e.curve.origin, e.curve.direction), e.t0, e.t1, e.pcurve, e.tol)):
+        mixed = list(specs)
+        mixed[i] = FaceSpec(specs[i].surface, specs[i].sense,
+                            [[changed] + list(specs[i].loops[0][1:])] + [list(l) for l in specs[i].loops[1:]])
+        mask = agree(mixed)
+        assert not mask.all() and mask[:len(cyl)].all()
+    # Boolean results: the specs they were sewn from.
+    from coons.booleans import solid as S
+
+    plate = Box(40, 40, 10)
+    for k, at in enumerate([(-10.0, -10.0, 0.0), (10.0, -10.0, 0.0), (0.0, 10.0, 0.0)]):
+        plate = plate - Cylinder(2.0, 20.0).translate(at)
+    results = [plate, Box(10, 10, 10) - Cylinder(3.0, 20.0),
+               S.union(Box(2, 2, 2), Box(2, 2, 2).translate((1.0, 1.0, 0.0)), method="brep"),
+               S.union(Box(2, 2, 2), Box(2, 2, 2).translate((2.0, 0.0, 0.0)), method="brep"),
+               Cylinder(2.0, 20.0) + Cylinder(1.5, 10.0, direction=(1, 0, 0)).translate((5.0, 0.0, 0.0))]
+    for r in results:
+        specs = S._SEWN[r.brep]
+        assert _SEWN_FROM[r.brep][1].tolist() == _walked(r.brep, specs).tolist()

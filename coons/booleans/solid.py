@@ -152,7 +152,9 @@ Status and limitations
   compares warm and cold chains): a result remembers the completed face specs it was sewn
   from (``_SEWN``), and the next Boolean takes every face whose B-rep row is exactly its spec
   (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
-  that spec's parameter box, space box, rings and segments (``_FACE_DATA``); loop samples and
+  that spec's parameter box, space box, rings and segments (``_FACE_DATA``, assembled from
+  per-loop data ``_LOOP_DATA``: a plate face gaining a hole reads its other loops' rings,
+  segments and boxes from there); loop samples and
   space boxes are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a
   split face keep (a split face's new space box joins its kept edges' boxes); a pair of face
   specs found unmergeable is not tried again (``_MERGE_FAILED``), nor a face spec found not to
@@ -160,7 +162,11 @@ Status and limitations
   one table per face spec (:func:`~coons.topology.sew.use_points`), read by the T-junction,
   merge and fuse passes and by sewing; the checker remembers its same-parameter measurements
   per curve, p-curve, surface and range (:mod:`coons.topology.check`), so the faces carried
-  over are not sampled again, while every invariant is still verified on the whole result.
+  over are not sampled again, and skips the trim checks of a face whose spec passed them in an
+  earlier clean check; sewing records which faces equal their spec (in arrays, while sewing),
+  which the next Boolean reads instead of comparing the B-rep with the specs; every other
+  invariant is verified on the whole result.  The cyclic garbage collector is paused inside
+  the pipeline (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.
   Reused as well: an operand's mesh when it was tessellated before (meshes are cached per
   B-rep; a result with voids shares the mesh its void nesting made).  Local: the face boxes of
   the broad phase (per face spec, from its edges, no tessellation); the end tolerance of a cut

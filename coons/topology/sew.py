@@ -265,6 +265,9 @@ class _Uses:
         self.start, self.end, self.mid = P[:, 0], P[:, 1], P[:, 2]
         self.kind = np.concatenate([x.kind for x in tables])
         self.frame = np.concatenate([x.frame for x in tables])
+        self.curve_id = np.concatenate([x.curve_id for x in tables])
+        self.own_tol = np.concatenate([x.own_tol for x in tables])
+        self.complete = np.concatenate([x.complete for x in tables])
         # Index of the next use in the same loop.
         idx = np.arange(k)
         self.next = np.where(self.pos + 1 < self.loop_len, idx + 1, idx - self.pos)
@@ -288,10 +291,12 @@ class _FaceUses:
     (k, 3, 3)``: start, end and midpoint (the curve at ``t0``, ``t1`` and ``(t0 + t1) / 2``);
     ``kind (k,)``: the curve is a :class:`Line` (``_LINE``), a :class:`Circle` (``_CIRCLE``) or
     another curve (0); ``frame (k, 4)``: a line's origin or a circle's centre, and its radius (0
-    otherwise), which :func:`_reach` bounds the curves by.  All read-only.
+    otherwise), which :func:`_reach` bounds the curves by; ``curve_id (k,)`` int64: ``id`` of each
+    use's curve (the spec holds the curve, so the id stays its own); ``own_tol (k,)``: the use's
+    tolerance, NaN for None; ``complete (k,)`` bool: the use has a curve and a p-curve.  All read-only.
     """
 
-    __slots__ = ("where", "ranges", "points", "kind", "frame")
+    __slots__ = ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete")
 
 
 #: Face spec -> its :class:`_FaceUses`.  A spec is immutable and so are its curves when they are
@@ -330,6 +335,9 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
     w = np.asarray(where, dtype=np.int64).reshape(-1, 4)
     R = _use_rows(spec, w)
     value = [is_value(e.curve) for e in spec]
+    curve_id = np.array([id(e.curve) for e in spec], dtype=np.int64)
+    own_tol = np.array([np.nan if e.tol is None else e.tol for e in spec], dtype=np.float64)
+    complete = np.array([e.curve is not None and e.pcurve is not None for e in spec], dtype=bool)
     first = 0
     for fi, n in zip(missing, counts):
         sl = slice(first, first + n)
@@ -340,6 +348,9 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
         x.ranges = _read_only(R[sl, 9:12].copy())
         x.kind = _read_only(R[sl, 12].astype(np.int8))
         x.frame = _read_only(R[sl, 13:].copy())
+        x.curve_id = _read_only(curve_id[sl].copy())
+        x.own_tol = _read_only(own_tol[sl].copy())
+        x.complete = _read_only(complete[sl].copy())
         out[fi] = x
         if all(value[sl]):
             _FACE_USES.set(faces[fi], x)
@@ -941,7 +952,7 @@ def _assemble(
     # Which faces equal their spec, known before the check: it skips the trim checks of those
     # whose spec passed them before (check._TRIMS_PASSED), and the next Boolean on the result
     # reads its unchanged faces from here (sewn_unchanged_faces).
-    _SEWN_FROM[brep] = (faces, _unchanged_faces(faces, uses, primary, other, sp, so, thr))
+    _SEWN_FROM[brep] = (faces, _unchanged_faces(faces, uses, primary, other, thr))
     report = check(brep, tol=t)
     if not report.ok:
         raise TopologyError("the built B-rep is invalid:\n" + report.summary())
@@ -949,22 +960,22 @@ def _assemble(
 
 
 def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, other: np.ndarray,
-                     sp: list[EdgeSpec], so: list[EdgeSpec], thr: np.ndarray) -> np.ndarray:
+                     thr: np.ndarray) -> np.ndarray:
     """``(F,)`` bool: the faces that :func:`sewn_unchanged` would find unchanged in the B-rep
     :func:`_assemble` builds (every use keeps its curve, p-curve, range and tolerance).
 
     An edge takes the primary use's curve, p-curve and range, the other use's p-curve when both
     share the curve object, and the larger tolerance ``thr``; so the primary use is unchanged
     when its own tolerance is ``thr``, and the other when it also shares the curve and runs over
-    the same range the other way.  A use without a curve or p-curve never is.
+    the same range the other way.  A use without a curve or p-curve never is.  All in arrays
+    over the uses' tables (:class:`_FaceUses`: curve ids, own tolerances).
     """
     k = len(uses)
     ok = np.zeros(k, dtype=bool)
-    own_tol = np.array([np.nan if e.tol is None else e.tol for e in uses.spec], dtype=np.float64)
-    has = np.array([e.curve is not None and e.pcurve is not None for e in uses.spec], dtype=bool)
-    shared = np.array([o.curve is a.curve for a, o in zip(sp, so)], dtype=bool)
-    ok[primary] = has[primary] & (own_tol[primary] == thr)
-    ok[other] = (has[other] & shared & (own_tol[other] == thr)
+    own, has = uses.own_tol, uses.complete
+    shared = uses.curve_id[primary] == uses.curve_id[other]
+    ok[primary] = has[primary] & (own[primary] == thr)
+    ok[other] = (has[other] & shared & (own[other] == thr)
                  & (uses.t0[other] == uses.t1[primary]) & (uses.t1[other] == uses.t0[primary]))
     out = np.ones(len(faces), dtype=bool)
     np.logical_and.at(out, uses.face, ok)

@@ -201,6 +201,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
+from coons.topology.disjoint import disjoint_union, padded_box
 from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, sew_faces,
                                sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
@@ -329,40 +330,50 @@ def _disjoint_groups(solids, t: Tolerance) -> list[list[Solid]]:
 
     Greedy in argument order: each solid joins the first group none of whose members' boxes it
     meets, else starts a new one.  The solids of one group are disjoint, so their union is just
-    all their faces together (:func:`_gathered`); a difference or union by a group is then one
+    their B-reps side by side (:func:`_gathered`); a difference or union by a group is then one
     pipeline pass instead of one per solid.  The result does not depend on the grouping (the
     Booleans are associative), only the cost does.
     """
+    solids = [s for s in solids if not s.is_empty]
+    if not solids:
+        return [[Solid.empty()]]
+    # Boxes closer than the tolerances could let sewing merge vertices of two solids (padded_box).
+    box = np.stack([padded_box(s, t) for s in solids])
+    lo, hi = box[:, 0], box[:, 1]
+    group = np.empty(len(solids), dtype=np.int64)
     groups: list[list[Solid]] = []
-    boxes: list[list[np.ndarray]] = []
-    for s in solids:
-        if s.is_empty:
-            continue
-        bb = np.asarray(s.bounding_box(), dtype=np.float64)
-        # Boxes closer than the tolerances could let sewing merge vertices of two solids.
-        pad = max(t.linear, float(np.max(s.brep.edge_tol, initial=0.0)), float(np.max(s.brep.vertex_tol, initial=0.0)))
-        bb = bb + np.array([[-pad], [pad]])
-        gap = 0.0
-        for g, B in zip(groups, boxes):
-            L = np.array([b[0] for b in B])
-            H = np.array([b[1] for b in B])
-            apart = np.any((bb[0] > H + gap) | (bb[1] < L - gap), axis=1)
-            if np.all(apart):
-                g.append(s)
-                B.append(bb)
-                break
-        else:
-            groups.append([s])
-            boxes.append([bb])
-    return groups or [[Solid.empty()]]
+    for k, s in enumerate(solids):
+        # The groups of the earlier solids whose boxes meet this one's (closed boxes) are barred.
+        meets = np.all((lo[:k] <= hi[k]) & (lo[k] <= hi[:k]), axis=1)
+        barred = np.zeros(len(groups) + 1, dtype=bool)
+        barred[group[:k][meets]] = True
+        g = int(np.argmin(barred))  # the first group not barred (a new one if all are)
+        if g == len(groups):
+            groups.append([])
+        groups[g].append(s)
+        group[k] = g
+    return groups
 
 
 def _gathered(group: list[Solid], t: Tolerance) -> Solid:
-    """One solid made of the pairwise disjoint solids of ``group`` (their faces sewn together)."""
+    """One solid made of the pairwise disjoint solids of ``group``: their B-reps side by side
+    (:func:`~coons.topology.disjoint.disjoint_union`, no sewing, no check: valid by construction).
+
+    The union's faces are the members' faces in order, on the very same geometry objects, so
+    their face specs are handed on as the specs it was "sewn" from (``_SEWN``): a member's own
+    ``_SEWN`` specs when it is an earlier Boolean's result (their per-face data cached), else
+    its :func:`face_specs`; ``_Operand`` takes those :func:`sewn_unchanged_faces` confirms
+    instead of reading the faces again.
+    """
     if len(group) == 1:
         return group[0]
-    specs = [spec for s in group for spec in face_specs(s)]
-    return _sew(specs, t, stage="input", what=f"gathering {len(group)} disjoint operands into one")
+    out = disjoint_union(group, t)
+    specs: list[FaceSpec] = []
+    for s in group:
+        sewn = _SEWN.get(s.brep)
+        specs += sewn if sewn is not None and len(sewn) == s.brep.n_faces else face_specs(s)
+    _SEWN[out.brep] = specs
+    return out
 
 
 def is_polyhedral(s: Solid) -> bool:

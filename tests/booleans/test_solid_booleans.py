@@ -334,6 +334,29 @@ def test_n_ary_calls_fold_left():
     assert _types(r) == {"plane": 6, "cylinder": 6}  # the x hole's wall is cut in two by the z hole
 
 
+def test_n_ary_difference_gathers_apart_tools():
+    from coons.tolerance import resolve
+    from coons.topology.sew import sewn_unchanged_faces
+
+    t = resolve(None)
+    plate = Box(40, 40, 10)
+    tools = [Cylinder(2, 20).translate((x, y, 0)) for x in (-10, 0, 10) for y in (-10, 0, 10)]
+    tools.append(Cylinder(1, 20).translate((1.5, 0, 0)))  # meets the middle tool: a second group
+    groups = S._disjoint_groups([Solid.empty()] + tools, t)
+    assert [len(g) for g in groups] == [9, 1] and groups[1][0] is tools[-1]
+    g = S._gathered(groups[0], t)
+    assert _ok(g).brep.n_solids == 9
+    _vol(g, 9 * 4 * PI * 20)
+    # The gathered operand hands on the tools' face specs, each confirmed to be its face.
+    assert np.all(sewn_unchanged_faces(g.brep, S._SEWN[g.brep]))
+    r = _ok(S.difference(plate, *tools))
+    seq = plate
+    for tool in tools:
+        seq = seq - tool
+    _vol(r, seq.volume)
+    assert _types(r) == _types(seq)
+
+
 # ---------------------------------------------------------------------- dispatch and errors
 def test_polyhedral_operands_use_the_polyhedral_booleans(monkeypatch):
     from coons.booleans import polyhedral

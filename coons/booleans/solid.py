@@ -76,9 +76,11 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).
 4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
    form separate simple closed cycles clear of the face's loops — a hole drilled through a
-   plate — ``_split_islands`` builds the holed face and one island per cycle directly; when the
-   cuts are straight chords across a straight-sided plane or cylinder face — a hole's wall
-   crossing a plate — ``_split_chords`` splits the loop at the chords' ends directly); each cut
+   plate — ``_split_islands`` builds the holed face and one island per cycle directly, testing
+   all cuts and all cycles of the face in array passes; when the cuts are straight chords
+   across a straight-sided plane or cylinder face — a hole's wall crossing a plate —
+   ``_split_chords`` splits the loop at the chords' ends directly, the chord tests of all the
+   operand's faces run first in one pass, ``_chord_data``); each cut
    must then bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
 5. ``_classify`` (stage ``"classify"``), cheapest way first.  *Local*: a piece bounded by a
@@ -146,7 +148,7 @@ Status and limitations
   both operands in ``sew_faces`` (vertex clustering, matching and the topological checks over
   all faces), and array passes over all edge uses in the T-junction, merge and fuse passes,
   so sequential cuts into a large part still grow with its size, if slowly; the plate of the
-  benchmark is far slower than OCCT in one call (``benchmarks/results/booleans_brep.md``).
+  benchmark is still slower than OCCT in one call (``benchmarks/results/booleans_brep.md``).
   Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
   depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
   compares warm and cold chains): a result remembers the completed face specs it was sewn
@@ -179,9 +181,11 @@ Status and limitations
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
 * n-ary calls: ``difference(a, t0, t1, ...)`` and ``union(s0, s1, ...)`` first gather operands
-  whose bounding boxes are pairwise apart into one solid (their faces sewn together, no Boolean
-  among them) and run one pipeline pass per such group (a plate minus 100 separate cylinders is
-  one pass); otherwise and for ``intersection`` they fold left: ``(a ∪ b) ∪ c``.
+  whose bounding boxes are pairwise apart into one solid (their B-reps side by side,
+  :func:`~coons.topology.disjoint.disjoint_union`: no sewing, no Boolean among them, and their
+  face specs handed on through ``_SEWN``) and run one pipeline pass per such group (a plate
+  minus 100 separate cylinders is one pass); otherwise and for ``intersection`` they fold
+  left: ``(a ∪ b) ∪ c``.
 """
 
 from __future__ import annotations
@@ -363,11 +367,14 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     their face specs are handed on as the specs it was "sewn" from (``_SEWN``): a member's own
     ``_SEWN`` specs when it is an earlier Boolean's result (their per-face data cached), else
     its :func:`face_specs`; ``_Operand`` takes those :func:`sewn_unchanged_faces` confirms
-    instead of reading the faces again.
+    instead of reading the faces again.  A union of polyhedral members hands on nothing (the
+    polyhedral Booleans, which it most likely meets, read no face specs).
     """
     if len(group) == 1:
         return group[0]
     out = disjoint_union(group, t)
+    if all(is_polyhedral(s) for s in group):
+        return out
     specs: list[FaceSpec] = []
     for s in group:
         sewn = _SEWN.get(s.brep)
@@ -1819,23 +1826,38 @@ def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:
 
 
 def _cut_ends(cuts: list[EdgeSpec]) -> np.ndarray:
-    """``(2 n, 3)`` the cuts' 3-D end points (row ``2 k`` at ``t0``, ``2 k + 1`` at ``t1``), one
-    evaluation per curve object (:func:`~coons.kernel.intersect._curve_points` for lines and conics)."""
-    from coons.kernel.intersect import _curve_points
+    """``(2 n, 3)`` the cuts' 3-D end points (row ``2 k`` at ``t0``, ``2 k + 1`` at ``t1``) by :func:`_curve_points_many`."""
+    T = np.array([[c.t0, c.t1] for c in cuts])
+    return _curve_points_many([c.curve for c in cuts], T).reshape(-1, 3)
 
-    n = len(cuts)
-    E = np.empty((n, 2, 3))
-    groups: dict[int, list[int]] = {}
-    for k, c in enumerate(cuts):
-        groups.setdefault(id(c.curve), []).append(k)
-    for rows in groups.values():
-        curve = cuts[rows[0]].curve
-        T = np.array([[cuts[k].t0, cuts[k].t1] for k in rows])
-        if type(curve) in (Line, Circle, Ellipse):
-            E[rows] = _curve_points(curve, T)
+
+def _curve_points_many(curves: list, T: np.ndarray) -> np.ndarray:
+    """``(k, j, 3)``: ``curves[i].evaluate(T[i])`` for parameters ``T (k, j)``.
+
+    Lines, circles and ellipses (exact types) all of a type in one array pass with the
+    expressions of :func:`~coons.kernel.intersect._curve_points` (their ``evaluate``'s, element
+    by element, on stacked frames); other curves one ``evaluate`` per row.
+    """
+    out = np.empty(T.shape + (3,))
+    kinds: dict[type, list[int]] = {}
+    for i, c in enumerate(curves):
+        kinds.setdefault(type(c), []).append(i)
+    for kind, rows in kinds.items():
+        Tk = T[rows]
+        if kind is Line:
+            O = np.array([curves[i].origin for i in rows])[:, None, :]
+            D = np.array([curves[i].direction for i in rows])[:, None, :]
+            out[rows] = O + Tk[..., None] * D
+        elif kind is Circle or kind is Ellipse:
+            R = np.array([curves[i]._radii() for i in rows])
+            F = np.array([curves[i]._frame for i in rows])
+            O = np.array([curves[i]._origin for i in rows])[:, None, :]
+            c, s = np.cos(Tk), np.sin(Tk)
+            out[rows] = ((R[:, 0, None] * c)[..., None] * F[:, None, 0] + (R[:, 1, None] * s)[..., None] * F[:, None, 1]) + O
         else:
-            E[rows] = np.asarray(curve.evaluate(T), dtype=np.float64).reshape(len(rows), 2, 3)
-    return E.reshape(-1, 3)
+            for i in rows:
+                out[i] = np.asarray(curves[i].evaluate(T[i]), dtype=np.float64).reshape(T.shape[1], 3)
+    return out
 
 
 def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray,
@@ -1859,6 +1881,36 @@ def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: n
 _SMALL_BOX_PAIRS = 1 << 12
 
 
+def _ring_box_pairs(lo: np.ndarray, hi: np.ndarray, ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs ``(I, J)``, ``I < J``, of closed boxes ``lo, hi (N, 2)`` of one ring (``ring (N,)``, sorted) that meet.
+
+    Sort and sweep along x within each ring: the boxes sorted by the key ``ring W + x`` (``W``
+    wider than all boxes together, so rings follow each other), each box's candidates are those
+    after it whose key is at most its upper key plus the key's rounding; the candidates are then
+    tested exactly on both axes (and for one ring).  The sampled rings of holes meet few
+    neighbours each: the cost is a sort, not the square of the ring's length.
+    """
+    N = lo.shape[0]
+    if N < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    x0 = float(lo[:, 0].min())
+    W = math.ceil(2.0 * (float(hi[:, 0].max()) - x0) + 1.0)
+    base = ring.astype(np.float64) * W  # (exact: integers below 2^53)
+    key_lo = base + (lo[:, 0] - x0)
+    key_hi = base + (hi[:, 0] - x0)
+    # (the keys round to a few units in the last place of the largest key: search that much further)
+    slack = 4.0 * np.spacing(float(base[-1]) + W)
+    order = np.argsort(key_lo, kind="stable")
+    stop = np.searchsorted(key_lo[order], key_hi[order] + slack, side="right")
+    count = np.maximum(stop - np.arange(N) - 1, 0)
+    a = np.repeat(np.arange(N), count)
+    b = a + 1 + (np.arange(a.size) - np.repeat(np.cumsum(count) - count, count))
+    I, J = order[a], order[b]
+    I, J = np.minimum(I, J), np.maximum(I, J)
+    meet = (ring[I] == ring[J]) & np.all((lo[I] <= hi[J]) & (lo[J] <= hi[I]), axis=1)
+    return I[meet], J[meet]
+
+
 def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per cycle, whether it is simple and holds none of ``probes``, and its signed area.
 
@@ -1866,9 +1918,8 @@ def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np
     is the uses ``c0[c] : c0[c] + size[c]``, its ring (closed polyline) their samples
     concatenated.  All cycles at once, on the flat array of all ring points: a proper crossing
     of two non-adjacent segments of one ring by :func:`_self_crossing`'s orientation tests, on
-    the pairs whose boxes meet (:func:`~coons.booleans._broad_phase.box_pairs`, the ring's
-    index as a third coordinate keeping rings apart: two segments that cross share a point, so
-    no crossing is missed, while testing every pair would cost the square of the ring's
+    the pairs whose boxes meet (:func:`_ring_box_pairs`: two segments that cross share a point,
+    so no crossing is missed, while testing every pair would cost the square of the ring's
     length); the probes (the first point of each of the face's loops) by the even–odd rule of
     :func:`~coons.booleans.classify._in_polygon` (its expressions), the crossings counted per
     ring; the area by :func:`_shoelace`'s terms summed per ring.
@@ -1889,11 +1940,8 @@ def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np
     nxt = np.arange(N) + 1
     nxt[stop - 1] = start
     A, B = P, P[nxt]  # segment p runs from P[p] to P[nxt[p]]
-    lo, hi = np.minimum(A, B), np.maximum(A, B)
-    z = ring.astype(np.float64)[:, None]
-    I, J = box_pairs(np.concatenate([lo, z], axis=1), np.concatenate([hi, z], axis=1),
-                     np.concatenate([lo, z], axis=1), np.concatenate([hi, z], axis=1))
-    # Non-adjacent pairs of one ring, each once (the first and last segments are adjacent).
+    I, J = _ring_box_pairs(np.minimum(A, B), np.maximum(A, B), ring)
+    # Non-adjacent pairs of one ring (the first and last segments are adjacent).
     keep = (J > I + 1) & ~((I == start[ring[I]]) & (J == stop[ring[I]] - 1))
     I, J = I[keep], J[keep]
     a, b, c, d = A[I], B[I], A[J], B[J]
@@ -2128,7 +2176,6 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     ``closest_parameters`` and ``evaluate`` expressions on stacked arrays.
     """
     from coons.kernel.analytic import _angle
-    from coons.kernel.intersect import _curve_points
 
     # One row per chord end: entry, cut, which end, side use, plane solution, side length, margin.
     rows: list[tuple[int, EdgeSpec, int, EdgeSpec]] = []
@@ -2143,52 +2190,37 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
                 mg.append(margin)
     R = len(rows)
     ok = [True] * len(feet)
-    # The cuts' 3-D ends: one evaluation per curve object (both ends of each cut, as the cut's
-    # own two-point call would give them).
-    Pc = np.empty((R, 3))
-    by_curve: dict[int, list[int]] = {}
-    for r, (_, c, _, _) in enumerate(rows):
-        by_curve.setdefault(id(c.curve), []).append(r)
-    for rs in by_curve.values():
-        curve = rows[rs[0]][1].curve
-        tt = np.array([[rows[r][1].t0, rows[r][1].t1] for r in rs])
-        if type(curve) in (Line, Circle, Ellipse):
-            pts = _curve_points(curve, tt)
-        else:
-            pts = np.stack([np.asarray(curve.evaluate(p), dtype=np.float64).reshape(2, 3) for p in tt])
-        Pc[rs] = pts[np.arange(len(rs)), [rows[r][2] for r in rs]]
+    # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would).
+    ends3 = _curve_points_many([c.curve for _, c, _, _ in rows], np.array([[c.t0, c.t1] for _, c, _, _ in rows]))
+    Pc = ends3[np.arange(R), [which for _, _, which, _ in rows]]
     tau0 = np.array(tau0)
-    x = np.empty(R)
-    Pe = np.empty((R, 3))
-    lines = [r for r in range(R) if type(rows[r][3].curve) is Line]
-    circles = [r for r in range(R) if type(rows[r][3].curve) is Circle]
-    others = [r for r in range(R) if type(rows[r][3].curve) not in (Line, Circle)]
+    x = tau0.copy()
+    sides = [e.curve for _, _, _, e in rows]
+    lines = [r for r, c in enumerate(sides) if type(c) is Line]
+    circles = [r for r, c in enumerate(sides) if type(c) is Circle]
     if lines:
-        Ol = np.array([rows[r][3].curve.origin for r in lines])
-        Dl = np.array([rows[r][3].curve.direction for r in lines])
+        Ol = np.array([sides[r].origin for r in lines])
+        Dl = np.array([sides[r].direction for r in lines])
         x[lines] = ((Pc[lines] - Ol)[:, None, :] @ Dl[:, :, None])[:, 0, 0]
-        Pe[lines] = Ol + x[lines][:, None] * Dl
     if circles:
-        Oc = np.array([rows[r][3].curve._origin for r in circles])
-        Fc = np.array([rows[r][3].curve._frame for r in circles])
+        Oc = np.array([sides[r]._origin for r in circles])
+        Fc = np.array([sides[r]._frame for r in circles])
         L = ((Pc[circles] - Oc)[:, None, :] @ np.swapaxes(Fc, 1, 2))[:, 0, :]
         # into the use's period
         x[circles] = [a + math.remainder(b - a, 2.0 * math.pi)
                       for a, b in zip(tau0[circles].tolist(), _angle(L[:, 1], L[:, 0]).tolist())]
-        rad = np.array([rows[r][3].curve.radius for r in circles])
-        xc = x[circles]
-        Pe[circles] = ((rad * np.cos(xc))[:, None] * Fc[:, 0] + (rad * np.sin(xc))[:, None] * Fc[:, 1]) + Oc
-    for r in others:
-        e = rows[r][3]
-        if not isinstance(e.curve, (Line, Circle)):
-            ok[rows[r][0]] = False
-            x[r], Pe[r] = tau0[r], Pc[r]
+    for r, c in enumerate(sides):
+        if type(c) is Line or type(c) is Circle:
             continue
-        xr = float(np.asarray(e.curve.closest_parameters(Pc[r][None]), dtype=np.float64).reshape(-1)[0])
-        if isinstance(e.curve, Circle):
-            xr = tau0[r] + math.remainder(xr - tau0[r], 2.0 * math.pi)
-        x[r] = xr
-        Pe[r] = np.asarray(e.curve.evaluate(xr), dtype=np.float64).reshape(3)
+        if not isinstance(c, (Line, Circle)):
+            ok[rows[r][0]] = False
+            continue
+        xr = float(np.asarray(c.closest_parameters(Pc[r][None]), dtype=np.float64).reshape(-1)[0])
+        x[r] = tau0[r] + math.remainder(xr - tau0[r], 2.0 * math.pi) if isinstance(c, Circle) else xr
+    # The feet in space (rows that failed keep the cut's end: they are dropped anyway).
+    good = [r for r, c in enumerate(sides) if isinstance(c, (Line, Circle))]
+    Pe = Pc.copy()
+    Pe[good] = _curve_points_many([sides[r] for r in good], x[good][:, None])[:, 0]
     span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
     thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
     bad = (np.abs(x - tau0) * np.array(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)

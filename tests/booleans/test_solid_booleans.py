@@ -556,6 +556,20 @@ def test_self_crossing_polyline():
     assert S._self_crossing(seg(bow))
 
 
+@given(st.lists(st.tuples(st.integers(0, 3), st.floats(-5, 5), st.floats(-5, 5), st.floats(0, 2), st.floats(0, 2)),
+                min_size=0, max_size=40))
+def test_ring_box_pairs_are_every_meeting_pair_of_a_ring(boxes):
+    boxes = sorted(boxes)
+    ring = np.array([b[0] for b in boxes], dtype=np.int64)
+    lo = np.array([b[1:3] for b in boxes], dtype=float).reshape(-1, 2)
+    hi = lo + np.array([b[3:] for b in boxes], dtype=float).reshape(-1, 2)
+    I, J = S._ring_box_pairs(lo, hi, ring)
+    n = len(boxes)
+    every = {(i, j) for i in range(n) for j in range(i + 1, n)
+             if ring[i] == ring[j] and np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]))}
+    assert I.size == len(every) and set(zip(I.tolist(), J.tolist())) == every
+
+
 @settings(max_examples=40)
 @given(st.lists(st.tuples(st.integers(1, 3), st.integers(3, 12), st.floats(0.2, 2.0), st.floats(0.0, 1.5),
                           st.integers(0, 2**31 - 1)), min_size=1, max_size=6),
@@ -932,6 +946,23 @@ def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, st
         pad = tol[cand, None]
         inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
         np.testing.assert_array_equal(got[i], cand[inside])
+
+
+def test_curve_points_many_is_each_curves_evaluate():
+    """Stacked lines, circles and ellipses (and a NURBS curve, evaluated alone) give each curve's own
+    ``evaluate`` bit for bit."""
+    from coons.kernel.analytic import Circle, Ellipse, Line
+
+    rng = np.random.default_rng(7)
+    curves = []
+    for k in range(30):
+        O, A, X = rng.normal(size=3) * 10, rng.normal(size=3), rng.normal(size=3)
+        curves.append([Line(O, A), Circle(O, A, X, 0.5 + k), Ellipse(O, A, X, 3.0 + k, 1.0 + k)][k % 3])
+    curves.append(Circle(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0).to_nurbs((0.0, 3.0)))
+    T = rng.uniform(0.0, 3.0, size=(len(curves), 2))
+    got = S._curve_points_many(curves, T)
+    for c, tt, g in zip(curves, T, got):
+        np.testing.assert_array_equal(g, np.asarray(c.evaluate(tt), dtype=np.float64))
 
 
 def test_chord_data_of_all_faces_is_that_of_each_face():

@@ -76,9 +76,11 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).
 4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
    form separate simple closed cycles clear of the face's loops — a hole drilled through a
-   plate — ``_split_islands`` builds the holed face and one island per cycle directly; when the
-   cuts are straight chords across a straight-sided plane or cylinder face — a hole's wall
-   crossing a plate — ``_split_chords`` splits the loop at the chords' ends directly); each cut
+   plate — ``_split_islands`` builds the holed face and one island per cycle directly, testing
+   all cuts and all cycles of the face in array passes; when the cuts are straight chords
+   across a straight-sided plane or cylinder face — a hole's wall crossing a plate —
+   ``_split_chords`` splits the loop at the chords' ends directly, the chord tests of all the
+   operand's faces run first in one pass, ``_chord_data``); each cut
    must then bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
    end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
 5. ``_classify`` (stage ``"classify"``), cheapest way first.  *Local*: a piece bounded by a
@@ -146,7 +148,7 @@ Status and limitations
   both operands in ``sew_faces`` (vertex clustering, matching and the topological checks over
   all faces), and array passes over all edge uses in the T-junction, merge and fuse passes,
   so sequential cuts into a large part still grow with its size, if slowly; the plate of the
-  benchmark is far slower than OCCT in one call (``benchmarks/results/booleans_brep.md``).
+  benchmark is still slower than OCCT in one call (``benchmarks/results/booleans_brep.md``).
   Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
   depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
   compares warm and cold chains): a result remembers the completed face specs it was sewn
@@ -185,9 +187,11 @@ Status and limitations
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
 * n-ary calls: ``difference(a, t0, t1, ...)`` and ``union(s0, s1, ...)`` first gather operands
-  whose bounding boxes are pairwise apart into one solid (their faces sewn together, no Boolean
-  among them) and run one pipeline pass per such group (a plate minus 100 separate cylinders is
-  one pass); otherwise and for ``intersection`` they fold left: ``(a ∪ b) ∪ c``.
+  whose bounding boxes are pairwise apart into one solid (their B-reps side by side,
+  :func:`~coons.topology.disjoint.disjoint_union`: no sewing, no Boolean among them, and their
+  face specs handed on through ``_SEWN``) and run one pipeline pass per such group (a plate
+  minus 100 separate cylinders is one pass); otherwise and for ``intersection`` they fold
+  left: ``(a ∪ b) ∪ c``.
 """
 
 from __future__ import annotations
@@ -209,6 +213,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value
 from coons.topology.brep import BRep
+from coons.topology.disjoint import disjoint_union, padded_box
 from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, sew_faces,
                                sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
@@ -337,40 +342,53 @@ def _disjoint_groups(solids, t: Tolerance) -> list[list[Solid]]:
 
     Greedy in argument order: each solid joins the first group none of whose members' boxes it
     meets, else starts a new one.  The solids of one group are disjoint, so their union is just
-    all their faces together (:func:`_gathered`); a difference or union by a group is then one
+    their B-reps side by side (:func:`_gathered`); a difference or union by a group is then one
     pipeline pass instead of one per solid.  The result does not depend on the grouping (the
     Booleans are associative), only the cost does.
     """
+    solids = [s for s in solids if not s.is_empty]
+    if not solids:
+        return [[Solid.empty()]]
+    # Boxes closer than the tolerances could let sewing merge vertices of two solids (padded_box).
+    box = np.stack([padded_box(s, t) for s in solids])
+    lo, hi = box[:, 0], box[:, 1]
+    group = np.empty(len(solids), dtype=np.int64)
     groups: list[list[Solid]] = []
-    boxes: list[list[np.ndarray]] = []
-    for s in solids:
-        if s.is_empty:
-            continue
-        bb = np.asarray(s.bounding_box(), dtype=np.float64)
-        # Boxes closer than the tolerances could let sewing merge vertices of two solids.
-        pad = max(t.linear, float(np.max(s.brep.edge_tol, initial=0.0)), float(np.max(s.brep.vertex_tol, initial=0.0)))
-        bb = bb + np.array([[-pad], [pad]])
-        gap = 0.0
-        for g, B in zip(groups, boxes):
-            L = np.array([b[0] for b in B])
-            H = np.array([b[1] for b in B])
-            apart = np.any((bb[0] > H + gap) | (bb[1] < L - gap), axis=1)
-            if np.all(apart):
-                g.append(s)
-                B.append(bb)
-                break
-        else:
-            groups.append([s])
-            boxes.append([bb])
-    return groups or [[Solid.empty()]]
+    for k, s in enumerate(solids):
+        # The groups of the earlier solids whose boxes meet this one's (closed boxes) are barred.
+        meets = np.all((lo[:k] <= hi[k]) & (lo[k] <= hi[:k]), axis=1)
+        barred = np.zeros(len(groups) + 1, dtype=bool)
+        barred[group[:k][meets]] = True
+        g = int(np.argmin(barred))  # the first group not barred (a new one if all are)
+        if g == len(groups):
+            groups.append([])
+        groups[g].append(s)
+        group[k] = g
+    return groups
 
 
 def _gathered(group: list[Solid], t: Tolerance) -> Solid:
-    """One solid made of the pairwise disjoint solids of ``group`` (their faces sewn together)."""
+    """One solid made of the pairwise disjoint solids of ``group``: their B-reps side by side
+    (:func:`~coons.topology.disjoint.disjoint_union`, no sewing, no check: valid by construction).
+
+    The union's faces are the members' faces in order, on the very same geometry objects, so
+    their face specs are handed on as the specs it was "sewn" from (``_SEWN``): a member's own
+    ``_SEWN`` specs when it is an earlier Boolean's result (their per-face data cached), else
+    its :func:`face_specs`; ``_Operand`` takes those :func:`sewn_unchanged_faces` confirms
+    instead of reading the faces again.  A union of polyhedral members hands on nothing (the
+    polyhedral Booleans, which it most likely meets, read no face specs).
+    """
     if len(group) == 1:
         return group[0]
-    specs = [spec for s in group for spec in face_specs(s)]
-    return _sew(specs, t, stage="input", what=f"gathering {len(group)} disjoint operands into one")
+    out = disjoint_union(group, t)
+    if all(is_polyhedral(s) for s in group):
+        return out
+    specs: list[FaceSpec] = []
+    for s in group:
+        sewn = _SEWN.get(s.brep)
+        specs += sewn if sewn is not None and len(sewn) == s.brep.n_faces else face_specs(s)
+    _SEWN[out.brep] = specs
+    return out
 
 
 def is_polyhedral(s: Solid) -> bool:
@@ -1659,6 +1677,12 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
     """
     from coons.topology.split import split_face
 
+    # The chord tests of all faces at once; should they fail, each face runs its own (and a
+    # failure there names the face).
+    try:
+        chords = _chord_data(X, cuts, t)
+    except (CoonsError, ValueError, ArithmeticError):
+        chords = None
     out: list[tuple[int, FaceSpec]] = []
     for f, spec in enumerate(X.specs):
         if f not in cuts:
@@ -1666,7 +1690,7 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
             continue
         try:
             # (the chord test declines closed or curved cuts at once: try it first)
-            pieces = _split_chords(X, f, cuts[f], t)
+            pieces = _split_chords(X, f, cuts[f], t, chords)
             if pieces is None:
                 pieces = _split_islands(X, f, cuts[f], t)
             if pieces is None:
@@ -1691,89 +1715,289 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     hole, and one island face per cycle, built directly instead of by ``split_face`` (whose
     cost grows with the number of cuts and loops).  Anything else returns None (``split_face``
     decides).
+
+    Every test runs on all cuts or all cycles of the face at once (a plate face receiving 400
+    holes in one call): the cuts' samples by p-curve kind (:func:`_cut_samples`), the end
+    matching by a k-d tree, the box tests by :func:`~coons.booleans._broad_phase.box_pairs`,
+    and the cycles' self-crossing, containment and area tests on the flat array of all their
+    ring points (:func:`_cycle_tests`); only the walk along the cycles and the building of the
+    face specs are Python loops, once per cut.
     """
+    from scipy.spatial import cKDTree
+
     from coons.booleans.classify import _in_polygon
 
     spec = X.specs[f]
     n = len(cuts)
-    Qs = []
-    for c in cuts:
-        if c.pcurve is None:
-            return None
-        Q = np.asarray(c.pcurve.evaluate(np.linspace(c.t0, c.t1, _CLEAR_SAMPLES)), dtype=np.float64)
-        if Q.shape != (_CLEAR_SAMPLES, 2) or not np.all(np.isfinite(Q)):
-            return None
-        step = float(np.max(np.linalg.norm(np.diff(Q, axis=0), axis=1)))
-        margin = step + 1e-9 * (1.0 + float(np.max(np.abs(Q))))
-        lo, hi = Q.min(axis=0) - margin, Q.max(axis=0) + margin
-        if np.any(np.all((X.seg_lo[f] <= hi) & (X.seg_hi[f] >= lo), axis=1)):
-            return None  # near the face's boundary: split_face decides
-        Qs.append(Q)
-    # Join the cuts end to end: every end cluster must hold exactly two ends.
-    E = np.array([np.asarray(c.curve.evaluate(np.array([c.t0, c.t1])), dtype=np.float64).reshape(2, 3)
-                  for c in cuts]).reshape(-1, 3)
-    thr = np.repeat([max(t.linear, c.tol or 0.0) for c in cuts], 2)
-    D = np.linalg.norm(E[:, None] - E[None], axis=-1)
-    close = D <= np.maximum(thr[:, None], thr[None])
-    np.fill_diagonal(close, False)
-    if np.any(close.sum(axis=1) != 1):
+    if n == 0 or any(c.pcurve is None for c in cuts):
         return None
-    partner = np.argmax(close, axis=1)
-    seen = np.zeros(n, dtype=bool)
-    cycles: list[list[EdgeSpec]] = []
-    polys: list[np.ndarray] = []
+    Q = _cut_samples(cuts)  # (n, _CLEAR_SAMPLES, 2)
+    if Q is None or not np.all(np.isfinite(Q)):
+        return None
+    step = np.max(np.linalg.norm(np.diff(Q, axis=1), axis=2), axis=1)
+    margin = step + 1e-9 * (1.0 + np.max(np.abs(Q), axis=(1, 2)))
+    lo, hi = Q.min(axis=1) - margin[:, None], Q.max(axis=1) + margin[:, None]
+    if _boxes_meet_2d(lo, hi, X.seg_lo[f], X.seg_hi[f]):
+        return None  # near the face's boundary: split_face decides
+    # Join the cuts end to end: every end cluster must hold exactly two ends (end 2 k + which).
+    E = _cut_ends(cuts)
+    thr = np.repeat([max(t.linear, c.tol or 0.0) for c in cuts], 2)
+    r = float(thr.max())
+    # (the tree's distances may differ from norm's by round-off: query wider, decide by norm)
+    pairs = cKDTree(E).query_pairs(r=r * (1.0 + 1e-9) + 1e-300, output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    close = np.linalg.norm(E[i] - E[j], axis=-1) <= np.maximum(thr[i], thr[j])
+    i, j = i[close], j[close]
+    if i.size != n or np.any(np.bincount(np.concatenate([i, j]), minlength=2 * n) != 1):
+        return None  # some end without exactly one partner
+    partner = np.empty(2 * n, dtype=np.int64)
+    partner[i] = j
+    partner[j] = i
+    # Walk the cycles: order[u], fwd[u] the cuts in traversal order, cycle starts in `starts`.
+    partner_l = partner.tolist()
+    seen = [False] * n
+    order: list[int] = []
+    fwd_l: list[bool] = []
+    starts: list[int] = []
     for k0 in range(n):
         if seen[k0]:
             continue
-        uses, pts, k, fwd = [], [], k0, True
+        starts.append(len(order))
+        k, fwd = k0, True
         while True:
             if seen[k]:
                 if k != k0 or not fwd:
                     return None
                 break
             seen[k] = True
-            c = cuts[k]
-            uses.append(c if fwd else EdgeSpec(c.curve, c.t1, c.t0, c.pcurve, c.tol))
-            pts.append(Qs[k] if fwd else Qs[k][::-1])
-            end = 2 * k + (1 if fwd else 0)
-            p = int(partner[end])
+            order.append(k)
+            fwd_l.append(fwd)
+            p = partner_l[2 * k + (1 if fwd else 0)]
             k, fwd = p // 2, p % 2 == 0
-        # Closed in the parameter plane too (not around a pole or across a period).
-        gaps = [np.linalg.norm(a[-1] - b[0]) for a, b in zip(pts, pts[1:] + pts[:1])]
-        span = float(np.max(np.ptp(np.concatenate(pts), axis=0)))
-        if max(gaps) > 1e-6 * (1.0 + span):  # parameter round-off of joined ends, far below a sample step
+    o = np.asarray(order, dtype=np.int64)
+    fw = np.asarray(fwd_l, dtype=bool)
+    Qo = Q[o]
+    Qo[~fw] = Qo[~fw, ::-1]  # each use's samples in its direction of travel
+    c0 = np.asarray(starts, dtype=np.int64)
+    size = np.diff(np.append(c0, n))
+    # Closed in the parameter plane too (not around a pole or across a period): the gap from
+    # each use's last sample to the next use's first, against the cycle's span.
+    nxt = np.arange(n) + 1
+    nxt[c0 + size - 1] = c0
+    gaps = np.linalg.norm(Qo[:, -1] - Qo[nxt, 0], axis=-1)
+    span = np.max(np.maximum.reduceat(Qo.max(axis=1), c0, axis=0) - np.minimum.reduceat(Qo.min(axis=1), c0, axis=0),
+                  axis=1)
+    # parameter round-off of joined ends, far below a sample step
+    if np.any(np.maximum.reduceat(gaps, c0) > 1e-6 * (1.0 + span)):
+        return None
+    rings = Qo[:, 1:]  # each first sample is (within the gap) the previous use's last
+    # Separate cycles: their rings' boxes pairwise apart.
+    if c0.size > 1:
+        clo = np.minimum.reduceat(rings.min(axis=1), c0, axis=0)
+        chi = np.maximum.reduceat(rings.max(axis=1), c0, axis=0)
+        if _boxes_meet_2d(clo, chi, clo, chi, skip_self=True):
             return None
-        R = np.concatenate([q[1:] for q in pts])  # each first sample is (within the gap) the previous last
-        cycles.append(uses)
-        polys.append(R)
-    # Simple, separate cycles, none around an existing loop of the face.
-    boxes = np.array([[R.min(axis=0), R.max(axis=0)] for R in polys])
-    if len(polys) > 1:
-        apart = np.any((boxes[:, None, 0] > boxes[None, :, 1]) | (boxes[:, None, 1] < boxes[None, :, 0]), axis=2)
-        np.fill_diagonal(apart, True)
-        if not np.all(apart):
-            return None
+    # Simple cycles, none around an existing loop of the face, each inside the face, not flat.
     probes = np.array([R[0] for R in X.polygons[f]])
+    ok, area = _cycle_tests(rings, c0, size, probes)
+    if not np.all(ok):
+        return None
+    per = rings.shape[1]  # ring points per use
+    mids = rings.reshape(-1, 2)[c0 * per + (size * per) // 2]  # each ring's middle point
+    if not np.all(_in_polygon(mids, X.segments[f], _slopes(X, f))):
+        return None
+    area = area * (1.0 if spec.sense else -1.0)
+    if np.any(area == 0.0):
+        return None
     out_loops = [list(loop) for loop in spec.loops]
     islands = []
-    sgn = 1.0 if spec.sense else -1.0
-    for uses, R in zip(cycles, polys):
-        seg = np.stack([R, np.roll(R, -1, axis=0)], axis=1)
-        if _self_crossing(seg) or np.any(_in_polygon(probes, seg)):
-            return None
-        if not _in_polygon(R[len(R) // 2][None], X.segments[f])[0]:
-            return None
-        area = _shoelace(R) * sgn
-        if area == 0.0:
-            return None
-        if area < 0:
+    for a, s, ar in zip(c0.tolist(), size.tolist(), area.tolist()):
+        uses = [cuts[k] if fd else EdgeSpec(cuts[k].curve, cuts[k].t1, cuts[k].t0, cuts[k].pcurve, cuts[k].tol)
+                for k, fd in zip(order[a:a + s], fwd_l[a:a + s])]
+        if ar < 0:
             uses = [EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
         islands.append(FaceSpec(spec.surface, spec.sense, [uses]))
         out_loops.append([EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)])
     return [FaceSpec(spec.surface, spec.sense, out_loops)] + islands
 
 
-def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> list[FaceSpec] | None:
+def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:
+    """``(n, _CLEAR_SAMPLES, 2)`` samples of the cuts' p-curves at ``linspace(t0, t1)``, or None when a
+    p-curve does not give ``(_CLEAR_SAMPLES, 2)`` points.
+
+    ``Line2D`` and ``Trig2D`` p-curves (the cuts of planes and cylinders) all of a kind in one
+    array pass, with the p-curves' own ``evaluate`` expressions; others one by one.
+    """
+    n = len(cuts)
+    Q = np.empty((n, _CLEAR_SAMPLES, 2))
+    kinds: dict[type, list[int]] = {}
+    for k, c in enumerate(cuts):
+        kinds.setdefault(type(c.pcurve), []).append(k)
+    for kind, rows in kinds.items():
+        if kind is Line2D or kind is Trig2D:
+            T = np.linspace([cuts[k].t0 for k in rows], [cuts[k].t1 for k in rows], _CLEAR_SAMPLES, axis=-1)
+            if kind is Line2D:
+                O = np.array([cuts[k].pcurve.origin for k in rows])[:, None, :]
+                D = np.array([cuts[k].pcurve.direction for k in rows])[:, None, :]
+                Q[rows] = O + T[..., None] * D
+            else:
+                C = np.array([cuts[k].pcurve.center for k in rows])[:, None, :]
+                A = np.array([cuts[k].pcurve.a for k in rows])[:, None, :]
+                B = np.array([cuts[k].pcurve.b for k in rows])[:, None, :]
+                Q[rows] = C + np.cos(T)[..., None] * A + np.sin(T)[..., None] * B
+            continue
+        for k in rows:
+            c = cuts[k]
+            q = np.asarray(c.pcurve.evaluate(np.linspace(c.t0, c.t1, _CLEAR_SAMPLES)), dtype=np.float64)
+            if q.shape != (_CLEAR_SAMPLES, 2):
+                return None
+            Q[k] = q
+    return Q
+
+
+def _cut_ends(cuts: list[EdgeSpec]) -> np.ndarray:
+    """``(2 n, 3)`` the cuts' 3-D end points (row ``2 k`` at ``t0``, ``2 k + 1`` at ``t1``) by :func:`_curve_points_many`."""
+    T = np.array([[c.t0, c.t1] for c in cuts])
+    return _curve_points_many([c.curve for c in cuts], T).reshape(-1, 3)
+
+
+def _curve_points_many(curves: list, T: np.ndarray) -> np.ndarray:
+    """``(k, j, 3)``: ``curves[i].evaluate(T[i])`` for parameters ``T (k, j)``.
+
+    Lines, circles and ellipses (exact types) all of a type in one array pass with the
+    expressions of :func:`~coons.kernel.intersect._curve_points` (their ``evaluate``'s, element
+    by element, on stacked frames); other curves one ``evaluate`` per row.
+    """
+    out = np.empty(T.shape + (3,))
+    kinds: dict[type, list[int]] = {}
+    for i, c in enumerate(curves):
+        kinds.setdefault(type(c), []).append(i)
+    for kind, rows in kinds.items():
+        Tk = T[rows]
+        if kind is Line:
+            O = np.array([curves[i].origin for i in rows])[:, None, :]
+            D = np.array([curves[i].direction for i in rows])[:, None, :]
+            out[rows] = O + Tk[..., None] * D
+        elif kind is Circle or kind is Ellipse:
+            R = np.array([curves[i]._radii() for i in rows])
+            F = np.array([curves[i]._frame for i in rows])
+            O = np.array([curves[i]._origin for i in rows])[:, None, :]
+            c, s = np.cos(Tk), np.sin(Tk)
+            out[rows] = ((R[:, 0, None] * c)[..., None] * F[:, None, 0] + (R[:, 1, None] * s)[..., None] * F[:, None, 1]) + O
+        else:
+            for i in rows:
+                out[i] = np.asarray(curves[i].evaluate(T[i]), dtype=np.float64).reshape(T.shape[1], 3)
+    return out
+
+
+def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray,
+                   skip_self: bool = False) -> bool:
+    """Whether a closed box ``lo_a, hi_a (n, 2)`` meets one of ``lo_b, hi_b (m, 2)`` (another of the
+    same set when ``skip_self``), by :func:`~coons.booleans._broad_phase.box_pairs` on flat 3-D boxes."""
+    if lo_a.shape[0] == 0 or lo_b.shape[0] == 0:
+        return False
+    if lo_a.shape[0] * lo_b.shape[0] <= _SMALL_BOX_PAIRS:  # (every pair costs less than building trees)
+        meet = np.all((lo_b[None] <= hi_a[:, None]) & (hi_b[None] >= lo_a[:, None]), axis=2)
+        if skip_self:
+            np.fill_diagonal(meet, False)
+        return bool(np.any(meet))
+    z = np.zeros((1,))
+    flat = [np.concatenate([x, np.broadcast_to(z, (x.shape[0], 1))], axis=1) for x in (lo_a, hi_a, lo_b, hi_b)]
+    I, J = box_pairs(*flat)
+    return bool(np.any(I != J)) if skip_self else bool(I.size)
+
+
+#: Up to this many box pairs :func:`_boxes_meet_2d` tests every pair.
+_SMALL_BOX_PAIRS = 1 << 12
+
+
+def _ring_box_pairs(lo: np.ndarray, hi: np.ndarray, ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs ``(I, J)``, ``I < J``, of closed boxes ``lo, hi (N, 2)`` of one ring (``ring (N,)``, sorted) that meet.
+
+    Sort and sweep along x within each ring: the boxes sorted by the key ``ring W + x`` (``W``
+    wider than all boxes together, so rings follow each other), each box's candidates are those
+    after it whose key is at most its upper key plus the key's rounding; the candidates are then
+    tested exactly on both axes (and for one ring).  The sampled rings of holes meet few
+    neighbours each: the cost is a sort, not the square of the ring's length.
+    """
+    N = lo.shape[0]
+    if N < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    x0 = float(lo[:, 0].min())
+    W = math.ceil(2.0 * (float(hi[:, 0].max()) - x0) + 1.0)
+    base = ring.astype(np.float64) * W  # (exact: integers below 2^53)
+    key_lo = base + (lo[:, 0] - x0)
+    key_hi = base + (hi[:, 0] - x0)
+    # (the keys round to a few units in the last place of the largest key: search that much further)
+    slack = 4.0 * np.spacing(float(base[-1]) + W)
+    order = np.argsort(key_lo, kind="stable")
+    stop = np.searchsorted(key_lo[order], key_hi[order] + slack, side="right")
+    count = np.maximum(stop - np.arange(N) - 1, 0)
+    a = np.repeat(np.arange(N), count)
+    b = a + 1 + (np.arange(a.size) - np.repeat(np.cumsum(count) - count, count))
+    I, J = order[a], order[b]
+    I, J = np.minimum(I, J), np.maximum(I, J)
+    meet = (ring[I] == ring[J]) & np.all((lo[I] <= hi[J]) & (lo[J] <= hi[I]), axis=1)
+    return I[meet], J[meet]
+
+
+def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per cycle, whether it is simple and holds none of ``probes``, and its signed area.
+
+    ``rings (n, s, 2)``: each use's samples after its first, in traversal order; cycle ``c``
+    is the uses ``c0[c] : c0[c] + size[c]``, its ring (closed polyline) their samples
+    concatenated.  All cycles at once, on the flat array of all ring points: a proper crossing
+    of two non-adjacent segments of one ring by :func:`_self_crossing`'s orientation tests, on
+    the pairs whose boxes meet (:func:`_ring_box_pairs`: two segments that cross share a point,
+    so no crossing is missed, while testing every pair would cost the square of the ring's
+    length); the probes (the first point of each of the face's loops) by the even–odd rule of
+    :func:`~coons.booleans.classify._in_polygon` (its expressions), the crossings counted per
+    ring; the area by :func:`_shoelace`'s terms summed per ring.
+
+    Returns
+    -------
+    ok : (c,) bool
+    area : (c,) float64
+    """
+    from coons.booleans.classify import _polygon_slopes
+
+    nc, s = c0.size, rings.shape[1]
+    P = rings.reshape(-1, 2)
+    N = P.shape[0]
+    start = c0 * s  # each ring's first point in P
+    stop = (c0 + size) * s
+    ring = np.repeat(np.arange(nc), size * s)
+    nxt = np.arange(N) + 1
+    nxt[stop - 1] = start
+    A, B = P, P[nxt]  # segment p runs from P[p] to P[nxt[p]]
+    I, J = _ring_box_pairs(np.minimum(A, B), np.maximum(A, B), ring)
+    # Non-adjacent pairs of one ring (the first and last segments are adjacent).
+    keep = (J > I + 1) & ~((I == start[ring[I]]) & (J == stop[ring[I]] - 1))
+    I, J = I[keep], J[keep]
+    a, b, c, d = A[I], B[I], A[J], B[J]
+
+    def orient(p, q, r):
+        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+
+    d1, d2, d3, d4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+    # Zero-length segments (repeated samples where cuts join) are adjacent in effect: skip them.
+    degenerate = np.all(a == b, axis=1) | np.all(c == d, axis=1)
+    ok = np.ones(nc, dtype=bool)
+    ok[ring[I[(d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate]]] = False
+    if probes.shape[0]:
+        seg = np.stack([A, B], axis=1)
+        slope = _polygon_slopes(seg)
+        x, y = probes[:, 0:1], probes[:, 1:2]
+        straddle = (A[None, :, 1] > y) != (B[None, :, 1] > y)
+        xc = A[None, :, 0] + (y - A[None, :, 1]) * slope[None, :]
+        count = np.add.reduceat((straddle & (x < xc)).astype(np.int64), start, axis=1)  # (probes, rings)
+        ok &= ~np.any(count % 2 == 1, axis=0)
+    area = 0.5 * np.add.reduceat(A[:, 0] * B[:, 1] - B[:, 0] * A[:, 1], start)
+    return ok, area
+
+
+def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
+                  prepared: dict[int, tuple | None] | None = None) -> list[FaceSpec] | None:
     """The pieces of face ``f`` when its cuts are straight chords across a straight-sided face, else None.
 
     The common case of a tool crossing a wall (a hole's half-cylinder cut by the two faces of
@@ -1787,107 +2011,29 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> li
     back), the sides split at the chords' ends (the exact crossing of two lines, whose 3-D
     points must agree with the cut's ends within the tolerances).  Anything else returns None
     (``split_face`` decides).
-    """
-    from coons.booleans.classify import _segment_distance
-    from coons.kernel.analytic import Circle, CylindricalSurface
 
+    The tests and the split parameters are :func:`_chord_data`'s, computed for all faces of an
+    operand at once by ``_split`` (``prepared``) or here for this face alone.
+    """
+    if prepared is None:
+        prepared = _chord_data(X, {f: cuts}, t)
+    got = prepared.get(f)
+    if got is None:
+        return None
+    ends, tau, SL, margin = got
     spec = X.specs[f]
-    S = spec.surface
-    if len(spec.loops) != 1 or not cuts:
-        return None
-    if isinstance(S, PlanarSurface):
-        sp = np.array([1.0, 1.0])
-    elif isinstance(S, CylindricalSurface):
-        sp = np.array([float(S.radius), 1.0])
-    else:
-        return None
     loop = spec.loops[0]
-    if any(type(e.pcurve) is not Line2D or (e.tol or 0.0) > t.linear for e in loop) \
-            or any(type(c.pcurve) is not Line2D for c in cuts):
-        return None
-    m, n = len(loop), len(cuts)
-    # Sides (m) and chords (n) as segments a + w (b - a), w in [0, 1], in isometric coordinates.
-    sa = np.array([e.pcurve.origin + e.t0 * e.pcurve.direction for e in loop]) * sp
-    sb = np.array([e.pcurve.origin + e.t1 * e.pcurve.direction for e in loop]) * sp
-    ca = np.array([c.pcurve.origin + c.t0 * c.pcurve.direction for c in cuts]) * sp
-    cb = np.array([c.pcurve.origin + c.t1 * c.pcurve.direction for c in cuts]) * sp
-    scale = 1.0 + float(max(np.max(np.abs(sa)), np.max(np.abs(ca)), np.max(np.abs(cb))))
-    margin = _STRAIGHT_CLEARANCE * max(t.linear, max(c.tol or 0.0 for c in cuts)) + 1e-12 * scale
-    SE, CE = sb - sa, cb - ca
-    SL, CL = np.hypot(SE[:, 0], SE[:, 1]), np.hypot(CE[:, 0], CE[:, 1])
-    if np.any(SL <= 2.0 * margin) or np.any(CL <= 2.0 * margin):
-        return None
-    # Chord–side crossings: (n, m) cross products and the fractions along both.
-    W = sa[None] - ca[:, None]
-    cross = CE[:, None, 0] * SE[None, :, 1] - CE[:, None, 1] * SE[None, :, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        wc = (W[..., 0] * SE[None, :, 1] - W[..., 1] * SE[None, :, 0]) / cross  # along the chord
-        ws = (W[..., 0] * CE[:, None, 1] - W[..., 1] * CE[:, None, 0]) / cross  # along the side
-    # Each chord end: exactly one side within the margin of it, crossed properly there, away
-    # from the side's ends (all 2 n ends against all m sides at once; end 2 k + which).
-    P = np.stack([ca, cb], axis=1).reshape(-1, 2)
-    w = np.clip(np.einsum("emj,mj->em", P[:, None, :] - sa[None], SE) / (SL * SL), 0.0, 1.0)
-    dist = np.hypot(*np.moveaxis(P[:, None, :] - sa[None] - w[..., None] * SE[None], -1, 0))
-    near = dist <= margin
-    if not np.all(near.sum(axis=1) == 1):
-        return None
-    side = np.argmax(near, axis=1)
-    kk = np.repeat(np.arange(n), 2)
-    cr, wsi = cross[kk, side], ws[kk, side]
-    if not np.all(np.abs(cr) >= _STRAIGHT_MIN_SINE * CL[kk] * SL[side]) or not np.all(np.isfinite(wsi)):
-        return None
-    if not np.all((wsi * SL[side] > margin) & ((1.0 - wsi) * SL[side] > margin)):
-        return None  # at or near a vertex
-    ends = side.reshape(n, 2)
-    t_0 = np.array([loop[i].t0 for i in side.tolist()])
-    t_1 = np.array([loop[i].t1 for i in side.tolist()])
-    tau = (t_0 + wsi * (t_1 - t_0)).reshape(n, 2)
-    # Away from its end sides a chord meets no side, and no vertex comes near it.
-    inner = np.ones((n, m), dtype=bool)
-    inner[np.arange(n)[:, None], ends] = False
-    lo, hi = -1e-12, 1.0 + 1e-12
-    if np.any((wc >= lo) & (wc <= hi) & (ws >= lo) & (ws <= hi) & inner):
-        return None
-    chords = np.stack([ca, cb], axis=1)  # (n, 2, 2)
-    if np.any(_segment_distance(sa, chords) <= margin):
-        return None
-    # Chords apart from each other: no chord end near another chord, no proper crossing.
-    for k in range(n):
-        others = np.delete(chords, k, axis=0).reshape(-1, 2)
-        if others.size and np.any(_segment_distance(others, chords[k:k + 1]) <= margin):
-            return None
-    i, j = np.triu_indices(n, 1)
-    c = CE[i, 0] * CE[j, 1] - CE[i, 1] * CE[j, 0]
-    D = ca[j] - ca[i]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = (D[:, 0] * CE[j, 1] - D[:, 1] * CE[j, 0]) / c
-        y = (D[:, 0] * CE[i, 1] - D[:, 1] * CE[i, 0]) / c
-    if np.any((c != 0.0) & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0)):
-        return None
-    # The split parameters are those of the cut ends' feet on the side's 3-D curve (the face
-    # across that edge finds the same from the same point, so its split matches exactly), and
-    # must agree with the plane solution.
-    for k, c in enumerate(cuts):
-        Pc = np.asarray(c.curve.evaluate(np.array([c.t0, c.t1])), dtype=np.float64).reshape(2, 3)
-        for which in (0, 1):
-            i = int(ends[k, which])
-            e = loop[i]
-            if not isinstance(e.curve, (Line, Circle)):
-                return None
-            x = float(np.asarray(e.curve.closest_parameters(Pc[which][None]), dtype=np.float64).reshape(-1)[0])
-            if isinstance(e.curve, Circle):  # into the use's period
-                x = tau[k, which] + math.remainder(x - tau[k, which], 2.0 * math.pi)
-            if abs(x - tau[k, which]) * SL[i] / abs(e.t1 - e.t0) > margin:
-                return None
-            Pe = np.asarray(e.curve.evaluate(x), dtype=np.float64).reshape(3)
-            if np.linalg.norm(Pe - Pc[which]) > max(t.linear, c.tol or 0.0, e.tol or 0.0):
-                return None
-            tau[k, which] = x
+    n = len(cuts)
+    ends_l, tau_l = ends.tolist(), tau.tolist()
     # The loop as (use, start node) items with every side split at its chord ends; node ids:
     # 2 k + which for chord ends, -1 for the loop's own vertices.
+    at_side: dict[int, list[tuple[float, int]]] = {}
+    for k in range(n):
+        for w_ in (0, 1):
+            at_side.setdefault(ends_l[k][w_], []).append((tau_l[k][w_], 2 * k + w_))
     items: list[tuple[EdgeSpec, int]] = []
     for i, e in enumerate(loop):
-        at = [(float(tau[k, w_]), 2 * k + w_) for k in range(n) for w_ in (0, 1) if ends[k, w_] == i]
+        at = at_side.get(i, [])
         at.sort(key=lambda p: p[0], reverse=e.t1 < e.t0)
         if any(abs(a[0] - b[0]) * SL[i] / abs(e.t1 - e.t0) <= margin for a, b in zip(at, at[1:])):
             return None
@@ -1910,7 +2056,212 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> li
         path2 = R[j:i] if j < i else R[j:] + R[:i]
         back = EdgeSpec(c.curve, c.t1, c.t0, c.pcurve, c.tol)
         regions[r:r + 1] = [path1 + [(back, q)], path2 + [(c, p)]]
-    return [FaceSpec(S, spec.sense, [[e for e, _ in R]]) for R in regions]
+    return [FaceSpec(spec.surface, spec.sense, [[e for e, _ in R]]) for R in regions]
+
+
+def _chord_data(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> dict[int, tuple | None]:
+    """Per face of ``cuts`` (face -> its cuts), the tests of :func:`_split_chords` and where its sides split.
+
+    Returns, per face, ``(ends, tau, SL, margin)`` when its cuts pass every test: ``ends (n, 2)``
+    the side each chord end lies on (end ``which`` of cut ``k``), ``tau (n, 2)`` the side's
+    curve parameter there (the foot of the cut's 3-D end on the side's curve), ``SL (m,)`` the
+    sides' lengths and ``margin`` the clearance in the isometric coordinates; None otherwise.
+
+    The faces that qualify by type (one loop on a plane or cylinder, every side and cut a
+    ``Line2D``, sides within ``tol.linear``) are grouped by their numbers of sides and cuts, and
+    each group is tested on stacked arrays with the expressions of the one-face tests (a plate
+    drilled by 400 tools hands 800 half-cylinders of 4 sides and 2 chords to one pass); the
+    feet on the sides' lines and circles are computed for all ends at once, by the curves'
+    own ``closest_parameters`` and ``evaluate`` expressions (the stacked ``@`` rounds as theirs).
+    """
+    from coons.kernel.analytic import CylindricalSurface
+
+    out: dict[int, tuple | None] = {}
+    groups: dict[tuple[int, int], list[int]] = {}
+    for f, cs in cuts.items():
+        out[f] = None
+        spec = X.specs[f]
+        S = spec.surface
+        if len(spec.loops) != 1 or not cs or not isinstance(S, (PlanarSurface, CylindricalSurface)):
+            continue
+        loop = spec.loops[0]
+        if any(type(e.pcurve) is not Line2D or (e.tol or 0.0) > t.linear for e in loop) \
+                or any(type(c.pcurve) is not Line2D for c in cs):
+            continue
+        groups.setdefault((len(loop), len(cs)), []).append(f)
+    feet: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, float]] = []
+    for (m, n), faces in groups.items():
+        for f, ends, tau, SL, margin in zip(faces, *_chord_group(X, faces, cuts, m, n, t)):
+            if ends is not None:
+                feet.append((f, ends, tau, SL, margin))
+    if feet:
+        for (f, ends, tau, SL, margin), ok in zip(feet, _chord_feet(X, cuts, feet, t)):
+            if ok:
+                out[f] = (ends, tau, SL, margin)
+    return out
+
+
+def _chord_group(X: _Operand, faces: list[int], cuts: dict[int, list[EdgeSpec]], m: int, n: int, t: Tolerance):
+    """The planar tests of :func:`_chord_data` for faces of ``m`` sides and ``n`` cuts, stacked (``F`` faces).
+
+    Returns lists ``ends, tau, SL, margin`` per face, ``ends`` None where a test fails; ``tau``
+    here is the plane solution, refined by :func:`_chord_feet`.
+    """
+    from coons.kernel.analytic import PlanarSurface as _Plane
+
+    F = len(faces)
+    specs = [X.specs[f] for f in faces]
+    sp = np.array([[1.0, 1.0] if isinstance(s.surface, _Plane) else [float(s.surface.radius), 1.0] for s in specs])
+    sides = [e for s in specs for e in s.loops[0]]
+    chords = [c for f in faces for c in cuts[f]]
+    # Sides (m) and chords (n) as segments a + w (b - a), w in [0, 1], in isometric coordinates.
+    O = np.array([e.pcurve.origin for e in sides]).reshape(F, m, 2)
+    D = np.array([e.pcurve.direction for e in sides]).reshape(F, m, 2)
+    T = np.array([[e.t0, e.t1] for e in sides]).reshape(F, m, 2)
+    sa = (O + T[..., 0, None] * D) * sp[:, None, :]
+    sb = (O + T[..., 1, None] * D) * sp[:, None, :]
+    O = np.array([c.pcurve.origin for c in chords]).reshape(F, n, 2)
+    D = np.array([c.pcurve.direction for c in chords]).reshape(F, n, 2)
+    Tc = np.array([[c.t0, c.t1] for c in chords]).reshape(F, n, 2)
+    ca = (O + Tc[..., 0, None] * D) * sp[:, None, :]
+    cb = (O + Tc[..., 1, None] * D) * sp[:, None, :]
+    scale = 1.0 + np.maximum(np.maximum(np.max(np.abs(sa), axis=(1, 2)), np.max(np.abs(ca), axis=(1, 2))),
+                             np.max(np.abs(cb), axis=(1, 2)))
+    ctol = np.array([c.tol or 0.0 for c in chords]).reshape(F, n).max(axis=1)
+    margin = _STRAIGHT_CLEARANCE * np.maximum(t.linear, ctol) + 1e-12 * scale  # (F,)
+    mg = margin[:, None]
+    SE, CE = sb - sa, cb - ca
+    SL, CL = np.hypot(SE[..., 0], SE[..., 1]), np.hypot(CE[..., 0], CE[..., 1])  # (F, m), (F, n)
+    good = ~np.any(SL <= 2.0 * mg, axis=1) & ~np.any(CL <= 2.0 * mg, axis=1)
+    # Chord–side crossings: (F, n, m) cross products and the fractions along both.
+    W = sa[:, None] - ca[:, :, None]
+    cross = CE[:, :, None, 0] * SE[:, None, :, 1] - CE[:, :, None, 1] * SE[:, None, :, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wc = (W[..., 0] * SE[:, None, :, 1] - W[..., 1] * SE[:, None, :, 0]) / cross  # along the chord
+        ws = (W[..., 0] * CE[:, :, None, 1] - W[..., 1] * CE[:, :, None, 0]) / cross  # along the side
+    # Each chord end: exactly one side within the margin of it, crossed properly there, away
+    # from the side's ends (all 2 n ends against all m sides at once; end 2 k + which).
+    P = np.stack([ca, cb], axis=2).reshape(F, 2 * n, 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.clip(np.einsum("femj,fmj->fem", P[:, :, None, :] - sa[:, None], SE) / (SL * SL)[:, None, :], 0.0, 1.0)
+    dist = np.hypot(*np.moveaxis(P[:, :, None, :] - sa[:, None] - w[..., None] * SE[:, None], -1, 0))
+    near = dist <= mg[:, :, None]
+    good &= np.all(near.sum(axis=2) == 1, axis=1)
+    side = np.argmax(near, axis=2)  # (F, 2n)
+    fi = np.arange(F)[:, None]
+    kk = np.repeat(np.arange(n), 2)[None, :]
+    cr, wsi = cross[fi, kk, side], ws[fi, kk, side]
+    SLs = SL[fi, side]
+    with np.errstate(invalid="ignore"):
+        good &= np.all(np.abs(cr) >= _STRAIGHT_MIN_SINE * CL[fi, kk] * SLs, axis=1) & np.all(np.isfinite(wsi), axis=1)
+        good &= np.all((wsi * SLs > mg) & ((1.0 - wsi) * SLs > mg), axis=1)  # else at or near a vertex
+    t_0, t_1 = T[fi, side, 0], T[fi, side, 1]
+    tau = (t_0 + wsi * (t_1 - t_0)).reshape(F, n, 2)
+    ends = side.reshape(F, n, 2)
+    # Away from its end sides a chord meets no side, and no vertex comes near it.
+    inner = np.ones((F, n, m), dtype=bool)
+    inner[np.arange(F)[:, None, None], np.arange(n)[None, :, None], ends] = False
+    lo, hi = -1e-12, 1.0 + 1e-12
+    with np.errstate(invalid="ignore"):
+        good &= ~np.any((wc >= lo) & (wc <= hi) & (ws >= lo) & (ws <= hi) & inner, axis=(1, 2))
+    segs = np.stack([ca, cb], axis=2)  # (F, n, 2, 2)
+    good &= ~np.any(_segment_distances(sa, segs) <= mg[:, :, None], axis=(1, 2))
+    # Chords apart from each other: no chord end near another chord, no proper crossing.
+    if n > 1:
+        d_end = _segment_distances(P, segs)  # (F, 2n, n)
+        d_end[:, np.arange(2 * n), np.repeat(np.arange(n), 2)] = np.inf  # (a chord's own ends)
+        good &= ~np.any(d_end <= mg[:, :, None], axis=(1, 2))
+        i, j = np.triu_indices(n, 1)
+        c = CE[:, i, 0] * CE[:, j, 1] - CE[:, i, 1] * CE[:, j, 0]
+        Dc = ca[:, j] - ca[:, i]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (Dc[..., 0] * CE[:, j, 1] - Dc[..., 1] * CE[:, j, 0]) / c
+            y = (Dc[..., 0] * CE[:, i, 1] - Dc[..., 1] * CE[:, i, 0]) / c
+        with np.errstate(invalid="ignore"):
+            good &= ~np.any((c != 0.0) & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0), axis=1)
+    g = good.tolist()
+    return ([ends[k] if g[k] else None for k in range(F)], list(tau), list(SL), margin.tolist())
+
+
+def _segment_distances(Q: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """``(F, k, s)`` distances of points ``Q (F, k, 2)`` to segments ``seg (F, s, 2, 2)``, face by face,
+    with the expressions of :func:`~coons.booleans.classify._segment_distance` (which keeps the minimum)."""
+    a = seg[:, :, 0]
+    d = seg[:, :, 1] - a
+    dd = np.maximum(np.einsum("fij,fij->fi", d, d), 1e-300)[:, None, :]
+    R = [Q[:, :, None, i] - a[:, None, :, i] for i in range(2)]
+    lam = (R[0] * d[:, None, :, 0] + R[1] * d[:, None, :, 1]) / dd
+    np.clip(lam, 0.0, 1.0, out=lam)
+    return np.sqrt(np.square(R[0] - lam * d[:, None, :, 0]) + np.square(R[1] - lam * d[:, None, :, 1]))
+
+
+def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tolerance) -> list[bool]:
+    """Move each chord end's split parameter to the foot of the cut's 3-D end on the side's curve.
+
+    The split parameters are those of the cut ends' feet on the side's 3-D curve (the face
+    across that edge finds the same from the same point, so its split matches exactly), and
+    must agree with the plane solution.  ``feet`` holds ``(face, ends, tau, SL, margin)``
+    entries; each ``tau`` is updated in place.  Returns per entry whether every end passes (a
+    side that is not a line or circle fails).  All ends at once: lines and circles by their
+    ``closest_parameters`` and ``evaluate`` expressions on stacked arrays.
+    """
+    from coons.kernel.analytic import _angle
+
+    # One row per chord end: entry, cut, which end, side use, plane solution, side length, margin.
+    rows: list[tuple[int, EdgeSpec, int, EdgeSpec]] = []
+    tau0, SLr, mg = [], [], []
+    for q, (f, ends, tau, SL, margin) in enumerate(feet):
+        loop = X.specs[f].loops[0]
+        for k, ik in enumerate(ends.tolist()):
+            for which in (0, 1):
+                rows.append((q, cuts[f][k], which, loop[ik[which]]))
+                tau0.append(float(tau[k, which]))
+                SLr.append(SL[ik[which]])
+                mg.append(margin)
+    R = len(rows)
+    ok = [True] * len(feet)
+    # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would).
+    ends3 = _curve_points_many([c.curve for _, c, _, _ in rows], np.array([[c.t0, c.t1] for _, c, _, _ in rows]))
+    Pc = ends3[np.arange(R), [which for _, _, which, _ in rows]]
+    tau0 = np.array(tau0)
+    x = tau0.copy()
+    sides = [e.curve for _, _, _, e in rows]
+    lines = [r for r, c in enumerate(sides) if type(c) is Line]
+    circles = [r for r, c in enumerate(sides) if type(c) is Circle]
+    if lines:
+        Ol = np.array([sides[r].origin for r in lines])
+        Dl = np.array([sides[r].direction for r in lines])
+        x[lines] = ((Pc[lines] - Ol)[:, None, :] @ Dl[:, :, None])[:, 0, 0]
+    if circles:
+        Oc = np.array([sides[r]._origin for r in circles])
+        Fc = np.array([sides[r]._frame for r in circles])
+        L = ((Pc[circles] - Oc)[:, None, :] @ np.swapaxes(Fc, 1, 2))[:, 0, :]
+        # into the use's period
+        x[circles] = [a + math.remainder(b - a, 2.0 * math.pi)
+                      for a, b in zip(tau0[circles].tolist(), _angle(L[:, 1], L[:, 0]).tolist())]
+    for r, c in enumerate(sides):
+        if type(c) is Line or type(c) is Circle:
+            continue
+        if not isinstance(c, (Line, Circle)):
+            ok[rows[r][0]] = False
+            continue
+        xr = float(np.asarray(c.closest_parameters(Pc[r][None]), dtype=np.float64).reshape(-1)[0])
+        x[r] = tau0[r] + math.remainder(xr - tau0[r], 2.0 * math.pi) if isinstance(c, Circle) else xr
+    # The feet in space (rows that failed keep the cut's end: they are dropped anyway).
+    good = [r for r, c in enumerate(sides) if isinstance(c, (Line, Circle))]
+    Pe = Pc.copy()
+    Pe[good] = _curve_points_many([sides[r] for r in good], x[good][:, None])[:, 0]
+    span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
+    thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
+    bad = (np.abs(x - tau0) * np.array(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
+    for r in np.flatnonzero(bad).tolist():
+        ok[rows[r][0]] = False
+    r = 0
+    for f, ends, tau, SL, margin in feet:
+        for k in range(ends.shape[0]):
+            tau[k, 0], tau[k, 1] = x[r], x[r + 1]
+            r += 2
+    return ok
 
 
 def _self_crossing(seg: np.ndarray) -> bool:

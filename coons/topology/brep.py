@@ -4,8 +4,10 @@ A :class:`BRep` stores the classic winged-edge structure of Baumgart (Cohen–Ri
 Elber ch. 19) as integer tables, one row per vertex, edge, loop, face, shell and solid,
 ``-1`` meaning "none".  Views (:class:`Vertex`, :class:`Edge`, :class:`Loop`,
 :class:`Face`, :class:`Shell`, :class:`Lump`) are ``(brep, index)`` pairs that read the
-tables; they own nothing.  A B-rep is built only by :class:`coons.topology.builder.BRepBuilder`
-(Euler operators), whose ``build()`` checks it; nothing mutates it afterwards.
+tables; they own nothing.  A B-rep is built by :class:`coons.topology.builder.BRepBuilder`
+(Euler operators), whose ``build()`` checks it, or by putting checked B-reps whose boxes are
+apart side by side (:func:`coons.topology.disjoint.stacked`, valid by construction); nothing
+mutates it afterwards.
 
 Notation
 --------

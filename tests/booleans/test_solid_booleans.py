@@ -334,6 +334,29 @@ def test_n_ary_calls_fold_left():
     assert _types(r) == {"plane": 6, "cylinder": 6}  # the x hole's wall is cut in two by the z hole
 
 
+def test_n_ary_difference_gathers_apart_tools():
+    from coons.tolerance import resolve
+    from coons.topology.sew import sewn_unchanged_faces
+
+    t = resolve(None)
+    plate = Box(40, 40, 10)
+    tools = [Cylinder(2, 20).translate((x, y, 0)) for x in (-10, 0, 10) for y in (-10, 0, 10)]
+    tools.append(Cylinder(1, 20).translate((1.5, 0, 0)))  # meets the middle tool: a second group
+    groups = S._disjoint_groups([Solid.empty()] + tools, t)
+    assert [len(g) for g in groups] == [9, 1] and groups[1][0] is tools[-1]
+    g = S._gathered(groups[0], t)
+    assert _ok(g).brep.n_solids == 9
+    _vol(g, 9 * 4 * PI * 20)
+    # The gathered operand hands on the tools' face specs, each confirmed to be its face.
+    assert np.all(sewn_unchanged_faces(g.brep, S._SEWN[g.brep]))
+    r = _ok(S.difference(plate, *tools))
+    seq = plate
+    for tool in tools:
+        seq = seq - tool
+    _vol(r, seq.volume)
+    assert _types(r) == _types(seq)
+
+
 # ---------------------------------------------------------------------- dispatch and errors
 def test_polyhedral_operands_use_the_polyhedral_booleans(monkeypatch):
     from coons.booleans import polyhedral
@@ -531,6 +554,54 @@ def test_self_crossing_polyline():
     seg = lambda R: np.stack([R, np.roll(R, -1, axis=0)], axis=1)  # noqa: E731
     assert not S._self_crossing(seg(square))
     assert S._self_crossing(seg(bow))
+
+
+@given(st.lists(st.tuples(st.integers(0, 3), st.floats(-5, 5), st.floats(-5, 5), st.floats(0, 2), st.floats(0, 2)),
+                min_size=0, max_size=40))
+def test_ring_box_pairs_are_every_meeting_pair_of_a_ring(boxes):
+    boxes = sorted(boxes)
+    ring = np.array([b[0] for b in boxes], dtype=np.int64)
+    lo = np.array([b[1:3] for b in boxes], dtype=float).reshape(-1, 2)
+    hi = lo + np.array([b[3:] for b in boxes], dtype=float).reshape(-1, 2)
+    I, J = S._ring_box_pairs(lo, hi, ring)
+    n = len(boxes)
+    every = {(i, j) for i in range(n) for j in range(i + 1, n)
+             if ring[i] == ring[j] and np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]))}
+    assert I.size == len(every) and set(zip(I.tolist(), J.tolist())) == every
+
+
+@settings(max_examples=40)
+@given(st.lists(st.tuples(st.integers(1, 3), st.integers(3, 12), st.floats(0.2, 2.0), st.floats(0.0, 1.5),
+                          st.integers(0, 2**31 - 1)), min_size=1, max_size=6),
+       st.lists(st.tuples(st.floats(-20, 60), st.floats(-5, 5)), min_size=0, max_size=4))
+def test_cycle_tests_agree_with_one_ring_at_a_time(rings, probes):
+    """All rings at once (box-filtered crossing pairs, counts per ring) give what testing each ring
+    alone gives: _self_crossing, _in_polygon of the probes and the sign of _shoelace."""
+    from coons.booleans.classify import _in_polygon
+
+    per = 4  # ring points per use
+    blocks, sizes = [], []
+    for k, (uses, corners, radius, wobble, seed) in enumerate(rings):
+        rng = np.random.default_rng(seed)
+        m = uses * per
+        a = np.sort(rng.uniform(0.0, 2 * PI, m)) * (1 if seed % 3 else -1)
+        if seed % 5 == 0:
+            a = rng.permutation(a)  # (likely) self-crossing
+        rr = radius * (1.0 + wobble * np.cos(corners * a))
+        R = np.stack([10.0 * k + rr * np.cos(a), rr * np.sin(a)], axis=1)
+        blocks.append(R.reshape(uses, per, 2))
+        sizes.append(uses)
+    size = np.array(sizes)
+    c0 = np.concatenate([[0], np.cumsum(size)[:-1]])
+    P = np.array(probes, dtype=float).reshape(-1, 2)
+    ok, area = S._cycle_tests(np.concatenate(blocks), c0, size, P)
+    for k, B in enumerate(blocks):
+        R = B.reshape(-1, 2)
+        seg = np.stack([R, np.roll(R, -1, axis=0)], axis=1)
+        expect = not S._self_crossing(seg) and not np.any(_in_polygon(P, seg))
+        assert ok[k] == expect, k
+        assert np.sign(area[k]) == np.sign(S._shoelace(R))
+        np.testing.assert_allclose(area[k], S._shoelace(R), rtol=1e-12, atol=1e-12)
 
 
 def _straight_faces():
@@ -875,6 +946,49 @@ def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, st
         pad = tol[cand, None]
         inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
         np.testing.assert_array_equal(got[i], cand[inside])
+
+
+def test_curve_points_many_is_each_curves_evaluate():
+    """Stacked lines, circles and ellipses (and a NURBS curve, evaluated alone) give each curve's own
+    ``evaluate`` bit for bit."""
+    from coons.kernel.analytic import Circle, Ellipse, Line
+
+    rng = np.random.default_rng(7)
+    curves = []
+    for k in range(30):
+        O, A, X = rng.normal(size=3) * 10, rng.normal(size=3), rng.normal(size=3)
+        curves.append([Line(O, A), Circle(O, A, X, 0.5 + k), Ellipse(O, A, X, 3.0 + k, 1.0 + k)][k % 3])
+    curves.append(Circle(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0).to_nurbs((0.0, 3.0)))
+    T = rng.uniform(0.0, 3.0, size=(len(curves), 2))
+    got = S._curve_points_many(curves, T)
+    for c, tt, g in zip(curves, T, got):
+        np.testing.assert_array_equal(g, np.asarray(c.evaluate(tt), dtype=np.float64))
+
+
+def test_chord_data_of_all_faces_is_that_of_each_face():
+    """_split's one pass over all faces (grouped by their numbers of sides and cuts) gives every face the
+    ends and split parameters its own pass gives, bit for bit, and its pieces are split_face's."""
+    from coons.topology.split import split_face
+
+    t = S.resolve(None)
+    plate = Box(40, 40, 6)
+    tools = [Cylinder(1.5 + 0.1 * i, 20).translate((8.0 * i, 8.0 * j, 0)) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    tools.append(Cylinder(1.0, 10).translate((15.0, 0.0, 5.0)))  # a blind hole: one chord per wall
+    tools.append(Box(2, 2, 30).rotate((0, 0, 0), (0, 0, 1), 30.0).translate((12.0, -12.0, 0.0)))  # flat walls
+    A, B = S._Operand(plate, "A", t), S._Operand(S._gathered(tools, t), "B", t)
+    I, J = S._broad_phase(A, B)
+    _, cuts_b = S._intersect(A, B, I, J, t)
+    together = S._chord_data(B, cuts_b, t)
+    taken = [f for f, got in together.items() if got is not None]
+    assert len(taken) == 18 + 2 + 4  # every half-cylinder and the box's side walls
+    for f, got in together.items():
+        alone = S._chord_data(B, {f: cuts_b[f]}, t)[f]
+        assert (got is None) == (alone is None), f
+        if got is not None:
+            for x, y in zip(got, alone):
+                np.testing.assert_array_equal(x, y)
+            pieces = S._split_chords(B, f, cuts_b[f], t, together)
+            assert _piece_signature(pieces) == _piece_signature(split_face(B.specs[f], cuts_b[f], t))
 
 
 def _pieces(a: Solid, b: Solid) -> list:

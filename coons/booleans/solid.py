@@ -201,6 +201,7 @@ import functools
 import gc
 import logging
 import math
+import operator
 import weakref
 
 import numpy as np
@@ -499,7 +500,9 @@ class _Operand:
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
             specs[f] = FaceSpec(S, spec.sense, loops)
         self.specs: list[FaceSpec] = specs
-        _prefill_samples([spec for spec in self.specs if spec not in _FACE_DATA])
+        fresh = [spec for spec in self.specs if spec not in _FACE_DATA]
+        _prefill_samples(fresh)
+        _prefill_loops(fresh, t)
         self._data = [_face_data(spec, t) for spec in self.specs]
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
@@ -751,38 +754,89 @@ _LOOP_DATA = IdentityMemo()
 
 def _loop_data(loop: list[EdgeSpec], S, t: Tolerance) -> _LoopData:
     """The :class:`_LoopData` of one loop of a completed spec on surface ``S``, cached per loop."""
+    ld = _cached_loop(loop, S, t)
+    return ld if ld is not None else _new_loop_data([(loop, S)], t)[0]
+
+
+def _cached_loop(loop: list[EdgeSpec], S, t: Tolerance) -> _LoopData | None:
+    """The cached :class:`_LoopData` of ``loop`` on ``S`` (the very same uses in order), else None."""
     ld = _LOOP_DATA.get(loop[0])
     if (ld is not None and ld.surface is S and ld.t == t and len(ld.edges) == len(loop)
-            and all(a is b for a, b in zip(ld.edges, loop))):
+            and all(map(operator.is_, ld.edges, loop))):
         return ld
-    ld = _LoopData()
-    ld.edges, ld.surface, ld.t = tuple(loop), S, t
-    # Each edge sampled once: for the ring and for the pads of its segments.
-    ld.samples = [_use_samples(e, S) for e in loop]
-    R = ld.ring = _frozen(np.concatenate(ld.samples))
-    ld.rmin, ld.rmax = R.min(axis=0), R.max(axis=0)
-    seg = np.stack([R, np.roll(R, -1, axis=0)], axis=1)
+    return None
+
+
+def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> list[_LoopData]:
+    """The :class:`_LoopData` of loops ``(loop, surface)``, computed together and cached.
+
+    One array pass for all of them: the rings are the concatenated use samples, each loop's
+    closing segment found by index, the extremes and boxes by ``reduceat`` over the loops (an
+    operand of a hundred tools brings hundreds of new loops).  Each loop's arrays are read-only
+    views of the pass's arrays; the values are those of one loop at a time.
+    """
+    uses = [e for loop, _ in items for e in loop]
+    samples = [_use_samples(e, S) for loop, S in items for e in loop]
+    n_uses = np.array([len(loop) for loop, _ in items], dtype=np.int64)
+    use_start = np.concatenate([[0], np.cumsum(n_uses)[:-1]])
+    cnt = np.array([U.shape[0] for U in samples], dtype=np.int64)
+    n_pts = np.add.reduceat(cnt, use_start)
+    start = np.concatenate([[0], np.cumsum(n_pts)[:-1]])
+    R = _frozen(np.concatenate(samples))
+    nxt = np.arange(1, R.shape[0] + 1)
+    nxt[start + n_pts - 1] = start  # each ring closes on its first sample
+    seg = _frozen(np.stack([R, R[nxt]], axis=1))
     # A sampled curved edge stays within about one chord of its samples; a straight
     # p-curve (Line2D, sampled by its two ends) is its segment.
-    pad = np.repeat([_use_pad(e, S) for e in loop], [Ue.shape[0] for Ue in ld.samples])[:, None]
-    ld.seg = _frozen(seg)
-    ld.seg_lo = _frozen(seg.min(axis=1) - pad)
-    ld.seg_hi = _frozen(seg.max(axis=1) + pad)
-    boxes = _use_boxes(loop)
-    if all(box is not None for box in boxes):
-        B = np.stack(boxes)
-        ld.use_lo, ld.use_hi = _frozen(B[:, 0].copy()), _frozen(B[:, 1].copy())
-        ld.box = np.stack([B[:, 0].min(axis=0), B[:, 1].max(axis=0)])
+    pad = np.repeat([_use_pad(e, S) for loop, S in items for e in loop], cnt)[:, None]
+    seg_lo = _frozen(seg.min(axis=1) - pad)
+    seg_hi = _frozen(seg.max(axis=1) + pad)
+    rmin = np.minimum.reduceat(R, start, axis=0)
+    rmax = np.maximum.reduceat(R, start, axis=0)
+    boxes = _use_boxes(uses)
+    none = np.array([box is None for box in boxes], dtype=bool)
+    if none.any():
+        lo = np.full((len(uses), 3), -np.inf)
+        hi = np.full((len(uses), 3), np.inf)
+        have = np.flatnonzero(~none)
+        if have.size:
+            B = np.stack([boxes[k] for k in have.tolist()])
+            lo[have], hi[have] = B[:, 0], B[:, 1]
     else:
-        lo = np.full((len(loop), 3), -np.inf)
-        hi = np.full((len(loop), 3), np.inf)
-        for k, box in enumerate(boxes):
-            if box is not None:
-                lo[k], hi[k] = box[0], box[1]
-        ld.use_lo, ld.use_hi, ld.box = _frozen(lo), _frozen(hi), None
-    ld.tol = max((e.tol or 0.0 for e in loop), default=0.0)
-    _LOOP_DATA.set(loop[0], ld)
-    return ld
+        B = np.stack(boxes)
+        lo, hi = B[:, 0].copy(), B[:, 1].copy()
+    lo, hi = _frozen(lo), _frozen(hi)
+    box_lo = np.minimum.reduceat(lo, use_start, axis=0)
+    box_hi = np.maximum.reduceat(hi, use_start, axis=0)
+    no_box = np.logical_or.reduceat(none, use_start)
+    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start)
+    out = []
+    for k, (loop, S) in enumerate(items):
+        a, b = int(start[k]), int(start[k] + n_pts[k])
+        ua, ub = int(use_start[k]), int(use_start[k] + n_uses[k])
+        ld = _LoopData()
+        ld.edges, ld.surface, ld.t = tuple(loop), S, t
+        ld.samples = samples[ua:ub]
+        ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
+        ld.rmin, ld.rmax = rmin[k], rmax[k]
+        ld.use_lo, ld.use_hi = lo[ua:ub], hi[ua:ub]
+        ld.box = None if no_box[k] else np.stack([box_lo[k], box_hi[k]])
+        ld.tol = float(tol[k])
+        _LOOP_DATA.set(loop[0], ld)
+        out.append(ld)
+    return out
+
+
+def _prefill_loops(specs: list[FaceSpec], t: Tolerance) -> None:
+    """:func:`_new_loop_data` of every loop of ``specs`` not cached yet, all in one pass."""
+    todo: dict[int, tuple[list[EdgeSpec], object]] = {}
+    for spec in specs:
+        S = spec.surface
+        for loop in spec.loops:
+            if loop and id(loop[0]) not in todo and _cached_loop(loop, S, t) is None:
+                todo[id(loop[0])] = (loop, S)
+    if todo:
+        _new_loop_data(list(todo.values()), t)
 
 
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
@@ -794,7 +848,11 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     d = _FaceData()
     d.t, d.edge_boxes, d.slope, d.straight = t, None, None, None
     S = spec.surface
-    parts = [_loop_data(loop, S, t) for loop in spec.loops]
+    parts = [_cached_loop(loop, S, t) for loop in spec.loops]
+    miss = [k for k, ld in enumerate(parts) if ld is None]
+    if miss:
+        for k, ld in zip(miss, _new_loop_data([(spec.loops[k], S) for k in miss], t)):
+            parts[k] = ld
     d.samples = [ld.samples for ld in parts]
     d.rings = [ld.ring for ld in parts]
     (u0, v0) = np.min([ld.rmin for ld in parts], axis=0)
@@ -2890,8 +2948,6 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     edges), and skipped when none lies in its box: after many cuts a plate's faces keep hundreds
     of untouched hole edges.  Faces without split edges are returned as the same objects.
     """
-    from scipy.spatial import cKDTree
-
     from coons.booleans.classify import _curve_closest
 
     orig = orig or {}
@@ -2913,7 +2969,6 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         if info_of[k] is None:
             group[first[k] : first[k + 1]] = [orig_edges.get(id(e), 0) for loop in f.loops for e in loop]
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
-    tree = None
     # The foreign vertices in the box of each unchanged face (after many cuts most faces of a
     # plate are unchanged and far from the new vertices; :func:`_foreign_in_boxes`).
     kept = [k for k, i in enumerate(info_of) if i is not None]
@@ -2930,19 +2985,31 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 for k, inside in zip(sel.tolist(), _foreign_in_boxes(LO[sel], HI[sel], starts, start_tol, foreign)):
                     if inside.size:
                         face_foreign[kept[k]] = inside
-    out = []
-    changed_any = False
+    # Which uses of which faces a vertex may split (:func:`_clear_uses`), then the candidate
+    # vertices of all those uses in one pass (:func:`_split_candidates`).
+    todo: dict[int, np.ndarray] = {}
     for k, f in enumerate(faces):
         near = None
         if info_of[k] is not None:
             inside = face_foreign.get(k)
             if inside is None:
-                out.append(f)  # no foreign vertex near this face
-                continue
+                continue  # no foreign vertex near this face
             near = starts[inside], start_tol[inside]
         sl = slice(int(first[k]), int(first[k + 1]))
         clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of)
-        if clear.all():
+        if not clear.all():
+            todo[k] = clear
+    if not todo:
+        return faces
+    open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
+                                                                  clear.tolist()) if not c]
+    X_all, cand_all = _split_candidates(open_uses, starts, t)
+    at = iter(range(len(open_uses)))
+    out = []
+    changed_any = False
+    for k, f in enumerate(faces):
+        clear = todo.get(k)
+        if clear is None:
             out.append(f)  # no vertex can split any of its uses
             continue
         loops = []
@@ -2955,14 +3022,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 if next(clear):
                     new.append(e)
                     continue
-                tt = np.linspace(e.t0, e.t1, 17)
-                X = np.asarray(e.curve.evaluate(tt), dtype=np.float64)
-                c = X.mean(axis=0)
-                rad = float(np.max(np.linalg.norm(X - c, axis=1)))
-                # Chords of 16 steps deviate little; the radius is padded by the chord error bound.
-                if tree is None:
-                    tree = cKDTree(starts)
-                cand = tree.query_ball_point(c, rad * 1.05 + thr)
+                i = next(at)
+                X, cand = X_all[i], cand_all[i]
                 params: list[float] = []
                 if cand:
                     cand = np.asarray(cand)
@@ -2995,6 +3056,24 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         out.append(FaceSpec(f.surface, f.sense, loops) if face_changed else f)
         changed_any |= face_changed
     return out if changed_any else faces
+
+
+def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:
+    """For each use, its curve at 17 parameters ``(k, 17, 3)`` and the indices of ``starts``
+    within the ball around those samples (their centre, the largest distance to it times
+    1.05 plus the use's tolerance: chords of 16 steps deviate little).  Lines and circles are
+    evaluated together (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas),
+    and all balls are one k-d tree query."""
+    from scipy.spatial import cKDTree
+
+    from coons.kernel.onsurface import evaluate_curves
+
+    T = np.linspace([e.t0 for e in uses], [e.t1 for e in uses], 17, axis=1)
+    X = evaluate_curves([e.curve for e in uses], T)
+    c = X.mean(axis=1)
+    rad = np.max(np.linalg.norm(X - c[:, None, :], axis=2), axis=1)
+    thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
+    return X, cKDTree(starts).query_ball_point(c, rad * 1.05 + thr)
 
 
 def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict) -> np.ndarray:

@@ -2479,9 +2479,10 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
     lies wholly on one side.  ``q`` must also be clear of ``Y_j``'s loops (its parameter lies
     outside the padded boxes of the loop segments, enlarged by :data:`_LOCAL_CLEARANCE`
     tolerances), where Y's boundary near ``q`` is ``Y_j`` alone.  Pieces with no such cut keep -1.
-    Every candidate use of every piece is evaluated in one pass per curve, p-curve and surface
-    object (a plate's face with a hundred hole discs is one surface call).  ``cut`` (when given)
-    holds the faces that were split: only their pieces have cut edges.
+    A piece takes its first candidate use that passes: the candidates are tested in rounds of
+    one per undecided piece (:func:`_local_tests`, each round in one pass per curve, p-curve and
+    surface object: a plate's face with a hundred hole discs is one surface call).  ``cut``
+    (when given) holds the faces that were split: only their pieces have cut edges.
     """
     cand: list[tuple[int, FaceSpec, EdgeSpec, float, int, object]] = []
     for k, (f, spec) in enumerate(pieces):
@@ -2499,6 +2500,29 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
                         cand.append((k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side]))
     if not cand:
         return
+    # Each piece takes its first candidate that passes (in the order gathered): evaluated in
+    # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole
+    # circles needs one of them, not all.
+    of_piece: dict[int, list[int]] = {}
+    for i, c in enumerate(cand):
+        of_piece.setdefault(c[0], []).append(i)
+    r = 0
+    while True:
+        rows = [got[r] for k, got in of_piece.items() if r < len(got) and status[k] < 0]
+        if not rows:
+            return
+        sub = [cand[i] for i in rows]
+        ok, cos = _local_tests(sub, Y, t)
+        for c, good, x in zip(sub, ok.tolist(), cos.tolist()):
+            if good and status[c[0]] < 0:
+                status[c[0]] = IN if x < 0 else OUT
+        r += 1
+
+
+def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """The local test of :func:`_local_status` for candidates ``(piece, spec, use, s, face of Y,
+    p-curve on it)``: ``(k,)`` whether it applies and the cosine whose sign decides (IN when
+    negative).  Every candidate in one pass per curve, p-curve and surface object."""
     n = len(cand)
     s = np.array([c[3] for c in cand])
     ok = np.ones(n, dtype=bool)
@@ -2561,10 +2585,7 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
         q, mr = uv_y[r][:, None, :], m[r][:, None, :]
         near = np.any(np.all((q >= lo[None] - mr) & (q <= hi[None] + mr), axis=2), axis=1)
         ok[r[near]] = False
-    for i in np.flatnonzero(ok).tolist():
-        k = cand[i][0]
-        if status[k] < 0:
-            status[k] = IN if cos[i] < 0 else OUT
+    return ok, cos
 
 
 def _propagate(pieces: list[tuple[int, FaceSpec]], free: np.ndarray, status: np.ndarray) -> None:

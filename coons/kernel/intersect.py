@@ -315,14 +315,24 @@ def _plane_cylinder(p: PlanarSurface, c: CylindricalSurface, tol: Tolerance) -> 
         w = _unit(np.cross(Z, n))
         half = math.sqrt(R * R - delta * delta)
         return _Exact(tuple(_Candidate(Line(foot + sgn * half * w, Z), uniform=True) for sgn in (1.0, -1.0)))
-    if _sine(n, Z) > tol.angular:
-        # Oblique: the ellipse centred where the axis meets the plane, minor radius R across
-        # the axis, major radius R / |cos| along the plane's steepest direction.
-        C = O + (float((p.origin - O) @ n) / cos) * Z
-        w = _unit(np.cross(Z, n))
-        m = np.cross(n, w)
-        return _Exact((_Candidate(Ellipse(C, n, m, R / abs(cos), R)),))
-    return None  # perpendicular: the coaxial (meridian) case gives the circle
+    sine = _sine(n, Z)
+    if sine <= tol.angular:
+        return None  # perpendicular: the coaxial (meridian) case gives the circle
+    # Oblique: the ellipse centred where the axis meets the plane, minor radius R across the
+    # axis, major radius R / |cos| along the plane's steepest direction.
+    C = O + (float((p.origin - O) @ n) / cos) * Z
+    # R / |cos| - R in a form without cancellation (and without |cos| rounding above 1, which made
+    # the major radius fall below the minor one a little past the angular tolerance).
+    c = min(abs(cos), 1.0)
+    excess = R * sine * sine / (c * (1.0 + c))
+    if excess <= tol.solver * R:
+        # The semi-axes agree to the relative accuracy asked of solvers: the circle of radius R about
+        # C in the plane (within ``excess`` of the ellipse and of the cylinder, which keeps the exact
+        # forms exact; a gap up to tol.linear would leave the fitted p-curve on the cylinder no room).
+        return _Exact((_Candidate(Circle(C, n, perpendicular_direction(n), R)),))
+    w = _unit(np.cross(Z, n))
+    m = np.cross(n, w)
+    return _Exact((_Candidate(Ellipse(C, n, m, R + excess, R)),))
 
 
 def _plane_cone(p: PlanarSurface, k: ConicalSurface, tol: Tolerance) -> _Exact | None:

@@ -40,6 +40,7 @@ from coons.kernel.analytic import (
     SphericalSurface,
     ToroidalSurface,
 )
+from coons.kernel.conics import perpendicular_direction
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.intersect import IntersectionCurve, SurfaceIntersection, intersect_surfaces
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -207,6 +208,34 @@ def test_plane_cylinder_oblique_ellipse():
     assert c.curve.minor_radius == pytest.approx(1.5, abs=EXACT)
     np.testing.assert_allclose(c.curve.center, [0, 0, 0.5], rtol=0, atol=EXACT)
     assert isinstance(c.pcurve_a, Trig2D)
+
+
+def test_plane_cylinder_nearly_perpendicular_circle_within_tolerance():
+    # Just past the angular tolerance |cos| rounded above 1 and the ellipse's major radius fell below
+    # its minor one (InvalidGeometryError); the section is a circle within tol.linear there.
+    n = np.array([-0.12115988424340453, -0.8630450370912851, 0.4903810216578812])
+    axis = np.array([0.12115988414800773, 0.8630450376372517, -0.49038102072057826])
+    p = PlanarSurface([-970.9788950755783, -793.2771169902217, -117.459662258246], n, perpendicular_direction(n))
+    cyl = CylindricalSurface([-1000.0, -1000.0, 0.0], axis, perpendicular_direction(axis), 300.0)
+    (c,) = run(p, cyl, ((-500.0, 500.0), (-500.0, 500.0)), ((0.0, TWO_PI), (-500.0, 500.0))).curves
+    assert isinstance(c.curve, Circle) and c.closed
+    assert c.curve.radius == 300.0
+    np.testing.assert_allclose(abs(c.curve.axis @ p.axis), 1.0, rtol=0, atol=EXACT)  # in the plane
+
+
+@pytest.mark.parametrize("tilt", [2e-9, 1e-7, 1e-6, 2e-6, 1e-5, 1e-3])
+def test_plane_cylinder_small_tilts_circle_or_ellipse_by_linear_tolerance(tilt):
+    # The ellipse's semi-axes differ by R (1/cos - 1): a circle while that is within tol.solver * R.
+    n = np.array([math.sin(tilt), 0, math.cos(tilt)])
+    (c,) = run(plane([0, 0, 0.5], n), CYL, PLANE_BOX, AXIAL_BOX).curves
+    excess = 1.5 * (1.0 / math.cos(tilt) - 1.0)
+    if excess <= 1e-12 * 1.5:
+        assert isinstance(c.curve, Circle) and c.curve.radius == 1.5
+    else:
+        assert isinstance(c.curve, Ellipse)
+        assert c.curve.major_radius == pytest.approx(1.5 / math.cos(tilt), abs=EXACT)
+        assert c.curve.minor_radius == 1.5
+    np.testing.assert_allclose(c.curve.center, [0, 0, 0.5], rtol=0, atol=EXACT)
 
 
 # ---------------------------------------------------------------------------- plane–sphere

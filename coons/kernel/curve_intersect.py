@@ -20,7 +20,8 @@ with ``derivatives(t, order) -> shape + (order + 1, d)``.
 2. **Candidate pairs**: pieces whose boxes, enlarged by ``tol.linear``, overlap (one array
    comparison over all pairs).
 3. **Newton** on the squared distance (full Hessian where positive definite, else damped
-   Gauss–Newton; parameters kept in their ranges) from the centre of each candidate pair and
+   Gauss–Newton; projected onto the ranges with an active set: a parameter held on a range end
+   leaves the other the one-variable step) from the centre of each candidate pair and
    from every end point against the nearest sample of the other curve, all seeds at once; a
    solution whose points are within ``tol.linear`` is an intersection.  Transverse crossings
    converge quadratically, tangential touchings too (the distance's Hessian is definite
@@ -34,6 +35,14 @@ with ``derivatives(t, order) -> shape + (order + 1, d)``.
    Solutions inside an overlap are dropped; solutions closer than ``tol.linear`` (or joined by
    a stretch within ``tol.linear`` of both curves, as around a tangential touching) are one.
 
+A polynomial 2-D NURBS against a 2-D line (a fitted p-curve against a straight boundary edge,
+the common pair when a curved face is split) replaces steps 1–3 (:func:`_nurbs_line`): the
+signed distance to the line is a polynomial on each knot span, so the pieces are pruned by the
+Bézier coefficients of that distance and of the foot's parameter along the line (convex hull),
+and the remaining ones are solved in one variable from their middles and from the real parts of
+the roots of the distance and of its derivative (companion matrices): two crossings in one piece
+are both found.  Steps 4 and the end contacts are the general path's.
+
 Speed (many small problems: face splitting intersects each p-curve with every boundary piece).
 A clamped NURBS is evaluated through per-span polynomials built once per curve object and
 cached weakly (:class:`_PowerForm`); its piece boxes are the Bézier hulls of equal fractions of
@@ -45,7 +54,9 @@ common pair when a face with straight p-curves is split) take the same steps on 
 (:func:`_lines_2d`), and :func:`refine_intersections` of a few seeds on lines and conics
 iterates each seed on Python floats (:func:`_newton_one`): there numpy's per-call cost on
 one- and two-element arrays was most of the time.  Both agree with the array paths to
-round-off (the module switch ``_FAST`` turns them off for the tests that compare).
+round-off (the module switch ``_FAST`` turns them and :func:`_nurbs_line` off for the tests
+that compare).  Projections that only decide "within ``tol.linear``" skip the Newton of points
+outside every piece box enlarged by it.
 
 The module does not intersect a curve with itself, does not compute intersection
 multiplicities, and does not find two distinct intersections closer together than the pieces

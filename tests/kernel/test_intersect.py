@@ -1041,3 +1041,23 @@ def test_fast_paths_give_the_general_answer(kind, q, shift, h, r, flip, u0, widt
         assert fast == general
     else:
         _same_intersection(fast, general)
+
+
+def test_illinois_brackets_roots_to_the_spacing_of_doubles():
+    """The bracketed root solver of the box crossings (in place of bisection): smooth roots to a few ulps,
+    a jump (no root, a sign change) to the jump, exact zeros at once, all brackets in one call."""
+    from coons.kernel.intersect import _illinois
+
+    def fn(t, k):
+        out = np.empty_like(t)
+        out[k == 0] = np.cos(t[k == 0])  # root pi / 2
+        out[k == 1] = t[k == 1] ** 3 - 2.0  # root 2^(1/3), a tilted bracket
+        out[k == 2] = np.where(t[k == 2] < 0.3, -1.0, 1.0)  # a jump at 0.3
+        out[k == 3] = t[k == 3] - 0.5  # hit exactly by the first false-position point
+        return out
+
+    lo, hi = np.array([1.0, 0.0, 0.0, 0.0]), np.array([2.0, 3.0, 1.0, 1.0])
+    ks = np.arange(4)
+    root = _illinois(fn, lo, hi, fn(lo, ks), fn(hi, ks))
+    expected = np.array([math.pi / 2, 2.0 ** (1.0 / 3.0), 0.3, 0.5])
+    np.testing.assert_allclose(root, expected, rtol=0, atol=4 * np.finfo(float).eps)

@@ -20,7 +20,8 @@ with ``derivatives(t, order) -> shape + (order + 1, d)``.
 2. **Candidate pairs**: pieces whose boxes, enlarged by ``tol.linear``, overlap (one array
    comparison over all pairs).
 3. **Newton** on the squared distance (full Hessian where positive definite, else damped
-   Gauss–Newton; parameters kept in their ranges) from the centre of each candidate pair and
+   Gauss–Newton; projected onto the ranges with an active set: a parameter held on a range end
+   leaves the other the one-variable step) from the centre of each candidate pair and
    from every end point against the nearest sample of the other curve, all seeds at once; a
    solution whose points are within ``tol.linear`` is an intersection.  Transverse crossings
    converge quadratically, tangential touchings too (the distance's Hessian is definite
@@ -34,6 +35,14 @@ with ``derivatives(t, order) -> shape + (order + 1, d)``.
    Solutions inside an overlap are dropped; solutions closer than ``tol.linear`` (or joined by
    a stretch within ``tol.linear`` of both curves, as around a tangential touching) are one.
 
+A polynomial 2-D NURBS against a 2-D line (a fitted p-curve against a straight boundary edge,
+the common pair when a curved face is split) replaces steps 1–3 (:func:`_nurbs_line`): the
+signed distance to the line is a polynomial on each knot span, so the pieces are pruned by the
+Bézier coefficients of that distance and of the foot's parameter along the line (convex hull),
+and the remaining ones are solved in one variable from their middles and from the real parts of
+the roots of the distance and of its derivative (companion matrices): two crossings in one piece
+are both found.  Steps 4 and the end contacts are the general path's.
+
 Speed (many small problems: face splitting intersects each p-curve with every boundary piece).
 A clamped NURBS is evaluated through per-span polynomials built once per curve object and
 cached weakly (:class:`_PowerForm`); its piece boxes are the Bézier hulls of equal fractions of
@@ -45,7 +54,9 @@ common pair when a face with straight p-curves is split) take the same steps on 
 (:func:`_lines_2d`), and :func:`refine_intersections` of a few seeds on lines and conics
 iterates each seed on Python floats (:func:`_newton_one`): there numpy's per-call cost on
 one- and two-element arrays was most of the time.  Both agree with the array paths to
-round-off (the module switch ``_FAST`` turns them off for the tests that compare).
+round-off (the module switch ``_FAST`` turns them and :func:`_nurbs_line` off for the tests
+that compare).  Projections that only decide "within ``tol.linear``" skip the Newton of points
+outside every piece box enlarged by it.
 
 The module does not intersect a curve with itself, does not compute intersection
 multiplicities, and does not find two distinct intersections closer together than the pieces
@@ -230,16 +241,19 @@ class _PowerForm:
             self._stacked = np.stack(c, axis=1)
         return self._stacked
 
-    def pieces(self, lo: float, hi: float):
+    def bezier(self, lo: float, hi: float):
         """The spans meeting ``[lo, hi]``, each cut into ``per`` equal pieces (about :data:`_TARGET_PIECES` in
-        all), with the boxes of the pieces' Bézier control points (convex hull property, positive weights).
+        all), as Bézier control points.
 
         The piece ``x ∈ [x0, x0 + g]`` of a span has power coefficients
         ``c'_m = g^m Σ_{k>=m} C(k, m) x0^(k-m) c_k`` and Bézier points ``P_i = Σ_{m<=i} C(i, m) / C(p, m) c'_m``.
 
         Returns
         -------
-        a, b : (m,) float64; box_lo, box_hi : (m, d) float64
+        span : (m,) int64, the knot span of each piece (index into ``breaks``)
+        x0, x1 : (m,) float64, the piece in the span's local parameter ``x = (t - a) / h``
+        a, b : (m,) float64, the piece's parameter range (not clipped to ``[lo, hi]``)
+        P : (m, p + 1, d) float64, Bézier control points (rational pieces: the projected points)
         """
         br, p = self.breaks, self.p
         sel = np.flatnonzero((br[1:] > lo) & (br[:-1] < hi))
@@ -258,11 +272,25 @@ class _PowerForm:
         h = br[sel + 1] - br[sel]
         a = (br[sel][:, None] + x0[None] * h[:, None]).ravel()
         b = (br[sel][:, None] + (x0 + g)[None] * h[:, None]).ravel()
-        b = np.where(np.repeat(np.arange(per)[None] == per - 1, sel.size, axis=0).ravel(),
-                     np.repeat(br[sel + 1], per), b)  # the last piece ends exactly at the knot
+        last = np.repeat(np.arange(per)[None] == per - 1, sel.size, axis=0).ravel()
+        b = np.where(last, np.repeat(br[sel + 1], per), b)  # the last piece ends exactly at the knot
         P = P.reshape(-1, p + 1, self.dim)
+        span = np.repeat(sel, per)
+        xa = np.tile(x0, sel.size)
+        xb = np.where(last, 1.0, xa + g)
         keep = (b > lo) & (a < hi)
-        return np.maximum(a[keep], lo), np.minimum(b[keep], hi), P[keep].min(axis=1), P[keep].max(axis=1)
+        return span[keep], xa[keep], xb[keep], a[keep], b[keep], P[keep]
+
+    def pieces(self, lo: float, hi: float, bezier: tuple | None = None):
+        """The pieces of :meth:`bezier` (or its answer ``bezier`` for this range), clipped to ``[lo, hi]``, with
+        the boxes of their Bézier control points (convex hull property, positive weights).
+
+        Returns
+        -------
+        a, b : (m,) float64; box_lo, box_hi : (m, d) float64
+        """
+        _, _, _, a, b, P = self.bezier(lo, hi) if bezier is None else bezier
+        return np.maximum(a, lo), np.minimum(b, hi), P.min(axis=1), P.max(axis=1)
 
     def derivatives(self, t: np.ndarray, order: int) -> np.ndarray:
         """``(k, order + 1, d)`` point and derivatives at ``t (k,)`` (the span to the right at a knot)."""
@@ -380,13 +408,18 @@ def _seed_samples(curve: Any, r: tuple[float, float]) -> tuple[np.ndarray, np.nd
     return _memo(curve, ("seeds", r[0], r[1]), make)
 
 
+def _bezier(curve: NurbsCurve, form: _PowerForm, lo: float, hi: float) -> tuple:
+    """:meth:`_PowerForm.bezier` of ``curve`` over ``[lo, hi]`` (remembered)."""
+    return _memo(curve, ("bezier", lo, hi), lambda: form.bezier(lo, hi))
+
+
 def _nurbs_pieces(curve: NurbsCurve, lo: float, hi: float):
     """Knot spans of ``curve`` over ``[lo, hi]`` cut into about :data:`_TARGET_PIECES` pieces, each boxed by
     its Bézier control points (of the cached :class:`_PowerForm`; a refined copy's B-spline control
     points for an unclamped curve)."""
     form = _power_form(curve)
     if form is not None:
-        return _memo(curve, ("pieces", lo, hi), lambda: form.pieces(lo, hi))
+        return _memo(curve, ("pieces", lo, hi), lambda: form.pieces(lo, hi, _bezier(curve, form, lo, hi)))
     U, p = curve.knots, curve.degree
     vals = np.unique(U[p : U.size - p])
     spans = np.stack([vals[:-1], vals[1:]], axis=1)
@@ -543,6 +576,14 @@ def _step1(s, t, m11, m12, m22, g1, g2, r1, r2) -> tuple[float, float]:
     if abs(dm) > 0:
         st, tt = (m12 * g2 - m22 * g1) / dm, (m12 * g1 - m11 * g2) / dm
         if math.isfinite(st) and math.isfinite(tt):
+            fix_s = (s <= r1[0] and st < 0) or (s >= r1[1] and st > 0)
+            fix_t = (t <= r2[0] and tt < 0) or (t >= r2[1] and tt > 0)
+            if fix_s and fix_t:
+                st = tt = 0.0
+            elif fix_s:
+                st, tt = 0.0, (-g2 / m22 if m22 > 0 else 0.0)
+            elif fix_t:
+                st, tt = (-g1 / m11 if m11 > 0 else 0.0), 0.0
             s, t = s + st, t + tt
     return min(max(s, r1[0]), r1[1]), min(max(t, r2[0]), r2[1])
 
@@ -654,14 +695,30 @@ def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
 
 def _step2(s, t, m11, m12, m22, g1, g2, r1, r2):
     """The step ``-M⁻¹ g`` of the symmetric 2x2 systems ``M = [[m11, m12], [m12, m22]]`` from ``(s, t)``,
-    clipped to the ranges; a singular or non-finite system takes no step."""
+    clipped to the ranges; a singular or non-finite system takes no step.
+
+    Projected Newton with an active set (Bertsekas 1982): a parameter on a range end that the
+    step would push out stays there and the other takes the step of the one-variable problem
+    (``-g2 / m22`` or ``-g1 / m11``).  Clipping the joint step instead moves the free parameter
+    by the wrong amount, and seeds converging to a range end (cuts meeting at their end points)
+    then crawl there linearly.
+    """
     dm = m11 * m22 - m12 * m12
     ok = np.abs(dm) > 0
     dm = np.where(ok, dm, 1.0)
     st = (m12 * g2 - m22 * g1) / dm
     tt = (m12 * g1 - m11 * g2) / dm
     ok &= np.isfinite(st) & np.isfinite(tt)
-    return _clamp(s + np.where(ok, st, 0.0), r1), _clamp(t + np.where(ok, tt, 0.0), r2)
+    st, tt = np.where(ok, st, 0.0), np.where(ok, tt, 0.0)
+    fix_s = ((s <= r1[0]) & (st < 0)) | ((s >= r1[1]) & (st > 0))
+    fix_t = ((t <= r2[0]) & (tt < 0)) | ((t >= r2[1]) & (tt > 0))
+    if np.any(fix_s | fix_t):
+        only_s, only_t = fix_s & ~fix_t, fix_t & ~fix_s
+        tt = np.where(only_s, np.where(m22 > 0, -g2 / np.where(m22 > 0, m22, 1.0), 0.0), tt)
+        st = np.where(only_t, np.where(m11 > 0, -g1 / np.where(m11 > 0, m11, 1.0), 0.0), st)
+        st = np.where(fix_s, 0.0, st)
+        tt = np.where(fix_t, 0.0, tt)
+    return _clamp(s + st, r1), _clamp(t + tt, r2)
 
 
 def _circle_frame(curve: Any, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -681,13 +738,17 @@ def _circle_frame(curve: Any, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, np
     return None
 
 
-def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Closest parameters on ``curve(r)`` of the points ``X`` (k, d) and the distances (k,).
 
     Lines and circles in closed form: the foot on the line clipped to the range; the polar angle
     about a circle's centre, taken in the range or replaced by the nearer range end.  Other
     curves: seeded at the nearest of :data:`_SEED_SAMPLES` samples, then Newton on
     ``(C - X)·C' = 0`` clipped to the range (The NURBS Book §6.1).
+
+    ``near``: the caller only compares the distances with it.  A point of a clamped NURBS's
+    projection outside every piece box (step 1) enlarged by ``near`` is then farther than ``near``
+    from the curve: it gets the distance ``inf`` (and the parameter ``r[0]``) without Newton.
     """
     lin = _linear(curve)
     if lin is not None:
@@ -706,6 +767,16 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance) -> tuple[np.ndarray, np.nda
         pick = np.argmin(dist, axis=1)
         rows = np.arange(X.shape[0])
         return cand[rows, pick], dist[rows, pick]
+    if near is not None and isinstance(curve, NurbsCurve) and _power_form(curve) is not None:
+        _, _, lo, hi = _nurbs_pieces(curve, *r)
+        inside = np.any(np.all((X[:, None] >= lo[None] - near) & (X[:, None] <= hi[None] + near), axis=2), axis=1)
+        if not np.all(inside):
+            t = np.full(X.shape[0], r[0])
+            dist = np.full(X.shape[0], np.inf)
+            k = np.flatnonzero(inside)
+            if k.size:
+                t[k], dist[k] = _project(curve, r, X[k], t_)
+            return t, dist
     ts, S = _seed_samples(curve, r)
     d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
     t = ts[np.argmin(d2, axis=1)]
@@ -764,25 +835,29 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
             return fast
     eps = t_.linear
     exact = _exact(c1, r1, c2, r2, t_)
-    feet = _end_feet(c1, r1, c2, r2, t_)
     if exact is not None:
-        return _with_end_contacts(exact, c1, r1, c2, r2, t_, feet)
+        return _with_end_contacts(exact, c1, r1, c2, r2, t_, _end_feet(c1, r1, c2, r2, t_))
 
-    # 1-2. Pieces, boxes and candidate pairs.
-    a1, b1, lo1, hi1 = _pieces(c1, *r1)
-    a2, b2, lo2, hi2 = _pieces(c2, *r2)
-    hit = np.all((lo1[:, None] <= hi2[None] + eps) & (lo2[None] <= hi1[:, None] + eps), axis=2)
-    i, j = np.nonzero(hit)
-    seeds_s = [0.5 * (a1[i] + b1[i])]
-    seeds_t = [0.5 * (a2[j] + b2[j])]
-    # End points against the other curve: cuts ending on an edge converge from here.
-    ends1, ends2 = np.array(r1), np.array(r2)
-    t_of_1, _, s_of_2, _ = feet
-    seeds_s += [ends1, s_of_2]
-    seeds_t += [t_of_1, ends2]
+    feet = _end_feet(c1, r1, c2, r2, t_)
+    line_pair = _nurbs_line(c1, r1, c2, r2, t_) if _FAST else None
+    if line_pair is not None:
+        s, t, dist = line_pair
+    else:
+        # 1-2. Pieces, boxes and candidate pairs.
+        a1, b1, lo1, hi1 = _pieces(c1, *r1)
+        a2, b2, lo2, hi2 = _pieces(c2, *r2)
+        hit = np.all((lo1[:, None] <= hi2[None] + eps) & (lo2[None] <= hi1[:, None] + eps), axis=2)
+        i, j = np.nonzero(hit)
+        seeds_s = [0.5 * (a1[i] + b1[i])]
+        seeds_t = [0.5 * (a2[j] + b2[j])]
+        # End points against the other curve: cuts ending on an edge converge from here.
+        ends1, ends2 = np.array(r1), np.array(r2)
+        t_of_1, _, s_of_2, _ = feet
+        seeds_s += [ends1, s_of_2]
+        seeds_t += [t_of_1, ends2]
 
-    # 3. Newton on every seed.
-    s, t, dist = _newton_pairs(c1, r1, c2, r2, np.concatenate(seeds_s), np.concatenate(seeds_t), t_)
+        # 3. Newton on every seed.
+        s, t, dist = _newton_pairs(c1, r1, c2, r2, np.concatenate(seeds_s), np.concatenate(seeds_t), t_)
     good = dist <= eps
     s, t, dist = s[good], t[good], dist[good]
 
@@ -887,6 +962,131 @@ def _lines_2d(c1: Line2D, r1, c2: Line2D, r2, t_: Tolerance) -> CurveIntersectio
     P = np.array([[0.5 * ((ox1 + a * dx1) + (ox2 + b * dx2)), 0.5 * ((oy1 + a * dy1) + (oy2 + b * dy2))]
                   for a, b in pairs], dtype=np.float64).reshape(-1, 2)
     return CurveIntersections(S, T, P, ())
+
+
+def _nurbs_line(c1, r1, c2, r2, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Steps 1-3 for a polynomial 2-D NURBS against a 2-D line (either order): ``(s, t, dist)`` of the
+    solutions, as :func:`_newton_pairs` returns them, or None for other pairs.
+
+    Along the line's unit normal ``n`` the signed distance ``f(t) = n·(C(t) - o)`` of the curve is a
+    polynomial on each knot span, and on each piece of :meth:`_PowerForm.bezier` its Bézier
+    coefficients are ``n·(P_i - o)`` (the foot's parameter along the line likewise): a piece whose
+    coefficients keep off ``[-eps, eps]``, or whose feet all keep off the line's range, meets no
+    point of the segment within ``eps`` (convex hull property).  On the remaining pieces, Newton on
+    ``f² / 2`` in one variable (full second derivative where positive: crossings and tangential
+    touchings alike; the Newton step on ``f`` tried too, the smaller ``|f|`` kept, as in
+    :func:`_newton_pairs`), on the span's power coefficients, all pieces at once and kept in their
+    piece (a root in a neighbour is that neighbour's).  A piece whose coefficients change sign more
+    than once is seeded twice.  The solutions' distance is then measured between the curves (the
+    foot clipped to the line's range), so the steps after this one see what the general path gives.
+    """
+    swap = isinstance(c1, Line2D)
+    curve, rc, line, rl = (c2, r2, c1, r1) if swap else (c1, r1, c2, r2)
+    if not (isinstance(line, Line2D) and isinstance(curve, NurbsCurve) and curve.dimension == 2):
+        return None
+    form = _power_form(curve)
+    if form is None or form.rational:
+        return None
+    eps = t_.linear
+    lo, hi = rc
+    span, xa, xb, a, b, P = _bezier(curve, form, lo, hi)
+    (ox, oy), (dx, dy) = line.origin.tolist(), line.direction.tolist()
+    q = dx * dx + dy * dy
+    nd = math.sqrt(q)
+    nx, ny = -dy / nd, dx / nd
+    F = (P[..., 0] - ox) * nx + (P[..., 1] - oy) * ny  # (m, p + 1) Bézier coefficients of f
+    G = ((P[..., 0] - ox) * dx + (P[..., 1] - oy) * dy) / q  # and of the foot's parameter on the line
+    reach = eps / nd
+    # The pieces' boxes against the segment's (as the general path pairs pieces) prune what the
+    # line's own frame leaves, where the segment is short across the curve.
+    _, _, box_lo, box_hi = _nurbs_pieces(curve, lo, hi)
+    ends = np.array([[ox + rl[0] * dx, oy + rl[0] * dy], [ox + rl[1] * dx, oy + rl[1] * dy]])
+    seg_lo, seg_hi = ends.min(axis=0) - eps, ends.max(axis=0) + eps
+    cand = np.flatnonzero((F.min(axis=1) <= eps) & (F.max(axis=1) >= -eps)
+                          & (G.min(axis=1) <= rl[1] + reach) & (G.max(axis=1) >= rl[0] - reach)
+                          & np.all((box_lo <= seg_hi) & (box_hi >= seg_lo), axis=1))
+    if cand.size == 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    # f(x) on each candidate's span: power coefficients of n·(A - o w) / w with the constant weight w.
+    C = form.coef[span[cand]]  # (k, p + 1, 3)
+    fc = (C[..., 0] * nx + C[..., 1] * ny - (ox * nx + oy * ny) * C[..., 2]) / C[:, :1, 2]
+    p = form.p
+    pw = np.arange(p + 1)
+    # Seeds: the piece's middle, and the real parts of the roots of f and of f' in the piece (two
+    # crossings in one piece, or the extremum of a touching or near-touching).
+    row_f, x_f = _root_seeds(fc, xa[cand], xb[cand])
+    row_d, x_d = _root_seeds(fc[:, 1:] * pw[1:], xa[cand], xb[cand])
+    rows = np.concatenate([np.arange(cand.size), row_f, row_d])
+    k = cand[rows]
+    c0 = fc[rows]
+    lo_x, hi_x = xa[k], xb[k]
+    x = np.concatenate([0.5 * (xa[cand] + xb[cand]), x_f, x_d])
+    c1_ = c0[:, 1:] * pw[1:]  # f'
+    c2_ = c1_[:, 1:] * pw[1:p]  # f''
+
+    def f_at(idx, xx):
+        return np.einsum("kj,kj->k", c0[idx], xx[:, None] ** pw)
+
+    act = np.arange(k.size)
+    best = np.full(k.size, np.inf)
+    stalled = np.zeros(k.size, dtype=np.int64)
+    for _ in range(_NEWTON_ITERATIONS):
+        if act.size == 0:
+            break
+        xs = x[act]
+        X = xs[:, None] ** pw
+        f = np.einsum("kj,kj->k", c0[act], X)
+        f1 = np.einsum("kj,kj->k", c1_[act], X[:, :p])
+        f2 = np.einsum("kj,kj->k", c2_[act], X[:, : p - 1]) if p > 1 else np.zeros(act.size)
+        af = np.abs(f)
+        better = af < best[act]
+        best[act] = np.minimum(best[act], af)
+        stalled[act] = np.where(better, 0, stalled[act] + 1)
+        h = f1 * f1 + f * f2
+        pd = h > 0
+        step = np.where(pd, -f * f1 / np.where(pd, h, 1.0), 0.0)
+        lo_a, hi_a = lo_x[act], hi_x[act]
+        x_new = np.minimum(np.maximum(xs + step, lo_a), hi_a)
+        gn = f1 != 0
+        if np.any(gn):
+            g = np.flatnonzero(gn)
+            xg = np.minimum(np.maximum(xs[g] - f[g] / f1[g], lo_a[g]), hi_a[g])
+            use = np.abs(f_at(act[g], xg)) < np.abs(f_at(act[g], x_new[g]))
+            x_new[g[use]] = xg[use]
+        moved = np.abs(x_new - xs)
+        x[act] = x_new
+        done = (moved <= t_.solver * (1.0 + np.abs(x_new))) | (stalled[act] >= _STALL)
+        act = act[~done]
+    br = form.breaks
+    h_span = br[span[k] + 1] - br[span[k]]
+    tc = np.minimum(np.maximum(br[span[k]] + x * h_span, lo), hi)
+    Pc = form.derivatives(tc, 0)[:, 0]
+    sl = np.minimum(np.maximum(((Pc[:, 0] - ox) * dx + (Pc[:, 1] - oy) * dy) / q, rl[0]), rl[1])
+    dist = np.hypot(Pc[:, 0] - (ox + sl * dx), Pc[:, 1] - (oy + sl * dy))
+    return (sl, tc, dist) if swap else (tc, sl, dist)
+
+
+def _root_seeds(coef: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Real parts lying in ``[lo, hi]`` of the roots of the polynomials ``Σ_m coef[:, m] x^m`` (k, q + 1), as
+    ``(row, x)``: eigenvalues of the companion matrices, all rows in one call.
+
+    Seeds only (Newton polishes them), so a row whose leading coefficient is below ``1e-12`` of its
+    largest (a lower-degree polynomial, where the companion matrix would overflow) gives none.
+    """
+    q = coef.shape[1] - 1
+    if q < 1 or coef.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    lead = coef[:, q]
+    ok = np.flatnonzero(np.abs(lead) > 1e-12 * np.abs(coef).max(axis=1))
+    if ok.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    M = np.zeros((ok.size, q, q))
+    M[:, np.arange(1, q), np.arange(q - 1)] = 1.0
+    M[:, :, q - 1] = -coef[ok, :q] / lead[ok, None]
+    x = np.linalg.eigvals(M).real  # (ok, q)
+    inside = (x >= lo[ok, None]) & (x <= hi[ok, None])
+    r, j = np.nonzero(inside)
+    return ok[r], x[r, j]
 
 
 def _linear(c: Any) -> tuple[np.ndarray, np.ndarray] | None:
@@ -1027,8 +1227,8 @@ def _with_end_contacts(x: CurveIntersections, c1, r1, c2, r2, t_: Tolerance, fee
     far = np.flatnonzero(~same)
     if far.size:  # a coincident stretch between them joins candidates that are not near (each pair alone)
         I2, J2 = I[far], J[far]
-        _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I2] + s[J2]), 0)[:, 0], t_)
-        _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I2] + t[J2]), 0)[:, 0], t_)
+        _, m1 = _project(c2, r2, _derivs(c1, 0.5 * (s[I2] + s[J2]), 0)[:, 0], t_, eps)
+        _, m2 = _project(c1, r1, _derivs(c2, 0.5 * (t[I2] + t[J2]), 0)[:, 0], t_, eps)
         same[far] = (m1 <= eps) & (m2 <= eps)
     label = np.arange(n)
     for i, j in zip(I[same], J[same]):  # union-find over a handful of candidates
@@ -1056,7 +1256,7 @@ def _deduplicate(c1, r1, c2, r2, s, t, dist, eps, t_):
     near = np.linalg.norm(P[1:] - P[:-1], axis=1) <= eps
     if s.size > 1:
         mid = 0.5 * (s[1:] + s[:-1])
-        _, dm = _project(c2, r2, _derivs(c1, mid, 0)[:, 0], t_)
+        _, dm = _project(c2, r2, _derivs(c1, mid, 0)[:, 0], t_, eps)
         near |= dm <= eps
     group = np.concatenate([[0], np.cumsum(~near)])
     # Representative: the member with the smallest distance.
@@ -1079,7 +1279,7 @@ def _overlaps(c1, r1, c2, r2, t_: Tolerance, eps: float, feet):
         return []
     a, b = cuts[:-1], cuts[1:]
     probe = a[:, None] + _OVERLAP_PROBES[None] * (b - a)[:, None]
-    _, dp = _project(c2, r2, _derivs(c1, probe.ravel(), 0)[:, 0], t_)
+    _, dp = _project(c2, r2, _derivs(c1, probe.ravel(), 0)[:, 0], t_, eps)
     on = np.all(dp.reshape(probe.shape) <= eps, axis=1)
     # An interval shorter than eps (between solutions clustered around a touching) is a point.
     path = np.concatenate([a[:, None], probe, b[:, None]], axis=1)

@@ -115,7 +115,8 @@ _FORM_SAMPLES = 24
 #: a coordinate of a conic section changes monotonically between at most a few extrema per
 #: turn, so 512 samples bracket every crossing that is not a tangency.
 _SEARCH_SAMPLES = 512
-#: Bisection steps: 2^-64 of a bracket of at most 2π is below the spacing of doubles.
+#: Steps of the bracketed root solver (_illinois): bisection alone would reach the spacing of doubles
+#: within 2^-64 of a bracket of at most 2π.
 _BISECTIONS = 64
 #: Largest number of interpolated samples for a NURBS p-curve before giving up.
 _MAX_FIT_SAMPLES = 4097
@@ -315,14 +316,24 @@ def _plane_cylinder(p: PlanarSurface, c: CylindricalSurface, tol: Tolerance) -> 
         w = _unit(np.cross(Z, n))
         half = math.sqrt(R * R - delta * delta)
         return _Exact(tuple(_Candidate(Line(foot + sgn * half * w, Z), uniform=True) for sgn in (1.0, -1.0)))
-    if _sine(n, Z) > tol.angular:
-        # Oblique: the ellipse centred where the axis meets the plane, minor radius R across
-        # the axis, major radius R / |cos| along the plane's steepest direction.
-        C = O + (float((p.origin - O) @ n) / cos) * Z
-        w = _unit(np.cross(Z, n))
-        m = np.cross(n, w)
-        return _Exact((_Candidate(Ellipse(C, n, m, R / abs(cos), R)),))
-    return None  # perpendicular: the coaxial (meridian) case gives the circle
+    sine = _sine(n, Z)
+    if sine <= tol.angular:
+        return None  # perpendicular: the coaxial (meridian) case gives the circle
+    # Oblique: the ellipse centred where the axis meets the plane, minor radius R across the
+    # axis, major radius R / |cos| along the plane's steepest direction.
+    C = O + (float((p.origin - O) @ n) / cos) * Z
+    # R / |cos| - R in a form without cancellation (and without |cos| rounding above 1, which made
+    # the major radius fall below the minor one a little past the angular tolerance).
+    c = min(abs(cos), 1.0)
+    excess = R * sine * sine / (c * (1.0 + c))
+    if excess <= tol.solver * R:
+        # The semi-axes agree to the relative accuracy asked of solvers: the circle of radius R about
+        # C in the plane (within ``excess`` of the ellipse and of the cylinder, which keeps the exact
+        # forms exact; a gap up to tol.linear would leave the fitted p-curve on the cylinder no room).
+        return _Exact((_Candidate(Circle(C, n, perpendicular_direction(n), R)),))
+    w = _unit(np.cross(Z, n))
+    m = np.cross(n, w)
+    return _Exact((_Candidate(Ellipse(C, n, m, R + excess, R)),))
 
 
 def _plane_cone(p: PlanarSurface, k: ConicalSurface, tol: Tolerance) -> _Exact | None:
@@ -975,7 +986,7 @@ class _Coord:
             k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
             out = (base[:, None] + TWO_PI * np.arange(k0, k1 + 1)[None, :]).ravel()
             return np.unique(out[(out > t0) & (out < t1)])
-        # No closed form: bracket sign changes on a grid, then bisect all brackets at once.
+        # No closed form: bracket sign changes on a grid, then solve all brackets at once.
         grid = np.linspace(t0, t1, _SEARCH_SAMPLES + 1)
         f = self(grid)
         targets = self._targets(bound, float(f.min()), float(f.max()))
@@ -983,15 +994,8 @@ class _Coord:
             return np.zeros(0)
         g = f[None, :] - targets[:, None]
         i, j = np.nonzero(np.signbit(g[:, :-1]) != np.signbit(g[:, 1:]))
-        lo, hi, tgt = grid[j], grid[j + 1], targets[i]
-        glo = g[i, j]  # the grid's own sign: re-evaluating at one point may round the other way
-        for _ in range(_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            gm = self(mid) - tgt
-            left = np.signbit(gm) != np.signbit(glo)
-            hi = np.where(left, mid, hi)
-            lo, glo = np.where(left, lo, mid), np.where(left, glo, gm)
-        return 0.5 * (lo + hi)
+        # The grid's own values and signs: re-evaluating at one point may round the other way.
+        return _illinois(lambda t, k: self(t) - targets[i[k]], grid[j], grid[j + 1], g[i, j], g[i, j + 1])
 
     def _targets(self, bound: float, f0: float, f1: float) -> np.ndarray:
         """``bound + 2πk`` within ``[f0, f1]`` (only ``bound`` if not periodic)."""
@@ -999,6 +1003,45 @@ class _Coord:
             return np.array([bound]) if f0 <= bound <= f1 else np.zeros(0)
         k = np.arange(math.ceil((f0 - bound) / TWO_PI), math.floor((f1 - bound) / TWO_PI) + 1)
         return bound + TWO_PI * k
+
+
+def _illinois(fn, lo: np.ndarray, hi: np.ndarray, glo: np.ndarray, ghi: np.ndarray) -> np.ndarray:
+    """Roots of ``fn(t, k)`` (the function of bracket ``k`` at ``t``) in the brackets ``[lo, hi]``, all at once.
+
+    The Illinois variant of regula falsi (Dowell & Jarratt 1971): superlinear, and the root stays
+    bracketed (a false-position point outside its bracket, or not finite, is replaced by the
+    midpoint).  A bracket is done when its value is exactly zero or its width is within four
+    ulps of its ends; at most :data:`_BISECTIONS` steps (what bisection to the spacing of doubles
+    needs).  Where a bracket is done by width the midpoint is returned, else the last point.
+    """
+    lo, hi, glo, ghi = (np.array(x, dtype=np.float64) for x in (lo, hi, glo, ghi))
+    out = 0.5 * (lo + hi)
+    side = np.zeros(lo.shape, dtype=np.int8)  # which end moved last: -1 lo, 1 hi
+    act = np.arange(lo.size)
+    for _ in range(_BISECTIONS):
+        width = hi[act] - lo[act]
+        done = width <= 4.0 * _EPS * np.maximum(np.abs(lo[act]), np.abs(hi[act]))
+        out[act[done]] = 0.5 * (lo[act[done]] + hi[act[done]])
+        act = act[~done]
+        if act.size == 0:
+            break
+        a, b, ga, gb = lo[act], hi[act], glo[act], ghi[act]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (a * gb - b * ga) / (gb - ga)
+        x = np.where(np.isfinite(x) & (x > a) & (x < b), x, 0.5 * (a + b))
+        gx = np.asarray(fn(x, act), dtype=np.float64)
+        out[act] = x
+        zero = gx == 0.0
+        left = (np.signbit(gx) != np.signbit(ga)) & ~zero  # the root lies in [a, x]: x becomes hi
+        right = ~left & ~zero
+        # Illinois: an end kept twice in a row has its value halved, so the next point moves past it.
+        glo[act] = np.where(left & (side[act] == 1), 0.5 * ga, np.where(right, gx, ga))
+        ghi[act] = np.where(right & (side[act] == -1), 0.5 * gb, np.where(left, gx, gb))
+        hi[act] = np.where(left, x, b)
+        lo[act] = np.where(right, x, a)
+        side[act] = np.where(left, 1, np.where(right, -1, 0))
+        act = act[~zero]
+    return out
 
 
 def _inside(values: np.ndarray, lo: float, hi: float, periodic: bool, slack: float) -> np.ndarray:

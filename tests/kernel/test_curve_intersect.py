@@ -579,3 +579,50 @@ def test_pieces_and_seed_samples_are_remembered_per_curve_and_range():
     for k in range(2 * curve_intersect._RANGES_KEPT):  # bounded
         curve_box(c, (0.0, 0.5 + 0.01 * k))
     assert len(curve_intersect._MEMO[c]) <= curve_intersect._RANGES_KEPT
+
+
+@settings(max_examples=120)
+@given(st.lists(st.floats(-2, 2), min_size=7, max_size=7), st.floats(0, math.pi), st.floats(0.02, 0.98),
+       st.sampled_from(["cross", "tangent", "end", "swap", "overlap", "short"]))
+@example(ys=[0.0] * 7, phi=0.0, at=0.5, case="overlap")  # a straight curve along the line
+@example(ys=[0.875, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0], phi=0.0, at=0.0234375, case="cross")  # two crossings, one piece
+def test_polynomial_nurbs_against_line_fast_path_matches_the_general_path(ys, phi, at, case):
+    """A polynomial 2-D NURBS against a 2-D line (the signed distance's Bézier coefficients prune pieces, then
+    Newton in one variable): crossings, tangential touchings, a segment ending on the curve, the curves
+    swapped, overlaps and short segments give the general path's answer."""
+    P = np.stack([np.linspace(-2, 2, 7), np.asarray(ys)], axis=1)
+    c = NurbsCurve(P, [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1], 3)
+    u = np.array([math.cos(phi), math.sin(phi)])
+    Q, T, A = (np.asarray(x) for x in c.derivatives(np.array([at]), 2)[0])
+    if case == "tangent":
+        if np.linalg.norm(T) < 1e-3 or abs(T[0] * A[1] - T[1] * A[0]) < 0.1 * np.linalg.norm(T) ** 3:
+            return  # no touching to speak of: a crossing at an inflection, or a flat stretch
+        u = T / np.linalg.norm(T)
+    elif case == "overlap":
+        P = np.stack([np.linspace(-2, 2, 7), np.full(7, ys[0])], axis=1)
+        c = NurbsCurve(P, c.knots, 3)
+        Q, u = np.array([0.0, ys[0]]), np.array([1.0, 0.0])
+    line = Line2D(Q - 3 * u, u)
+    r2 = {"end": (0.0, 3.0), "short": (2.9, 3.1)}.get(case, (0.0, 6.0))
+    args = (line, r2, c, (0.0, 1.0)) if case == "swap" else (c, (0.0, 1.0), line, r2)
+    fast = intersect_curves(*args)
+    general = _general(intersect_curves, *args)
+    assert len(fast.overlaps) == len(general.overlaps)
+    # Every point of the general path is found.  Transversal crossings agree to round-off;
+    # elsewhere Newton stops anywhere in the band of points within tol.linear of the line: about
+    # sqrt(2 tol.linear / curvature) long at a touching (curvature >= 0.1 here), tol.linear /
+    # sin(angle) at a crossing.  The fast path may find more: two crossings within one piece,
+    # which the general path's one seed per piece pair reports as one (_assert_consistent below
+    # checks that they are on both curves).
+    assert len(fast) >= len(general)
+    t_curve = general.t2 if case == "swap" else general.t1
+    D = np.asarray(c.derivatives(t_curve, 1)).reshape(-1, 2, 2)
+    sine = np.abs(D[:, 1, 0] * u[1] - D[:, 1, 1] * u[0]) / np.maximum(np.linalg.norm(D[:, 1], axis=1), 1e-300)
+    band = np.where(sine > 0.1, 1e-9, 2.0 * math.sqrt(2e-7 / 0.1))
+    gap = np.linalg.norm(general.points[:, None] - fast.points[None], axis=2).min(axis=1, initial=np.inf)
+    assert np.all(gap <= band)
+    np.testing.assert_allclose(np.array(fast.overlaps).reshape(-1, 4), np.array(general.overlaps).reshape(-1, 4),
+                               rtol=0, atol=1e-9)
+    _assert_consistent(fast, *args[::2], atol=1e-7)
+    if case in ("cross", "swap", "short") and abs(T[0] * u[1] - T[1] * u[0]) > 0.1 * np.linalg.norm(T):
+        assert len(fast) >= 1  # the line passes through c(at) transversally inside both ranges

@@ -40,6 +40,7 @@ from coons.kernel.analytic import (
     SphericalSurface,
     ToroidalSurface,
 )
+from coons.kernel.conics import perpendicular_direction
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.intersect import IntersectionCurve, SurfaceIntersection, intersect_surfaces
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -207,6 +208,34 @@ def test_plane_cylinder_oblique_ellipse():
     assert c.curve.minor_radius == pytest.approx(1.5, abs=EXACT)
     np.testing.assert_allclose(c.curve.center, [0, 0, 0.5], rtol=0, atol=EXACT)
     assert isinstance(c.pcurve_a, Trig2D)
+
+
+def test_plane_cylinder_nearly_perpendicular_circle_within_tolerance():
+    # Just past the angular tolerance |cos| rounded above 1 and the ellipse's major radius fell below
+    # its minor one (InvalidGeometryError); the section is a circle within tol.linear there.
+    n = np.array([-0.12115988424340453, -0.8630450370912851, 0.4903810216578812])
+    axis = np.array([0.12115988414800773, 0.8630450376372517, -0.49038102072057826])
+    p = PlanarSurface([-970.9788950755783, -793.2771169902217, -117.459662258246], n, perpendicular_direction(n))
+    cyl = CylindricalSurface([-1000.0, -1000.0, 0.0], axis, perpendicular_direction(axis), 300.0)
+    (c,) = run(p, cyl, ((-500.0, 500.0), (-500.0, 500.0)), ((0.0, TWO_PI), (-500.0, 500.0))).curves
+    assert isinstance(c.curve, Circle) and c.closed
+    assert c.curve.radius == 300.0
+    np.testing.assert_allclose(abs(c.curve.axis @ p.axis), 1.0, rtol=0, atol=EXACT)  # in the plane
+
+
+@pytest.mark.parametrize("tilt", [2e-9, 1e-7, 1e-6, 2e-6, 1e-5, 1e-3])
+def test_plane_cylinder_small_tilts_circle_or_ellipse_by_linear_tolerance(tilt):
+    # The ellipse's semi-axes differ by R (1/cos - 1): a circle while that is within tol.solver * R.
+    n = np.array([math.sin(tilt), 0, math.cos(tilt)])
+    (c,) = run(plane([0, 0, 0.5], n), CYL, PLANE_BOX, AXIAL_BOX).curves
+    excess = 1.5 * (1.0 / math.cos(tilt) - 1.0)
+    if excess <= 1e-12 * 1.5:
+        assert isinstance(c.curve, Circle) and c.curve.radius == 1.5
+    else:
+        assert isinstance(c.curve, Ellipse)
+        assert c.curve.major_radius == pytest.approx(1.5 / math.cos(tilt), abs=EXACT)
+        assert c.curve.minor_radius == 1.5
+    np.testing.assert_allclose(c.curve.center, [0, 0, 0.5], rtol=0, atol=EXACT)
 
 
 # ---------------------------------------------------------------------------- plane–sphere
@@ -1012,3 +1041,23 @@ def test_fast_paths_give_the_general_answer(kind, q, shift, h, r, flip, u0, widt
         assert fast == general
     else:
         _same_intersection(fast, general)
+
+
+def test_illinois_brackets_roots_to_the_spacing_of_doubles():
+    """The bracketed root solver of the box crossings (in place of bisection): smooth roots to a few ulps,
+    a jump (no root, a sign change) to the jump, exact zeros at once, all brackets in one call."""
+    from coons.kernel.intersect import _illinois
+
+    def fn(t, k):
+        out = np.empty_like(t)
+        out[k == 0] = np.cos(t[k == 0])  # root pi / 2
+        out[k == 1] = t[k == 1] ** 3 - 2.0  # root 2^(1/3), a tilted bracket
+        out[k == 2] = np.where(t[k == 2] < 0.3, -1.0, 1.0)  # a jump at 0.3
+        out[k == 3] = t[k == 3] - 0.5  # hit exactly by the first false-position point
+        return out
+
+    lo, hi = np.array([1.0, 0.0, 0.0, 0.0]), np.array([2.0, 3.0, 1.0, 1.0])
+    ks = np.arange(4)
+    root = _illinois(fn, lo, hi, fn(lo, ks), fn(hi, ks))
+    expected = np.array([math.pi / 2, 2.0 ** (1.0 / 3.0), 0.3, 0.5])
+    np.testing.assert_allclose(root, expected, rtol=0, atol=4 * np.finfo(float).eps)

@@ -20,7 +20,9 @@ checks of a face (its loops crossing, their sense against ``face_sense``) are a 
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
 sewing) skips them for a face whose spec passed them in an earlier clean check (``_TRIMS_PASSED``),
-as a plate's untouched faces do from cut to cut.  Every other check, topological and geometric
+as a plate's untouched faces do from cut to cut; a face on a plane or cylinder whose loops extend,
+use for use, those of a spec that passed tests only the pairs of segments involving its new loops
+(a plate's top gaining a hole; ``_PASSED_ON``).  Every other check, topological and geometric
 (vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
@@ -31,13 +33,14 @@ few array passes, not a few numpy calls per coedge.
 
 from __future__ import annotations
 
+import operator
 import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from coons.errors import CoonsError
-from coons.kernel.analytic import Line, PlanarSurface
+from coons.kernel.analytic import CylindricalSurface, Line, PlanarSurface
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
@@ -119,8 +122,8 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
     if geometry and topo_ok:
         table = _check_geometry(b, t, samples, problems)
         known = _SEWN_FROM.get(b)
-        passed = _trims_passed(known, t, samples) if known is not None else None
-        _check_trims(b, t, samples, problems, table, passed)
+        passed, extends = _trims_passed(b, known, t, samples) if known is not None else (None, None)
+        _check_trims(b, t, samples, problems, table, passed, extends)
         if not problems:
             _check_orientation(b, t, problems)
         if not problems and known is not None:
@@ -575,23 +578,63 @@ _SEWN_FROM: "weakref.WeakKeyDictionary[BRep, tuple[list, np.ndarray]]" = weakref
 #: Face spec -> the :func:`_trims_key` values with which a B-rep face equal to it passed the trim
 #: checks (in a check that found no problem at all).
 _TRIMS_PASSED = IdentityMemo()
+#: Surface -> weak references to the last few specs with many loops on it that passed the trim
+#: checks: a face that extends one of them by new loops (a plate's top gaining a hole) has only
+#: the pairs involving its new loops tested (:func:`_trims_passed`).
+_PASSED_ON = IdentityMemo()
+#: Loops from which a face is worth recording in :data:`_PASSED_ON`, and how many are kept per surface.
+_PREFIX_LOOPS, _PREFIX_KEPT = 16, 4
 
 
-def _trims_passed(known: tuple[list, np.ndarray], t: Tolerance, samples: int) -> np.ndarray:
-    """``(F,)`` bool: faces equal to a spec that passed the trim checks with ``t`` and ``samples``."""
+def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
+                  samples: int) -> tuple[np.ndarray, dict[int, int]]:
+    """``(F,)`` bool: faces equal to a spec that passed the trim checks with ``t`` and ``samples``;
+    and ``{face: n}`` for faces equal to a spec whose first ``n`` loops are, use for use, the
+    loops of a spec that passed (same surface and sense, a plane or a cylinder, whose parameter
+    scale, and so the crossing threshold, does not depend on where the loops lie)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
     got = _TRIMS_PASSED.get_many(specs)
-    return unchanged & np.fromiter((g is not None and key in g for g in got), dtype=bool, count=len(specs))
+    passed = unchanged & np.fromiter((g is not None and key in g for g in got), dtype=bool, count=len(specs))
+    extends: dict[int, int] = {}
+    if len(_PASSED_ON):
+        n_loops = np.diff(b.face_loop_ptr)
+        sizes = None
+        for f in np.flatnonzero(unchanged & ~passed & (n_loops >= _PREFIX_LOOPS)).tolist():
+            spec = specs[f]
+            if type(spec.surface) not in (PlanarSurface, CylindricalSurface):
+                continue
+            best = 0
+            for ref in _PASSED_ON.get(spec.surface, ()):
+                old = ref()
+                if (old is None or old.sense != spec.sense or not best < len(old.loops) < len(spec.loops)
+                        or key not in (_TRIMS_PASSED.get(old) or ())):
+                    continue
+                if all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(old.loops, spec.loops)):
+                    best = len(old.loops)
+            if best:
+                # The B-rep keeps the spec's loop order (its coedge counts agree loop by loop).
+                if sizes is None:
+                    cl = b.coedge_loop
+                    sizes = np.bincount(cl[cl >= 0], minlength=b.n_loops)
+                loops = b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f + 1]]
+                if sizes[loops].tolist() == [len(loop) for loop in spec.loops]:
+                    extends[f] = best
+    return passed, extends
 
 
 def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int) -> None:
     """Record that the unchanged faces' specs passed the trim checks (the check found nothing)."""
     specs, unchanged = known
+    key = _trims_key(t, samples)
     for f in np.flatnonzero(unchanged & ~passed).tolist():
         spec = specs[f]
         if is_value(spec):
-            _TRIMS_PASSED.setdefault(spec, set).add(_trims_key(t, samples))
+            _TRIMS_PASSED.setdefault(spec, set).add(key)
+            if (len(spec.loops) >= _PREFIX_LOOPS and type(spec.surface) in (PlanarSurface, CylindricalSurface)
+                    and is_value(spec.surface)):
+                refs = [r for r in _PASSED_ON.get(spec.surface, ()) if r() is not None][-(_PREFIX_KEPT - 1):]
+                _PASSED_ON.set(spec.surface, refs + [weakref.ref(spec)])
 
 
 def _trims_key(t: Tolerance, samples: int) -> tuple:
@@ -600,7 +643,7 @@ def _trims_key(t: Tolerance, samples: int) -> tuple:
 
 
 def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table: _PcurveSamples,
-                 passed: np.ndarray | None = None) -> None:
+                 passed: np.ndarray | None = None, extends: dict[int, int] | None = None) -> None:
     """Self-intersecting trim loops: two segments of a face's boundary polylines crossing properly.
 
     Every loop of a face is turned into a closed polyline in the face's parameter plane (its
@@ -619,7 +662,9 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     only crossings that persist are reported (a real crossing persists at every level).  A
     crossing of the true curves that the coarse chords miss is not found.  Planar faces made of
     one loop of at most three straight edges cannot self-intersect and are skipped, and so are
-    the faces of ``passed`` (``(F,)`` bool, :func:`_trims_passed`), for crossings and orientation.
+    the faces of ``passed`` (``(F,)`` bool, :func:`_trims_passed`), for crossings and orientation;
+    in a face of ``extends`` (``{face: n}``) two segments of its first ``n`` loops are not tested
+    against each other (they were, in the spec it extends).
     """
     if b.n_faces == 0 or b.n_edges == 0:
         return
@@ -655,7 +700,12 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
             parts.append(seg)
     if not parts:
         return
-    hits = _crossings(parts)
+    old_loop = None
+    if extends:
+        old_loop = np.zeros(b.n_loops, dtype=bool)
+        for f, n in extends.items():
+            old_loop[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+    hits = _crossings(parts, None if old_loop is None else old_loop[b.coedge_loop])
     # Chords of curved edges cut corners by their sagitta: loops closer than that (an ellipse hole
     # grazing a circular rim) cross as polylines but not as curves.  Faces with crossings are
     # sampled again, _REFINE times finer per level; only crossings that persist are reported.
@@ -781,11 +831,13 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     return A, A[nxt2], face[idx], nxt2, owner[idx], eps_face[face[idx]]
 
 
-def _crossings(parts: list[tuple[np.ndarray, ...]]) -> dict[int, tuple[int, int, np.ndarray]]:
+def _crossings(parts: list[tuple[np.ndarray, ...]],
+               old_coedge: np.ndarray | None = None) -> dict[int, tuple[int, int, np.ndarray]]:
     """Faces whose boundary segments cross properly: face -> (coedge, coedge, crossing point).
 
     ``parts`` are segment sets of :func:`_face_segments` / :func:`_implicit_segments`
     (``A, B, face, next, coedge, eps``); each face is reported once, with its first crossing.
+    ``old_coedge (2E,)`` bool: two segments of such coedges are not tested against each other.
     """
     offsets = np.cumsum([0] + [p[0].shape[0] for p in parts[:-1]])
     A = np.concatenate([p[0] for p in parts])
@@ -794,7 +846,7 @@ def _crossings(parts: list[tuple[np.ndarray, ...]]) -> dict[int, tuple[int, int,
     nxt = np.concatenate([p[3] + o for p, o in zip(parts, offsets)])
     coedge = np.concatenate([p[4] for p in parts])
     eps = np.concatenate([p[5] for p in parts])
-    i, j = _segment_pairs(A, B, face, nxt)
+    i, j = _segment_pairs(A, B, face, nxt, old=None if old_coedge is None else old_coedge[coedge])
     if i.size == 0:
         return {}
     keep = (nxt[i] != j) & (nxt[j] != i)
@@ -993,7 +1045,7 @@ _LOOP_SWEEP_RATIO = 16
 
 
 def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarray,
-                   chunk: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
+                   chunk: int = 1 << 22, old: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The pairs of :func:`_sweep_pairs` whose rings (the cycles of ``nxt``: the loops) are one or have
     overlapping boxes, in the same order.
 
@@ -1004,12 +1056,17 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
     segments.  That is done when the sweep over faces would test more than
     :data:`_LOOP_SWEEP_RATIO` candidates per segment.  Every pair whose boxes overlap is found
     either way, so the crossings found, and the first crossing of each face in pair order, are
-    those of :func:`_sweep_pairs`.
+    those of :func:`_sweep_pairs`.  ``old (n,)`` bool: pairs of two such segments are left out
+    (loops whose segments were tested against each other before; a loop is all old or all new).
     """
     lo, hi = np.minimum(A, B), np.maximum(A, B)
     keys = _sweep_keys(lo, hi, face)
     if nxt.size == 0 or nxt.min() < 0 or _sweep_counts(*keys).sum() <= _LOOP_SWEEP_RATIO * A.shape[0]:
-        return _sweep_pairs(A, B, face, chunk, keys)
+        i, j = _sweep_pairs(A, B, face, chunk, keys)
+        if old is not None:
+            keep = ~(old[i] & old[j])
+            i, j = i[keep], j[keep]
+        return i, j
     ring = _cycle_labels(nxt)
     members = np.argsort(ring, kind="stable")  # the segments ring by ring
     starts = np.flatnonzero(np.concatenate([[True], ring[members[1:]] != ring[members[:-1]]]))
@@ -1018,8 +1075,17 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
     rinv[members] = np.repeat(np.arange(starts.size), cnt)
     rlo = np.minimum.reduceat(lo[members], starts, axis=0)
     rhi = np.maximum.reduceat(hi[members], starts, axis=0)
-    parts = [_sweep_pairs(A, B, rinv, chunk)]  # within each loop
+    if old is None:
+        parts = [_sweep_pairs(A, B, rinv, chunk)]  # within each loop
+    else:
+        fresh = np.flatnonzero(~old)  # within each loop not tested before
+        fi, fj = _sweep_pairs(A[fresh], B[fresh], rinv[fresh], chunk)
+        parts = [(fresh[fi], fresh[fj])]
     RI, RJ = _sweep_pairs(rlo, rhi, face[members[starts]], chunk)  # loops of one face with overlapping boxes
+    if old is not None:
+        ring_old = old[members[starts]]
+        keep = ~(ring_old[RI] & ring_old[RJ])
+        RI, RJ = RI[keep], RJ[keep]
     if RI.size:
         sizes = cnt[RI] + cnt[RJ]
         grp = np.repeat(np.arange(RI.size), sizes)

@@ -786,3 +786,65 @@ def test_trim_checks_of_faces_that_passed_before_are_not_repeated(monkeypatch):
     # A B-rep not made by sewing is checked whole.
     assert check(first).ok and seen[-1] == set()  # (first was sewn: its record stands)
     assert check(Cylinder(1.0, 2.0)).ok and len(seen[-1]) == 4
+
+
+def _rings_segments(centres, n=12, r=0.3):
+    """Closed polygons (one ring each) around ``centres`` as the segment arrays of the trim checks."""
+    A, B, nxt, face = [], [], [], []
+    k = 0
+    for cx, cy in centres:
+        a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+        P = np.stack([cx + r * np.cos(a), cy + r * np.sin(a)], axis=1)
+        A.append(P)
+        B.append(np.roll(P, -1, axis=0))
+        nxt.append(k + (np.arange(n) + 1) % n)
+        face.append(np.zeros(n, dtype=np.int64))
+        k += n
+    return np.concatenate(A), np.concatenate(B), np.concatenate(face), np.concatenate(nxt)
+
+
+@pytest.mark.parametrize("grid", [(2, 2), (4, 12)])  # the sweep over the face, and loop by loop
+def test_segment_pairs_leave_out_exactly_the_pairs_of_old_loops(grid):
+    from coons.topology.check import _segment_pairs
+
+    rng = np.random.default_rng(3)
+    nx, ny = grid
+    centres = [(i + 0.2 * rng.random(), 0.5 * j + 0.2 * rng.random()) for i in range(nx) for j in range(ny)]
+    centres.append(centres[0])  # a ring on top of another: its segments cross that one's
+    A, B, face, nxt = _rings_segments(centres)
+    ring = np.repeat(np.arange(len(centres)), 12)
+    old = ring < len(centres) // 2
+    i0, j0 = _segment_pairs(A, B, face, nxt)
+    i1, j1 = _segment_pairs(A, B, face, nxt, old=old)
+    full = set(zip(i0.tolist(), j0.tolist()))
+    assert set(zip(i1.tolist(), j1.tolist())) == {(i, j) for i, j in full if not (old[i] and old[j])}
+    assert len(full) > len(set(zip(i1.tolist(), j1.tolist())))  # some pairs were left out
+
+
+def test_a_face_gaining_loops_has_only_its_new_loops_tested(monkeypatch):
+    """Sequential cuts into a plate: once its top and bottom faces passed with 16 or more loops, a
+    cut tests only the pairs involving the new hole (the rest were tested in the spec it extends),
+    and the results stay valid with the exact volume."""
+    from coons.topology.primitives import Cylinder as Cyl
+
+    calls = []
+    real = check_module._crossings
+
+    def spy(parts, old_coedge=None):
+        calls.append(None if old_coedge is None else int(old_coedge.sum()))
+        return real(parts, old_coedge)
+
+    monkeypatch.setattr(check_module, "_crossings", spy)
+    plate = Box(60, 50, 4)
+    holes = [(-25.0 + 10 * i, -20.0 + 10 * j, 0.0) for i in range(6) for j in range(5)]
+    for k, at in enumerate(holes):
+        tool = Cyl(1.0, 10.0).translate(at)
+        calls.clear()
+        plate = plate - tool
+        assert len(calls) == 1  # the result's check
+        if k >= 17:
+            assert calls[0] is not None and calls[0] > 0  # old loops' coedges left out
+        if k < 14:
+            assert calls[0] is None
+    assert check(plate).ok
+    assert math.isclose(plate.volume, 60 * 50 * 4 - len(holes) * math.pi * 4, rel_tol=1e-12)

@@ -20,7 +20,10 @@ checks of a face (its loops crossing, their sense against ``face_sense``) are a 
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
 sewing) skips them for a face whose spec passed them in an earlier clean check (``_TRIMS_PASSED``),
-as a plate's untouched faces do from cut to cut; a face on a plane or cylinder whose loops extend,
+as a plate's untouched faces do from cut to cut, and with them the same-parameter comparisons of its
+coedges (the deviation measured then, against the same edge tolerance: an unchanged face's uses
+keep theirs; faces whose loop closure was judged against a vertex are never recorded); the
+ends of every edge are still compared with its vertices.  A face on a plane or cylinder whose loops extend,
 use for use, those of a spec that passed tests only the pairs of segments involving its new loops
 (a plate's top gaining a hole; ``_PASSED_ON``).  Every other check, topological and geometric
 (vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
@@ -120,14 +123,14 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         _check_manifold(b, problems)
         _check_euler(b, problems)
     if geometry and topo_ok:
-        table = _check_geometry(b, t, samples, problems)
         known = _SEWN_FROM.get(b)
         passed, extends = _trims_passed(b, known, t, samples) if known is not None else (None, None)
+        table = _check_geometry(b, t, samples, problems, passed)
         _check_trims(b, t, samples, problems, table, passed, extends)
         if not problems:
             _check_orientation(b, t, problems)
         if not problems and known is not None:
-            _remember_trims(known, passed, t, samples)
+            _remember_trims(known, passed, t, samples, table.gapped)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
               "shells": b.n_shells, "solids": b.n_solids}
     return CheckReport(tuple(problems), counts)
@@ -352,7 +355,9 @@ class _PcurveSamples:
     Row ``k`` is coedge ``coedge[k]``: ``uv[k]`` its p-curve at the ``samples`` parameters of its
     edge (in the edge's direction, whichever side the coedge is), ``speed[k]`` ``max(|Su|, |Sv|)``
     there, ``line[k]`` whether the p-curve is a :class:`Line2D`; ``pos[c]`` is the row of coedge
-    ``c`` or -1.  Built once per check: the geometric and the trim checks share it.
+    ``c`` or -1.  Built once per check: the geometric and the trim checks share it.  ``gapped``:
+    the faces with a p-curve gap between coedges that was judged in 3-D against a vertex (their
+    checks depend on more than the face itself: they are never recorded as passed).
     """
 
     coedge: np.ndarray
@@ -360,6 +365,7 @@ class _PcurveSamples:
     speed: np.ndarray
     line: np.ndarray
     pos: np.ndarray
+    gapped: frozenset = frozenset()
 
 
 def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -425,10 +431,17 @@ def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
 _SAME_PARAMETER = IdentityMemo()
 
 
-def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> _PcurveSamples:
+def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
+                    passed: np.ndarray | None = None) -> _PcurveSamples:
     # Only edges with a 3-D curve or a p-curve on a surface are sampled: a straight edge without
     # p-curves is the segment between its vertices, nothing about it can deviate.
     has_pc = (b.edge_pcurve >= 0) & (b.face_surface[b.edge_face] >= 0)  # (E, 2)
+    if passed is not None:
+        # The coedges of faces that passed every check before as the very same spec
+        # (:func:`_trims_passed`): their p-curve deviation is the one measured then against the
+        # same edge tolerance (an unchanged face's uses keep theirs), and their loops closed
+        # then; only their edges' ends are compared with the vertices again, below.
+        has_pc &= ~passed[b.edge_face]
     rows = np.flatnonzero((b.edge_curve >= 0) | has_pc.any(axis=1))
     # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance, every p-curve sample of
     # the model in one batch (surfaces of one structure evaluated together).  A coedge whose
@@ -451,13 +464,21 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
     done = np.zeros(rows.size, dtype=bool)
     done[rr] = True
     done[rr[miss]] = False
-    sub = np.flatnonzero(~done)
+    # Edges with a coedge to measure are sampled; the others (no p-curve on a surface, or all on
+    # faces that passed before) only need their ends: the same first and last parameters and
+    # points whatever the number of samples.
+    full = np.zeros(rows.size, dtype=bool)
+    full[rr[miss]] = True
+    sub = np.flatnonzero(~done & full)
+    ends_only = np.flatnonzero(~done & ~full)
     Ts, Ps = _edge_samples(b, samples, rows[sub])
     at = np.full(rows.size, -1, dtype=np.int64)
     at[sub] = np.arange(sub.size)
     ends_pts = np.empty((rows.size, 2, 3))
     ends_pts[rr[hit]] = ends_h  # (both uses of an edge measure the same curve over the same range)
     ends_pts[sub] = Ps[:, [0, -1]]
+    if ends_only.size:
+        ends_pts[ends_only] = _edge_samples(b, 2, rows[ends_only])[1]
     ev = b.edge_vertex[rows]
     ends = b.vertex_point[ev]  # (k, 2, 3)
     allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
@@ -488,7 +509,6 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
     coedge = 2 * e + side
     pos = np.full(2 * b.n_edges, -1, dtype=np.int64)
     pos[coedge] = np.arange(n)
-    table = _PcurveSamples(coedge, uv, speed, line, pos)
     # Coedge start/end in parameter space (the right side runs backwards).
     fwd = (side == 0)[:, None]
     start = np.where(fwd, uv[:, 0], uv[:, -1])
@@ -501,6 +521,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem]) -> 
     i = np.flatnonzero(j >= 0)
     j = j[i]
     far = np.linalg.norm(end[i] - start[j], axis=1) > t.solver * (1.0 + np.abs(end[i]).max(axis=1))
+    table = _PcurveSamples(coedge, uv, speed, line, pos,
+                           frozenset(b.coedge_face[coedge[i[far]]].tolist()) if far.any() else frozenset())
     for k, kn in zip(i[far].tolist(), j[far].tolist()):
         c = int(coedge[k])
         fc = int(b.coedge_face[c])
@@ -623,13 +645,15 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     return passed, extends
 
 
-def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int) -> None:
-    """Record that the unchanged faces' specs passed the trim checks (the check found nothing)."""
+def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
+                    gapped: frozenset = frozenset()) -> None:
+    """Record that the unchanged faces' specs passed the checks (the check found nothing), except
+    the faces whose loop closure was judged against a vertex (``gapped``)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
     for f in np.flatnonzero(unchanged & ~passed).tolist():
         spec = specs[f]
-        if is_value(spec):
+        if f not in gapped and is_value(spec):
             _TRIMS_PASSED.setdefault(spec, set).add(key)
             if (len(spec.loops) >= _PREFIX_LOOPS and type(spec.surface) in (PlanarSurface, CylindricalSurface)
                     and is_value(spec.surface)):

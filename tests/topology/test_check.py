@@ -848,3 +848,23 @@ def test_a_face_gaining_loops_has_only_its_new_loops_tested(monkeypatch):
             assert calls[0] is None
     assert check(plate).ok
     assert math.isclose(plate.volume, 60 * 50 * 4 - len(holes) * math.pi * 4, rel_tol=1e-12)
+
+
+def test_coedges_of_faces_that_passed_before_are_not_measured_again(monkeypatch):
+    """The same-parameter comparisons of a face that passed as the same spec are not repeated
+    (only its edges' ends are compared with the vertices again); a new face's coedges are."""
+    measured = []
+    real = check_module._cached_samples
+
+    def spy(b, pi, *args):
+        measured.append(int(pi.size))
+        return real(b, pi, *args)
+
+    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    specs = face_specs(Cylinder(1.0, 2.0)) + face_specs(Box(1, 1, 1).translate((5.0, 0.0, 0.0)))
+    sew_faces(specs)
+    first = measured[-1]
+    again = sew_faces(specs)
+    assert first > 0 and measured[-1] == 0
+    assert check(again).ok and measured[-1] == 0
+    assert check(again, samples=17).ok and measured[-1] == first  # another key: measured whole

@@ -159,26 +159,17 @@ def stacked(breps: Sequence[BRep]) -> BRep:
     face_loop_ptr, face_loops = csr("face_loop_ptr", "face_loops", L)
     shell_face_ptr, shell_faces = csr("shell_face_ptr", "shell_faces", F)
     solid_shell_ptr, solid_shells = csr("solid_shell_ptr", "solid_shells", S)
+    # Each table with the kind of index it holds (None: not an index) and the scale of that
+    # index (coedges are 2 e + side).
+    kinds = {"vertex_point": (None, 1), "vertex_tol": (None, 1), "vertex_coedge": (E, 2), "edge_vertex": (V, 1),
+             "edge_loop": (L, 1), "edge_wing": (E, 2), "edge_curve": (CU, 1), "edge_range": (None, 1),
+             "edge_pcurve": (PC, 1), "edge_tol": (None, 1), "loop_face": (F, 1), "loop_coedge": (E, 2),
+             "loop_vertex": (V, 1), "face_surface": (SU, 1), "face_sense": (None, 1), "face_shell": (S, 1),
+             "shell_solid": (N, 1)}
     return BRep(
-        vertex_point=column("vertex_point", None),
-        vertex_tol=column("vertex_tol", None),
-        vertex_coedge=column("vertex_coedge", E, 2),
-        edge_vertex=column("edge_vertex", V),
-        edge_loop=column("edge_loop", L),
-        edge_wing=column("edge_wing", E, 2),
-        edge_curve=column("edge_curve", CU),
-        edge_range=column("edge_range", None),
-        edge_pcurve=column("edge_pcurve", PC),
-        edge_tol=column("edge_tol", None),
-        loop_face=column("loop_face", F),
-        loop_coedge=column("loop_coedge", E, 2),
-        loop_vertex=column("loop_vertex", V),
-        face_surface=column("face_surface", SU),
-        face_sense=column("face_sense", None),
-        face_shell=column("face_shell", S),
+        **{name: column(name, kind, scale) for name, (kind, scale) in kinds.items()},
         face_loop_ptr=face_loop_ptr,
         face_loops=face_loops,
-        shell_solid=column("shell_solid", N),
         shell_face_ptr=shell_face_ptr,
         shell_faces=shell_faces,
         solid_shell_ptr=solid_shell_ptr,

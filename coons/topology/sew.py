@@ -43,6 +43,7 @@ raises :class:`~coons.errors.TopologyError` naming the face and edge at fault.
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -307,9 +308,10 @@ _FACE_USES = IdentityMemo()
 
 
 def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
-    """The :class:`_FaceUses` of each face, those not cached yet gathered together (:func:`_use_rows`).
+    """The :class:`_FaceUses` of each face, assembled from per-loop tables (:data:`_LOOP_USES`);
+    the loops not cached yet gathered together (:func:`_use_rows`).
 
-    A face is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`).
+    A face or loop is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`).
 
     Raises
     ------
@@ -321,40 +323,65 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
     missing = [i for i, x in enumerate(out) if x is None]
     if not missing:
         return out  # type: ignore[return-value]
-    spec: list[EdgeSpec] = []
-    where = []
-    counts = []
-    for fi in missing:
-        n = 0
+    parts: list[list] = []
+    new_spec: list[EdgeSpec] = []
+    new_where: list[tuple[int, int, int, int]] = []
+    new_slots: list[tuple[int, int]] = []
+    for p, fi in enumerate(missing):
+        got: list = []
         for li, loop in enumerate(faces[fi].loops):
+            c = _LOOP_USES.get(loop[0]) if loop else None
+            if c is not None and len(c[0]) == len(loop) and all(map(operator.is_, c[0], loop)):
+                got.append(c)
+                continue
+            got.append(None)
+            new_slots.append((p, li))
             for pi, e in enumerate(loop):
-                spec.append(e)
-                where.append((fi, li, pi, len(loop)))
-            n += len(loop)
-        counts.append(n)
-    w = np.asarray(where, dtype=np.int64).reshape(-1, 4)
-    R = _use_rows(spec, w)
-    value = [is_value(e.curve) for e in spec]
-    curve_id = np.array([id(e.curve) for e in spec], dtype=np.int64)
-    own_tol = np.array([np.nan if e.tol is None else e.tol for e in spec], dtype=np.float64)
-    complete = np.array([e.curve is not None and e.pcurve is not None for e in spec], dtype=bool)
-    first = 0
-    for fi, n in zip(missing, counts):
-        sl = slice(first, first + n)
-        first += n
+                new_spec.append(e)
+                new_where.append((fi, li, pi, len(loop)))
+        parts.append(got)
+    if new_slots:
+        w = np.asarray(new_where, dtype=np.int64).reshape(-1, 4)
+        R = _use_rows(new_spec, w) if new_spec else np.empty((0, 17))
+        value = [is_value(e.curve) for e in new_spec]
+        curve_id = np.array([id(e.curve) for e in new_spec], dtype=np.int64)
+        own_tol = np.array([np.nan if e.tol is None else e.tol for e in new_spec], dtype=np.float64)
+        complete = np.array([e.curve is not None and e.pcurve is not None for e in new_spec], dtype=bool)
+        at = 0
+        for p, li in new_slots:
+            loop = faces[missing[p]].loops[li]
+            sl = slice(at, at + len(loop))
+            at += len(loop)
+            c = (tuple(loop), _read_only(R[sl]), _read_only(curve_id[sl]), _read_only(own_tol[sl]),
+                 _read_only(complete[sl]), all(value[sl]))
+            parts[p][li] = c
+            if loop and c[5]:
+                _LOOP_USES.set(loop[0], c)
+    for p, fi in enumerate(missing):
+        got = parts[p]
+        lens = np.array([len(c[0]) for c in got], dtype=np.int64)
+        n = int(lens.sum())
+        R = np.concatenate([c[1] for c in got]) if got else np.empty((0, 17))
         x = _FaceUses()
-        x.where = _read_only(w[sl, 1:].copy())
-        x.points = _read_only(R[sl, :9].reshape(n, 3, 3))
-        x.ranges = _read_only(R[sl, 9:12].copy())
-        x.kind = _read_only(R[sl, 12].astype(np.int8))
-        x.frame = _read_only(R[sl, 13:].copy())
-        x.curve_id = _read_only(curve_id[sl].copy())
-        x.own_tol = _read_only(own_tol[sl].copy())
-        x.complete = _read_only(complete[sl].copy())
+        pos = np.arange(n) - np.repeat(np.cumsum(lens) - lens, lens)
+        x.where = _read_only(np.stack([np.repeat(np.arange(lens.size), lens), pos, np.repeat(lens, lens)], axis=1))
+        x.points = _read_only(R[:, :9].reshape(n, 3, 3))
+        x.ranges = _read_only(R[:, 9:12].copy())
+        x.kind = _read_only(R[:, 12].astype(np.int8))
+        x.frame = _read_only(R[:, 13:].copy())
+        x.curve_id = _read_only(np.concatenate([c[2] for c in got]) if got else np.empty(0, dtype=np.int64))
+        x.own_tol = _read_only(np.concatenate([c[3] for c in got]) if got else np.empty(0))
+        x.complete = _read_only(np.concatenate([c[4] for c in got]) if got else np.empty(0, dtype=bool))
         out[fi] = x
-        if all(value[sl]):
+        if all(c[5] for c in got):
             _FACE_USES.set(faces[fi], x)
     return out  # type: ignore[return-value]
+
+
+#: First use of a loop -> ``(uses, rows (k, 17), curve ids, own tolerances, complete, all curves
+#: values)``: the parts of :class:`_FaceUses` that do not depend on the loop's place in its face
+#: (identity-checked use by use on look-up).  A plate's top gaining a hole keeps its other loops.
+_LOOP_USES = IdentityMemo()
 
 
 #: Edge use -> its row of :func:`_use_rows` (read-only), for the uses whose curve is a value: the

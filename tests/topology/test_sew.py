@@ -510,3 +510,26 @@ def test_sewing_knows_which_faces_it_left_unchanged():
     for r in results:
         specs = S._SEWN[r.brep]
         assert _SEWN_FROM[r.brep][1].tolist() == _walked(r.brep, specs).tolist()
+
+
+def test_use_tables_are_assembled_from_cached_loops():
+    """A face gaining a loop reads its other loops' use tables from the per-loop cache, and the
+    assembled table is the one computed from scratch (positions, rows, ids, tolerances)."""
+    from coons.topology import _memo
+    from coons.topology.sew import _LOOP_USES, _face_uses
+
+    plate = Box(40, 40, 4)
+    for at in [(-10.0, -10.0, 0.0), (10.0, 10.0, 0.0)]:
+        plate = plate - Cylinder(1.0, 10.0).translate(at)
+    top = max(face_specs(plate), key=lambda sp: len(sp.loops))
+    _face_uses([top])
+    cached = [_LOOP_USES.get(loop[0]) for loop in top.loops]
+    assert all(c is not None for c in cached)
+    grown = FaceSpec(top.surface, top.sense, [list(l) for l in top.loops] + [list(top.loops[1])])
+    got = _face_uses([grown])[0]
+    assert all(_LOOP_USES.get(loop[0]) is c for loop, c in zip(top.loops, cached))  # not recomputed
+    _memo.clear_all()  # from scratch
+    fresh = _face_uses([FaceSpec(top.surface, top.sense, [list(l) for l in grown.loops])])[0]
+    for f in ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete"):
+        assert np.array_equal(getattr(got, f), getattr(fresh, f), equal_nan=getattr(got, f).dtype.kind == "f"), f
+    assert got.where[-len(top.loops[1]):, 0].tolist() == [len(top.loops)] * len(top.loops[1])

@@ -164,8 +164,9 @@ Status and limitations
   one table per face spec (:func:`~coons.topology.sew.use_points`), read by the T-junction,
   merge and fuse passes and by sewing; the checker remembers its same-parameter measurements
   per curve, p-curve, surface and range (:mod:`coons.topology.check`), so the faces carried
-  over are not sampled again, and skips the trim checks of a face whose spec passed them in an
-  earlier clean check; sewing records which faces equal their spec (in arrays, while sewing),
+  over are not sampled again, and skips the trim checks and same-parameter comparisons of a
+  face whose spec passed an earlier clean check (a face extending such a spec by new loops has
+  only its new loops' segment pairs tested); sewing records which faces equal their spec (in arrays, while sewing),
   which the next Boolean reads instead of comparing the B-rep with the specs; every other
   invariant is verified on the whole result.  The cyclic garbage collector is paused inside
   the pipeline (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.

@@ -242,8 +242,6 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     return _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
 
 
-
-
 class _Uses:
     """Flat arrays over all edge uses (coedges) in face, loop, position order.
 

@@ -124,23 +124,16 @@ class Measurement:
 
 
 def forget_coons_caches() -> None:
-    """Forget coons's per-B-rep caches (meshes, bounding boxes, mass integrals, Boolean carry-overs).
+    """Forget everything coons remembers between operations (meshes, mass integrals, Boolean
+    carry-overs, per-object memos of sewing, checking and the kernel).
 
     Benchmarks reuse their operands across repetitions; a warm cache would time a reuse of the
     operands' tessellations and integrals, not the operation.  Call this before each coons
     repetition (untimed, or inside the timing: it costs microseconds).
     """
-    from coons.booleans import solid
-    from coons.topology import _memo, check, mass, tessellate
+    from coons.booleans.solid import _forget_caches
 
-    tessellate._MESHES.clear()
-    mass._CACHE.clear()
-    check._SEWN_FROM.clear()
-    # What a Boolean result carries over to the next Boolean (faces sewn unchanged, their data).
-    for cache in (solid._SEWN, solid._FACE_DATA, solid._MERGE_FAILED, solid._USE_BOXES, solid._USE_SAMPLES):
-        cache.clear()
-    # What sewing, checking and mass properties remember per face spec, curve, p-curve and surface.
-    _memo.clear_all()
+    _forget_caches()
 
 
 def _timed(fn: Callable[[int], object], units: int) -> tuple[float, object]:

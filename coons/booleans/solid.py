@@ -213,7 +213,7 @@ from coons.kernel._common import used_ids
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value
+from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
 from coons.topology.disjoint import disjoint_union, padded_box
 from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, sew_faces,
@@ -551,12 +551,10 @@ class _Operand:
         infinite where it gives none) and tolerances ``(k,)``, computed once per face spec."""
         d = self._data[f]
         if d.edge_boxes is None:
-            spec = self.specs[f]
-            edges = [e for loop in spec.loops for e in loop]
+            edges = [e for loop in self.specs[f].loops for e in loop]
             # (the loops' stacked use boxes: one copy for a face of many holes)
-            parts = [_loop_data(loop, spec.surface, self.t) for loop in spec.loops]
-            lo = np.concatenate([ld.use_lo for ld in parts]) if parts else np.empty((0, 3))
-            hi = np.concatenate([ld.use_hi for ld in parts]) if parts else np.empty((0, 3))
+            lo = np.concatenate([ld.use_lo for ld in d.loops]) if d.loops else np.empty((0, 3))
+            hi = np.concatenate([ld.use_hi for ld in d.loops]) if d.loops else np.empty((0, 3))
             tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
             d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
         return d.edge_boxes
@@ -706,15 +704,15 @@ def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES, samples: list | None = N
 class _FaceData:
     """Per-face data of a completed face spec that depends on nothing else (and the tolerance).
 
-    ``uv_box`` the enlarged parameter box, ``samples`` (:func:`_edge_samples`), ``rings``
-    (:func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
+    ``loops`` the loops' :class:`_LoopData`, ``uv_box`` the enlarged parameter box, ``rings``
+    (one per loop, :func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
     ``seg_lo, seg_hi (s, 2)``, ``box (2, 3)`` the padded space box (:func:`_face_box`, None where
     none is proven) and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand); for
     phase 3's clipping, filled on demand: ``slope`` the segments' :func:`_polygon_slopes` and
     ``straight`` the closed-form clip's data (:func:`_straight_data`, False where it does not apply).
     """
 
-    __slots__ = ("t", "uv_box", "samples", "rings", "seg", "seg_lo", "seg_hi", "box", "edge_boxes", "slope",
+    __slots__ = ("t", "loops", "uv_box", "rings", "seg", "seg_lo", "seg_hi", "box", "edge_boxes", "slope",
                  "straight", "__weakref__")
 
 
@@ -728,22 +726,38 @@ _FACE_DATA: "weakref.WeakKeyDictionary[FaceSpec, _FaceData]" = weakref.WeakKeyDi
 _SEWN: "weakref.WeakKeyDictionary[BRep, list[FaceSpec]]" = weakref.WeakKeyDictionary()
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
+def _forget_caches() -> None:
+    """Forget everything coons remembers between operations: per-B-rep meshes and mass caches,
+    what a Boolean result carries over (specs sewn, face and loop data, use samples and boxes,
+    unmergeable pairs), what sewing, checking and mass properties remember per object, and the
+    kernel's memos per curve and surface.
+
+    For benchmarks that reuse their operands (a warm cache would time a reuse, not the
+    operation) and for tests that compare a chain of Booleans warm and cold.  Results never
+    depend on these caches, only the time does.
+    """
+    from coons.kernel import curve_intersect, onsurface
+    from coons.topology import _memo, check, mass, split, tessellate
+
+    for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _SEWN, _FACE_DATA, _USE_SAMPLES,
+                  curve_intersect._TRIG, curve_intersect._FORMS, curve_intersect._MEMO, onsurface._PERIODS_CACHE,
+                  split._FACES, split._MAPPED):
+        cache.clear()
+    _memo.clear_all()  # every IdentityMemo (sewing, checking, mass, the pipeline's per-use memos)
 
 
 class _LoopData:
-    """Per-loop parts of :class:`_FaceData`, cached per loop (:func:`_loop_data`).
+    """Per-loop parts of :class:`_FaceData`, cached per loop (:func:`_cached_loop`, :func:`_new_loop_data`).
 
-    ``edges`` the loop's uses (identity-checked on every look-up), ``surface``, ``t``;
-    ``samples`` (:func:`_use_samples` of each use), ``ring (k, 2)``, ``seg (k, 2, 2)`` and its
-    padded boxes ``seg_lo, seg_hi``, the ring's extremes ``rmin, rmax (2,)``, the uses'
-    :func:`_use_box` ``use_lo, use_hi (k, 3)`` (infinite where there is none), ``box (2, 3)`` their
-    union (None when a use has none) and ``tol`` their largest tolerance.
+    ``rest`` the loop's uses after the first, its key (identity-checked on every look-up; the
+    first is not held, so that the entry dies with it), ``surface``, ``t``;
+    ``ring (k, 2)`` (the uses' :func:`_use_samples` in turn), ``seg (k, 2, 2)`` and its padded
+    boxes ``seg_lo, seg_hi``, the ring's extremes ``rmin, rmax (2,)``, the uses'
+    :func:`_use_boxes` ``use_lo, use_hi (k, 3)`` (infinite where there is none), ``box (2, 3)``
+    their union (None when a use has none) and ``tol`` their largest tolerance.
     """
 
-    __slots__ = ("edges", "surface", "t", "samples", "ring", "seg", "seg_lo", "seg_hi", "rmin", "rmax", "use_lo",
+    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "rmin", "rmax", "use_lo",
                  "use_hi", "box", "tol")
 
 
@@ -753,17 +767,11 @@ class _LoopData:
 _LOOP_DATA = IdentityMemo()
 
 
-def _loop_data(loop: list[EdgeSpec], S, t: Tolerance) -> _LoopData:
-    """The :class:`_LoopData` of one loop of a completed spec on surface ``S``, cached per loop."""
-    ld = _cached_loop(loop, S, t)
-    return ld if ld is not None else _new_loop_data([(loop, S)], t)[0]
-
-
 def _cached_loop(loop: list[EdgeSpec], S, t: Tolerance) -> _LoopData | None:
     """The cached :class:`_LoopData` of ``loop`` on ``S`` (the very same uses in order), else None."""
     ld = _LOOP_DATA.get(loop[0])
-    if (ld is not None and ld.surface is S and ld.t == t and len(ld.edges) == len(loop)
-            and all(map(operator.is_, ld.edges, loop))):
+    if (ld is not None and ld.surface is S and ld.t == t and len(ld.rest) == len(loop) - 1
+            and all(map(operator.is_, ld.rest, loop[1:]))):
         return ld
     return None
 
@@ -816,8 +824,7 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         a, b = int(start[k]), int(start[k] + n_pts[k])
         ua, ub = int(use_start[k]), int(use_start[k] + n_uses[k])
         ld = _LoopData()
-        ld.edges, ld.surface, ld.t = tuple(loop), S, t
-        ld.samples = samples[ua:ub]
+        ld.rest, ld.surface, ld.t = tuple(loop[1:]), S, t
         ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
         ld.rmin, ld.rmax = rmin[k], rmax[k]
         ld.use_lo, ld.use_hi = lo[ua:ub], hi[ua:ub]
@@ -842,7 +849,7 @@ def _prefill_loops(specs: list[FaceSpec], t: Tolerance) -> None:
 
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     """The :class:`_FaceData` of a completed spec (surface set, every use with a p-curve), cached
-    per spec and assembled from its loops' :func:`_loop_data`."""
+    per spec and assembled from its loops' :class:`_LoopData` (cached per loop)."""
     d = _FACE_DATA.get(spec)
     if d is not None and d.t == t:
         return d
@@ -854,7 +861,7 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     if miss:
         for k, ld in zip(miss, _new_loop_data([(spec.loops[k], S) for k in miss], t)):
             parts[k] = ld
-    d.samples = [ld.samples for ld in parts]
+    d.loops = parts
     d.rings = [ld.ring for ld in parts]
     (u0, v0) = np.min([ld.rmin for ld in parts], axis=0)
     (u1, v1) = np.max([ld.rmax for ld in parts], axis=0)
@@ -866,30 +873,30 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
         d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
         d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
         d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
-    d.box = _face_box(spec, d, t, parts)
+    d.box = _face_box(spec, d, t)
     _FACE_DATA[spec] = d
     return d
 
 
-def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance, parts: list[_LoopData]) -> np.ndarray | None:
+def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance) -> np.ndarray | None:
     """A box ``(2, 3)`` (rows ``lo, hi``) containing the face, padded by its edges' tolerances
-    and ``t.linear``; None when an edge's curve has no proven box (:func:`_use_box`) or the
+    and ``t.linear``; None when an edge's curve has no proven box (:func:`_use_boxes`) or the
     surface's type is not handled (:func:`_interior_extremes`).
 
     Each coordinate ``x_k ∘ S`` is a smooth function of ``(u, v)`` on the face's parameter
     region ``D`` (compact), so its extremes lie on ``∂D`` or at interior critical points.  The
     image of ``∂D`` lies within the edge tolerances of the edge curves (``S(pcurve(t)) ≈
-    curve(t)``; a gap at a pole maps to the vertex there), boxed by :func:`_use_box`.  The
+    curve(t)``; a gap at a pole maps to the vertex there), boxed by :func:`_use_boxes`.  The
     critical points add nothing on a plane (``x_k`` affine in ``(u, v)``), a cylinder or a cone
     (``x_k`` is affine along each ruling ``u = const``, so where its gradient vanishes it is
     constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
-    if any(ld.box is None for ld in parts):
+    if any(ld.box is None for ld in d.loops):
         return None
-    B = np.stack([ld.box for ld in parts])
+    B = np.stack([ld.box for ld in d.loops])
     lo, hi = B[:, 0].min(axis=0), B[:, 1].max(axis=0)
-    tol = max(ld.tol for ld in parts)
+    tol = max(ld.tol for ld in d.loops)
     # The parameter box that surely holds D: the samples' segment boxes (padded by the chords
     # of the curved p-curves) and the enlarged uv_box.
     ub = (min(d.uv_box[0][0], float(d.seg_lo[:, 0].min())), max(d.uv_box[0][1], float(d.seg_hi[:, 0].max())))
@@ -3105,7 +3112,7 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     (at least ``tol.linear``).  An unchanged edge use can only be split by a foreign vertex
     (``face_foreign``, the foreign vertices in an unchanged face's box, else
     ``foreign_of[operand of the use]``; a new use has none and is never clear): a use is clear
-    when no such vertex lies in its box (:func:`_use_box`) padded by both tolerances.  All uses
+    when no such vertex lies in its box (:func:`_use_boxes`) padded by both tolerances.  All uses
     of one group against all their foreign vertices in one array test (a plate face with many
     holes has many edges).
     """
@@ -3167,17 +3174,10 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     return out
 
 
-def _use_box(e: EdgeSpec) -> np.ndarray | None:
-    """:func:`_edge_box` of an edge use, cached per use (an EdgeSpec is immutable).
-
-    The uses of the faces a Boolean result carries over to the next Boolean are the same
-    objects (``_SEWN``): their boxes are computed once for a chain of cuts.
-    """
-    return _use_boxes([e])[0]
-
-
 def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
-    """:func:`_use_box` of each use (one memo look-up for all)."""
+    """:func:`_edge_box` of each use, cached per use (an EdgeSpec is immutable; one memo look-up
+    for all).  The uses of the faces a Boolean result carries over to the next Boolean are the
+    same objects (``_SEWN``): their boxes are computed once for a chain of cuts."""
     out = _USE_BOXES.get_many(edges)
     for k, got in enumerate(out):
         if got is None:

@@ -626,7 +626,7 @@ def _clamp(x: np.ndarray, r: tuple[float, float]) -> np.ndarray:
 
 
 def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
-    """Newton on ``f(s, t) = |c1(s) - c2(t)|² / 2``, clipped to the ranges.
+    """Newton on ``f(s, t) = |c1(s) - c2(t)|² / 2``, kept in the ranges (projected steps, :func:`_step2`).
 
     The full Hessian ``JᵀJ + diag(r·c1'', -r·c2'')`` is used where it is positive definite —
     quadratic convergence at crossings, at closest approaches and at tangential touchings (where
@@ -695,7 +695,7 @@ def _newton_pairs(c1, r1, c2, r2, s, t, t_: Tolerance):
 
 def _step2(s, t, m11, m12, m22, g1, g2, r1, r2):
     """The step ``-M⁻¹ g`` of the symmetric 2x2 systems ``M = [[m11, m12], [m12, m22]]`` from ``(s, t)``,
-    clipped to the ranges; a singular or non-finite system takes no step.
+    projected on the ranges; a singular or non-finite system takes no step.
 
     Projected Newton with an active set (Bertsekas 1982): a parameter on a range end that the
     step would push out stays there and the other takes the step of the one-variable problem
@@ -835,10 +835,10 @@ def intersect_curves(c1: Any, range1, c2: Any, range2, tol: Tolerance | None = N
             return fast
     eps = t_.linear
     exact = _exact(c1, r1, c2, r2, t_)
-    if exact is not None:
-        return _with_end_contacts(exact, c1, r1, c2, r2, t_, _end_feet(c1, r1, c2, r2, t_))
-
     feet = _end_feet(c1, r1, c2, r2, t_)
+    if exact is not None:
+        return _with_end_contacts(exact, c1, r1, c2, r2, t_, feet)
+
     line_pair = _nurbs_line(c1, r1, c2, r2, t_) if _FAST else None
     if line_pair is not None:
         s, t, dist = line_pair

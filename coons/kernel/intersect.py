@@ -117,7 +117,7 @@ _FORM_SAMPLES = 24
 _SEARCH_SAMPLES = 512
 #: Steps of the bracketed root solver (_illinois): bisection alone would reach the spacing of doubles
 #: within 2^-64 of a bracket of at most 2π.
-_BISECTIONS = 64
+_ROOT_STEPS = 64
 #: Largest number of interpolated samples for a NURBS p-curve before giving up.
 _MAX_FIT_SAMPLES = 4097
 #: Relative inset from a sphere pole where a p-curve's longitude is taken (sqrt of double eps).
@@ -998,11 +998,8 @@ class _Coord:
         return _illinois(lambda t, k: self(t) - targets[i[k]], grid[j], grid[j + 1], g[i, j], g[i, j + 1])
 
     def _targets(self, bound: float, f0: float, f1: float) -> np.ndarray:
-        """``bound + 2πk`` within ``[f0, f1]`` (only ``bound`` if not periodic)."""
-        if not self.periodic:
-            return np.array([bound]) if f0 <= bound <= f1 else np.zeros(0)
-        k = np.arange(math.ceil((f0 - bound) / TWO_PI), math.floor((f1 - bound) / TWO_PI) + 1)
-        return bound + TWO_PI * k
+        """``bound + 2πk`` within ``[f0, f1]`` (only ``bound`` if not periodic), :func:`_target_values`."""
+        return np.array(_target_values(self.periodic, bound, f0, f1), dtype=np.float64)
 
 
 def _illinois(fn, lo: np.ndarray, hi: np.ndarray, glo: np.ndarray, ghi: np.ndarray) -> np.ndarray:
@@ -1011,14 +1008,14 @@ def _illinois(fn, lo: np.ndarray, hi: np.ndarray, glo: np.ndarray, ghi: np.ndarr
     The Illinois variant of regula falsi (Dowell & Jarratt 1971): superlinear, and the root stays
     bracketed (a false-position point outside its bracket, or not finite, is replaced by the
     midpoint).  A bracket is done when its value is exactly zero or its width is within four
-    ulps of its ends; at most :data:`_BISECTIONS` steps (what bisection to the spacing of doubles
+    ulps of its ends; at most :data:`_ROOT_STEPS` steps (what bisection to the spacing of doubles
     needs).  Where a bracket is done by width the midpoint is returned, else the last point.
     """
     lo, hi, glo, ghi = (np.array(x, dtype=np.float64) for x in (lo, hi, glo, ghi))
     out = 0.5 * (lo + hi)
     side = np.zeros(lo.shape, dtype=np.int8)  # which end moved last: -1 lo, 1 hi
     act = np.arange(lo.size)
-    for _ in range(_BISECTIONS):
+    for _ in range(_ROOT_STEPS):
         width = hi[act] - lo[act]
         done = width <= 4.0 * _EPS * np.maximum(np.abs(lo[act]), np.abs(hi[act]))
         out[act[done]] = 0.5 * (lo[act[done]] + hi[act[done]])
@@ -1275,7 +1272,7 @@ def _exact_crossings(c: "_Coord", bound: float, t0: float, t1: float) -> list[fl
 
 
 def _target_values(periodic: bool, bound: float, f0: float, f1: float) -> list[float]:
-    """``_Coord._targets`` as a list."""
+    """``bound + 2πk`` within ``[f0, f1]`` (only ``bound`` if not periodic), as a list (``_Coord._targets``)."""
     if not periodic:
         return [bound] if f0 <= bound <= f1 else []
     return [bound + TWO_PI * k for k in range(math.ceil((f0 - bound) / TWO_PI), math.floor((f1 - bound) / TWO_PI) + 1)]

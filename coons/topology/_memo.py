@@ -15,7 +15,9 @@ from __future__ import annotations
 import weakref
 from typing import Any, Callable, Iterable
 
-__all__ = ["IdentityMemo", "clear_all", "is_value"]
+import numpy as np
+
+__all__ = ["IdentityMemo", "clear_all", "is_value", "read_only"]
 
 _VALUE_TYPES: dict[type, bool] = {}
 #: Every memo made, so that :func:`clear_all` (benchmarks, tests comparing warm and cold runs)
@@ -27,6 +29,12 @@ def clear_all() -> None:
     """Forget every :class:`IdentityMemo` (results never depend on them, only the time does)."""
     for memo in list(_ALL):
         memo.clear()
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` made read-only in place and returned: the arrays kept in memos are shared, never written."""
+    a.setflags(write=False)
+    return a
 
 
 def is_value(obj: Any) -> bool:
@@ -52,7 +60,9 @@ class IdentityMemo:
     A dict on ``id`` holding a weak reference to each key object (checked on every lookup, so a
     recycled id never finds another object's entry; the reference's callback removes the entry).
     Lookups cost one dict access, unlike :class:`weakref.WeakKeyDictionary`, which makes a new
-    weak reference for each: the checker looks up every coedge of a model.
+    weak reference for each: the checker looks up every coedge of a model.  A value must not
+    refer to its key (directly or through what it holds), or the entry keeps the key alive for
+    good.
     """
 
     def __init__(self) -> None:

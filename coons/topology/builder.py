@@ -869,12 +869,14 @@ class BRepBuilder:
         self.ssolid[void_shell] = self.ssolid[outer_shell]
 
     # ================================================================ build
-    def build(self, *, check: bool = True, caches_from: BRep | None = None) -> BRep:
+    def build(self, *, check: bool = True, caches_from: BRep | None = None, sewn_from: tuple | None = None) -> BRep:
         """Compact killed entities and return an immutable :class:`BRep`.
 
         ``caches_from``: an earlier build of this builder that differs from this one only in how
         shells are grouped into solids (:meth:`nest_shells` since); its meshes and mass integrals
-        are shared with the new B-rep before the check (which then reuses them).
+        are shared with the new B-rep before the check (which then reuses them).  ``sewn_from``:
+        ``(face specs, unchanged faces)`` of a B-rep sewn from specs, recorded for the check
+        (``coons.topology.check._SEWN_FROM``) before it runs.
 
         Raises
         ------
@@ -955,6 +957,10 @@ class BRepBuilder:
 
             share_mass_caches(caches_from, brep)
             share_tessellations(caches_from, brep)
+        if sewn_from is not None:
+            from coons.topology.check import _SEWN_FROM
+
+            _SEWN_FROM[brep] = sewn_from
         if check:
             from coons.topology.check import check as _check
 

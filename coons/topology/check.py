@@ -48,7 +48,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value
+from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]
@@ -350,7 +350,9 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
 
 @dataclass(frozen=True)
 class _PcurveSamples:
-    """The p-curve of every coedge that has one, sampled at the edge's check parameters.
+    """The p-curve of every coedge that has one (except those of faces that passed before,
+    :func:`_trims_passed`: their ``pos`` is -1 as for a coedge without one), sampled at the edge's
+    check parameters.
 
     Row ``k`` is coedge ``coedge[k]``: ``uv[k]`` its p-curve at the ``samples`` parameters of its
     edge (in the edge's direction, whichever side the coedge is), ``speed[k]`` ``max(|Su|, |Sv|)``
@@ -460,17 +462,16 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     miss[hit] = False
     miss = np.flatnonzero(miss)
     uv_h, speed_h, dev_h, ends_h, line_h = _unpacked(H, samples)
-    # Edges to sample: those with a coedge to measure, and those with a curve but no p-curve on a surface.
-    done = np.zeros(rows.size, dtype=bool)
-    done[rr] = True
-    done[rr[miss]] = False
-    # Edges with a coedge to measure are sampled; the others (no p-curve on a surface, or all on
-    # faces that passed before) only need their ends: the same first and last parameters and
-    # points whatever the number of samples.
+    # Edges with a coedge to measure are sampled; those with all coedges measured before take
+    # their ends from the record; the others (no p-curve on a surface, or all on faces that
+    # passed before) only need their ends: the same first and last parameters and points
+    # whatever the number of samples.
     full = np.zeros(rows.size, dtype=bool)
     full[rr[miss]] = True
-    sub = np.flatnonzero(~done & full)
-    ends_only = np.flatnonzero(~done & ~full)
+    sub = np.flatnonzero(full)
+    coedged = np.zeros(rows.size, dtype=bool)
+    coedged[rr] = True
+    ends_only = np.flatnonzero(~coedged)
     Ts, Ps = _edge_samples(b, samples, rows[sub])
     at = np.full(rows.size, -1, dtype=np.int64)
     at[sub] = np.arange(sub.size)
@@ -588,11 +589,6 @@ def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray,
         _SAME_PARAMETER.setdefault(pcurve, dict)[(id(curve), id(surface), r[k][0], r[k][1], samples)] = h
 
 
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
-
-
 # ---------------------------------------------------------------------- trims
 #: B-rep made by :func:`~coons.topology.sew.sew_faces` -> (its face specs in face order, ``(F,)``
 #: bool: the faces equal to their spec, :func:`~coons.topology.sew.sewn_unchanged`).
@@ -653,12 +649,19 @@ def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Toler
     key = _trims_key(t, samples)
     for f in np.flatnonzero(unchanged & ~passed).tolist():
         spec = specs[f]
-        if f not in gapped and is_value(spec):
+        if f not in gapped and _all_values(spec):
             _TRIMS_PASSED.setdefault(spec, set).add(key)
             if (len(spec.loops) >= _PREFIX_LOOPS and type(spec.surface) in (PlanarSurface, CylindricalSurface)
                     and is_value(spec.surface)):
                 refs = [r for r in _PASSED_ON.get(spec.surface, ()) if r() is not None][-(_PREFIX_KEPT - 1):]
                 _PASSED_ON.set(spec.surface, refs + [weakref.ref(spec)])
+
+
+def _all_values(spec) -> bool:
+    """The spec, its surface and every use's curve and p-curve are immutable values (what the
+    recorded checks depend on cannot change under the record)."""
+    return is_value(spec) and is_value(spec.surface) and all(
+        is_value(e.curve) and is_value(e.pcurve) for loop in spec.loops for e in loop)
 
 
 def _trims_key(t: Tolerance, samples: int) -> tuple:

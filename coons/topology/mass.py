@@ -145,7 +145,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value
+from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
@@ -666,11 +666,6 @@ def _pcurve_row(pc) -> tuple[int, list[float]]:
 #: (a Boolean's result) shares with it.  Rows are never modified.
 _SURFACE_ROWS = IdentityMemo()
 _PCURVE_ROWS = IdentityMemo()
-
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 def _flat_nets(nets: list) -> np.ndarray:

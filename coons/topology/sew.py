@@ -55,10 +55,10 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value
+from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
-from coons.topology.check import _SEWN_FROM, check
+from coons.topology.check import _SEWN_FROM
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
@@ -329,7 +329,7 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
         got: list = []
         for li, loop in enumerate(faces[fi].loops):
             c = _LOOP_USES.get(loop[0]) if loop else None
-            if c is not None and len(c[0]) == len(loop) and all(map(operator.is_, c[0], loop)):
+            if c is not None and len(c[0]) == len(loop) - 1 and all(map(operator.is_, c[0], loop[1:])):
                 got.append(c)
                 continue
             got.append(None)
@@ -350,14 +350,14 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
             loop = faces[missing[p]].loops[li]
             sl = slice(at, at + len(loop))
             at += len(loop)
-            c = (tuple(loop), _read_only(R[sl]), _read_only(curve_id[sl]), _read_only(own_tol[sl]),
+            c = (tuple(loop[1:]), _read_only(R[sl]), _read_only(curve_id[sl]), _read_only(own_tol[sl]),
                  _read_only(complete[sl]), all(value[sl]))
             parts[p][li] = c
             if loop and c[5]:
                 _LOOP_USES.set(loop[0], c)
     for p, fi in enumerate(missing):
         got = parts[p]
-        lens = np.array([len(c[0]) for c in got], dtype=np.int64)
+        lens = np.array([c[1].shape[0] for c in got], dtype=np.int64)
         n = int(lens.sum())
         R = np.concatenate([c[1] for c in got]) if got else np.empty((0, 17))
         x = _FaceUses()
@@ -376,9 +376,10 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
     return out  # type: ignore[return-value]
 
 
-#: First use of a loop -> ``(uses, rows (k, 17), curve ids, own tolerances, complete, all curves
-#: values)``: the parts of :class:`_FaceUses` that do not depend on the loop's place in its face
-#: (identity-checked use by use on look-up).  A plate's top gaining a hole keeps its other loops.
+#: First use of a loop -> ``(the other uses, rows (k, 17), curve ids, own tolerances, complete, all
+#: curves values)``: the parts of :class:`_FaceUses` that do not depend on the loop's place in its
+#: face (identity-checked use by use on look-up).  A plate's top gaining a hole keeps its other
+#: loops.  The value holds the loop's other uses, never its key (else the entry would never die).
 _LOOP_USES = IdentityMemo()
 
 
@@ -458,11 +459,6 @@ def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
         if is_value(e.curve):
             _USE_ROWS.set(e, _read_only(row.copy()))
     return out
-
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.setflags(write=False)
-    return a
 
 
 def use_points(faces: Sequence[FaceSpec]) -> np.ndarray:
@@ -973,15 +969,11 @@ def _assemble(
     side_p = np.where(fwd, 0, 1)
     b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
-    brep = b.build(check=False, caches_from=pre)
-    # Which faces equal their spec, known before the check: it skips the trim checks of those
-    # whose spec passed them before (check._TRIMS_PASSED), and the next Boolean on the result
-    # reads its unchanged faces from here (sewn_unchanged_faces).
-    _SEWN_FROM[brep] = (faces, _unchanged_faces(faces, uses, primary, other, thr))
-    report = check(brep, tol=t)
-    if not report.ok:
-        raise TopologyError("the built B-rep is invalid:\n" + report.summary())
-    return Solid(brep)
+    # Which faces equal their spec, recorded before the check: it skips the checks of those whose
+    # spec passed before (check._TRIMS_PASSED), and the next Boolean on the result reads its
+    # unchanged faces from the record (sewn_unchanged_faces).
+    unchanged = _unchanged_faces(faces, uses, primary, other, thr)
+    return Solid(b.build(caches_from=pre, sewn_from=(faces, unchanged)))
 
 
 def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, other: np.ndarray,
@@ -992,7 +984,8 @@ def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, 
     An edge takes the primary use's curve, p-curve and range, the other use's p-curve when both
     share the curve object, and the larger tolerance ``thr``; so the primary use is unchanged
     when its own tolerance is ``thr``, and the other when it also shares the curve and runs over
-    the same range the other way.  A use without a curve or p-curve never is.  All in arrays
+    the same range the other way.  A use without a curve or p-curve, or a face without a
+    surface, never is.  All in arrays
     over the uses' tables (:class:`_FaceUses`: curve ids, own tolerances).
     """
     k = len(uses)
@@ -1002,7 +995,7 @@ def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, 
     ok[primary] = has[primary] & (own[primary] == thr)
     ok[other] = (has[other] & shared & (own[other] == thr)
                  & (uses.t0[other] == uses.t1[primary]) & (uses.t1[other] == uses.t0[primary]))
-    out = np.ones(len(faces), dtype=bool)
+    out = np.array([f.surface is not None for f in faces], dtype=bool)  # (an implicit plane never is)
     np.logical_and.at(out, uses.face, ok)
     return out
 

@@ -684,14 +684,8 @@ def test_straight_clip_preconditions():
 
 # ---------------------------------------------------------------------- data carried from Boolean to Boolean
 def _forget_carried() -> None:
-    """Clear every per-object cache of the pipeline (and the per-B-rep meshes and mass caches)."""
-    from coons.topology import _memo, mass, tessellate
-
-    for cache in (S._SEWN, S._FACE_DATA, S._MERGE_FAILED, S._USE_BOXES, S._USE_SAMPLES):
-        cache.clear()
-    _memo.clear_all()
-    tessellate._MESHES.clear()
-    mass._CACHE.clear()
+    """Clear every cache coons keeps between operations (``solid._forget_caches``)."""
+    S._forget_caches()
 
 
 def _fingerprint(r: Solid) -> tuple:

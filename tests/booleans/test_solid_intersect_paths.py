@@ -151,7 +151,24 @@ def test_phase_3_is_the_same_with_the_cheap_paths_switched_off(name):
     import coons.kernel.intersect as I
 
     a, b = CASES[name]()
-    fast = _phase3(a, b)
+    decided = {"_uniform_side": 0, "_exact_runs": 0}
+    with pytest.MonkeyPatch.context() as m:
+        for fn in decided:
+            real = getattr(I, fn)
+
+            def spy(*args, _real=real, _fn=fn):
+                got = _real(*args)
+                decided[_fn] += got is not None
+                return got
+
+            m.setattr(I, fn, spy)
+        fast = _phase3(a, b)
+    # The cheap paths were taken, so the comparison below tests them (crossing cylinders have no
+    # exact form: marched, neither applies); box - cylinder takes both.
+    if name != "crossing cylinders":
+        assert sum(decided.values()) > 0
+    if name == "box - cylinder":
+        assert all(decided.values())
     with pytest.MonkeyPatch.context() as m:
         m.setattr(I, "_uniform_side", lambda *args: None)
         m.setattr(I, "_exact_runs", lambda *args: None)

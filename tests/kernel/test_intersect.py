@@ -44,6 +44,7 @@ from coons.kernel.conics import perpendicular_direction
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.intersect import IntersectionCurve, SurfaceIntersection, intersect_surfaces
 from coons.kernel.pcurve import Line2D, Trig2D
+from coons.tolerance import DEFAULT_TOLERANCE
 
 TWO_PI = 2.0 * math.pi
 #: Exact forms: points on the surfaces to round-off of unit-sized models.
@@ -212,7 +213,7 @@ def test_plane_cylinder_oblique_ellipse():
 
 def test_plane_cylinder_nearly_perpendicular_circle_within_tolerance():
     # Just past the angular tolerance |cos| rounded above 1 and the ellipse's major radius fell below
-    # its minor one (InvalidGeometryError); the section is a circle within tol.linear there.
+    # its minor one (InvalidGeometryError); the section is a circle there (its semi-axes agree to tol.solver).
     n = np.array([-0.12115988424340453, -0.8630450370912851, 0.4903810216578812])
     axis = np.array([0.12115988414800773, 0.8630450376372517, -0.49038102072057826])
     p = PlanarSurface([-970.9788950755783, -793.2771169902217, -117.459662258246], n, perpendicular_direction(n))
@@ -224,12 +225,12 @@ def test_plane_cylinder_nearly_perpendicular_circle_within_tolerance():
 
 
 @pytest.mark.parametrize("tilt", [2e-9, 1e-7, 1e-6, 2e-6, 1e-5, 1e-3])
-def test_plane_cylinder_small_tilts_circle_or_ellipse_by_linear_tolerance(tilt):
+def test_plane_cylinder_small_tilts_circle_or_ellipse_by_solver_tolerance(tilt):
     # The ellipse's semi-axes differ by R (1/cos - 1): a circle while that is within tol.solver * R.
     n = np.array([math.sin(tilt), 0, math.cos(tilt)])
     (c,) = run(plane([0, 0, 0.5], n), CYL, PLANE_BOX, AXIAL_BOX).curves
     excess = 1.5 * (1.0 / math.cos(tilt) - 1.0)
-    if excess <= 1e-12 * 1.5:
+    if excess <= DEFAULT_TOLERANCE.solver * 1.5:
         assert isinstance(c.curve, Circle) and c.curve.radius == 1.5
     else:
         assert isinstance(c.curve, Ellipse)
@@ -685,7 +686,6 @@ def test_random_plane_sections_satisfy_the_invariants(kind, normal, offset, u_bo
 def _general_coords(surface, curve, window, full):
     """The coordinates from the projected samples and their least-squares form (the closed forms switched off)."""
     import coons.kernel.intersect as I
-    from coons.tolerance import DEFAULT_TOLERANCE
 
     with pytest.MonkeyPatch.context() as m:
         m.setattr(I, "_closed_coords", lambda *a, **k: None)

@@ -497,6 +497,10 @@ def test_sewing_knows_which_faces_it_left_unchanged():
                             [[changed] + list(specs[i].loops[0][1:])] + [list(l) for l in specs[i].loops[1:]])
         mask = agree(mixed)
         assert not mask.all() and mask[:len(cyl)].all()
+    # A face without a surface (an implicit plane) is never unchanged, in the record as in the walk.
+    implicit = list(specs)
+    implicit[i] = FaceSpec(None, specs[i].sense, [list(l) for l in specs[i].loops])
+    assert not agree(implicit)[i]
     # Boolean results: the specs they were sewn from.
     from coons.booleans import solid as S
 
@@ -533,3 +537,24 @@ def test_use_tables_are_assembled_from_cached_loops():
     for f in ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete"):
         assert np.array_equal(getattr(got, f), getattr(fresh, f), equal_nan=getattr(got, f).dtype.kind == "f"), f
     assert got.where[-len(top.loops[1]):, 0].tolist() == [len(top.loops)] * len(top.loops[1])
+
+
+def test_per_loop_memos_die_with_their_loops():
+    """The per-loop tables of sewing and of the Boolean pipeline hold a loop's other uses, not its
+    first (their key): once the specs are gone the entries are gone."""
+    import gc
+
+    from coons.booleans import solid as S
+    from coons.tolerance import resolve
+    from coons.topology.sew import _LOOP_USES, _face_uses
+
+    gc.collect()
+    before = len(_LOOP_USES), len(S._LOOP_DATA)
+    specs = face_specs(Cylinder(1.0, 2.0).translate((3.0, 0.0, 0.0)))
+    _face_uses(specs)
+    for spec in specs:
+        S._face_data(spec, resolve(None))
+    assert len(_LOOP_USES) > before[0] and len(S._LOOP_DATA) > before[1]
+    del specs, spec
+    gc.collect()
+    assert (len(_LOOP_USES), len(S._LOOP_DATA)) == before

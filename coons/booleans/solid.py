@@ -49,7 +49,7 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    or a surface of another type takes its box from the operand's tessellation instead.  The
    pipeline tessellates an operand only when its classifier is first needed (``_Operand.mesh``).
    A face of an earlier Boolean's result that :func:`~coons.topology.sew.sewn_unchanged`
-   confirms is exactly the spec it was sewn from (``_SEWN``) is that spec, with its per-face
+   confirms is exactly the spec it was sewn from (``sew.sewn_from``) is that spec, with its per-face
    data (``_FACE_DATA``, its space box included) already computed.
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
@@ -152,7 +152,7 @@ Status and limitations
   Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
   depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
   compares warm and cold chains): a result remembers the completed face specs it was sewn
-  from (``_SEWN``), and the next Boolean takes every face whose B-rep row is exactly its spec
+  from (``sew.sewn_from``), and the next Boolean takes every face whose B-rep row is exactly its spec
   (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
   that spec's parameter box, space box, rings and segments (``_FACE_DATA``, assembled from
   per-loop data ``_LOOP_DATA``: a plate face gaining a hole reads its other loops' rings,
@@ -190,7 +190,7 @@ Status and limitations
 * n-ary calls: ``difference(a, t0, t1, ...)`` and ``union(s0, s1, ...)`` first gather operands
   whose bounding boxes are pairwise apart into one solid (their B-reps side by side,
   :func:`~coons.topology.disjoint.disjoint_union`: no sewing, no Boolean among them, and their
-  face specs handed on through ``_SEWN``) and run one pipeline pass per such group (a plate
+  face specs handed on through ``sew.sewn_from``) and run one pipeline pass per such group (a plate
   minus 100 separate cylinders is one pass); otherwise and for ``intersection`` they fold
   left: ``(a ∪ b) ∪ c``.
 """
@@ -216,8 +216,8 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
 from coons.topology.disjoint import disjoint_union, padded_box
-from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, sew_faces,
-                               sewn_unchanged_faces, use_points)
+from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, remember_sewn, sew_faces,
+                               sewn_from, sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -374,8 +374,8 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     (:func:`~coons.topology.disjoint.disjoint_union`, no sewing, no check: valid by construction).
 
     The union's faces are the members' faces in order, on the very same geometry objects, so
-    their face specs are handed on as the specs it was "sewn" from (``_SEWN``): a member's own
-    ``_SEWN`` specs when it is an earlier Boolean's result (their per-face data cached), else
+    their face specs are handed on as the specs it was "sewn" from (``sew.sewn_from``): a member's own
+    ``sewn_from`` specs when it is an earlier Boolean's result (their per-face data cached), else
     its :func:`face_specs`; ``_Operand`` takes those :func:`sewn_unchanged_faces` confirms
     instead of reading the faces again.  A union of polyhedral members hands on nothing (the
     polyhedral Booleans, which it most likely meets, read no face specs).
@@ -387,9 +387,9 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
         return out
     specs: list[FaceSpec] = []
     for s in group:
-        sewn = _SEWN.get(s.brep)
+        sewn = sewn_from(s.brep)
         specs += sewn if sewn is not None and len(sewn) == s.brep.n_faces else face_specs(s)
-    _SEWN[out.brep] = specs
+    remember_sewn(out.brep, specs)
     return out
 
 
@@ -463,9 +463,7 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
     faces = _merge(faces, t)
     faces = _fuse_edges(faces, t)
-    out = _sew(faces, t)
-    _SEWN[out.brep] = faces
-    return out
+    return _sew(faces, t)  # (which records the specs the result was sewn from: sew.sewn_from)
 
 
 class _Operand:
@@ -487,7 +485,7 @@ class _Operand:
         # Faces of a Boolean result sewn unchanged from a completed spec are that spec (checked
         # field by field, :func:`sewn_unchanged`); the others are read from the B-rep.
         specs: list[FaceSpec | None] = [None] * F
-        sewn = _SEWN.get(b)
+        sewn = sewn_from(b)
         if sewn is not None and len(sewn) == F:
             for f in np.flatnonzero(sewn_unchanged_faces(b, sewn)).tolist():
                 specs[f] = sewn[f]
@@ -630,7 +628,7 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     """:func:`_edge_uv` of ``e`` on ``S`` with ``_LOOP_SAMPLES``, cached per use (an EdgeSpec is immutable).
 
     The pieces of a split face and the faces a Boolean result carries over to the next Boolean
-    (``_SEWN``) keep the very EdgeSpec objects of their untouched uses: a plate face gaining one
+    (``sew.sewn_from``) keep the very EdgeSpec objects of their untouched uses: a plate face gaining one
     more hole does not sample the edges of its other holes again.
     """
     got = _USE_SAMPLES.get(e)
@@ -719,13 +717,6 @@ class _FaceData:
 #: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
 #: curves and surfaces that are values), so its data never goes stale; entries die with the spec.
 _FACE_DATA: "weakref.WeakKeyDictionary[FaceSpec, _FaceData]" = weakref.WeakKeyDictionary()
-#: Boolean result B-rep -> the completed face specs it was sewn from, in face order.  The next
-#: Boolean on the result takes a face's spec (and so its cached data) from here when
-#: :func:`~coons.topology.sew.sewn_unchanged` confirms the B-rep face is exactly that spec: the
-#: faces of a large part that a cut does not touch are not re-read, re-sampled or re-boxed.
-_SEWN: "weakref.WeakKeyDictionary[BRep, list[FaceSpec]]" = weakref.WeakKeyDictionary()
-
-
 def _forget_caches() -> None:
     """Forget everything coons remembers between operations: per-B-rep meshes and mass caches,
     what a Boolean result carries over (specs sewn, face and loop data, use samples and boxes,
@@ -739,7 +730,7 @@ def _forget_caches() -> None:
     from coons.kernel import curve_intersect, onsurface
     from coons.topology import _memo, check, mass, split, tessellate
 
-    for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _SEWN, _FACE_DATA, _USE_SAMPLES,
+    for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _FACE_DATA, _USE_SAMPLES,
                   curve_intersect._TRIG, curve_intersect._FORMS, curve_intersect._MEMO, onsurface._PERIODS_CACHE,
                   split._FACES, split._MAPPED):
         cache.clear()
@@ -1631,15 +1622,26 @@ def _end_sines(curve, P: np.ndarray, T: np.ndarray, lo_t: float, hi_t: float, re
 
 
 def _edge_box(e: EdgeSpec):
-    """A proven box ``(2, 3)`` around the edge's curve over its range (lines, conics and NURBS, by
-    :func:`~coons.kernel.curve_intersect.curve_box`), or None for other curve types."""
+    """A proven box ``(2, 3)`` around the edge's curve over its range, or None (:func:`_edge_boxes`)."""
+    return _edge_boxes([e])[0]
+
+
+def _edge_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
+    """Proven boxes ``(2, 3)`` around the uses' curves over their ranges (lines, conics and NURBS,
+    together by :func:`~coons.kernel.curve_intersect.curve_boxes`), None for other curve types."""
     from coons.kernel.analytic import Circle, Ellipse, Line
     from coons.kernel.curve import NurbsCurve
-    from coons.kernel.curve_intersect import curve_box
+    from coons.kernel.curve_intersect import curve_boxes
 
-    if not isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)):
-        return None
-    return curve_box(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)))
+    out: list[np.ndarray | None] = [None] * len(edges)
+    boxed = [k for k, e in enumerate(edges) if isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve))]
+    if boxed:
+        uses = [edges[k] for k in boxed]
+        boxes = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
+        boxes.setflags(write=False)
+        for k, box in zip(boxed, boxes):
+            out[k] = box
+    return out
 
 
 def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance) -> None:
@@ -3176,16 +3178,15 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
 
 def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     """:func:`_edge_box` of each use, cached per use (an EdgeSpec is immutable; one memo look-up
-    for all).  The uses of the faces a Boolean result carries over to the next Boolean are the
-    same objects (``_SEWN``): their boxes are computed once for a chain of cuts."""
+    for all, the missing ones boxed together by :func:`_edge_boxes`).  The uses of the faces a
+    Boolean result carries over to the next Boolean are the same objects (``sew.sewn_from``): their boxes
+    are computed once for a chain of cuts."""
     out = _USE_BOXES.get_many(edges)
-    for k, got in enumerate(out):
-        if got is None:
-            e = edges[k]
-            got = _edge_box(e)
-            got = _NO_BOX if got is None else _frozen(np.asarray(got, dtype=np.float64))
-            _USE_BOXES.set(e, got)
-            out[k] = got
+    todo = [k for k, got in enumerate(out) if got is None]
+    if todo:
+        for k, got in zip(todo, _edge_boxes([edges[k] for k in todo])):
+            out[k] = _NO_BOX if got is None else got
+            _USE_BOXES.set(edges[k], out[k])
     return [None if got is _NO_BOX else got for got in out]
 
 
@@ -3285,7 +3286,7 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
 #: ``A -> B -> {(loop, position in A, loop, position in B, tol)}``: pairs of shared uses of two
 #: face specs that :func:`_merge_faces` found it cannot merge.  The test depends only on the two
 #: (immutable) specs, the two uses and the tolerance, so a Boolean result's faces that pass through
-#: the next Boolean unchanged (the same spec objects, see ``_SEWN``) are not tried again: the two
+#: the next Boolean unchanged (the same spec objects, see ``sew.sewn_from``) are not tried again: the two
 #: halves of every hole's wall in a plate would otherwise be re-tested by every later cut.
 _MERGE_FAILED = IdentityMemo()
 
@@ -3344,8 +3345,26 @@ def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
     pers = [(k, p) for k, p in pers if p]
     if not pers:
         return False
-    U = np.concatenate([_edge_uv(e, S, 5) for F in (A, B) for loop in F.loops for e in loop])
+    U = _uses_uv([e for F in (A, B) for loop in F.loops for e in loop], S, 5)
     return any(float(np.ptp(U[:, k])) >= p - 1e-9 * p for k, p in pers)
+
+
+def _uses_uv(edges: list[EdgeSpec], S, n: int) -> np.ndarray:
+    """:func:`_edge_uv` of many uses, stacked ``(m, 2)`` in no particular order: straight and
+    trigonometric p-curves evaluated together, the others one by one."""
+    lines = [e for e in edges if isinstance(e.pcurve, Line2D)]
+    trigs = [e for e in edges if isinstance(e.pcurve, Trig2D)]
+    parts = [_edge_uv(e, S, n) for e in edges if not isinstance(e.pcurve, (Line2D, Trig2D))]
+    if lines:
+        O = np.array([e.pcurve.origin for e in lines])
+        D = np.array([e.pcurve.direction for e in lines])
+        T = np.array([[e.t0, e.t1] for e in lines])
+        parts.append((O[:, None, :] + T[:, :, None] * D[:, None, :]).reshape(-1, 2))
+    if trigs:
+        T = np.linspace([e.t0 for e in trigs], [e.t1 for e in trigs], n, axis=1)[..., None]
+        C, A, B = (np.array([getattr(e.pcurve, k) for e in trigs])[:, None, :] for k in ("center", "a", "b"))
+        parts.append((C + np.cos(T) * A + np.sin(T) * B).reshape(-1, 2))
+    return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 
 #: Edge starts of a face tested against another surface before :func:`_moved_to` re-expresses it.
@@ -3574,7 +3593,7 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
             break  # indices changed: recompute
         if not fused:
             break
-    # Untouched faces stay the same objects (the next Boolean recognises them, see _SEWN).
+    # Untouched faces stay the same objects (the next Boolean recognises them, see sew.sewn_from).
     return [FaceSpec(f.surface, f.sense, loops[fi]) if fi in loops else f for fi, f in enumerate(faces)]
 
 

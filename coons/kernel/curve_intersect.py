@@ -78,7 +78,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 
-__all__ = ["CurveIntersections", "curve_box", "intersect_curves", "refine_intersections"]
+__all__ = ["CurveIntersections", "curve_box", "curve_boxes", "intersect_curves", "refine_intersections"]
 
 #: Pieces per full turn of a conic: the chord box margin h² M / 8 is then below 2 % of the radius.
 _CONIC_PIECES_PER_TURN = 32
@@ -462,24 +462,76 @@ def curve_box(curve: Any, t_range, tol: Tolerance | None = None) -> np.ndarray:
     return np.stack([lo.min(axis=0), hi.max(axis=0)])
 
 
+def curve_boxes(curves: list, lo, hi, tol: Tolerance | None = None) -> np.ndarray:
+    """:func:`curve_box` of many curves at once: ``(n, 2, d)``, rows ``lo, hi`` of each curve over its range.
+
+    Lines and arcs (circles, ellipses, ``Trig2D``) are boxed together by array formulas
+    (:func:`_trig_boxes`); other curves one by one by :func:`curve_box`.  All curves must have
+    dimension ``d``.
+
+    Parameters
+    ----------
+    curves : list of n curves
+    lo, hi : (n,) array_like, the parameter ranges (either order)
+
+    Raises
+    ------
+    InvalidInputError
+        As :func:`curve_box`; curves of different dimensions.
+    """
+    t_ = resolve(tol)
+    a, b = np.asarray(lo, dtype=np.float64).reshape(-1), np.asarray(hi, dtype=np.float64).reshape(-1)
+    n = len(curves)
+    if a.size != n or b.size != n:
+        raise InvalidInputError(f"curve_boxes needs one range per curve: {n} curves, {a.size} and {b.size} ends")
+    if n == 0:
+        return np.zeros((0, 2, 0))
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(a != b)):
+        k = int(np.flatnonzero(~(np.isfinite(a) & np.isfinite(b) & (a != b)))[0])
+        raise InvalidInputError(f"range {k} must be two finite, different numbers, got ({a[k]!r}, {b[k]!r})")
+    a, b = np.minimum(a, b), np.maximum(a, b)
+    dims = {_dimension(c, "curve") for c in curves}
+    if len(dims) != 1:
+        raise InvalidInputError(f"curve_boxes needs curves of one dimension, got {sorted(dims)}")
+    d = dims.pop()
+    out = np.empty((n, 2, d))
+    lines, arcs, other = [], [], []
+    for k, c in enumerate(curves):
+        (lines if isinstance(c, (Line, Line2D)) else arcs if isinstance(c, (Circle, Ellipse, Trig2D)) else other).append(k)
+    if lines:
+        O = np.array([curves[k].origin for k in lines], dtype=np.float64)
+        D = np.array([curves[k].direction for k in lines], dtype=np.float64)
+        P0, P1 = O + a[lines, None] * D, O + b[lines, None] * D
+        out[lines, 0], out[lines, 1] = np.minimum(P0, P1), np.maximum(P0, P1)
+    if arcs:
+        forms = [_trig_form(curves[k]) for k in arcs]
+        C, A, B = (np.array([f[i] for f in forms], dtype=np.float64) for i in range(3))
+        out[arcs] = _trig_boxes(C, A, B, a[arcs], b[arcs])
+    for k in other:
+        out[k] = curve_box(curves[k], (a[k], b[k]), t_)
+    return out
+
+
 def _trig_box(curve: Any, lo: float, hi: float) -> np.ndarray:
-    """The exact box ``(2, d)`` of the arc ``C + A cos t + B sin t``, ``t ∈ [lo, hi]``.
+    """The exact box ``(2, d)`` of one arc ``C + A cos t + B sin t``, ``t ∈ [lo, hi]`` (:func:`_trig_boxes`)."""
+    C, A, B = _trig_form(curve)
+    return _trig_boxes(C[None], A[None], B[None], np.array([lo]), np.array([hi]))[0]
+
+
+def _trig_boxes(C: np.ndarray, A: np.ndarray, B: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The exact boxes ``(n, 2, d)`` of the arcs ``C + A cos t + B sin t``, ``t ∈ [lo, hi]`` (rows ``(n, d)``).
 
     Coordinate ``k`` peaks at ``C_k + hypot(A_k, B_k)`` where ``t = atan2(B_k, A_k)`` (mod 2π) and
-    bottoms out ``π`` later; an extremum inside the range replaces the end points' value.  Scalar
-    arithmetic per coordinate: one call boxes one arc, where numpy's per-call cost would dominate.
+    bottoms out ``π`` later; an extremum inside the range replaces the end points' value.
     """
-    C, A, B = _trig_form(curve)
-    c0, s0, c1, s1 = math.cos(lo), math.sin(lo), math.cos(hi), math.sin(hi)
-    box = np.empty((2, C.size))
-    for k, (ck, ak, bk) in enumerate(zip(C.tolist(), A.tolist(), B.tolist())):
-        e0, e1 = ck + ak * c0 + bk * s0, ck + ak * c1 + bk * s1
-        amp, peak = math.hypot(ak, bk), math.atan2(bk, ak)
-        top = peak + _TWO_PI * math.ceil((lo - peak) / _TWO_PI)  # the first maximum at or after lo
-        bottom = peak + math.pi + _TWO_PI * math.ceil((lo - peak - math.pi) / _TWO_PI)
-        box[0, k] = ck - amp if bottom <= hi else min(e0, e1)
-        box[1, k] = ck + amp if top <= hi else max(e0, e1)
-    return box
+    lo, hi = lo[:, None], hi[:, None]
+    e0 = C + A * np.cos(lo) + B * np.sin(lo)
+    e1 = C + A * np.cos(hi) + B * np.sin(hi)
+    amp, peak = np.hypot(A, B), np.arctan2(B, A)
+    top = peak + _TWO_PI * np.ceil((lo - peak) / _TWO_PI)  # the first maximum at or after lo
+    bottom = peak + math.pi + _TWO_PI * np.ceil((lo - peak - math.pi) / _TWO_PI)
+    return np.stack([np.where(bottom <= hi, C - amp, np.minimum(e0, e1)),
+                     np.where(top <= hi, C + amp, np.maximum(e0, e1))], axis=1)
 
 
 def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Tolerance | None = None

@@ -1122,6 +1122,25 @@ def sewn_unchanged(b: BRep, f: int, spec: FaceSpec) -> bool:
     return bool(sewn_unchanged_faces(b, [spec], rows=[f])[0])
 
 
+def sewn_from(b: BRep) -> list[FaceSpec] | None:
+    """The face specs (in face order) B-rep ``b`` was sewn from, when it was (:func:`sew_faces`,
+    or recorded by :func:`remember_sewn`); None otherwise."""
+    known = _SEWN_FROM.get(b)
+    return None if known is None else known[0]
+
+
+def remember_sewn(b: BRep, specs: Sequence[FaceSpec]) -> None:
+    """Record that B-rep ``b``'s faces are made from ``specs`` (face order), as :func:`sew_faces`
+    records it while building: which faces equal their spec is found by walking the B-rep
+    (:func:`sewn_unchanged_faces`).  For a B-rep assembled without sewing (a disjoint union of
+    solids on their own geometry objects)."""
+    specs = list(specs)
+    if len(specs) != b.n_faces:
+        raise InvalidInputError(f"remember_sewn needs one spec per face: {len(specs)} specs, {b.n_faces} faces")
+    _SEWN_FROM.pop(b, None)
+    _SEWN_FROM[b] = (specs, sewn_unchanged_faces(b, specs))
+
+
 def sewn_unchanged_faces(b: BRep, specs: Sequence[FaceSpec], rows: Sequence[int] | None = None) -> np.ndarray:
     """:func:`sewn_unchanged` of many faces at once: ``(n,)`` bool for face ``rows[i]`` (default ``i``) and ``specs[i]``.
 

@@ -19,6 +19,7 @@ from coons.booleans import solid as S
 from coons.errors import BooleanError, InvalidInputError
 from coons.topology.primitives import Box, Cone, Cylinder, Sphere, Torus
 from coons.topology.shape import Solid
+from coons.topology.sew import remember_sewn, sewn_from
 
 PI = math.pi
 RTOL = 1e-7
@@ -348,7 +349,7 @@ def test_n_ary_difference_gathers_apart_tools():
     assert _ok(g).brep.n_solids == 9
     _vol(g, 9 * 4 * PI * 20)
     # The gathered operand hands on the tools' face specs, each confirmed to be its face.
-    assert np.all(sewn_unchanged_faces(g.brep, S._SEWN[g.brep]))
+    assert np.all(sewn_unchanged_faces(g.brep, sewn_from(g.brep)))
     r = _ok(S.difference(plate, *tools))
     seq = plate
     for tool in tools:
@@ -733,7 +734,7 @@ def test_operand_takes_carried_faces_with_the_data_a_cold_set_up_computes():
     t = S.resolve(None)
     r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
     r = S.difference(r, Cylinder(1, 10).translate((5, 5, 0)), method="brep")
-    sewn = S._SEWN[r.brep]
+    sewn = sewn_from(r.brep)
     warm = S._Operand(r, "A", t)
     assert all(a is b for a, b in zip(warm.specs, sewn))  # every face carried over
     _forget_carried()
@@ -760,12 +761,12 @@ def test_operand_reads_faces_the_sewing_changed_from_the_brep():
     """A face whose B-rep row differs from the spec it was sewn from (here: a tolerance) is read again."""
     t = S.resolve(None)
     r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
-    sewn = list(S._SEWN[r.brep])
+    sewn = list(sewn_from(r.brep))
     f0 = sewn[0]
     e = f0.loops[0][0]
     other = S.EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) * 2 + 1e-9)
     sewn[0] = S.FaceSpec(f0.surface, f0.sense, [[other] + list(f0.loops[0][1:])] + [list(l) for l in f0.loops[1:]])
-    S._SEWN[r.brep] = sewn
+    remember_sewn(r.brep, sewn)
     op = S._Operand(r, "A", t)
     assert op.specs[0] is not sewn[0] and op.specs[0].loops[0][0].tol == e.tol
     assert all(a is b for a, b in zip(op.specs[1:], sewn[1:]))

@@ -25,7 +25,8 @@ from hypothesis import strategies as st
 from coons.errors import InvalidInputError
 from coons.kernel.analytic import Circle, Ellipse, Line
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.curve_intersect import CurveIntersections, curve_box, intersect_curves, refine_intersections
+from coons.kernel.curve_intersect import (CurveIntersections, curve_box, curve_boxes, intersect_curves,
+                                          refine_intersections)
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance
 
@@ -469,6 +470,40 @@ def test_curve_boxes_of_line_and_conic_arcs_contain_them():
             lo, hi = curve_box(c, (t0, t1))
             P = np.asarray(c.evaluate(np.linspace(t0, t1, 2001)))
             assert np.all(P >= lo - 1e-12) and np.all(P <= hi + 1e-12)
+
+
+def test_curve_boxes_are_curve_box_of_each():
+    """curve_boxes (the batched boxes of the Booleans' edge uses) gives each curve's curve_box, for a
+    mixed batch of lines, arcs and NURBS in either range order, and refuses bad batches."""
+    rng = np.random.default_rng(7)
+    curves, lo, hi = [], [], []
+    for _ in range(15):
+        axis, x, centre = rng.normal(size=3), rng.normal(size=3), rng.uniform(-5, 5, 3)
+        t0 = rng.uniform(-7, 7)
+        t1 = t0 + rng.uniform(0.1, 9.0)
+        for c in (Line(centre, x), Circle(centre, axis, x, rng.uniform(0.1, 3)),
+                  Ellipse(centre, axis, x, 3.0, rng.uniform(0.1, 3.0))):
+            flip = rng.random() < 0.5
+            curves.append(c)
+            lo.append(t1 if flip else t0)
+            hi.append(t0 if flip else t1)
+    curves.append(NurbsCurve([[0, 0, 0], [1, 3, 1], [2, -3, 0], [3, 1, 2], [4, 0, 0]], [0, 0, 0, 0, 0.4, 1, 1, 1, 1], 3,
+                             [1, 2, 0.5, 1, 1]))
+    lo.append(0.9)
+    hi.append(0.1)
+    boxes = curve_boxes(curves, lo, hi)
+    assert boxes.shape == (len(curves), 2, 3)
+    for c, a, b, box in zip(curves, lo, hi, boxes):
+        np.testing.assert_allclose(box, curve_box(c, (a, b)), rtol=0, atol=1e-12)
+    planar = [Trig2D([0.3, -0.2], [2.0, 0.5], [-0.3, 1.0]), Line2D([0, 0], [1, 2])]
+    np.testing.assert_allclose(curve_boxes(planar, [0.2, -1.0], [5.0, 1.0])[0], curve_box(planar[0], (0.2, 5.0)),
+                               rtol=0, atol=1e-12)
+    with pytest.raises(InvalidInputError, match="one dimension"):
+        curve_boxes([curves[0], planar[0]], [0, 0], [1, 1])
+    with pytest.raises(InvalidInputError, match="finite, different"):
+        curve_boxes(curves[:2], [0.0, 1.0], [1.0, 1.0])
+    with pytest.raises(InvalidInputError, match="one range per curve"):
+        curve_boxes(curves[:2], [0.0], [1.0])
 
 
 # ====================================================================== scalar fast paths

@@ -26,7 +26,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.topology.check import check
 from coons.topology.from_mesh import from_mesh
 from coons.topology.primitives import Box, Cone, Cylinder, Sphere, Torus
-from coons.topology.sew import EdgeSpec, FaceSpec, _affine_pcurve, face_specs, sew_faces
+from coons.topology.sew import EdgeSpec, FaceSpec, _affine_pcurve, face_specs, sew_faces, sewn_from
 from coons.topology.transform import Pos, Rot
 
 #: Volumes and areas of a re-sewn solid are computed from the same geometry: round-off only.
@@ -469,6 +469,27 @@ def _walked(b, specs):
     return sewn_unchanged_faces(b, specs, rows=list(range(len(specs))))
 
 
+def test_remember_sewn_records_specs_and_the_walked_mask():
+    """remember_sewn (for B-reps assembled without sewing) records the specs and the walk's mask,
+    which sewn_from and sewn_unchanged_faces then answer from; one spec per face or it refuses."""
+    from coons.errors import InvalidInputError
+    from coons.topology.sew import remember_sewn, sewn_unchanged_faces
+
+    specs = face_specs(Cylinder(1.0, 2.0))
+    b = sew_faces(specs).brep
+    changed = list(specs)
+    e = specs[0].loops[0][0]
+    changed[0] = FaceSpec(specs[0].surface, specs[0].sense,
+                          [[EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, (e.tol or 0.0) + 1e-9)] + list(specs[0].loops[0][1:])]
+                          + [list(l) for l in specs[0].loops[1:]])
+    remember_sewn(b, changed)
+    assert all(x is y for x, y in zip(sewn_from(b), changed, strict=True))
+    assert sewn_unchanged_faces(b, changed).tolist() == _walked(b, changed).tolist() == [False] + [True] * (len(specs) - 1)
+    with pytest.raises(InvalidInputError, match="one spec per face"):
+        remember_sewn(b, changed[1:])
+    assert all(x is y for x, y in zip(sewn_from(b), changed, strict=True))  # (a refused record leaves the old one)
+
+
 def test_sewing_knows_which_faces_it_left_unchanged():
     """The mask sew_faces works out in arrays while sewing equals the walk over the built B-rep:
     on specs sewn as they are, on specs whose shared uses disagree (a wider tolerance on one side,
@@ -512,7 +533,7 @@ def test_sewing_knows_which_faces_it_left_unchanged():
                S.union(Box(2, 2, 2), Box(2, 2, 2).translate((2.0, 0.0, 0.0)), method="brep"),
                Cylinder(2.0, 20.0) + Cylinder(1.5, 10.0, direction=(1, 0, 0)).translate((5.0, 0.0, 0.0))]
     for r in results:
-        specs = S._SEWN[r.brep]
+        specs = sewn_from(r.brep)
         assert _SEWN_FROM[r.brep][1].tolist() == _walked(r.brep, specs).tolist()
 
 

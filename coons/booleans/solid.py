@@ -211,6 +211,7 @@ from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
+from coons.kernel.onsurface import curve_derivatives
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
@@ -2550,14 +2551,23 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
             except (CoonsError, ValueError, ArithmeticError):
                 ok[r] = False
 
-    def tangent(curve, r):
-        T[r] = np.asarray(curve.derivatives(s[r], 1), dtype=np.float64).reshape(r.size, 2, 3)[:, 1]
-
-    def on_x(pc, r):
-        uv_x[r] = np.asarray(pc.evaluate(s[r]), dtype=np.float64).reshape(r.size, 2)
-
-    def on_y(pc, r):
-        uv_y[r] = np.asarray(pc.evaluate(s[r]), dtype=np.float64).reshape(r.size, 2)
+    def along(objects: list, order: int, d: int, out: np.ndarray) -> None:
+        """Curves at ``s`` in one pass (:func:`~coons.kernel.onsurface.curve_derivatives`); when that
+        fails, per object, the rows of a failing one not ok."""
+        try:
+            out[:] = curve_derivatives(objects, s[:, None], order, d)[:, 0, order]
+            return
+        except (CoonsError, ValueError, ArithmeticError):
+            pass
+        groups: dict[int, list[int]] = {}
+        for i, obj in enumerate(objects):
+            groups.setdefault(id(obj), []).append(i)
+        for rows in groups.values():
+            r = np.asarray(rows)
+            try:
+                out[r] = curve_derivatives([objects[rows[0]]] * r.size, s[r, None], order, d)[:, 0, order]
+            except (CoonsError, ValueError, ArithmeticError):
+                ok[r] = False
 
     def normal_x(S, r):
         n_x[r] = np.asarray(S.normal(uv_x[r, 0], uv_x[r, 1]), dtype=np.float64).reshape(r.size, 3)
@@ -2566,9 +2576,9 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         D = np.asarray(S.derivatives(uv_y[r, 0], uv_y[r, 1], 1), dtype=np.float64).reshape(r.size, 2, 2, 3)
         Su[r], Sv[r] = D[:, 1, 0], D[:, 0, 1]
 
-    grouped(lambda c: c[2].curve, tangent)
-    grouped(lambda c: c[2].pcurve, on_x)
-    grouped(lambda c: c[5], on_y)
+    along([c[2].curve for c in cand], 1, 3, T)
+    along([c[2].pcurve for c in cand], 0, 2, uv_x)
+    along([c[5] for c in cand], 0, 2, uv_y)
     grouped(lambda c: c[1].surface, normal_x)
     grouped(lambda c: Y.specs[c[4]].surface, frame_y)
     forward = np.array([c[2].t1 > c[2].t0 for c in cand])
@@ -3351,19 +3361,15 @@ def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
 
 def _uses_uv(edges: list[EdgeSpec], S, n: int) -> np.ndarray:
     """:func:`_edge_uv` of many uses, stacked ``(m, 2)`` in no particular order: straight and
-    trigonometric p-curves evaluated together, the others one by one."""
-    lines = [e for e in edges if isinstance(e.pcurve, Line2D)]
+    trigonometric p-curves evaluated together (:func:`~coons.kernel.onsurface.curve_derivatives`),
+    the others one by one."""
     trigs = [e for e in edges if isinstance(e.pcurve, Trig2D)]
     parts = [_edge_uv(e, S, n) for e in edges if not isinstance(e.pcurve, (Line2D, Trig2D))]
-    if lines:
-        O = np.array([e.pcurve.origin for e in lines])
-        D = np.array([e.pcurve.direction for e in lines])
-        T = np.array([[e.t0, e.t1] for e in lines])
-        parts.append((O[:, None, :] + T[:, :, None] * D[:, None, :]).reshape(-1, 2))
-    if trigs:
-        T = np.linspace([e.t0 for e in trigs], [e.t1 for e in trigs], n, axis=1)[..., None]
-        C, A, B = (np.array([getattr(e.pcurve, k) for e in trigs])[:, None, :] for k in ("center", "a", "b"))
-        parts.append((C + np.cos(T) * A + np.sin(T) * B).reshape(-1, 2))
+    lines = [e for e in edges if isinstance(e.pcurve, Line2D)]
+    for group, k in ((lines, 2), (trigs, n)):
+        if group:
+            T = np.linspace([e.t0 for e in group], [e.t1 for e in group], k, axis=1)
+            parts.append(curve_derivatives([e.pcurve for e in group], T, 0, 2).reshape(-1, 2))
     return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 

@@ -54,7 +54,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface
 from coons.tolerance import Tolerance, resolve
 
-__all__ = ["cheap_pcurves_many", "evaluate_curves", "pcurve_on", "pcurves_on"]
+__all__ = ["cheap_pcurves_many", "curve_derivatives", "evaluate_curves", "pcurve_on", "pcurves_on"]
 
 _log = logging.getLogger("coons")
 
@@ -693,33 +693,80 @@ def evaluate_curves(curves: list, T: np.ndarray) -> np.ndarray:
     """Points of many 3-D curves at once: ``curves[k]`` at the parameters ``T[k]``, ``(k, n, 3)``.
 
     Lines and circles (most edges of a model) are evaluated in one expression each, with the
-    formulas of their own ``evaluate``; any other curve is called once.
+    formulas of their own ``evaluate``; any other curve is called once (:func:`curve_derivatives`).
 
     Raises
     ------
     InvalidInputError, ValueError
         Non-finite parameters, or a curve whose points are not 3-D.
     """
+    return curve_derivatives(curves, T, 0, 3)[..., 0, :]
+
+
+def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: int | None = None) -> np.ndarray:
+    """Points and derivatives of many curves at once: ``curves[k]`` at the parameters ``T[k]``,
+    ``(k, n, order + 1, d)``.
+
+    Lines and circles in space and straight and trigonometric p-curves (``Line2D``, ``Trig2D``)
+    are evaluated in one expression per type with the formulas of their own ``derivatives``;
+    any other curve is called once.  ``d`` is ``dimension``, or the first curve's.
+
+    Raises
+    ------
+    InvalidInputError, ValueError
+        Non-finite parameters, or a curve of another dimension.
+    """
     T = np.asarray(T, dtype=np.float64)
     if not np.isfinite(T).all():
         raise InvalidInputError("parameters must be finite, got NaN or inf")
-    X = np.empty(T.shape + (3,))
-    kind = np.array([1 if type(c) is Line else 2 if type(c) is Circle else 0 for c in curves], dtype=np.int64)
-    L = np.flatnonzero(kind == 1)
-    if L.size:
-        O = np.array([curves[i].origin for i in L])
-        D = np.array([curves[i].direction for i in L])
-        X[L] = O[:, None, :] + T[L][..., None] * D[:, None, :]
-    C = np.flatnonzero(kind == 2)
-    if C.size:
-        F = np.array([curves[i].frame for i in C])
-        R = np.array([float(curves[i].radius) for i in C])[:, None]
-        O = np.array([curves[i].center for i in C])
-        t = T[C]
-        X[C] = ((R * np.cos(t))[..., None] * F[:, None, 0, :] + (R * np.sin(t))[..., None] * F[:, None, 1, :]) + O[:, None, :]
-    for i in np.flatnonzero(kind == 0):
-        X[i] = np.asarray(curves[i].evaluate(T[i]), dtype=np.float64)
+    k = len(curves)
+    kind = np.array([_BATCHED_KIND.get(type(c), 0) for c in curves], dtype=np.int64)
+    if dimension is None:
+        if k == 0 or kind[0]:
+            dimension = 0 if k == 0 else 2 if kind[0] in (3, 4) else 3
+        else:
+            dimension = int(np.asarray(curves[0].derivatives(T[0][:1], 0)).shape[-1])
+    X = np.empty(T.shape + (order + 1, dimension))
+    for code, d in ((1, 3), (2, 3), (3, 2), (4, 2)):
+        rows = np.flatnonzero(kind == code)
+        if not rows.size:
+            continue
+        if d != dimension:
+            raise ValueError(f"curve {int(rows[0])} ({type(curves[int(rows[0])]).__name__}) is not {dimension}-D")
+        t = T[rows][..., None]
+        if code in (1, 3):  # O + t D
+            O = np.array([curves[i].origin for i in rows])[:, None, :]
+            D = np.array([curves[i].direction for i in rows])[:, None, :]
+            X[rows, :, 0] = O + t * D
+            if order >= 1:
+                X[rows, :, 1] = D
+                X[rows, :, 2:] = 0.0
+            continue
+        if code == 2:  # O + (R cos t) X + (R sin t) Y
+            F = np.array([curves[i].frame for i in rows])
+            R = np.array([float(curves[i].radius) for i in rows])[:, None, None]
+            O, A, B = np.array([curves[i].center for i in rows]), F[:, None, 0, :], F[:, None, 1, :]
+        else:  # C + cos t a + sin t b
+            O = np.array([curves[i].center for i in rows])
+            A = np.array([curves[i].a for i in rows])[:, None, :]
+            B = np.array([curves[i].b for i in rows])[:, None, :]
+            R = 1.0
+        c, sn = np.cos(t), np.sin(t)
+        cycle = ((c, sn), (-sn, c), (-c, -sn), (sn, -c))  # d^j/dt^j (cos t, sin t), period 4
+        for j in range(order + 1):
+            cj, sj = cycle[j % 4]
+            X[rows, :, j] = (R * cj) * A + (R * sj) * B
+        X[rows, :, 0] += O[:, None, :]
+    for i in np.flatnonzero(kind == 0).tolist():
+        D = np.asarray(curves[i].derivatives(T[i], order), dtype=np.float64)
+        if D.shape[-1] != dimension:
+            raise ValueError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
+        X[i] = D.reshape(X[i].shape)
     return X
+
+
+#: Types :func:`curve_derivatives` batches: 1 line, 2 circle, 3 straight and 4 trigonometric p-curve.
+_BATCHED_KIND = {Line: 1, Circle: 2, Line2D: 3, Trig2D: 4}
 
 
 def _cheap_analytic_many(requests: list, t: Tolerance) -> None:

@@ -444,3 +444,35 @@ def test_line2d_many_is_the_constructor_row_by_row():
         Line2D.many([[math.nan, 0.0]], [[1.0, 0.0]])
     with pytest.raises(InvalidGeometryError, match="shapes"):
         Line2D.many(np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+# ====================================================================== batched curve evaluation
+def test_curve_derivatives_are_each_curves_own():
+    """curve_derivatives (lines, circles, Line2D and Trig2D in one expression per type, others one by
+    one) gives each curve's own derivatives; evaluate_curves gives lines' and circles' own points bit
+    for bit (the Booleans' passes compare them with exact equality)."""
+    from coons.kernel.onsurface import curve_derivatives, evaluate_curves
+
+    rng = np.random.default_rng(3)
+    space = []
+    for _ in range(4):
+        o, d, x = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        space += [Line(o, d), Circle(o, d, x, rng.uniform(0.5, 3.0)), Ellipse(o, d, x, 3.0, rng.uniform(0.5, 2.5))]
+    space.append(NurbsCurve([[0, 0, 0], [1, 3, 1], [2, -3, 0], [3, 1, 2]], [0, 0, 0, 0, 1, 1, 1, 1], 3))
+    plane = [Line2D(rng.normal(size=2), rng.normal(size=2)), Trig2D([0.3, -0.2], [2.0, 0.5], [-0.3, 1.0]),
+             NurbsCurve([[0, 0], [1, 3], [2, -3], [3, 1]], [0, 0, 0, 0, 1, 1, 1, 1], 3)]
+    for curves in (space, plane, space[2:]):  # (the last batch starts with a curve called one by one)
+        T = rng.uniform(0.0, 1.0, (len(curves), 5))
+        D = curve_derivatives(curves, T, 3)
+        assert D.shape == (len(curves), 5, 4, 3 if curves is not plane else 2)
+        for c, t, got in zip(curves, T, D):
+            np.testing.assert_allclose(got, c.derivatives(t, 3), rtol=0, atol=1e-12)
+    T = rng.uniform(-5.0, 5.0, (len(space) - 1, 7))
+    X = evaluate_curves(space[:-1], T)
+    for c, t, got in zip(space[:-1], T, X):
+        if isinstance(c, (Line, Circle)):
+            assert np.array_equal(got, c.evaluate(t))
+    with pytest.raises(ValueError, match="is not 3-D"):
+        curve_derivatives([space[0], plane[1]], np.zeros((2, 1)), 1)
+    with pytest.raises(InvalidInputError, match="finite"):
+        curve_derivatives(plane, np.full((3, 1), np.nan))

@@ -210,7 +210,7 @@ import numpy as np
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
-from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
+from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface, surface_derivatives, surface_normals
 from coons.kernel.onsurface import curve_derivatives
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -641,10 +641,10 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
 
 
 def _prefill_samples(specs: list[FaceSpec]) -> None:
-    """Fill :func:`_use_samples` for the uses of ``specs`` not sampled yet whose p-curve is a
-    :class:`Line2D` or :class:`Trig2D`, all of a kind in one array pass (the same expressions as
-    ``_edge_uv``, ``np.linspace`` and the p-curves' ``evaluate``, element by element): the pieces
-    of a Boolean bring many new cut edges."""
+    """Fill :func:`_use_samples` (and :func:`_use_pad`) for the uses of ``specs`` not sampled yet
+    whose p-curve is a :class:`Line2D` or :class:`Trig2D`, all in one array pass
+    (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own formulas): the pieces of a
+    Boolean bring many new cut edges."""
     lines: list[tuple[EdgeSpec, object]] = []
     trigs: list[tuple[EdgeSpec, object]] = []
     for spec in specs:
@@ -659,21 +659,13 @@ def _prefill_samples(specs: list[FaceSpec]) -> None:
                     lines.append((e, S))
                 elif kind is Trig2D:
                     trigs.append((e, S))
-    if lines:
-        T = np.array([[e.t0, e.t1] for e, _ in lines])  # (np.linspace(t0, t1, 2) is exactly that)
-        O = np.array([e.pcurve.origin for e, _ in lines])
-        D = np.array([e.pcurve.direction for e, _ in lines])
-        U = O[:, None, :] + T[..., None] * D[:, None, :]
-        for (e, S), Ue in zip(lines, U):
-            _USE_SAMPLES[e] = (S, _frozen(Ue))
-    if trigs:
-        T = np.linspace([e.t0 for e, _ in trigs], [e.t1 for e, _ in trigs], _LOOP_SAMPLES, axis=-1)
-        C = np.array([e.pcurve.center for e, _ in trigs])[:, None, :]
-        A = np.array([e.pcurve.a for e, _ in trigs])[:, None, :]
-        B = np.array([e.pcurve.b for e, _ in trigs])[:, None, :]
-        U = C + np.cos(T)[..., None] * A + np.sin(T)[..., None] * B
-        for (e, S), Ue in zip(trigs, U):
-            _USE_SAMPLES[e] = (S, _frozen(Ue))
+    for group, n in ((lines, 2), (trigs, _LOOP_SAMPLES)):  # (a straight p-curve: its two ends)
+        if group:
+            T = np.linspace([e.t0 for e, _ in group], [e.t1 for e, _ in group], n, axis=-1)
+            U = curve_derivatives([e.pcurve for e, _ in group], T, 0, 2)[:, :, 0]
+            pad = np.zeros(len(group)) if group is lines else np.linalg.norm(np.diff(U, axis=1), axis=2).max(axis=1)
+            for (e, S), Ue, p in zip(group, U, pad.tolist()):
+                _USE_SAMPLES[e] = (S, _frozen(Ue), p)
 
 
 def _use_pad(e: EdgeSpec, S) -> float:
@@ -2491,8 +2483,8 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
     outside the padded boxes of the loop segments, enlarged by :data:`_LOCAL_CLEARANCE`
     tolerances), where Y's boundary near ``q`` is ``Y_j`` alone.  Pieces with no such cut keep -1.
     A piece takes its first candidate use that passes: the candidates are tested in rounds of
-    one per undecided piece (:func:`_local_tests`, each round in one pass per curve, p-curve and
-    surface object: a plate's face with a hundred hole discs is one surface call).  ``cut``
+    one per undecided piece (:func:`_local_tests`, each round in one array pass: a plate's face with
+    a hundred hole discs is one evaluation).  ``cut``
     (when given) holds the faces that were split: only their pieces have cut edges.
     """
     cand: list[tuple[int, FaceSpec, EdgeSpec, float, int, object]] = []
@@ -2533,29 +2525,20 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
 def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """The local test of :func:`_local_status` for candidates ``(piece, spec, use, s, face of Y,
     p-curve on it)``: ``(k,)`` whether it applies and the cosine whose sign decides (IN when
-    negative).  Every candidate in one pass per curve, p-curve and surface object."""
+    negative).  All candidates in one pass: lines, arcs, planes and surfaces of revolution in one
+    expression per type, other curves and surfaces one call per object."""
     n = len(cand)
     s = np.array([c[3] for c in cand])
     ok = np.ones(n, dtype=bool)
     T, uv_x, uv_y = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 2))
-    n_x, Su, Sv = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    n_x = np.zeros((n, 3))
 
-    def grouped(key, fill) -> None:
-        groups: dict[int, list[int]] = {}
-        for i, c in enumerate(cand):
-            groups.setdefault(id(key(c)), []).append(i)
-        for rows in groups.values():
-            r = np.asarray(rows)
-            try:
-                fill(key(cand[rows[0]]), r)
-            except (CoonsError, ValueError, ArithmeticError):
-                ok[r] = False
-
-    def along(objects: list, order: int, d: int, out: np.ndarray) -> None:
-        """Curves at ``s`` in one pass (:func:`~coons.kernel.onsurface.curve_derivatives`); when that
-        fails, per object, the rows of a failing one not ok."""
+    def batched(objects: list, compute, out: np.ndarray) -> None:
+        """``out[r] = compute(objects[r], r)`` for all rows in one call (lines, arcs, planes and
+        surfaces of revolution in one expression per type); when that fails, per object, the
+        rows of a failing one not ok."""
         try:
-            out[:] = curve_derivatives(objects, s[:, None], order, d)[:, 0, order]
+            out[:] = compute(objects, slice(None))
             return
         except (CoonsError, ValueError, ArithmeticError):
             pass
@@ -2565,22 +2548,18 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         for rows in groups.values():
             r = np.asarray(rows)
             try:
-                out[r] = curve_derivatives([objects[rows[0]]] * r.size, s[r, None], order, d)[:, 0, order]
+                out[r] = compute([objects[rows[0]]] * r.size, r)
             except (CoonsError, ValueError, ArithmeticError):
                 ok[r] = False
 
-    def normal_x(S, r):
-        n_x[r] = np.asarray(S.normal(uv_x[r, 0], uv_x[r, 1]), dtype=np.float64).reshape(r.size, 3)
-
-    def frame_y(S, r):
-        D = np.asarray(S.derivatives(uv_y[r, 0], uv_y[r, 1], 1), dtype=np.float64).reshape(r.size, 2, 2, 3)
-        Su[r], Sv[r] = D[:, 1, 0], D[:, 0, 1]
-
-    along([c[2].curve for c in cand], 1, 3, T)
-    along([c[2].pcurve for c in cand], 0, 2, uv_x)
-    along([c[5] for c in cand], 0, 2, uv_y)
-    grouped(lambda c: c[1].surface, normal_x)
-    grouped(lambda c: Y.specs[c[4]].surface, frame_y)
+    frame = np.zeros((n, 2, 2, 3))
+    batched([c[2].curve for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 1, 3)[:, 0, 1], T)
+    batched([c[2].pcurve for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_x)
+    batched([c[5] for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_y)
+    batched([c[1].surface for c in cand], lambda objs, r: surface_normals(objs, uv_x[r, 0], uv_x[r, 1]), n_x)
+    batched([Y.specs[c[4]].surface for c in cand],
+            lambda objs, r: surface_derivatives(objs, uv_y[r, 0], uv_y[r, 1], 1), frame)
+    Su, Sv = frame[:, 1, 0], frame[:, 0, 1]
     forward = np.array([c[2].t1 > c[2].t0 for c in cand])
     sense_x = np.array([1.0 if c[1].sense else -1.0 for c in cand])
     sense_y = np.array([1.0 if Y.specs[c[4]].sense else -1.0 for c in cand])
@@ -3045,6 +3024,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
     X_all, cand_all = _split_candidates(open_uses, starts, t)
+    cand_all = _off_the_ends(open_uses, X_all, cand_all, starts, start_tol, t)
     at = iter(range(len(open_uses)))
     out = []
     changed_any = False
@@ -3066,18 +3046,14 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 i = next(at)
                 X, cand = X_all[i], cand_all[i]
                 params: list[float] = []
-                if cand:
-                    cand = np.asarray(cand)
+                if cand.size:
                     Q, qt = starts[cand], np.maximum(start_tol[cand], thr)
-                    keep = (np.linalg.norm(Q - X[0], axis=1) > qt) & (np.linalg.norm(Q - X[-1], axis=1) > qt)
-                    Q, qt = Q[keep], qt[keep]
-                    if Q.shape[0]:
-                        lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                        tq = _curve_closest(e.curve, Q, lo, t)
-                        on = (tq > lo) & (tq < hi)
-                        if np.any(on):
-                            d = np.linalg.norm(np.asarray(e.curve.evaluate(tq[on])) - Q[on], axis=1)
-                            params = sorted({float(x) for x in tq[on][d <= qt[on]]}, reverse=e.t1 < e.t0)
+                    lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+                    tq = _curve_closest(e.curve, Q, lo, t)
+                    on = (tq > lo) & (tq < hi)
+                    if np.any(on):
+                        d = np.linalg.norm(np.asarray(e.curve.evaluate(tq[on])) - Q[on], axis=1)
+                        params = sorted({float(x) for x in tq[on][d <= qt[on]]}, reverse=e.t1 < e.t0)
                 if not params:
                     new.append(e)
                     continue
@@ -3115,6 +3091,23 @@ def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) ->
     rad = np.max(np.linalg.norm(X - c[:, None, :], axis=2), axis=1)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     return X, cKDTree(starts).query_ball_point(c, rad * 1.05 + thr)
+
+
+def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
+                  t: Tolerance) -> list[np.ndarray]:
+    """Per use, its candidate vertices (indices into ``starts``, from :func:`_split_candidates`)
+    farther than ``max(their tolerance, the use's)`` from both of the use's ends ``X[:, 0]``,
+    ``X[:, -1]``: only those can split it.  All pairs in one pass (most candidates are the
+    use's own end vertices)."""
+    n = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(cand))
+    flat = np.fromiter((j for c in cand for j in c), dtype=np.int64, count=int(n.sum()))
+    use = np.repeat(np.arange(len(cand)), n)
+    thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
+    Q, qt = starts[flat], np.maximum(start_tol[flat], thr[use])
+    keep = (np.linalg.norm(Q - X[use, 0], axis=1) > qt) & (np.linalg.norm(Q - X[use, -1], axis=1) > qt)
+    first = np.concatenate([[0], np.cumsum(np.bincount(use[keep], minlength=len(cand)))])
+    kept = flat[keep]
+    return [kept[first[i]:first[i + 1]] for i in range(len(cand))]
 
 
 def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict) -> np.ndarray:

@@ -71,8 +71,11 @@ __all__ = [
     "SCALAR_CURVES",
     "angle_to_nurbs_parameter",
     "nurbs_parameter_to_angle",
+    "meridian_row",
     "scalar_parameter",
     "scalar_point",
+    "surface_derivatives",
+    "surface_normals",
 ]
 
 TWO_PI = conics.TWO_PI
@@ -1038,3 +1041,123 @@ class ToroidalSurface(_Revolved):
 
 #: The curve types :func:`scalar_parameter` and :func:`scalar_point` serve.
 SCALAR_CURVES = (Line, Circle)
+
+
+# ---------------------------------------------------------------------------- many surfaces at once
+def meridian_row(S) -> tuple[float, float, float, float, float] | None:
+    """``(α, β, γ, δ, ε)`` of a surface of revolution's meridian ``ρ(v) = α + β v + γ cos v``,
+    ``h(v) = δ v + ε sin v`` (cylinder, cone, sphere, torus; the forms of their ``_meridian``), else None."""
+    if isinstance(S, CylindricalSurface):
+        return S.radius, 0.0, 0.0, 1.0, 0.0
+    if isinstance(S, ConicalSurface):
+        return S.radius, math.sin(S.semi_angle), 0.0, math.cos(S.semi_angle), 0.0
+    if isinstance(S, SphericalSurface):
+        return 0.0, 0.0, S.radius, 0.0, S.radius
+    if isinstance(S, ToroidalSurface):
+        return S.major_radius, 0.0, S.minor_radius, 0.0, S.minor_radius
+    return None
+
+
+def _batch(surfaces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``kind (k,)`` (1 plane, 2 surface of revolution, 0 other), origins ``(k, 3)``, frames
+    ``(k, 3, 3)`` and meridian rows ``(k, 5)`` (zeros where they do not apply)."""
+    k = len(surfaces)
+    kind = np.zeros(k, dtype=np.int64)
+    O, F, M = np.zeros((k, 3)), np.zeros((k, 3, 3)), np.zeros((k, 5))
+    for i, S in enumerate(surfaces):
+        if isinstance(S, PlanarSurface):
+            kind[i], O[i], F[i] = 1, S._origin, S._frame
+        elif isinstance(S, _Revolved):
+            row = meridian_row(S)
+            if row is not None:
+                kind[i], O[i], F[i], M[i] = 2, S._origin, S._frame, row
+    return kind, O, F, M
+
+
+def _meridian_many(M: np.ndarray, v: np.ndarray, order: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """``ρ^(l)(v)`` and ``h^(l)(v)``, ``l <= order``, for meridian rows ``M (k, 5)`` and ``v (k,)``."""
+    c, s = np.cos(v), np.sin(v)
+    a, b, g, d, e = M.T
+    rho = [g * _cos_d(c, s, l) for l in range(order + 1)]
+    h = [e * _sin_d(c, s, l) for l in range(order + 1)]
+    rho[0] = rho[0] + (a + b * v)
+    h[0] = h[0] + d * v
+    if order >= 1:
+        rho[1] = rho[1] + b
+        h[1] = h[1] + d
+    return rho, h
+
+
+def surface_derivatives(surfaces: list, u, v, order: int = 1) -> np.ndarray:
+    """Partials of many surfaces, ``surfaces[i]`` at ``(u[i], v[i])``: ``(k, order + 1, order + 1, 3)``,
+    ``[i, a, b] = ∂^(a+b) S_i / ∂u^a ∂v^b`` (the layout of ``derivatives``).
+
+    Planes and surfaces of revolution (cylinders, cones, spheres, tori: one meridian form,
+    :func:`meridian_row`) are evaluated in one expression each; any other surface is called once.
+
+    Raises
+    ------
+    InvalidInputError
+        Non-finite parameters, or not one ``(u, v)`` per surface.
+    """
+    order = _order(order)
+    u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
+    k = len(surfaces)
+    if u.size != k or v.size != k:
+        raise InvalidInputError(f"surface_derivatives needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
+    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+        raise InvalidInputError("parameters must be finite, got NaN or inf")
+    kind, O, F, M = _batch(surfaces)
+    out = np.zeros((k, order + 1, order + 1, 3))
+    p = np.flatnonzero(kind == 1)
+    if p.size:
+        X, Y = F[p, 0], F[p, 1]
+        out[p, 0, 0] = O[p] + u[p, None] * X + v[p, None] * Y
+        if order >= 1:
+            out[p, 1, 0], out[p, 0, 1] = X, Y
+    r = np.flatnonzero(kind == 2)
+    if r.size:
+        X, Y, Z = F[r, 0], F[r, 1], F[r, 2]
+        c, s = np.cos(u[r])[:, None], np.sin(u[r])[:, None]
+        rho, h = _meridian_many(M[r], v[r], order)
+        for a in range(order + 1):
+            E = _cos_d(c, s, a) * X + _sin_d(c, s, a) * Y
+            for b in range(order + 1):
+                out[r, a, b] = E * rho[b][:, None]
+        for b in range(order + 1):
+            out[r, 0, b] += h[b][:, None] * Z
+        out[r, 0, 0] += O[r]
+    for i in np.flatnonzero(kind == 0).tolist():
+        out[i] = np.asarray(surfaces[i].derivatives(u[i], v[i], order), dtype=np.float64).reshape(out[i].shape)
+    return out
+
+
+def surface_normals(surfaces: list, u, v) -> np.ndarray:
+    """Unit normals of many surfaces, ``surfaces[i]`` at ``(u[i], v[i])``: ``(k, 3)``, as their
+    ``normal`` gives them (a surface of revolution's limit at ``ρ = 0`` included); planes and
+    surfaces of revolution in one expression each (:func:`surface_derivatives`).
+
+    Raises
+    ------
+    InvalidInputError
+        As :func:`surface_derivatives`.
+    """
+    u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
+    k = len(surfaces)
+    if u.size != k or v.size != k:
+        raise InvalidInputError(f"surface_normals needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
+    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+        raise InvalidInputError("parameters must be finite, got NaN or inf")
+    kind, O, F, M = _batch(surfaces)
+    out = np.empty((k, 3))
+    out[kind == 1] = F[kind == 1, 2]
+    r = np.flatnonzero(kind == 2)
+    if r.size:
+        c, s = np.cos(u[r])[:, None], np.sin(u[r])[:, None]
+        e = c * F[r, 0] + s * F[r, 1]
+        rho, h = _meridian_many(M[r], v[r], 1)
+        sign = np.where(rho[0] < 0.0, -1.0, 1.0) / np.hypot(rho[1], h[1])
+        out[r] = (sign * h[1])[:, None] * e - (sign * rho[1])[:, None] * F[r, 2]
+    for i in np.flatnonzero(kind == 0).tolist():
+        out[i] = np.asarray(surfaces[i].normal(u[i], v[i]), dtype=np.float64).reshape(3)
+    return out

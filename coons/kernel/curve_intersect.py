@@ -192,10 +192,10 @@ def _trig_form(curve) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if form is None:
         if isinstance(curve, Trig2D):
             form = (curve.center, curve.a, curve.b)
-        else:
-            D = np.asarray(curve.derivatives(np.zeros(1), 1), dtype=np.float64)[0]
-            C = np.asarray(curve.center, dtype=np.float64)
-            form = (C, D[0] - C, D[1])
+        else:  # C + a cos t X + b sin t Y
+            a, b = (curve.radius, curve.radius) if isinstance(curve, Circle) else (curve.major_radius,
+                                                                                   curve.minor_radius)
+            form = (np.asarray(curve.center, dtype=np.float64), a * curve.frame[0], b * curve.frame[1])
         _TRIG[curve] = form
     return form
 

@@ -756,7 +756,10 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
         for j in range(order + 1):
             cj, sj = cycle[j % 4]
             X[rows, :, j] = (R * cj) * A + (R * sj) * B
-        X[rows, :, 0] += O[:, None, :]
+        if code == 2:
+            X[rows, :, 0] += O[:, None, :]
+        else:  # (Trig2D.evaluate's order of sums: the same points bit for bit)
+            X[rows, :, 0] = O[:, None, :] + c * A + sn * B
     for i in np.flatnonzero(kind == 0).tolist():
         D = np.asarray(curves[i].derivatives(T[i], order), dtype=np.float64)
         if D.shape[-1] != dimension:

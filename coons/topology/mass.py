@@ -139,6 +139,7 @@ from coons.kernel.analytic import (
     PlanarSurface,
     SphericalSurface,
     ToroidalSurface,
+    meridian_row,
 )
 from coons.kernel.conics import perpendicular_direction
 from coons.kernel.curve import NurbsCurve
@@ -635,19 +636,13 @@ def _tables(b: BRep) -> _Tables:
 def _surface_row(S) -> tuple[int, list[float]]:
     """The face code and the row of :class:`_Tables` of one surface (a function of the surface alone)."""
     if isinstance(S, PlanarSurface):
-        k, p, org = _C_PLANE, [0.0, 0.0, 0.0, 0.0, 0.0], S.origin
-    elif isinstance(S, CylindricalSurface):
-        k, p, org = _C_REV_LINEAR, [S.radius, 0.0, 0.0, 1.0, 0.0], S.origin
-    elif isinstance(S, ConicalSurface):
-        a = S.semi_angle
-        k, p, org = _C_REV_LINEAR, [S.radius, math.sin(a), 0.0, math.cos(a), 0.0], S.origin
-    elif isinstance(S, SphericalSurface):
-        k, p, org = _C_REV_CIRCULAR, [0.0, 0.0, S.radius, 0.0, S.radius], S.center
-    elif isinstance(S, ToroidalSurface):
-        k, p, org = _C_REV_CIRCULAR, [S.major_radius, 0.0, S.minor_radius, 0.0, S.minor_radius], S.center
-    else:
+        return _C_PLANE, S.origin.tolist() + S.frame.ravel().tolist() + [0.0, 0.0, 0.0, 0.0, 0.0]
+    p = meridian_row(S)  # (cylinder, cone: ρ, h linear in v; sphere, torus: circular)
+    if p is None:
         return (_C_NURBS if isinstance(S, NurbsSurface) else _C_OTHER), _NO_SURFACE_ROW
-    return k, org.tolist() + S.frame.ravel().tolist() + p
+    k = _C_REV_LINEAR if isinstance(S, (CylindricalSurface, ConicalSurface)) else _C_REV_CIRCULAR
+    org = S.origin if k == _C_REV_LINEAR else S.center
+    return k, org.tolist() + S.frame.ravel().tolist() + list(p)
 
 
 def _pcurve_row(pc) -> tuple[int, list[float]]:

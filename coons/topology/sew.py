@@ -355,23 +355,33 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
             parts[p][li] = c
             if loop and c[5]:
                 _LOOP_USES.set(loop[0], c)
+    # All missing faces in one pass, each face's table a view of the pass's arrays.
+    loops = [c for got in parts for c in got]
+    per_face = np.array([len(got) for got in parts], dtype=np.int64)
+    lens = np.array([c[1].shape[0] for c in loops], dtype=np.int64)
+    n = int(lens.sum())
+    R = np.concatenate([c[1] for c in loops]) if loops else np.empty((0, 17))
+    loop_first = np.cumsum(lens) - lens
+    face_first_loop = np.cumsum(per_face) - per_face
+    loop_in_face = np.arange(lens.size) - np.repeat(face_first_loop, per_face)
+    where = _read_only(np.stack([np.repeat(loop_in_face, lens), np.arange(n) - np.repeat(loop_first, lens),
+                                 np.repeat(lens, lens)], axis=1))
+    points = _read_only(R[:, :9].reshape(n, 3, 3))
+    ranges = _read_only(R[:, 9:12].copy())
+    kind = _read_only(R[:, 12].astype(np.int8))
+    frame = _read_only(R[:, 13:].copy())
+    curve_id = _read_only(np.concatenate([c[2] for c in loops]) if loops else np.empty(0, dtype=np.int64))
+    own_tol = _read_only(np.concatenate([c[3] for c in loops]) if loops else np.empty(0))
+    complete = _read_only(np.concatenate([c[4] for c in loops]) if loops else np.empty(0, dtype=bool))
+    uses_per_face = np.bincount(np.repeat(np.arange(per_face.size), per_face), weights=lens, minlength=per_face.size)
+    bounds = np.concatenate([[0], np.cumsum(uses_per_face.astype(np.int64))]).tolist()
     for p, fi in enumerate(missing):
-        got = parts[p]
-        lens = np.array([c[1].shape[0] for c in got], dtype=np.int64)
-        n = int(lens.sum())
-        R = np.concatenate([c[1] for c in got]) if got else np.empty((0, 17))
+        a, b = bounds[p], bounds[p + 1]
         x = _FaceUses()
-        pos = np.arange(n) - np.repeat(np.cumsum(lens) - lens, lens)
-        x.where = _read_only(np.stack([np.repeat(np.arange(lens.size), lens), pos, np.repeat(lens, lens)], axis=1))
-        x.points = _read_only(R[:, :9].reshape(n, 3, 3))
-        x.ranges = _read_only(R[:, 9:12].copy())
-        x.kind = _read_only(R[:, 12].astype(np.int8))
-        x.frame = _read_only(R[:, 13:].copy())
-        x.curve_id = _read_only(np.concatenate([c[2] for c in got]) if got else np.empty(0, dtype=np.int64))
-        x.own_tol = _read_only(np.concatenate([c[3] for c in got]) if got else np.empty(0))
-        x.complete = _read_only(np.concatenate([c[4] for c in got]) if got else np.empty(0, dtype=bool))
+        x.where, x.points, x.ranges, x.kind = where[a:b], points[a:b], ranges[a:b], kind[a:b]
+        x.frame, x.curve_id, x.own_tol, x.complete = frame[a:b], curve_id[a:b], own_tol[a:b], complete[a:b]
         out[fi] = x
-        if all(c[5] for c in got):
+        if all(c[5] for c in parts[p]):
             _FACE_USES.set(faces[fi], x)
     return out  # type: ignore[return-value]
 

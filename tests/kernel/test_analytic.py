@@ -629,3 +629,40 @@ def test_scalar_parameter_and_point_agree_with_the_array_methods(seed):
     assert scalar_parameter(Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0), [0.0, 0.0, 2.0]) == 0.0  # on the axis
     with pytest.raises(InvalidInputError, match="Line or a Circle"):
         scalar_parameter(object(), P[0])
+
+
+# ====================================================================== many surfaces at once
+def test_surface_derivatives_and_normals_of_many_are_each_surfaces_own():
+    """surface_derivatives / surface_normals (planes and surfaces of revolution in one expression
+    per type, others one call each) give each surface's own partials and normals, at sphere poles
+    and a cone's apex too (the normal's limit); meridian_row is each _meridian's form."""
+    from coons.kernel.analytic import meridian_row, surface_derivatives, surface_normals
+    from coons.kernel.surface import NurbsSurface
+
+    rng = np.random.default_rng(11)
+    surfaces = []
+    for _ in range(3):
+        o, a, x = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        surfaces += [PlanarSurface(o, a, x), CylindricalSurface(o, a, x, 1.5), ConicalSurface(o, a, x, 1.2, 0.4),
+                     SphericalSurface(o, a, x, 2.0), ToroidalSurface(o, a, x, 3.0, 1.0)]
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, 4), np.linspace(0, 1, 4), indexing="ij"), axis=-1)
+    surfaces.append(NurbsSurface(np.concatenate([grid, rng.normal(size=(4, 4, 1))], axis=-1),
+                                 [0, 0, 0, 0, 1, 1, 1, 1], [0, 0, 0, 0, 1, 1, 1, 1], 3, 3))
+    u, v = rng.uniform(0.0, 1.0, len(surfaces)), rng.uniform(0.0, 1.0, len(surfaces))
+    u[3], v[3] = 0.7, math.pi / 2  # a sphere's pole
+    u[2], v[2] = 0.3, -1.2 / math.sin(0.4)  # the cone's apex
+    D, N = surface_derivatives(surfaces, u, v, 3), surface_normals(surfaces, u, v)
+    for S, a, b, d, n in zip(surfaces, u, v, D, N):
+        np.testing.assert_allclose(d, S.derivatives(a, b, 3), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(n, S.normal(a, b), rtol=0, atol=1e-12)
+        row = meridian_row(S)
+        if row is not None:
+            vs = rng.uniform(-1.0, 1.0, 5)
+            al, be, ga, de, ep = row
+            rho, h = S._meridian(vs, 0)
+            np.testing.assert_allclose(rho[0], al + be * vs + ga * np.cos(vs), rtol=0, atol=1e-12)
+            np.testing.assert_allclose(h[0], de * vs + ep * np.sin(vs), rtol=0, atol=1e-12)
+    with pytest.raises(InvalidInputError, match="one \\(u, v\\) per surface"):
+        surface_derivatives(surfaces, u[:-1], v)
+    with pytest.raises(InvalidInputError, match="finite"):
+        surface_normals(surfaces[:1], [np.nan], [0.0])

@@ -449,8 +449,8 @@ def test_line2d_many_is_the_constructor_row_by_row():
 # ====================================================================== batched curve evaluation
 def test_curve_derivatives_are_each_curves_own():
     """curve_derivatives (lines, circles, Line2D and Trig2D in one expression per type, others one by
-    one) gives each curve's own derivatives; evaluate_curves gives lines' and circles' own points bit
-    for bit (the Booleans' passes compare them with exact equality)."""
+    one) gives each curve's own derivatives; the points of lines, circles and straight and
+    trigonometric p-curves are their own bit for bit (the Booleans' passes compare them exactly)."""
     from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 
     rng = np.random.default_rng(3)
@@ -472,6 +472,9 @@ def test_curve_derivatives_are_each_curves_own():
     for c, t, got in zip(space[:-1], T, X):
         if isinstance(c, (Line, Circle)):
             assert np.array_equal(got, c.evaluate(t))
+    T = rng.uniform(-5.0, 5.0, (2, 7))
+    for c, t, got in zip(plane[:2], T, curve_derivatives(plane[:2], T, 0)[:, :, 0]):
+        assert np.array_equal(got, c.evaluate(t))
     with pytest.raises(ValueError, match="is not 3-D"):
         curve_derivatives([space[0], plane[1]], np.zeros((2, 1)), 1)
     with pytest.raises(InvalidInputError, match="finite"):

@@ -779,7 +779,8 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) 
     Lines and circles in closed form: the foot on the line clipped to the range; the polar angle
     about a circle's centre, taken in the range or replaced by the nearer range end.  Other
     curves: seeded at the nearest of :data:`_SEED_SAMPLES` samples, then Newton on
-    ``(C - X)·C' = 0`` clipped to the range (The NURBS Book §6.1).
+    ``(C - X)·C' = 0`` clipped to the range (The NURBS Book §6.1); up to :data:`_SCALAR_SEEDS` points
+    (the range ends of :func:`_end_feet`) on Python floats, each alone (:func:`_project_one`).
 
     ``near``: the caller only compares the distances with it.  A point of a clamped NURBS's
     projection outside every piece box (step 1) enlarged by ``near`` is then farther than ``near``
@@ -815,6 +816,10 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) 
     ts, S = _seed_samples(curve, r)
     d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
     t = ts[np.argmin(d2, axis=1)]
+    form = _scalar_form(curve) if _FAST and X.shape[0] <= _SCALAR_SEEDS else None
+    if form is not None:  # a few points (range ends): each on Python floats, as refine_intersections
+        out = np.array([_project_one(form, r, x, t0, t_) for x, t0 in zip(X.tolist(), t.tolist())]).reshape(-1, 2)
+        return out[:, 0].copy(), out[:, 1].copy()
     for _ in range(_NEWTON_ITERATIONS):
         D = _derivs(curve, t, 2)
         diff = D[:, 0] - X
@@ -829,6 +834,23 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) 
             break
     dist = np.linalg.norm(_derivs(curve, t, 0)[:, 0] - X, axis=1)
     return t, dist
+
+
+def _project_one(form: tuple, r, x: list[float], t: float, t_: Tolerance) -> tuple[float, float]:
+    """The Newton of :func:`_project` for one point ``x`` from the seed ``t`` on Python floats (the same steps; the
+    array version stops when every point's step is small, this one when its own is): ``(t, distance)``."""
+    for _ in range(_NEWTON_ITERATIONS):
+        D = _point1(form, t, 2)
+        diff = [a - b for a, b in zip(D[0], x)]
+        f = _dot(diff, D[1])
+        df = _dot(D[1], D[1]) + _dot(diff, D[2])
+        t_new = min(max(t + (-f / df if df > 0 else 0.0), r[0]), r[1])
+        done = abs(t_new - t) <= t_.solver * (1.0 + abs(t))
+        t = t_new
+        if done:
+            break
+    g = [a - b for a, b in zip(_point1(form, t, 0)[0], x)]
+    return t, math.sqrt(_dot(g, g))
 
 
 # ====================================================================== public

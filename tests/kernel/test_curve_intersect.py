@@ -592,6 +592,24 @@ def test_refine_scalar_path_of_a_nurbs_matches_the_general_path(at, tilt, ds, dt
     assert dist[0] <= 1e-9
 
 
+@pytest.mark.parametrize("shift", [0.0, 0.3, 1e-8, 2.0])
+def test_nurbs_end_feet_on_python_floats_match_the_general_path(shift):
+    """The feet of the range ends on a NURBS (projected one by one on Python floats) and the answers built on
+    them — end contacts, crossings — are the array path's to round-off, for ends on, near and far from it."""
+    c = NurbsCurve([[0, 0], [1, 2], [2, -1], [3, 1], [4, 0.5]], [0, 0, 0, 0, 0.5, 1, 1, 1, 1], 3)
+    Q = np.asarray(c.evaluate(np.array([0.3, 0.8])))
+    other = Line2D(Q[0] + [0.0, shift], Q[1] - Q[0])  # from near c(0.3) to near c(0.8)
+    arc = Trig2D(Q[0] + [0.0, shift] - [0.5, 0.0], [0.5, 0.0], [0.0, 0.5])  # starts near c(0.3)
+    for o, r in ((other, (0.0, 1.0)), (arc, (0.0, 2.0))):
+        fast = intersect_curves(c, (0.0, 1.0), o, r)
+        general = _general(intersect_curves, c, (0.0, 1.0), o, r)
+        assert len(fast) == len(general) and fast.overlaps == general.overlaps
+        np.testing.assert_allclose(fast.points, general.points, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fast.t1, general.t1, rtol=0, atol=1e-9)
+    if shift == 0.0:
+        assert len(intersect_curves(c, (0.0, 1.0), other, (0.0, 1.0))) >= 2  # both ends of the chord lie on c
+
+
 def test_pieces_and_seed_samples_are_remembered_per_curve_and_range():
     """A curve intersected over one range with many others reuses its pieces and seed samples: the
     answers are the same as from a fresh copy of the curve, and the remembered arrays are read-only."""

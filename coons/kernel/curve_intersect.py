@@ -51,8 +51,9 @@ its spans.  Lines and conics are evaluated from their closed forms (``o + t d``,
 on lines and circles are closed forms; the feet of the range ends are computed once per call
 and shared by the seeds, the end contacts and the overlap cuts.  Two crossing 2-D lines (the
 common pair when a face with straight p-curves is split) take the same steps on Python floats
-(:func:`_lines_2d`), and :func:`refine_intersections` of a few seeds on lines and conics
-iterates each seed on Python floats (:func:`_newton_one`): there numpy's per-call cost on
+(:func:`_lines_2d`), and :func:`refine_intersections` of a few seeds on lines, conics and
+polynomial NURBS (their spans' power forms, by Horner) iterates each seed on Python floats
+(:func:`_newton_one`): there numpy's per-call cost on
 one- and two-element arrays was most of the time.  Both agree with the array paths to
 round-off (the module switch ``_FAST`` turns them and :func:`_nurbs_line` off for the tests
 that compare).  Projections that only decide "within ``tol.linear``" skip the Newton of points
@@ -65,6 +66,7 @@ resolve (both are reported as one).
 
 from __future__ import annotations
 
+import bisect
 import math
 import weakref
 from dataclasses import dataclass
@@ -227,6 +229,7 @@ class _PowerForm:
         #: (spans, p + 1, d + 1) power coefficients in the local parameter x = (t - a) / h.
         self.coef = D * scale[:, :, None]
         self._stacked: np.ndarray | None = None
+        self._scalar: tuple | None = None
         self._powers = np.arange(p + 1)
         self._binom = [[math.comb(k, i) for i in range(k + 1)] for k in range(p + 3)]
 
@@ -240,6 +243,15 @@ class _PowerForm:
                 c.append(nxt)
             self._stacked = np.stack(c, axis=1)
         return self._stacked
+
+    def scalar(self) -> tuple | None:
+        """``("poly", breaks, coef)`` for :func:`_point1` (Python floats; ``coef[span][k][j]`` the power
+        coefficients of the k-th x-derivative, k <= 2, without the weight), None for a rational curve."""
+        if self.rational:
+            return None
+        if self._scalar is None:
+            self._scalar = ("poly", self.breaks.tolist(), self._stack(2)[:, :3, :, :-1].tolist())
+        return self._scalar
 
     def bezier(self, lo: float, hi: float):
         """The spans meeting ``[lo, hi]``, each cut into ``per`` equal pieces (about :data:`_TARGET_PIECES` in
@@ -578,18 +590,23 @@ def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Toleranc
     return _newton_pairs(c1, r1, c2, r2, s, t, t_)
 
 
-#: Up to this many seeds, :func:`refine_intersections` of lines and conics iterates each on Python floats.
+#: Up to this many seeds, :func:`refine_intersections` of lines, conics and polynomial NURBS iterates each on Python
+#: floats.
 _SCALAR_SEEDS = 4
 
 
 def _scalar_form(curve: Any) -> tuple | None:
-    """``("line", o, d)`` or ``("trig", C, A, B)`` as lists of floats for :func:`_point1`, None for other curves."""
+    """``("line", o, d)``, ``("trig", C, A, B)`` or, for a clamped polynomial NURBS, ``("poly", breaks, coef)``
+    (:meth:`_PowerForm.scalar`) as lists of floats for :func:`_point1`, None for other curves."""
     lin = _linear(curve)
     if lin is not None:
         return ("line", lin[0].tolist(), lin[1].tolist())
     if isinstance(curve, (Circle, Ellipse, Trig2D)):
         C, A, B = _trig_form(curve)
         return ("trig", C.tolist(), A.tolist(), B.tolist())
+    if isinstance(curve, NurbsCurve):
+        form = _power_form(curve)
+        return None if form is None else form.scalar()
     return None
 
 
@@ -602,6 +619,24 @@ def _point1(form: tuple, t: float, order: int) -> list[list[float]]:
             out.append(list(d))
         if order > 1:
             out.append([0.0] * len(d))
+        return out
+    if form[0] == "poly":
+        # The span's polynomials in x = (t - a) / h by Horner, as _PowerForm.derivatives by power sums
+        # (the span to the right at a knot; the weight channel of a polynomial curve is 1).
+        br, coef = form[1], form[2]
+        i = min(max(bisect.bisect_right(br, t) - 1, 0), len(br) - 2)
+        a, h = br[i], br[i + 1] - br[i]
+        x = (t - a) / h
+        out = []
+        for k in range(order + 1):
+            rows = coef[i][k]
+            acc = list(rows[-1])
+            for row in rows[-2::-1]:
+                acc = [v * x + c for v, c in zip(acc, row)]
+            if k:
+                hk = h ** k
+                acc = [v / hk for v in acc]
+            out.append(acc)
         return out
     C, A, B = form[1], form[2], form[3]
     c, s = math.cos(t), math.sin(t)
@@ -796,7 +831,8 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) 
     Lines and circles in closed form: the foot on the line clipped to the range; the polar angle
     about a circle's centre, taken in the range or replaced by the nearer range end.  Other
     curves: seeded at the nearest of :data:`_SEED_SAMPLES` samples, then Newton on
-    ``(C - X)·C' = 0`` clipped to the range (The NURBS Book §6.1).
+    ``(C - X)·C' = 0`` clipped to the range (The NURBS Book §6.1); up to :data:`_SCALAR_SEEDS` points
+    (the range ends of :func:`_end_feet`) on Python floats, each alone (:func:`_project_one`).
 
     ``near``: the caller only compares the distances with it.  A point of a clamped NURBS's
     projection outside every piece box (step 1) enlarged by ``near`` is then farther than ``near``
@@ -832,6 +868,10 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) 
     ts, S = _seed_samples(curve, r)
     d2 = ((X[:, None, :] - S[None]) ** 2).sum(axis=2)
     t = ts[np.argmin(d2, axis=1)]
+    form = _scalar_form(curve) if _FAST and X.shape[0] <= _SCALAR_SEEDS else None
+    if form is not None:  # a few points (range ends): each on Python floats, as refine_intersections
+        out = np.array([_project_one(form, r, x, t0, t_) for x, t0 in zip(X.tolist(), t.tolist())]).reshape(-1, 2)
+        return out[:, 0].copy(), out[:, 1].copy()
     for _ in range(_NEWTON_ITERATIONS):
         D = _derivs(curve, t, 2)
         diff = D[:, 0] - X
@@ -846,6 +886,23 @@ def _project(curve, r, X: np.ndarray, t_: Tolerance, near: float | None = None) 
             break
     dist = np.linalg.norm(_derivs(curve, t, 0)[:, 0] - X, axis=1)
     return t, dist
+
+
+def _project_one(form: tuple, r, x: list[float], t: float, t_: Tolerance) -> tuple[float, float]:
+    """The Newton of :func:`_project` for one point ``x`` from the seed ``t`` on Python floats (the same steps; the
+    array version stops when every point's step is small, this one when its own is): ``(t, distance)``."""
+    for _ in range(_NEWTON_ITERATIONS):
+        D = _point1(form, t, 2)
+        diff = [a - b for a, b in zip(D[0], x)]
+        f = _dot(diff, D[1])
+        df = _dot(D[1], D[1]) + _dot(diff, D[2])
+        t_new = min(max(t + (-f / df if df > 0 else 0.0), r[0]), r[1])
+        done = abs(t_new - t) <= t_.solver * (1.0 + abs(t))
+        t = t_new
+        if done:
+            break
+    g = [a - b for a, b in zip(_point1(form, t, 0)[0], x)]
+    return t, math.sqrt(_dot(g, g))
 
 
 # ====================================================================== public

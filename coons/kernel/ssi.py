@@ -80,7 +80,7 @@ import logging
 import math
 
 import numpy as np
-from scipy.interpolate import make_interp_spline
+from scipy.interpolate import BSpline, make_interp_spline
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, depth_first_order
 from scipy.spatial import cKDTree
@@ -1377,16 +1377,29 @@ def _add_boundary_points(g, f, pieces, requests, fbox: _FieldBox, t: Tolerance) 
 
 
 # ---------------------------------------------------------------------------- refinement and fit
-def _interp(P: np.ndarray, X: np.ndarray, s: np.ndarray, t: Tolerance) -> tuple[NurbsCurve, ...]:
-    """The 3-D curve and both p-curves interpolating ``P``, ``X[:, :2]``, ``X[:, 2:]`` at ``s``.
+def _interp(P: np.ndarray, X: np.ndarray, s: np.ndarray) -> BSpline:
+    """The 3-D curve and both p-curves interpolating ``P``, ``X[:, :2]``, ``X[:, 2:]`` at ``s``, as one spline of
+    seven coordinates.
 
     One not-a-knot cubic spline interpolation of all seven coordinates (de Boor, *A Practical Guide
-    to Splines*, ch. IX; scipy's banded solver), as clamped B-splines over ``[s[0], s[-1]]``.
+    to Splines*, ch. IX; scipy's banded solver), clamped over ``[s[0], s[-1]]``; the refinement
+    evaluates it as it is (:func:`_curves` makes the NURBS curves of the accepted one).
     """
-    c = make_interp_spline(s, np.concatenate([P, X], axis=1), k=min(3, P.shape[0] - 1))
+    return make_interp_spline(s, np.concatenate([P, X], axis=1), k=min(3, P.shape[0] - 1))
+
+
+def _curves(c: BSpline) -> tuple[NurbsCurve, NurbsCurve, NurbsCurve]:
+    """The 3-D curve and the p-curves on G and F of a spline of :func:`_interp`."""
     U, p = c.t, c.k
     Q = c.c[: U.size - p - 1]
     return NurbsCurve(Q[:, :3], U, p), NurbsCurve(Q[:, 3:5], U, p), NurbsCurve(Q[:, 5:], U, p)
+
+
+def _points_tangents(c: BSpline, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(values (k, 7), D (k, 2, 3))``: a spline of :func:`_interp` at ``s`` (k,), and its 3-D curve's
+    points and first derivatives."""
+    values = c(s)
+    return values, np.stack([values[:, :3], c(s, 1)[:, :3]], axis=1)
 
 
 def _determined(g, f, X: np.ndarray, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> np.ndarray:
@@ -1427,7 +1440,7 @@ class _Branch:
             P[-1] = P[0]
         self.X = X
         self.s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-        self.fit = _interp(P, X, self.s, t)
+        self.fit = _interp(P, X, self.s)
         return True
 
 
@@ -1450,12 +1463,13 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
             break
         # Midpoints of every interval of every piece, corrected in one batch.
         sm = [0.5 * (br.s[:-1] + br.s[1:]) for br in work]
-        D = np.concatenate([np.asarray(br.fit[0].derivatives(m, 1)) for br, m in zip(work, sm)])
+        evaluated = [_points_tangents(br.fit, m) for br, m in zip(work, sm)]
+        values = np.concatenate([v for v, _ in evaluated])
+        D = np.concatenate([d for _, d in evaluated])
         x0 = np.concatenate([0.5 * (br.X[:-1] + br.X[1:]) for br in work])
         Xm, Pm, okm = _correct_on_planes(g, f, D, x0, t, (bg, bf))
         Cm = D[:, 0]
-        qg = np.concatenate([np.asarray(br.fit[1].evaluate(m)) for br, m in zip(work, sm)])
-        qf = np.concatenate([np.asarray(br.fit[2].evaluate(m)) for br, m in zip(work, sm)])
+        qg, qf = values[:, 3:5], values[:, 5:]
         Gm = _frame(g, qg[:, 0], qg[:, 1])[0]
         Fm = _frame(f, qf[:, 0], qf[:, 1])[0]
         err = np.max(np.stack([np.linalg.norm(Cm - Pm, axis=1), np.linalg.norm(Gm - Pm, axis=1),
@@ -1476,7 +1490,7 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
             sn = br.s[owner] + j * (br.s[owner + 1] - br.s[owner])
             new_s.append(sn)
             new_x0.append(br.X[owner] + j[:, None] * (br.X[owner + 1] - br.X[owner]))
-            new_D.append(np.asarray(br.fit[0].derivatives(sn, 1)))
+            new_D.append(_points_tangents(br.fit, sn)[1])
             owners.append((br, owner))
         if not owners:
             break
@@ -1498,7 +1512,7 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
         if np.any(~br.ok):
             _log.debug("march_intersection: %d branch midpoints did not converge", int((~br.ok).sum()))
         achieved = float(max(res.max(), measured.max() if measured.size else 0.0))
-        curve, pg, pf = br.fit
+        curve, pg, pf = _curves(br.fit)
         out.append((curve, pg, pf, float(br.s[-1]), achieved))
     return out
 

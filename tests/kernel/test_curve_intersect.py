@@ -593,6 +593,58 @@ def test_refine_scalar_path_matches_the_general_path(radius, angle, tilt, ds, dt
     np.testing.assert_allclose(np.array(both)[:, :1], np.array(fast), rtol=0, atol=0)
 
 
+@settings(max_examples=60)
+@given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.floats(-0.2, 0.2), st.floats(-0.5, 0.5), st.sampled_from([2, 3]),
+       st.sampled_from(["line", "circle"]))
+def test_refine_scalar_path_of_a_nurbs_matches_the_general_path(at, tilt, ds, dt, dim, kind):
+    """Newton on seeds of a polynomial NURBS (several knot spans, seeds on and between knots) against a
+    line or circle, on Python floats through the spans' power forms: the array path's answer to round-off,
+    and a point on the NURBS where the curves cross."""
+    rng = np.random.default_rng(7)
+    P = np.cumsum(rng.uniform(0.2, 1.0, size=(9, dim)) * [1.0, 0.4, 0.3][:dim], axis=0)
+    U = np.concatenate([[0.0] * 4, [0.2, 0.35, 0.5, 0.65, 0.8], [1.0] * 4])
+    c1 = NurbsCurve(P, U, 3)
+    Q = np.asarray(c1.evaluate(np.array([at])))[0]
+    if kind == "circle" and dim == 3:
+        # A circle through Q in a plane containing the NURBS's normal direction there.
+        T = np.asarray(c1.derivatives(np.array([at]), 1))[0, 1]
+        n = np.cross(T, [0.0, tilt, 1.0])
+        other = Circle(Q - 0.7 * n / np.linalg.norm(n), T, n, 0.7)
+        r2 = (-math.pi, math.pi)
+    elif kind == "circle":
+        other = Trig2D(Q - [0.7, 0.0], [0.7, 0.0], [0.0, 0.7])
+        r2 = (-math.pi, math.pi)
+    else:
+        d = np.array([1.0, tilt, 0.5 * tilt][:dim])
+        other = Line2D(Q - d, d) if dim == 2 else Line(Q - d, d)
+        r2 = (0.0, 3.0)
+    seeds = ([min(max(at + ds, 0.0), 1.0), 0.5], [(1.0 if kind == "line" else 0.0) + dt, 0.3])
+    fast = refine_intersections(c1, (0.0, 1.0), other, r2, *seeds)
+    general = _general(refine_intersections, c1, (0.0, 1.0), other, r2, *seeds)
+    np.testing.assert_allclose(np.array(fast), np.array(general), rtol=0, atol=1e-9)
+    # Q lies on both curves: a seed next to it converges there (or to another crossing just as close).
+    s, t, dist = refine_intersections(c1, (0.0, 1.0), other, r2, [at], [1.0 if kind == "line" else 0.0])
+    assert dist[0] <= 1e-9
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.3, 1e-8, 2.0])
+def test_nurbs_end_feet_on_python_floats_match_the_general_path(shift):
+    """The feet of the range ends on a NURBS (projected one by one on Python floats) and the answers built on
+    them — end contacts, crossings — are the array path's to round-off, for ends on, near and far from it."""
+    c = NurbsCurve([[0, 0], [1, 2], [2, -1], [3, 1], [4, 0.5]], [0, 0, 0, 0, 0.5, 1, 1, 1, 1], 3)
+    Q = np.asarray(c.evaluate(np.array([0.3, 0.8])))
+    other = Line2D(Q[0] + [0.0, shift], Q[1] - Q[0])  # from near c(0.3) to near c(0.8)
+    arc = Trig2D(Q[0] + [0.0, shift] - [0.5, 0.0], [0.5, 0.0], [0.0, 0.5])  # starts near c(0.3)
+    for o, r in ((other, (0.0, 1.0)), (arc, (0.0, 2.0))):
+        fast = intersect_curves(c, (0.0, 1.0), o, r)
+        general = _general(intersect_curves, c, (0.0, 1.0), o, r)
+        assert len(fast) == len(general) and fast.overlaps == general.overlaps
+        np.testing.assert_allclose(fast.points, general.points, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fast.t1, general.t1, rtol=0, atol=1e-9)
+    if shift == 0.0:
+        assert len(intersect_curves(c, (0.0, 1.0), other, (0.0, 1.0))) >= 2  # both ends of the chord lie on c
+
+
 def test_pieces_and_seed_samples_are_remembered_per_curve_and_range():
     """A curve intersected over one range with many others reuses its pieces and seed samples: the
     answers are the same as from a fresh copy of the curve, and the remembered arrays are read-only."""

@@ -927,3 +927,50 @@ def test_cached_bounding_box_cannot_be_corrupted_by_the_caller():
     box = bounding_box(s.brep)
     box[:] = 0.0
     np.testing.assert_allclose(bounding_box(s.brep), [[-1, -1, -1], [1, 1, 1]], atol=1e-12)
+
+
+# ============================================================================ curves with many knot spans
+def many_span_prism(spans: int = 200):
+    """A prism over a cubic B-spline through ``spans + 3`` points of a half circle of radius 1 (a curve
+    with many knot spans, as a fitted intersection curve), closed by a straight segment."""
+    from coons.topology.profile import Profile, Segment
+    from coons.topology.sweep import extrude
+
+    theta = np.linspace(0.0, PI, spans + 3)
+    knots = np.concatenate([[0.0] * 3, np.linspace(0.0, 1.0, spans + 1), [1.0] * 3])
+    spline = NurbsCurve(np.stack([np.cos(theta), np.sin(theta)], axis=1), knots, 3)
+    return extrude(Profile([Segment.spline(spline), Segment.line([-1, 0], [1, 0])]), 1.0), spline
+
+
+@pytest.mark.parametrize("d, a", [(1e-2, 0.5), (1e-3, 0.5), (1e-3, 0.05)])
+def test_many_knot_spans_are_decimated_within_the_deflection_and_angle(d, a):
+    s, spline = many_span_prism()
+    b = s.brep
+    edges = [e for e in range(b.n_edges) if isinstance(b.curves[b.edge_curve[e]], NurbsCurve)]
+    assert len(edges) == 2
+    for e in edges:
+        c = b.curves[b.edge_curve[e]]
+        t = edge_parameters(b, e, d, a)
+        np.testing.assert_array_equal(t[[0, -1]], b.edge_range[e])
+        P = c.evaluate(t)
+        # Far fewer than the (degree + 1) per span the bisection starts from: about what a circle of
+        # radius 1 needs (equal steps of min(θ, 2 acos(1 - d))), at most twice that (halving).
+        need = math.ceil(PI / min(a, 2 * math.acos(1 - d)))
+        assert t.size - 1 <= 2 * need
+        # Deflection: a dense sampling of the exact curve lies within d of the polyline, and
+        # the midpoint test of the bisection holds for every chord.
+        tm = 0.5 * (t[:-1] + t[1:])
+        assert np.linalg.norm(c.evaluate(tm) - 0.5 * (P[:-1] + P[1:]), axis=1).max() <= d
+        dense = np.linspace(t[0], t[-1], 20001)
+        X = c.evaluate(dense)
+        k = np.clip(np.searchsorted(t, dense, side="right") - 1, 0, t.size - 2)
+        A, B = P[k], P[k + 1]
+        u = np.clip(np.einsum("ij,ij->i", X - A, B - A) / np.einsum("ij,ij->i", B - A, B - A), 0, 1)
+        assert np.linalg.norm(X - A - u[:, None] * (B - A), axis=1).max() <= d * (1 + 1e-3)
+        # Angle: consecutive chords turn by at most θ.
+        ch = np.diff(P, axis=0)
+        cos = np.einsum("ij,ij->i", ch[:-1], ch[1:]) / np.linalg.norm(ch[:-1], axis=1) / np.linalg.norm(ch[1:], axis=1)
+        assert np.arccos(np.clip(cos, -1, 1)).max() <= a
+    m = tessellate(s, deflection=d, angular_deflection=a)
+    assert m.is_closed and vertex_links_are_cycles(m) and m.euler_characteristic == 2
+    assert abs(m.volume - s.volume) <= d * s.area

@@ -116,7 +116,9 @@ coordinate is constant up to the boundary, so the edges carry the extreme).  NUR
 other) curves and surfaces: dense sampling (per knot span) followed by a Newton polish of the
 best samples; every candidate is a point of the edge or face, so the box never exceeds the
 exact one and matches it to round-off wherever Newton converges.  Boxes are not inflated by
-edge or vertex tolerances.
+edge or vertex tolerances.  :func:`face_box_bounds` gives
+looser boxes per face without any search (edge curves' piece boxes, whole spheres and tori,
+NURBS control points), proven to contain each face.
 """
 
 from __future__ import annotations
@@ -1524,6 +1526,66 @@ def _bounding_box(b: BRep) -> np.ndarray:
             lo = np.minimum(lo, Q.min(axis=0))
             hi = np.maximum(hi, Q.max(axis=0))
     return np.stack([lo, hi])
+
+
+def face_box_bounds(b: BRep, t: Tolerance) -> np.ndarray:
+    """Boxes ``(F, 2, 3)`` (rows ``lo, hi``) proven to contain each face, without searching for extrema.
+
+    Cheaper and looser than :func:`bounding_box` face by face: the union of the face's edge
+    boxes (:func:`coons.kernel.curve_intersect.curve_box`: exact for lines and arcs, the union of
+    the pieces' control-point boxes for NURBS curves; the end points for edges without a curve),
+    padded by the face's largest edge tolerance and ``t.linear`` (the boundary of the face's
+    parameter region maps within the edge tolerances of its edges; a gap at a pole maps to a
+    vertex).  A coordinate on a plane, cylinder or cone has no interior extremum that is not
+    also reached on the boundary (it is affine along each ruling); a sphere or torus adds the
+    box of the whole surface, a NURBS surface its control points' box (convex hull property,
+    positive weights).  Infinite for a face whose curve or surface type is not handled.
+    """
+    from coons.kernel.curve_intersect import curve_box
+
+    F = b.n_faces
+    E = b.n_edges
+    elo, ehi = np.full((E, 3), np.inf), np.full((E, 3), -np.inf)
+    ends = b.vertex_point[b.edge_vertex]  # (E, 2, 3)
+    elo[:], ehi[:] = ends.min(axis=1), ends.max(axis=1)
+    ranges = b.edge_range.tolist()
+    for e, ci in enumerate(b.edge_curve.tolist()):
+        if ci < 0 or isinstance(b.curves[ci], Line):
+            continue
+        try:
+            box = curve_box(b.curves[ci], ranges[e])
+        except InvalidInputError:
+            box = np.array([[-np.inf] * 3, [np.inf] * 3])
+        elo[e] = np.minimum(elo[e], box[0])
+        ehi[e] = np.maximum(ehi[e], box[1])
+    lo, hi = np.full((F, 3), np.inf), np.full((F, 3), -np.inf)
+    ef = b.edge_face  # (E, 2)
+    for side in (0, 1):
+        np.minimum.at(lo, ef[:, side], elo)
+        np.maximum.at(hi, ef[:, side], ehi)
+    pad = np.zeros(F)
+    for side in (0, 1):
+        np.maximum.at(pad, ef[:, side], b.edge_tol)
+    pad += t.linear
+    lo[(lo > hi).any(axis=1)], hi[(lo > hi).any(axis=1)] = -np.inf, np.inf  # a face without edges: unknown
+    flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
+    for f, si in enumerate(b.face_surface.tolist()):
+        S = None if si < 0 else b.surfaces[si]
+        if S is None or isinstance(S, flat):
+            continue
+        if isinstance(S, SphericalSurface):
+            c, r = np.asarray(S.center, dtype=np.float64), float(S.radius)
+        elif isinstance(S, ToroidalSurface):
+            c, r = np.asarray(S.center, dtype=np.float64), float(S.major_radius + S.minor_radius)
+        elif isinstance(S, NurbsSurface):
+            P = np.asarray(S.control_points, dtype=np.float64).reshape(-1, np.shape(S.control_points)[-1])
+            lo[f], hi[f] = np.minimum(lo[f], P.min(axis=0)), np.maximum(hi[f], P.max(axis=0))
+            continue
+        else:
+            lo[f], hi[f] = -np.inf, np.inf
+            continue
+        lo[f], hi[f] = np.minimum(lo[f], c - r), np.maximum(hi[f], c + r)
+    return np.stack([lo - pad[:, None], hi + pad[:, None]], axis=1)
 
 
 def _curve_extreme_points(curve, ranges: np.ndarray) -> np.ndarray:

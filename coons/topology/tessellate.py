@@ -137,10 +137,12 @@ a result that is not closed raises.
 
 *Caching.*  B-reps and meshes are immutable, so :func:`tessellate` keeps its result per B-rep and
 ``(deflection, angular deflection, tolerance)`` (weakly: the meshes go with the B-rep).  A Boolean
-tessellates both operands (classification) and, when its result has voids, the result (void
-nesting in :func:`coons.topology.sew.sew_faces`); the final B-rep, rebuilt after nesting, shares
-that mesh (:func:`share_tessellations`, guarded by :func:`coons.topology.brep.same_geometry`), so
-the next Boolean of a chain does not tessellate its operand again.  Meshes are not reused per
+tessellates its operands when it classifies by them and, when its result has a void whose vertices
+all lie in the box of some face of a positive shell, the result (void nesting in
+:func:`coons.topology.sew.sew_faces`; other voids are nested without a mesh); the final B-rep,
+rebuilt after nesting, shares any such mesh (:func:`share_tessellations`, guarded by
+:func:`coons.topology.brep.same_geometry`), so the next Boolean of a chain does not tessellate its
+operand again.  Meshes are not reused per
 face across different B-reps: edge sampling and chord repairs are global, and a face kept
 unchanged by a Boolean is meshed again with the rest.
 

@@ -116,7 +116,9 @@ coordinate is constant up to the boundary, so the edges carry the extreme).  NUR
 other) curves and surfaces: dense sampling (per knot span) followed by a Newton polish of the
 best samples; every candidate is a point of the edge or face, so the box never exceeds the
 exact one and matches it to round-off wherever Newton converges.  Boxes are not inflated by
-edge or vertex tolerances.  :func:`face_box_bounds` gives
+edge or vertex tolerances.  A curve or surface whose proven hull (control points, a sphere's or
+torus's box) lies inside the box of the candidates found so far is not searched (its extreme points
+could not widen it): the intersection curves of a Boolean's result lie inside the box of its faces.  :func:`face_box_bounds` gives
 looser boxes per face without any search (edge curves' piece boxes, whole spheres and tori,
 NURBS control points), proven to contain each face.
 """
@@ -1493,39 +1495,71 @@ def bounding_box(brep) -> np.ndarray:
 
 
 def _bounding_box(b: BRep) -> np.ndarray:
-    """:func:`bounding_box`, uncached."""
+    """:func:`bounding_box`, uncached.
+
+    Cheap candidates first (vertices, circle extrema), then the searches, each skipped when a
+    proven hull of its curve or surface (:func:`_hull`) already lies in the box found so far: its
+    extreme points, all in the hull, could not widen it (up to the round-off of an evaluation).
+    The intersection curves of a Boolean's result lie inside the box of its faces, and searching
+    them by sampling and Newton steps was most of the cost of the tessellator's default deflection.
+    """
     lo = b.vertex_point.min(axis=0)
     hi = b.vertex_point.max(axis=0)
-    pts = []
+
+    def grow(P: np.ndarray) -> None:
+        nonlocal lo, hi
+        P = P.reshape(-1, 3)
+        if P.size:
+            lo, hi = np.minimum(lo, P.min(axis=0)), np.maximum(hi, P.max(axis=0))
+
+    def inside(obj) -> bool:
+        hull = _hull(obj)
+        return hull is not None and bool((hull[0] >= lo).all() and (hull[1] <= hi).all())
+
     # Edges grouped by curve (ascending rows within a curve); circles (every hole of a plate has
     # two) all in one array pass, the other curves one by one.
     curved = np.flatnonzero(b.edge_curve >= 0)
     order = curved[np.argsort(b.edge_curve[curved], kind="stable")]
     cut = np.flatnonzero(np.diff(b.edge_curve[order])) + 1
-    circles = []
+    circles, others = [], []
     for rows in np.split(order, cut) if order.size else []:
         curve = b.curves[int(b.edge_curve[rows[0]])]
-        if type(curve) is Circle:
-            circles.append(rows)
-        else:
-            pts.append(_curve_extreme_points(curve, b.edge_range[rows]))
+        (circles if type(curve) is Circle else others).append(rows)
     if circles:
         rows = np.concatenate(circles)
-        pts.append(_circle_extreme_points([b.curves[int(c)] for c in b.edge_curve[rows]], b.edge_range[rows]))
+        grow(_circle_extreme_points([b.curves[int(c)] for c in b.edge_curve[rows]], b.edge_range[rows]))
     # Planes, cylinders and cones have no isolated interior extrema; every other face is searched.
     flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
-    search = np.array([not isinstance(S, flat) for S in b.surfaces] + [False])[b.face_surface]
+    search = np.array([not isinstance(S, flat) and not inside(S) for S in b.surfaces] + [False])[b.face_surface]
     if search.any():
         # Code 3 (not planar): every searched coedge needs a p-curve; all faces get their gaps.
         paths = _gather_paths(b, search, np.full(b.n_faces, 3), None, None, search)[0]
         for f in np.flatnonzero(search):
-            pts.append(_surface_extreme_points(paths, int(f), b.surfaces[int(b.face_surface[f])]))
-    if pts:
-        Q = np.concatenate([p.reshape(-1, 3) for p in pts])
-        if Q.size:
-            lo = np.minimum(lo, Q.min(axis=0))
-            hi = np.maximum(hi, Q.max(axis=0))
+            grow(_surface_extreme_points(paths, int(f), b.surfaces[int(b.face_surface[f])]))
+    for rows in others:
+        curve = b.curves[int(b.edge_curve[rows[0]])]
+        if not inside(curve):
+            grow(_curve_extreme_points(curve, b.edge_range[rows]))
     return np.stack([lo, hi])
+
+
+def _hull(obj) -> tuple[np.ndarray, np.ndarray] | None:
+    """A box ``(lo, hi)`` containing the whole curve or surface ``obj`` (NURBS: its control points, by the
+    convex hull property with positive weights; spheres and tori: closed form), None for other types."""
+    if isinstance(obj, (NurbsCurve, NurbsSurface)):
+        P = np.asarray(obj.control_points, dtype=np.float64)
+        if P.shape[-1] != 3:
+            return None
+        P = P.reshape(-1, 3)
+        return P.min(axis=0), P.max(axis=0)
+    if isinstance(obj, SphericalSurface):
+        r = float(obj.radius)
+    elif isinstance(obj, ToroidalSurface):
+        r = float(obj.major_radius + obj.minor_radius)
+    else:
+        return None
+    c = np.asarray(obj.center, dtype=np.float64)
+    return c - r, c + r
 
 
 def face_box_bounds(b: BRep, t: Tolerance) -> np.ndarray:

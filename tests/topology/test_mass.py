@@ -985,3 +985,18 @@ def test_face_box_bounds_contain_each_face(make):
     assert ((X >= lo) & (X <= hi)).all()
     exact = bounding_box(s)
     assert (box[:, 0].min(axis=0) <= exact[0]).all() and (box[:, 1].max(axis=0) >= exact[1]).all()
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Box(4, 4, 4) - Cylinder(1.2, 6).rotate((0, 0, 0), (1, 0, 0), 30),
+    lambda: Box(4, 4, 4) + Sphere(1.5).translate((2, 0.5, 0.3)),
+    lambda: Sphere(2.0) - Cylinder(0.5, 6).rotate((0, 0, 0), (0, 1, 0), 20),
+    lambda: Torus(2.0, 0.5),
+])
+def test_bounding_box_skips_only_searches_that_cannot_widen_it(make, monkeypatch):
+    """Skipping the curves and surfaces whose hull lies in the box found so far gives the very box
+    of the full search."""
+    b = make().brep
+    pruned = mass._bounding_box(b)
+    monkeypatch.setattr(mass, "_hull", lambda obj: None)
+    np.testing.assert_array_equal(pruned, mass._bounding_box(b))

@@ -7,9 +7,9 @@ is closed and edge-manifold *by construction*: the two faces of an edge use the 
 mesh vertices along it, so no stitching or vertex welding is ever done.  Chordal deviation
 and normal turning are bounded by ``deflection`` and ``angular_deflection`` (as OCCT's
 ``BRepMesh_IncrementalMesh``; deflection is a resolution, never a tolerance).  It does not
-heal invalid B-reps, smooth or decimate, produce quad meshes, or guarantee triangle quality
-beyond what the Delaunay criterion (trimmed faces) or the strip construction (revolved faces)
-gives.
+heal invalid B-reps, smooth or decimate meshes (only edge samples are thinned, step 1), produce
+quad meshes, or guarantee triangle quality beyond what the Delaunay criterion (trimmed faces)
+or the strip construction (revolved faces) gives.
 
 Algorithm (the BRepMesh idea, made watertight by construction)
 --------------------------------------------------------------

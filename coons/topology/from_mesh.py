@@ -649,6 +649,29 @@ def _winding_numbers(points: np.ndarray, tri: np.ndarray, chunk: int = 1 << 19) 
     return out
 
 
+def _triangle_distances(point: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Distances ``(m,)`` from one point ``(3,)`` to triangles ``(m, 3, 3)`` (Ericson 2005, §5.1.5: the
+    plane's foot when it lies inside the triangle, else the nearest of the three sides; a degenerate
+    triangle is its sides)."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("ij,ij->i", n, n)
+    w = point - a
+    h = np.divide(np.einsum("ij,ij->i", w, n), nn, out=np.zeros(len(tri)), where=nn > 0)
+    foot = point - h[:, None] * n
+    # The foot is inside when it lies left of (or on) every side, seen along n.
+    inside = nn > 0
+    for p, q in ((a, b), (b, c), (c, a)):
+        inside &= np.einsum("ij,ij->i", np.cross(q - p, foot - p), n) >= 0
+    best = np.where(inside, np.abs(h) * np.sqrt(nn), np.inf)
+    for p, q in ((a, b), (b, c), (c, a)):
+        e = q - p
+        ee = np.einsum("ij,ij->i", e, e)
+        s = np.clip(np.divide(np.einsum("ij,ij->i", point - p, e), ee, out=np.zeros(len(tri)), where=ee > 0), 0, 1)
+        best = np.minimum(best, np.linalg.norm(point - p - s[:, None] * e, axis=1))
+    return best
+
+
 # ====================================================================== tables
 def _tables(
     P: np.ndarray,

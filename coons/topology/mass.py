@@ -116,7 +116,11 @@ coordinate is constant up to the boundary, so the edges carry the extreme).  NUR
 other) curves and surfaces: dense sampling (per knot span) followed by a Newton polish of the
 best samples; every candidate is a point of the edge or face, so the box never exceeds the
 exact one and matches it to round-off wherever Newton converges.  Boxes are not inflated by
-edge or vertex tolerances.
+edge or vertex tolerances.  A curve or surface whose proven hull (control points, a sphere's or
+torus's box) lies inside the box of the candidates found so far is not searched (its extreme points
+could not widen it): the intersection curves of a Boolean's result lie inside the box of its faces.  :func:`face_box_bounds` gives
+looser boxes per face without any search (edge curves' piece boxes, whole spheres and tori,
+NURBS control points), proven to contain each face.
 """
 
 from __future__ import annotations
@@ -1486,39 +1490,131 @@ def bounding_box(brep) -> np.ndarray:
 
 
 def _bounding_box(b: BRep) -> np.ndarray:
-    """:func:`bounding_box`, uncached."""
+    """:func:`bounding_box`, uncached.
+
+    Cheap candidates first (vertices, circle extrema), then the searches, each skipped when a
+    proven hull of its curve or surface (:func:`_hull`) already lies in the box found so far: its
+    extreme points, all in the hull, could not widen it (up to the round-off of an evaluation).
+    The intersection curves of a Boolean's result lie inside the box of its faces, and searching
+    them by sampling and Newton steps was most of the cost of the tessellator's default deflection.
+    """
     lo = b.vertex_point.min(axis=0)
     hi = b.vertex_point.max(axis=0)
-    pts = []
+
+    def grow(P: np.ndarray) -> None:
+        nonlocal lo, hi
+        P = P.reshape(-1, 3)
+        if P.size:
+            lo, hi = np.minimum(lo, P.min(axis=0)), np.maximum(hi, P.max(axis=0))
+
+    def inside(obj) -> bool:
+        hull = _hull(obj)
+        return hull is not None and bool((hull[0] >= lo).all() and (hull[1] <= hi).all())
+
     # Edges grouped by curve (ascending rows within a curve); circles (every hole of a plate has
     # two) all in one array pass, the other curves one by one.
     curved = np.flatnonzero(b.edge_curve >= 0)
     order = curved[np.argsort(b.edge_curve[curved], kind="stable")]
     cut = np.flatnonzero(np.diff(b.edge_curve[order])) + 1
-    circles = []
+    circles, others = [], []
     for rows in np.split(order, cut) if order.size else []:
         curve = b.curves[int(b.edge_curve[rows[0]])]
-        if type(curve) is Circle:
-            circles.append(rows)
-        else:
-            pts.append(_curve_extreme_points(curve, b.edge_range[rows]))
+        (circles if type(curve) is Circle else others).append(rows)
     if circles:
         rows = np.concatenate(circles)
-        pts.append(_circle_extreme_points([b.curves[int(c)] for c in b.edge_curve[rows]], b.edge_range[rows]))
+        grow(_circle_extreme_points([b.curves[int(c)] for c in b.edge_curve[rows]], b.edge_range[rows]))
     # Planes, cylinders and cones have no isolated interior extrema; every other face is searched.
     flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
-    search = np.array([not isinstance(S, flat) for S in b.surfaces] + [False])[b.face_surface]
+    search = np.array([not isinstance(S, flat) and not inside(S) for S in b.surfaces] + [False])[b.face_surface]
     if search.any():
         # Code 3 (not planar): every searched coedge needs a p-curve; all faces get their gaps.
         paths = _gather_paths(b, search, np.full(b.n_faces, 3), None, None, search)[0]
         for f in np.flatnonzero(search):
-            pts.append(_surface_extreme_points(paths, int(f), b.surfaces[int(b.face_surface[f])]))
-    if pts:
-        Q = np.concatenate([p.reshape(-1, 3) for p in pts])
-        if Q.size:
-            lo = np.minimum(lo, Q.min(axis=0))
-            hi = np.maximum(hi, Q.max(axis=0))
+            grow(_surface_extreme_points(paths, int(f), b.surfaces[int(b.face_surface[f])]))
+    for rows in others:
+        curve = b.curves[int(b.edge_curve[rows[0]])]
+        if not inside(curve):
+            grow(_curve_extreme_points(curve, b.edge_range[rows]))
     return np.stack([lo, hi])
+
+
+def _hull(obj) -> tuple[np.ndarray, np.ndarray] | None:
+    """A box ``(lo, hi)`` containing the whole curve or surface ``obj`` (NURBS: its control points, by the
+    convex hull property with positive weights; spheres and tori: closed form), None for other types."""
+    if isinstance(obj, (NurbsCurve, NurbsSurface)):
+        P = np.asarray(obj.control_points, dtype=np.float64)
+        if P.shape[-1] != 3:
+            return None
+        P = P.reshape(-1, 3)
+        return P.min(axis=0), P.max(axis=0)
+    if isinstance(obj, SphericalSurface):
+        r = float(obj.radius)
+    elif isinstance(obj, ToroidalSurface):
+        r = float(obj.major_radius + obj.minor_radius)
+    else:
+        return None
+    c = np.asarray(obj.center, dtype=np.float64)
+    return c - r, c + r
+
+
+def face_box_bounds(b: BRep, t: Tolerance) -> np.ndarray:
+    """Boxes ``(F, 2, 3)`` (rows ``lo, hi``) proven to contain each face, without searching for extrema.
+
+    Cheaper and looser than :func:`bounding_box` face by face: the union of the face's edge
+    boxes (:func:`coons.kernel.curve_intersect.curve_box`: exact for lines and arcs, the union of
+    the pieces' control-point boxes for NURBS curves; the end points for edges without a curve),
+    padded by the face's largest edge tolerance and ``t.linear`` (the boundary of the face's
+    parameter region maps within the edge tolerances of its edges; a gap at a pole maps to a
+    vertex).  A coordinate on a plane, cylinder or cone has no interior extremum that is not
+    also reached on the boundary (it is affine along each ruling); a sphere or torus adds the
+    box of the whole surface, a NURBS surface its control points' box (convex hull property,
+    positive weights).  Infinite for a face whose curve or surface type is not handled.
+    """
+    from coons.kernel.curve_intersect import curve_box
+
+    F = b.n_faces
+    E = b.n_edges
+    elo, ehi = np.full((E, 3), np.inf), np.full((E, 3), -np.inf)
+    ends = b.vertex_point[b.edge_vertex]  # (E, 2, 3)
+    elo[:], ehi[:] = ends.min(axis=1), ends.max(axis=1)
+    ranges = b.edge_range.tolist()
+    for e, ci in enumerate(b.edge_curve.tolist()):
+        if ci < 0 or isinstance(b.curves[ci], Line):
+            continue
+        try:
+            box = curve_box(b.curves[ci], ranges[e])
+        except InvalidInputError:
+            box = np.array([[-np.inf] * 3, [np.inf] * 3])
+        elo[e] = np.minimum(elo[e], box[0])
+        ehi[e] = np.maximum(ehi[e], box[1])
+    lo, hi = np.full((F, 3), np.inf), np.full((F, 3), -np.inf)
+    ef = b.edge_face  # (E, 2)
+    for side in (0, 1):
+        np.minimum.at(lo, ef[:, side], elo)
+        np.maximum.at(hi, ef[:, side], ehi)
+    pad = np.zeros(F)
+    for side in (0, 1):
+        np.maximum.at(pad, ef[:, side], b.edge_tol)
+    pad += t.linear
+    lo[(lo > hi).any(axis=1)], hi[(lo > hi).any(axis=1)] = -np.inf, np.inf  # a face without edges: unknown
+    flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
+    for f, si in enumerate(b.face_surface.tolist()):
+        S = None if si < 0 else b.surfaces[si]
+        if S is None or isinstance(S, flat):
+            continue
+        if isinstance(S, SphericalSurface):
+            c, r = np.asarray(S.center, dtype=np.float64), float(S.radius)
+        elif isinstance(S, ToroidalSurface):
+            c, r = np.asarray(S.center, dtype=np.float64), float(S.major_radius + S.minor_radius)
+        elif isinstance(S, NurbsSurface):
+            P = np.asarray(S.control_points, dtype=np.float64).reshape(-1, np.shape(S.control_points)[-1])
+            lo[f], hi[f] = np.minimum(lo[f], P.min(axis=0)), np.maximum(hi[f], P.max(axis=0))
+            continue
+        else:
+            lo[f], hi[f] = -np.inf, np.inf
+            continue
+        lo[f], hi[f] = np.minimum(lo[f], c - r), np.maximum(hi[f], c + r)
+    return np.stack([lo - pad[:, None], hi + pad[:, None]], axis=1)
 
 
 def _curve_extreme_points(curve, ranges: np.ndarray) -> np.ndarray:

@@ -1013,19 +1013,44 @@ def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, 
 def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
     """Make every shell enclosing negative volume a void of the smallest positive shell around it.
 
-    Containment is decided by the generalised winding number of one vertex of the void with
-    respect to the tessellation of each candidate shell (:func:`coons.topology.tessellate.tessellate`).
-    Returns the B-rep built before nesting, whose shell volumes and mesh the final build shares
-    (the next Boolean on the result tessellates it with the same default).
+    Containment of a void is decided by the generalised winding number, with respect to each
+    positive shell, of one vertex of the void (the *probe*; shells are disjoint, so the void lies
+    inside a shell iff its probe does), computed from a closed triangle chain of that shell whose
+    answer is proven to be the exact surface's:
+
+    * *Cones* (no tessellation).  For a face, the cone from one of its vertices over the chords of
+      its coedges (straight segments between their end vertices) has the same boundary as the
+      face up to the strips between each edge curve and its chord, which cancel between the two
+      faces of the edge.  So the face minus its cone, minus its strips, is a closed chain inside
+      any convex set holding the face and its edges, and its winding number about a point outside
+      that set is 0: when the probe lies outside every face's box
+      (:func:`coons.topology.mass.face_box_bounds`), the cones' winding number is the shell's.
+    * *Mesh* (a probe inside some face box).  The shell's triangles in the tessellation at the
+      default deflection ``d`` (:func:`coons.topology.tessellate.tessellate`): far faces as above,
+      and faces whose box holds the probe count when the probe is farther than ``2 d`` plus the
+      edge tolerances and ``10 tol.linear`` from their triangles (the band of
+      :class:`coons.booleans.classify.Classifier`: mesh and face are within ``d`` of each other,
+      so the straight homotopy between them misses the probe).  Where that fails, the
+      deflection is divided by 8, at most three times; a probe still that close
+      to another shell means the shells touch, and raises.
+
+    The probe is the vertex of the void inside the fewest face boxes.  Returns the B-rep built
+    before nesting, whose shell volumes (and, when it was made, default mesh) the final build
+    shares (the next Boolean on the result tessellates it with the same default).
 
     Raises
     ------
     TopologyError
-        A negative shell inside no positive shell (its faces are oriented inward).
+        A negative shell inside no positive shell (its faces are oriented inward), or one whose
+        vertices all lie within the mesh band of another shell at the finest deflection tried.
     """
-    from coons.topology.from_mesh import _winding_numbers
-    from coons.topology.mass import shell_volumes
-    from coons.topology.tessellate import tessellate
+    from coons.topology.from_mesh import _triangle_distances, _winding_numbers
+    from coons.topology.mass import face_box_bounds, shell_volumes
+    from coons.topology.tessellate import _resolve_deflection, tessellate
+
+    # Divisions of the deflection by 8 before two shells are declared touching (1/512 of the
+    # default: about 2e-6 of the diagonal, far below any wall a Boolean leaves).
+    refinements = 3
 
     brep = b.build(check=False)
     vol = shell_volumes(brep)
@@ -1033,16 +1058,51 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
     if neg.size == 0:
         return brep
     pos = np.flatnonzero(vol > 0)
-    mesh = tessellate(brep, tol=t)
-    tri_shell = brep.face_shell[mesh.face_ids]
-    for s in neg:
-        s = int(s)
-        f0 = int(brep.shell_face_ids(s)[0])
-        c0 = int(brep.loop_coedges(int(brep.face_loop_ids(f0)[0]))[0])
-        probe = brep.vertex_point[int(brep.coedge_origin[c0])]
-        # |w| is 1 inside a closed shell and 0 outside (the probe is never on another shell).
-        containers = np.array([o for o in pos if abs(_winding_numbers(
-            probe[None], mesh.vertices[mesh.triangles[tri_shell == o]])[0]) > 0.5], dtype=np.int64)
+    box = face_box_bounds(brep, t)
+    face_shell = np.asarray(brep.face_shell, dtype=np.int64)
+    on_pos = np.isin(face_shell, pos)
+    # The cone chain of every positive shell: per coedge, its face's apex and its chord.
+    c_face = np.asarray(brep.coedge_face, dtype=np.int64)
+    used = np.flatnonzero((c_face >= 0) & on_pos[np.maximum(c_face, 0)])
+    origin = np.asarray(brep.coedge_origin, dtype=np.int64)
+    apex = np.full(brep.n_faces, -1, dtype=np.int64)
+    apex[c_face[used]] = origin[used]  # any vertex of the face lies in its box
+    V = brep.vertex_point
+    cones = V[np.stack([apex[c_face[used]], origin[used], origin[brep.coedge_next[used]]], axis=1)]
+    cone_shell = face_shell[c_face[used]]
+    for s in neg.tolist():
+        # The void's vertex inside the fewest boxes of positive faces (ties: the first).
+        verts = np.unique(origin[np.isin(c_face, brep.shell_face_ids(s))])
+        P = V[verts]
+        inside = ((P[:, None, :] >= box[None, on_pos, 0]) & (P[:, None, :] <= box[None, on_pos, 1])).all(axis=2)
+        k = int(np.argmin(inside.sum(axis=1)))
+        probe = P[k]
+        near = np.zeros(brep.n_faces, dtype=bool)
+        near[np.flatnonzero(on_pos)[inside[k]]] = True
+        if not near.any():
+            w = np.array([_winding_numbers(probe[None], cones[cone_shell == o])[0] for o in pos.tolist()])
+        else:
+            w = None
+            d = _resolve_deflection(brep, None, t)
+            for _ in range(refinements + 1):
+                mesh = tessellate(brep, deflection=d, tol=t)
+                tri = mesh.vertices[mesh.triangles]
+                at_near = near[mesh.face_ids]
+                etol = float(np.max(brep.edge_tol, initial=0.0))
+                band = 2.0 * (d + etol) + 10.0 * t.linear
+                if at_near.any() and _triangle_distances(probe, tri[at_near]).min() <= band:
+                    d /= 8.0
+                    continue
+                tri_shell = face_shell[mesh.face_ids]
+                w = np.array([_winding_numbers(probe[None], tri[tri_shell == o])[0] for o in pos.tolist()])
+                break
+            if w is None:
+                raise TopologyError(
+                    f"shell {s} (faces {brep.shell_face_ids(s)[:8].tolist()}) has its vertex {int(verts[k])} within "
+                    f"{band:.3g} of another shell's tessellation at deflection {d * 8.0:.3g}: the shells touch"
+                )
+        # |w| is 1 inside a closed shell and 0 outside.
+        containers = pos[np.abs(w) > 0.5]
         if containers.size == 0:
             raise TopologyError(
                 f"shell {s} (faces {brep.shell_face_ids(s)[:8].tolist()}) encloses volume {vol[s]:.6g} < 0 and lies "

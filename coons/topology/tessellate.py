@@ -7,9 +7,9 @@ is closed and edge-manifold *by construction*: the two faces of an edge use the 
 mesh vertices along it, so no stitching or vertex welding is ever done.  Chordal deviation
 and normal turning are bounded by ``deflection`` and ``angular_deflection`` (as OCCT's
 ``BRepMesh_IncrementalMesh``; deflection is a resolution, never a tolerance).  It does not
-heal invalid B-reps, smooth or decimate, produce quad meshes, or guarantee triangle quality
-beyond what the Delaunay criterion (trimmed faces) or the strip construction (revolved faces)
-gives.
+heal invalid B-reps, smooth or decimate meshes (only edge samples are thinned, step 1), produce
+quad meshes, or guarantee triangle quality beyond what the Delaunay criterion (trimmed faces)
+or the strip construction (revolved faces) gives.
 
 Algorithm (the BRepMesh idea, made watertight by construction)
 --------------------------------------------------------------
@@ -30,8 +30,14 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    at most ``θ`` (plus the tangent jump at a C0 knot of a NURBS curve, where the curve has a
    corner), and — for p-curves that are not straight lines on non-planar faces — the
    midpoint of the straight parameter-space chord maps onto the surface within ``d`` of the
-   line of the 3-D chord.  Edges of planned faces then take the plan's rows (meridians) or
-   at least its segment count (parallels).  B-rep vertices become mesh vertices
+   line of the 3-D chord.  The bisection starts from (degree + 1) samples per knot span of a
+   NURBS, far denser than the deflection asks for a curve fitted to an intersection (hundreds
+   of spans); its samples are then *decimated* top-down (:func:`_decimated`): a chord over
+   several of them is kept when every one of their chords lies within ``d`` of it (ends'
+   distance plus own midpoint deviation), none turns by more than ``θ/2`` from it, and it meets
+   the bisection's own tests above (midpoint, turning, C0 knots kept, curved p-curves).  Edges
+   of planned faces then take the plan's rows (meridians) or at least its segment count
+   (parallels).  B-rep vertices become mesh vertices
    ``0 .. V-1``; edge samples follow.
 2. **Face boundaries** (trimmed faces).  Each loop is walked in order; a coedge contributes
    its edge's samples mapped through its own p-curve (reversed for right sides).  Where
@@ -131,10 +137,12 @@ a result that is not closed raises.
 
 *Caching.*  B-reps and meshes are immutable, so :func:`tessellate` keeps its result per B-rep and
 ``(deflection, angular deflection, tolerance)`` (weakly: the meshes go with the B-rep).  A Boolean
-tessellates both operands (classification) and, when its result has voids, the result (void
-nesting in :func:`coons.topology.sew.sew_faces`); the final B-rep, rebuilt after nesting, shares
-that mesh (:func:`share_tessellations`, guarded by :func:`coons.topology.brep.same_geometry`), so
-the next Boolean of a chain does not tessellate its operand again.  Meshes are not reused per
+tessellates its operands when it classifies by them and, when its result has a void whose vertices
+all lie in the box of some face of a positive shell, the result (void nesting in
+:func:`coons.topology.sew.sew_faces`; other voids are nested without a mesh); the final B-rep,
+rebuilt after nesting, shares any such mesh (:func:`share_tessellations`, guarded by
+:func:`coons.topology.brep.same_geometry`), so the next Boolean of a chain does not tessellate its
+operand again.  Meshes are not reused per
 face across different B-reps: edge sampling and chord repairs are global, and a face kept
 unchanged by a Boolean is meshed again with the rest.
 
@@ -382,7 +390,9 @@ def edge_parameters(b: BRep, edge: int, deflection: float, angular_deflection: f
     (both ends at one vertex) gets at least three segments.  At an interior knot of a NURBS
     curve whose multiplicity reaches the degree (a C0 knot: the curve may have a corner there)
     the knot is a sample and the turning allowed between its two chords grows by the jump of
-    the tangent direction, so the angular criterion applies within the smooth pieces.  This
+    the tangent direction, so the angular criterion applies within the smooth pieces.  The
+    bisection's samples of a NURBS (from (degree + 1) per knot span) are then thinned to the
+    chords that still meet every criterion (:func:`_decimated`).  This
     is the curve's own discretisation: :func:`tessellate` may add samples where the faces of
     the edge ask for them (step 0 of the module docstring).
 
@@ -529,11 +539,91 @@ def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool) -> np.nda
             off = w - np.einsum("ij,ij->i", w, unit)[:, None] * unit
             bad |= np.linalg.norm(off, axis=1) > d
         if not bad.any():
+            if check_curve and t.size > 3:
+                dev = np.linalg.norm(Pm - 0.5 * (P[:-1] + P[1:]), axis=1)
+                closed = int(b.edge_vertex[edge, 0]) == int(b.edge_vertex[edge, 1])
+                keep = _decimated(b, edge, curve, t, P, dev, sides, d, a, known, breaks, jumps, closed)
+                t, P = t[keep], P[keep]
             return _resolved_samples(t, P, known)
         t = np.sort(np.concatenate([t, tm[bad]]))
     raise ConvergenceError(
         f"edge {edge}: discretisation did not reach deflection {d:g} / angle {a:g} in {_MAX_EDGE_ROUNDS} bisection rounds"
     )
+
+
+def _decimated(b, edge, curve, t: np.ndarray, P: np.ndarray, dev: np.ndarray, sides, d: float, a: float,
+               known: float, breaks: np.ndarray, jumps: np.ndarray, closed: bool) -> np.ndarray:
+    """Indices ``(k,)`` of a sub-sequence of the bisection's samples ``t (n,)`` (points ``P (n, 3)``) whose
+    chords still meet every criterion of step 1, with both ends, the C0 knots and, for a closed edge,
+    three segments at least.
+
+    The bisection starts from (degree + 1) samples per knot span, which for a curve fitted to an
+    intersection within ``tol.linear`` (hundreds of spans) is far denser than the deflection asks.
+    A chord over the dense samples ``i < k < j`` is kept when (1) every dense chord between its ends
+    lies within ``d`` of it, measured as the larger distance of its ends to the coarse chord plus
+    its own midpoint deviation ``dev (n - 1,)`` (the curve lies within ``dev`` of the dense chord as
+    far as the bisection's midpoint test tells, and the dense chord within its ends' distance of the
+    coarse one); (2) every dense chord longer than ``known`` deviates in direction by at most ``θ/2``
+    from it (the tangent turns by at most ``θ`` along it); (3) the tests of the bisection hold for
+    the coarse chord itself: midpoint deviation, turning of its half chords and against its
+    neighbours (plus the corner's angle at a C0 knot), and the curved-p-curve side criterion.
+    Chords that fail are split at their middle dense sample, all at once, until none fails; dense
+    chords passed the bisection, so this ends within ``log2 n`` rounds (top-down, as Douglas–Peucker
+    1973 with the bisection's criteria as the test).
+    """
+    n = t.size
+    keep = np.zeros(n, dtype=bool)
+    keep[[0, -1]] = True
+    jump_at = np.zeros(n)
+    if breaks.size:
+        at = np.searchsorted(t, breaks)  # every break is a sample (the bisection kept it so)
+        keep[at] = True
+        jump_at[at] = jumps
+    if closed:
+        keep[[n // 3, (2 * n) // 3]] = True
+    chord = P[1:] - P[:-1]
+    clen = np.linalg.norm(chord, axis=1)
+    resolved = clen > known
+    uvs = [np.asarray(pc.evaluate(t), dtype=np.float64) for pc, _ in sides]
+    point = np.arange(n)
+    while True:
+        idx = np.flatnonzero(keep)
+        lo, hi = idx[:-1], idx[1:]
+        multi = hi - lo > 1
+        if not multi.any():
+            return idx
+        A, B = P[lo], P[hi]
+        AB = B - A
+        L = np.linalg.norm(AB, axis=1)
+        unit = np.divide(AB, L[:, None], out=np.zeros_like(AB), where=L[:, None] > 0)
+        # (1) and (2), per dense sample and chord against the coarse chord that holds it.
+        owner = np.minimum(np.searchsorted(idx, point, side="right") - 1, lo.size - 1)
+        w = P - A[owner]
+        s = np.clip(np.einsum("ij,ij->i", w, unit[owner]), 0.0, L[owner])
+        dist = np.linalg.norm(w - s[:, None] * unit[owner], axis=1)
+        co = owner[:-1]
+        worst = np.maximum(dist[:-1], np.where(keep[1:], 0.0, dist[1:])) + dev
+        turned = _turning(chord, AB[co]) > 0.5 * a
+        fail = (worst > d) | (turned & resolved & (L[co] > known))
+        bad = np.bincount(co, weights=fail, minlength=lo.size) > 0
+        # (3) the bisection's own tests on the coarse chords.
+        j = np.flatnonzero(multi)
+        tm = 0.5 * (t[lo[j]] + t[hi[j]])
+        Pm = _edge_eval(b, edge, curve, tm)
+        bad[j] |= np.linalg.norm(Pm - 0.5 * (A[j] + B[j]), axis=1) > d
+        bad[j] |= (_turning(Pm - A[j], B[j] - Pm) > a) & (L[j] > known)
+        turn = (_turning(AB[:-1], AB[1:]) > a + jump_at[lo[1:]]) & (L[:-1] > known) & (L[1:] > known)
+        bad[:-1] |= turn
+        bad[1:] |= turn
+        for (_, S), uv in zip(sides, uvs):
+            mid = 0.5 * (uv[lo[j]] + uv[hi[j]])
+            w = S.evaluate(mid[:, 0], mid[:, 1]) - A[j]
+            off = w - np.einsum("ij,ij->i", w, unit[j])[:, None] * unit[j]
+            bad[j] |= np.linalg.norm(off, axis=1) > d
+        bad &= multi
+        if not bad.any():
+            return idx
+        keep[(lo[bad] + hi[bad]) // 2] = True
 
 
 def _resolved_samples(t: np.ndarray, P: np.ndarray, known: float) -> np.ndarray:

@@ -447,3 +447,25 @@ def test_wings_are_the_stacked_coedge_pointers():
     rng = np.random.default_rng(9)
     prv, nxt = rng.integers(0, 50, 50), rng.integers(0, 50, 50)
     np.testing.assert_array_equal(_wings(prv, nxt), np.stack([prv[0::2], nxt[0::2], prv[1::2], nxt[1::2]], axis=1))
+
+
+def test_triangle_distances_match_dense_samples():
+    from coons.topology.from_mesh import _triangle_distances
+
+    rng = np.random.default_rng(7)
+    tri = rng.normal(size=(40, 3, 3))
+    tri[0, 2] = tri[0, 0] + 0.5 * (tri[0, 1] - tri[0, 0])  # a degenerate (collinear) triangle
+    s, t = np.meshgrid(np.linspace(0, 1, 201), np.linspace(0, 1, 201))
+    keep = s + t <= 1
+    s, t = s[keep], t[keep]
+    for p in rng.normal(scale=2.0, size=(5, 3)):
+        d = _triangle_distances(p, tri)
+        X = tri[:, None, 0] + s[None, :, None] * (tri[:, None, 1] - tri[:, None, 0]) + t[None, :, None] * (
+            tri[:, None, 2] - tri[:, None, 0])
+        sampled = np.linalg.norm(X - p, axis=2).min(axis=1)
+        assert (d <= sampled + 1e-12).all()  # never above a point of the triangle
+        np.testing.assert_allclose(d, sampled, atol=0.02)  # and within the sampling's spacing of the minimum
+    # Exactly: the plane's foot inside, and a vertex region.
+    unit = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    np.testing.assert_allclose(_triangle_distances(np.array([0.2, 0.2, 3.0]), unit), [3.0])
+    np.testing.assert_allclose(_triangle_distances(np.array([-3.0, -4.0, 0.0]), unit), [5.0])

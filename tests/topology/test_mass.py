@@ -962,3 +962,41 @@ def test_circle_extremes_in_one_pass_are_the_per_curve_ones():
     P = np.concatenate([p.reshape(-1, 3) for p in per_curve])
     np.testing.assert_array_equal(lo, P.min(axis=0))
     np.testing.assert_array_equal(hi, P.max(axis=0))
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Box(2, 3, 4), lambda: Sphere(1.5), lambda: Torus(2.0, 0.5), lambda: Cylinder(1.0, 3.0),
+    lambda: Box(4, 4, 4) - Cylinder(1.2, 6).rotate((0, 0, 0), (1, 0, 0), 30),
+    lambda: Box(4, 4, 4) + Sphere(1.5).translate((2, 0.5, 0.3)),
+])
+def test_face_box_bounds_contain_each_face(make):
+    """Every face's tessellation vertices (on the exact geometry) lie in its box, and the boxes
+    together cover the exact bounding box."""
+    from coons.tolerance import DEFAULT_TOLERANCE
+    from coons.topology.tessellate import tessellate
+
+    s = make()
+    b = s.brep
+    box = mass.face_box_bounds(b, DEFAULT_TOLERANCE)
+    assert box.shape == (b.n_faces, 2, 3)
+    m = tessellate(s, deflection=1e-2)
+    X = m.vertices[m.triangles]  # (m, 3, 3)
+    lo, hi = box[m.face_ids, 0][:, None, :], box[m.face_ids, 1][:, None, :]
+    assert ((X >= lo) & (X <= hi)).all()
+    exact = bounding_box(s)
+    assert (box[:, 0].min(axis=0) <= exact[0]).all() and (box[:, 1].max(axis=0) >= exact[1]).all()
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Box(4, 4, 4) - Cylinder(1.2, 6).rotate((0, 0, 0), (1, 0, 0), 30),
+    lambda: Box(4, 4, 4) + Sphere(1.5).translate((2, 0.5, 0.3)),
+    lambda: Sphere(2.0) - Cylinder(0.5, 6).rotate((0, 0, 0), (0, 1, 0), 20),
+    lambda: Torus(2.0, 0.5),
+])
+def test_bounding_box_skips_only_searches_that_cannot_widen_it(make, monkeypatch):
+    """Skipping the curves and surfaces whose hull lies in the box found so far gives the very box
+    of the full search."""
+    b = make().brep
+    pruned = mass._bounding_box(b)
+    monkeypatch.setattr(mass, "_hull", lambda obj: None)
+    np.testing.assert_array_equal(pruned, mass._bounding_box(b))

@@ -244,6 +244,39 @@ def test_void_goes_to_the_shell_around_it():
     np.testing.assert_allclose(solid.volume, 128 - 2 * math.pi**2 * 1.2 * 0.25, rtol=1e-12)
 
 
+def test_voids_nest_in_the_smallest_shell_around_them_cones_and_mesh(monkeypatch):
+    """A box with a box-shaped void holding a ball with a ball-shaped void.  The inner void's vertices
+    lie in the boxes of the ball's faces (decided on the tessellation, certified by distance); the
+    outer void's lie in no face box of the big box (decided by the cones over the chords)."""
+    from coons.topology import tessellate as tess
+
+    made = []
+    real = tess.tessellate
+    monkeypatch.setattr(tess, "tessellate", lambda *a, **k: made.append(k.get("deflection")) or real(*a, **k))
+    outer, cavity = Box(10, 10, 10), Box(8, 8, 8)
+    ball, bubble = Sphere(3), Sphere(1).translate((0.5, 0, 0))
+    solid = sew_faces(face_specs(outer) + reversed_specs(face_specs(cavity)) + face_specs(ball)
+                      + reversed_specs(face_specs(bubble)))
+    b = solid.brep
+    assert (b.n_shells, b.n_solids) == (4, 2)
+    assert check(solid).ok
+    for lump in solid.lumps():
+        shells = lump.shells()
+        assert len(shells) == 2
+        spheres = [isinstance(f.surface, type(ball.brep.surfaces[0])) for s in shells for f in s.faces()]
+        assert all(spheres) or not any(spheres)  # the bubble went to the ball, not to the big box
+    np.testing.assert_allclose(solid.volume, 1000 - 512 + 4 / 3 * math.pi * (27 - 1), rtol=1e-9)
+    assert len(made) == 1  # one tessellation, for the bubble; the cavity needed none
+
+
+def test_a_void_in_a_face_box_but_outside_the_shell_is_refused():
+    """The void lies in the corner of the ball's box: inside its faces' boxes, outside the ball."""
+    specs = face_specs(Sphere(10)) + reversed_specs(face_specs(Box(1, 1, 1).translate((8, 8, 0))))
+    with pytest.raises(TopologyError, match=r"shell 1 \(faces .*\) encloses volume -1 < 0 and lies inside no other "
+                                            "shell: its faces are oriented inward"):
+        sew_faces(specs)
+
+
 def shifted_face(spec: FaceSpec, delta, tol) -> FaceSpec:
     """A planar face moved by ``delta`` (p-curves kept: they deviate by |delta|), edges of tolerance ``tol``."""
     loops = [[EdgeSpec(Line(e.curve.origin + delta, e.curve.direction), e.t0, e.t1, e.pcurve, tol) for e in l]

@@ -898,18 +898,24 @@ def test_meshes_are_cached_per_brep_and_arguments():
 
 
 def test_a_boolean_result_with_a_void_reuses_the_mesh_of_its_void_nesting():
-    """Sewing a shell and a void tessellates them to nest the void; the final B-rep shares that mesh
-    (and the face integrals), so the next Boolean on the result does not tessellate it again."""
-    outer, inner = Box(10, 10, 10), Sphere(2.0)
-    r = outer - inner  # the sphere becomes a void
+    """Sewing a shell and a void tessellates them to nest the void when its vertices lie in the boxes
+    of the outer shell's faces (here the faces of a ball); the final B-rep shares that mesh (and the
+    face integrals), so the next Boolean on the result does not tessellate it again.  A void in no
+    face box (a ball in a box) is nested without a mesh."""
+    r = Box(10, 10, 10) - Sphere(2.0)
+    assert r.brep.n_shells == 2
+    assert not tess._MESHES.get(r.brep)
+    outer, inner = Sphere(10.0), Sphere(2.0).translate((0.5, 0.3, 0.2))
+    r = outer - inner  # the small ball becomes a void
     assert r.brep.n_shells == 2
     cached = tess._MESHES.get(r.brep)
     assert cached, "the void nesting's mesh was not shared with the result"
     mesh = tessellate(r)
     assert any(mesh is m for m in cached.values())
-    fresh = tess._tessellate(r.brep, *next(iter(k for k, m in cached.items() if m is mesh)))
+    key = next(iter(k for k, m in cached.items() if m is mesh))
+    fresh = tess._tessellate(r.brep, *key)
     np.testing.assert_array_equal(fresh.triangles, mesh.triangles)
-    np.testing.assert_allclose(mesh.volume, r.volume, rtol=1e-3)
+    assert abs(mesh.volume - r.volume) <= key[0] * r.area  # within deflection × area
 
 
 def test_sharing_needs_the_same_geometry():
@@ -927,3 +933,50 @@ def test_cached_bounding_box_cannot_be_corrupted_by_the_caller():
     box = bounding_box(s.brep)
     box[:] = 0.0
     np.testing.assert_allclose(bounding_box(s.brep), [[-1, -1, -1], [1, 1, 1]], atol=1e-12)
+
+
+# ============================================================================ curves with many knot spans
+def many_span_prism(spans: int = 200):
+    """A prism over a cubic B-spline through ``spans + 3`` points of a half circle of radius 1 (a curve
+    with many knot spans, as a fitted intersection curve), closed by a straight segment."""
+    from coons.topology.profile import Profile, Segment
+    from coons.topology.sweep import extrude
+
+    theta = np.linspace(0.0, PI, spans + 3)
+    knots = np.concatenate([[0.0] * 3, np.linspace(0.0, 1.0, spans + 1), [1.0] * 3])
+    spline = NurbsCurve(np.stack([np.cos(theta), np.sin(theta)], axis=1), knots, 3)
+    return extrude(Profile([Segment.spline(spline), Segment.line([-1, 0], [1, 0])]), 1.0), spline
+
+
+@pytest.mark.parametrize("d, a", [(1e-2, 0.5), (1e-3, 0.5), (1e-3, 0.05)])
+def test_many_knot_spans_are_decimated_within_the_deflection_and_angle(d, a):
+    s, spline = many_span_prism()
+    b = s.brep
+    edges = [e for e in range(b.n_edges) if isinstance(b.curves[b.edge_curve[e]], NurbsCurve)]
+    assert len(edges) == 2
+    for e in edges:
+        c = b.curves[b.edge_curve[e]]
+        t = edge_parameters(b, e, d, a)
+        np.testing.assert_array_equal(t[[0, -1]], b.edge_range[e])
+        P = c.evaluate(t)
+        # Far fewer than the (degree + 1) per span the bisection starts from: about what a circle of
+        # radius 1 needs (equal steps of min(θ, 2 acos(1 - d))), at most twice that (halving).
+        need = math.ceil(PI / min(a, 2 * math.acos(1 - d)))
+        assert t.size - 1 <= 2 * need
+        # Deflection: a dense sampling of the exact curve lies within d of the polyline, and
+        # the midpoint test of the bisection holds for every chord.
+        tm = 0.5 * (t[:-1] + t[1:])
+        assert np.linalg.norm(c.evaluate(tm) - 0.5 * (P[:-1] + P[1:]), axis=1).max() <= d
+        dense = np.linspace(t[0], t[-1], 20001)
+        X = c.evaluate(dense)
+        k = np.clip(np.searchsorted(t, dense, side="right") - 1, 0, t.size - 2)
+        A, B = P[k], P[k + 1]
+        u = np.clip(np.einsum("ij,ij->i", X - A, B - A) / np.einsum("ij,ij->i", B - A, B - A), 0, 1)
+        assert np.linalg.norm(X - A - u[:, None] * (B - A), axis=1).max() <= d * (1 + 1e-3)
+        # Angle: consecutive chords turn by at most θ.
+        ch = np.diff(P, axis=0)
+        cos = np.einsum("ij,ij->i", ch[:-1], ch[1:]) / np.linalg.norm(ch[:-1], axis=1) / np.linalg.norm(ch[1:], axis=1)
+        assert np.arccos(np.clip(cos, -1, 1)).max() <= a
+    m = tessellate(s, deflection=d, angular_deflection=a)
+    assert m.is_closed and vertex_links_are_cycles(m) and m.euler_characteristic == 2
+    assert abs(m.volume - s.volume) <= d * s.area

@@ -171,7 +171,7 @@ Status and limitations
   invariant is verified on the whole result.  The cyclic garbage collector is paused inside
   the pipeline (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.
   Reused as well: an operand's mesh when it was tessellated before (meshes are cached per
-  B-rep; a result with voids shares the mesh its void nesting made).  Local: the face boxes of
+  B-rep; a result with voids shares the mesh its void nesting made, when it made one).  Local: the face boxes of
   the broad phase (per face spec, from its edges, no tessellation); the end tolerance of a cut
   and the T-junction pass only look at boundary edges whose box
   (:func:`~coons.kernel.curve_intersect.curve_box`) is near the points in question, and the

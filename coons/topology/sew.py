@@ -29,8 +29,9 @@ meet, which edges are shared — is recovered from geometry:
    (map slope ±1) and 2-D ``NurbsCurve`` p-curves are supported.
 5. **Assembly** with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
    (a shell enclosing negative volume becomes a void of the smallest positive shell around
-   it, by the winding number of one of its vertices with respect to the containers'
-   tessellations), then ``build()``, which runs :func:`~coons.topology.check.check`.
+   it, by the winding number of one of its vertices: with respect to cones over the faces'
+   chords when the vertex lies outside every face box, else to the tessellation, see
+   :func:`_nest_voids`), then ``build()``, which runs :func:`~coons.topology.check.check`.
 
 :func:`face_specs` is the inverse: the face specifications of an existing B-rep (used by the
 round-trip tests and by anything that re-sews modified faces).

@@ -200,8 +200,11 @@ _XK = np.concatenate([-_XGK[:-1], _XGK[::-1]])  # (15,) ascending
 _WK = np.concatenate([_WGK[:-1], _WGK[::-1]])
 _WG = np.concatenate([_WG7[:-1], _WG7[::-1]])
 _WKG = np.stack([_WK, _WG], axis=1)  # (15, 2)
-#: Initial Gauss–Kronrod pieces per knot span (or per angular piece) before any bisection.
-_INITIAL_PIECES = 2
+#: Initial Gauss–Kronrod pieces per knot span (or per angular piece) before any bisection: one (a
+#: K15 rule is exact for polynomials of degree 22; a fitted p-curve brings a hundred spans, and the
+#: adaptive rounds halve whatever misses its share of the target).  Two doubled the shell-volume
+#: time of curved Boolean results (crossing cylinders 21 -> 11 ms) for the same values to 1e-15.
+_INITIAL_PIECES = 1
 #: The adaptive quadrature stalls when a round of halvings leaves the summed error estimate above
 #: this fraction of the previous round's (a jump discontinuity halves it: 0.5 is progress) ...
 _STALL_FACTOR = 0.7

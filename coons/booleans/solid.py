@@ -1022,15 +1022,19 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
     cuts_a: dict[int, list[EdgeSpec]] = {}
     cuts_b: dict[int, list[EdgeSpec]] = {}
     bounded: set[int] = set()  # ids of the cuts whose ends _end_tolerance found on their face's boundary
-    for i, j in zip(I.tolist(), J.tolist()):
+    sections = _batched_sections(A, B, I, J, t)
+    for k, (i, j) in enumerate(zip(I.tolist(), J.tolist())):
         X, Y = A.specs[i], B.specs[j]
         try:
-            si = intersect_surfaces(X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
-            if si.coincident:
-                _imprint(X, Y, A.uv_box[i], cuts_a.setdefault(i, []), t)
-                _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
-                continue
-            for c in si.curves:
+            curves = sections[k]
+            if curves is None:
+                si = intersect_surfaces(X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
+                if si.coincident:
+                    _imprint(X, Y, A.uv_box[i], cuts_a.setdefault(i, []), t)
+                    _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
+                    continue
+                curves = si.curves
+            for c in curves:
                 if c.tol > _REFIT_FACTOR * t.linear:
                     c = _refitted(c, X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
                 ra = _clip(A, i, c.pcurve_a, c.t0, c.t1, t, c.curve)
@@ -1076,6 +1080,43 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
         for key in repeated:
             links.pop(key, None)
     return cuts_a, cuts_b
+
+
+def _batched_sections(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolerance) -> list:
+    """Per pair ``(I[k], J[k])``, its branches where a batched closed form covers it, else None.
+
+    Pairs of a plane and a cylinder (either way round) go to
+    :func:`~coons.kernel.intersect._plane_cylinder_circles` together (a plate's faces against
+    the walls of many holes: one array pass instead of one closed form per pair); the pairs it
+    does not cover, and all others, are left to :func:`~coons.kernel.intersect.intersect_surfaces`.
+
+    Raises
+    ------
+    BooleanError
+        (stage ``"intersect"``) the batch failed (a degenerate circle or p-curve).
+    """
+    from coons.kernel.analytic import CylindricalSurface
+    from coons.kernel.intersect import _plane_cylinder_circles
+
+    out: list = [None] * len(I)
+    pc = (PlanarSurface, CylindricalSurface)
+    rows, items = [], []
+    for k, (i, j) in enumerate(zip(I.tolist(), J.tolist())):
+        Sa, Sb = A.specs[i].surface, B.specs[j].surface
+        ta, tb = type(Sa), type(Sb)
+        if ta is not tb and ta in pc and tb in pc:
+            rows.append(k)
+            items.append((Sa, Sb, A.uv_box[i], B.uv_box[j]))
+    if not rows:
+        return out
+    try:
+        found = _plane_cylinder_circles(items, t)
+    except (CoonsError, ValueError, ArithmeticError) as exc:
+        raise BooleanError(f"plane-cylinder sections of {len(rows)} face pairs: {type(exc).__name__}: {exc}",
+                           stage="intersect", diagnostics={"pairs": len(rows), "error": str(exc)}) from exc
+    for k, curves in zip(rows, found):
+        out[k] = curves
+    return out
 
 
 #: A branch whose recorded deviation exceeds this many ``tol.linear`` gets its p-curves rebuilt

@@ -1090,10 +1090,8 @@ def _batched_sections(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t:
     the walls of many holes: one array pass instead of one closed form per pair); the pairs it
     does not cover, and all others, are left to :func:`~coons.kernel.intersect.intersect_surfaces`.
 
-    Raises
-    ------
-    BooleanError
-        (stage ``"intersect"``) the batch failed (a degenerate circle or p-curve).
+    When the batch raises (a degenerate circle or p-curve), every pair is left to the per-pair
+    path, which reports the failing pair.
     """
     from coons.kernel.analytic import CylindricalSurface
     from coons.kernel.intersect import _plane_cylinder_circles
@@ -1112,8 +1110,9 @@ def _batched_sections(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t:
     try:
         found = _plane_cylinder_circles(items, t)
     except (CoonsError, ValueError, ArithmeticError) as exc:
-        raise BooleanError(f"plane-cylinder sections of {len(rows)} face pairs: {type(exc).__name__}: {exc}",
-                           stage="intersect", diagnostics={"pairs": len(rows), "error": str(exc)}) from exc
+        # The per-pair path runs instead, and names the pair that fails.
+        _log.debug("batched plane-cylinder sections failed (%s: %s); per pair instead", type(exc).__name__, exc)
+        return out
     for k, curves in zip(rows, found):
         out[k] = curves
     return out

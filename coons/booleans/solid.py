@@ -1813,10 +1813,17 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
     from coons.kernel.intersect import _curve_points
 
     ends, thr = [], []
-    for c in cuts:
+    # Many cuts (a plate crossed by many holes): the ends of those on lines and conics in one pass
+    # (_curve_points_many: the same expressions).
+    simple = [k for k, c in enumerate(cuts) if type(c.curve) in (Line, Circle, Ellipse)
+              and math.isfinite(c.t0) and math.isfinite(c.t1)] if len(cuts) > _SCALAR_ENDS else []
+    known = dict(zip(simple, _curve_points_many([cuts[k].curve for k in simple],
+                                                np.array([[cuts[k].t0, cuts[k].t1] for k in simple]))
+                     if simple else []))
+    for k, c in enumerate(cuts):
         tt = np.array([c.t0, c.t1])
-        P = _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) else \
-            np.asarray(c.curve.evaluate(tt), dtype=np.float64)
+        P = known[k] if k in known else _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) \
+            else np.asarray(c.curve.evaluate(tt), dtype=np.float64)
         lim = max(t.linear, c.tol or 0.0)
         p, q = P.tolist()
         gap = _distance(p, q)
@@ -2095,8 +2102,16 @@ def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None =
         return list(cuts)
     P = np.empty((n, 3, 3))
     groups: dict[int, list[int]] = {}
+    simple = []  # cuts on lines and conics: all in one pass (_curve_points_many, evaluate's expressions)
     for k, c in enumerate(cuts):
-        groups.setdefault(id(c.curve), []).append(k)
+        if type(c.curve) in (Line, Circle, Ellipse) and math.isfinite(c.t0) and math.isfinite(c.t1):
+            simple.append(k)
+        else:
+            groups.setdefault(id(c.curve), []).append(k)
+    if simple:
+        t0 = np.array([cuts[k].t0 for k in simple])
+        t1 = np.array([cuts[k].t1 for k in simple])
+        P[simple] = _curve_points_many([cuts[k].curve for k in simple], np.stack([t0, 0.5 * (t0 + t1), t1], axis=1))
     for rows in groups.values():  # one evaluation per curve object
         r = np.asarray(rows)
         t0 = np.array([cuts[k].t0 for k in rows])

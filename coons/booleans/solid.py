@@ -52,7 +52,12 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    confirms is exactly the spec it was sewn from (``_SEWN``) is that spec, with its per-face
    data (``_FACE_DATA``, its space box included) already computed.
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
-3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
+3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``
+   (plane–cylinder pairs whose plane is perpendicular to the axis — a plate's faces against the
+   walls of its holes — all at once first: ``_batched_sections``, the closed-form circles of
+   :func:`~coons.kernel.intersect._plane_cylinder_circles`, and for their branches the clips,
+   length tests and end tolerances below in array passes over all of them, ``_batched_pieces``;
+   a pair the batch does not cover plainly, clear of every near-tie, takes the per-pair path);
    a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
    3-D curve rebuilt by ``pcurve_on`` (``_refitted``: a fit gone wrong near a pole must not
    widen the cut's tolerance to the size of the face); every branch is clipped to both
@@ -73,7 +78,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    branches (its polygon's sides, the cut ends, the midpoints of its cuts) are handled in Python
    floats by the array paths' own expressions, or decided where round-off cannot change the
    decision and left to the arrays where it could, so that every cut, tolerance and link is the
-   same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).
+   same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).  The batched pairs repeat
+   the per-pair expressions on stacked arrays; they promise the same cuts to round-off only
+   (the tests find them the same bit for bit up to the signs of zeros in circle frames).
 4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
    form separate simple closed cycles clear of the face's loops — a hole drilled through a
    plate — ``_split_islands`` builds the holed face and one island per cycle directly, testing
@@ -3726,31 +3733,48 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     # periods when they differ by one (a face pair across u = 0 of a cylinder).
     ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
     ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
-    B = _period_shifted(B, A.surface, np.mean(ua - ub, axis=0))
+    offset = np.mean(ua - ub, axis=0)
+    if _wraps(A, B, _whole_periods(A.surface, offset)):
+        return None  # (the cheap form of _fuse's own full-period test, before B is shifted: two half cylinders)
+    B = _period_shifted(B, A.surface, offset)
     if B is None:
         return None
     eb = B.loops[uq[0]][uq[1]]
     ub = _edge_uv(eb, A.surface, 3)[::-1]
     if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
         return None
-    if _wraps(A, B):
-        return None  # (the cheap form of _fuse's own full-period test: two half cylinders)
     return _fuse(A, B, up, uq, t)
 
 
-def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
-    """Whether faces A and B (B's p-curves on A's surface) together span a full period of a periodic parameter.
+def _wraps(A: FaceSpec, B: FaceSpec, shift: np.ndarray | None = None) -> bool:
+    """Whether faces A and B (B's p-curves on A's surface, moved by ``shift (2,)`` when given: the whole
+    periods :func:`_period_shifted` would move them by) together span a full period of a periodic parameter.
 
     The samples are a subset of those :func:`_fuse` tests, so this never rejects a merge that
-    ``_fuse`` would make.
+    ``_fuse`` would make (up to the round-off of adding the shift before or after evaluating).
     """
     S = A.surface
     pers = [(k, getattr(S, name, None)) for k, name in ((0, "period_u"), (1, "period_v"))]
     pers = [(k, p) for k, p in pers if p]
     if not pers:
         return False
-    U = np.concatenate([_edge_uv(e, S, 5) for F in (A, B) for loop in F.loops for e in loop])
+    UB = _face_uv(B, S, 5)
+    U = np.concatenate([_face_uv(A, S, 5), UB if shift is None else UB + shift])
     return any(float(np.ptp(U[:, k])) >= p - 1e-9 * p for k, p in pers)
+
+
+def _face_uv(F: FaceSpec, S, n: int) -> np.ndarray:
+    """:func:`_edge_uv` of every edge use of face F, stacked ``(k, 2)``: the two ends of the straight
+    p-curves in one pass (their ``evaluate``'s expression), the others one by one."""
+    uses = [e for loop in F.loops for e in loop]
+    lines = [e for e in uses if type(e.pcurve) is Line2D]
+    parts = [_edge_uv(e, S, n) for e in uses if type(e.pcurve) is not Line2D]
+    if lines:
+        O = np.array([e.pcurve.origin for e in lines])
+        D = np.array([e.pcurve.direction for e in lines])
+        T = np.array([[e.t0, e.t1] for e in lines], dtype=np.float64)
+        parts.append((O[:, None] + T[..., None] * D[:, None]).reshape(-1, 2))
+    return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 
 #: Edge starts of a face tested against another surface before :func:`_moved_to` re-expresses it.

@@ -61,7 +61,10 @@ direction rule).
 on a handful of values: where every p-curve coordinate is exact, the branch's window is clipped
 to the boxes in Python floats (``_exact_runs``), and the measured deviation evaluates the curves
 without their argument checks (``_curve_points`` and its siblings); both repeat the array
-expressions value for value, so the branches are the same bit for bit.
+expressions value for value, so the branches are the same bit for bit.  Many plane–cylinder
+pairs with the plane perpendicular to the axis (a plate against the walls of its holes) are
+solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
+it); it takes only pairs clear of every near-tie and leaves the rest to this dispatcher.
 
 *Tolerances.*  ``tol.linear`` decides tangency, coincidence and whether a curve passes
 through a pole or apex; ``tol.angular`` decides parallel directions.  Each branch records the
@@ -1581,11 +1584,11 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     cs, sn = np.cos(t), np.sin(t)
     Pk = ((R[:, None] * cs)[..., None] * X[:, None] + (R[:, None] * sn)[..., None] * Y[:, None]) + C[:, None]
     uv = o[:, None] + cs[..., None] * al[:, None] + sn[..., None] * be[:, None]
-    Fpt, Opt, Fct, Oct, Rc = Fp[todo], Op[todo], Fc[todo], Oc[todo], gathered([cyls[k] for k in todo.tolist()], "radius")[0]
+    Fpt, Opt, Fct, Oct = Fp[todo], Op[todo], Fc[todo], Oc[todo]
     Pp = Opt[:, None] + uv[..., 0:1] * Fpt[:, None, 0] + uv[..., 1:2] * Fpt[:, None, 1]
     u = ou[:, None] + sg[:, None] * t
     e = np.cos(u)[..., None] * Fct[:, None, 0] + np.sin(u)[..., None] * Fct[:, None, 1]
-    Pc = (Rc[:, None, None] * e + ov[:, None, None] * Fct[:, None, 2]) + Oct[:, None]
+    Pc = (R[:, None, None] * e + ov[:, None, None] * Fct[:, None, 2]) + Oct[:, None]  # (the cylinder's radius)
     gaps = np.concatenate([Pp - Pk, Pc - Pk, Pp - Pc], axis=1)
     dev = np.sqrt(np.max(np.add.reduce(gaps * gaps, axis=-1), axis=1))
     circles = Circle.many(C, np.stack([X, Y, Z], axis=1), R)

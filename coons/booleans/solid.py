@@ -3445,6 +3445,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
     X_all, cand_all = _split_candidates(open_uses, starts, t)
+    cand_all = _off_ends(open_uses, X_all, cand_all, starts, start_tol, t)
     at = iter(range(len(open_uses)))
     out = []
     changed_any = False
@@ -3466,11 +3467,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 i = next(at)
                 X, cand = X_all[i], cand_all[i]
                 params: list[float] = []
-                if cand:
-                    cand = np.asarray(cand)
+                if cand.size:
                     Q, qt = starts[cand], np.maximum(start_tol[cand], thr)
-                    keep = (np.linalg.norm(Q - X[0], axis=1) > qt) & (np.linalg.norm(Q - X[-1], axis=1) > qt)
-                    Q, qt = Q[keep], qt[keep]
                     if Q.shape[0]:
                         lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
                         tq = _curve_closest(e.curve, Q, lo, t)
@@ -3497,6 +3495,22 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         out.append(FaceSpec(f.surface, f.sense, loops) if face_changed else f)
         changed_any |= face_changed
     return out if changed_any else faces
+
+
+def _off_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
+              t: Tolerance) -> list[np.ndarray]:
+    """The candidates ``cand[i]`` (indices into ``starts``) of each use that lie farther than their tolerance
+    (the vertex's and the use's, the larger) from both of its ends ``X[i, 0], X[i, -1]``: all (use, vertex)
+    pairs in one pass, by the per-use test's expressions."""
+    sizes = np.array([len(c) for c in cand], dtype=np.int64)
+    if not sizes.sum():
+        return [np.zeros(0, dtype=np.int64) for _ in cand]
+    use = np.repeat(np.arange(len(cand)), sizes)
+    idx = np.concatenate([np.asarray(c, dtype=np.int64) for c in cand if len(c)])
+    thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
+    Q, qt = starts[idx], np.maximum(start_tol[idx], thr[use])
+    keep = (np.linalg.norm(Q - X[use, 0], axis=1) > qt) & (np.linalg.norm(Q - X[use, -1], axis=1) > qt)
+    return [part[part >= 0] for part in np.split(np.where(keep, idx, -1), np.cumsum(sizes)[:-1])]
 
 
 def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:

@@ -2949,10 +2949,10 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
     T, uv_x, uv_y = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 2))
     n_x, Su, Sv = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
 
-    def grouped(key, fill) -> None:
+    def grouped(key, fill, rows: np.ndarray | None = None) -> None:
         groups: dict[int, list[int]] = {}
-        for i, c in enumerate(cand):
-            groups.setdefault(id(key(c)), []).append(i)
+        for i in range(n) if rows is None else rows.tolist():
+            groups.setdefault(id(key(cand[i])), []).append(i)
         for rows in groups.values():
             r = np.asarray(rows)
             try:
@@ -2976,9 +2976,12 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         D = np.asarray(S.derivatives(uv_y[r, 0], uv_y[r, 1], 1), dtype=np.float64).reshape(r.size, 2, 2, 3)
         Su[r], Sv[r] = D[:, 1, 0], D[:, 0, 1]
 
-    grouped(lambda c: c[2].curve, tangent)
-    grouped(lambda c: c[2].pcurve, on_x)
-    grouped(lambda c: c[5], on_y)
+    # Lines and conics, Line2D and Trig2D p-curves (one object per cut: a plate crossed by many
+    # holes) in one pass each (_local_simple); the rest one pass per object.
+    done = _local_simple(cand, s, T, uv_x, uv_y)
+    grouped(lambda c: c[2].curve, tangent, np.flatnonzero(~done[:, 0]))
+    grouped(lambda c: c[2].pcurve, on_x, np.flatnonzero(~done[:, 1]))
+    grouped(lambda c: c[5], on_y, np.flatnonzero(~done[:, 2]))
     grouped(lambda c: c[1].surface, normal_x)
     grouped(lambda c: Y.specs[c[4]].surface, frame_y)
     forward = np.array([c[2].t1 > c[2].t0 for c in cand])
@@ -3006,6 +3009,45 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         near = np.any(np.all((q >= lo[None] - mr) & (q <= hi[None] + mr), axis=2), axis=1)
         ok[r[near]] = False
     return ok, cos
+
+
+def _local_simple(cand: list[tuple], s: np.ndarray, T: np.ndarray, uv_x: np.ndarray, uv_y: np.ndarray) -> np.ndarray:
+    """The tangents ``T`` of the candidates' cuts on lines and conics and their points ``uv_x, uv_y`` on
+    ``Line2D`` and ``Trig2D`` p-curves, at finite ``s``, filled in one pass each by the expressions of those
+    types' ``derivatives`` and ``evaluate``; ``(k, 3)`` which of the three were filled."""
+    n = len(cand)
+    done = np.zeros((n, 3), dtype=bool)
+    fin = np.isfinite(s).tolist()
+    conic = [i for i, c in enumerate(cand) if fin[i] and type(c[2].curve) in (Circle, Ellipse)]
+    if conic:
+        r = np.array(conic)
+        R = np.array([cand[i][2].curve._radii() for i in conic])
+        F = np.array([cand[i][2].curve._frame for i in conic])
+        c, sn = np.cos(s[r]), np.sin(s[r])
+        T[r] = (R[:, 0] * -sn)[:, None] * F[:, 0] + (R[:, 1] * c)[:, None] * F[:, 1]
+        done[r, 0] = True
+    line = [i for i, c in enumerate(cand) if fin[i] and type(c[2].curve) is Line]
+    if line:
+        T[line] = np.array([cand[i][2].curve.direction for i in line])
+        done[line, 0] = True
+    for col, key, out in ((1, lambda c: c[2].pcurve, uv_x), (2, lambda c: c[5], uv_y)):
+        pcs = [key(c) for c in cand]
+        flat = [i for i, p in enumerate(pcs) if fin[i] and type(p) is Line2D]
+        if flat:
+            r = np.array(flat)
+            O = np.array([pcs[i].origin for i in flat])
+            D = np.array([pcs[i].direction for i in flat])
+            out[r] = O + s[r][:, None] * D
+            done[r, col] = True
+        trig = [i for i, p in enumerate(pcs) if fin[i] and type(p) is Trig2D]
+        if trig:
+            r = np.array(trig)
+            C = np.array([pcs[i].center for i in trig])
+            A = np.array([pcs[i].a for i in trig])
+            B = np.array([pcs[i].b for i in trig])
+            out[r] = C + np.cos(s[r])[:, None] * A + np.sin(s[r])[:, None] * B
+            done[r, col] = True
+    return done
 
 
 def _propagate(pieces: list[tuple[int, FaceSpec]], free: np.ndarray, status: np.ndarray) -> None:

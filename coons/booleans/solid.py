@@ -1030,7 +1030,11 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
     cuts_b: dict[int, list[EdgeSpec]] = {}
     bounded: set[int] = set()  # ids of the cuts whose ends _end_tolerance found on their face's boundary
     sections = _batched_sections(A, B, I, J, t)
-    ready = _batched_pieces(A, B, I, J, sections, t)
+    try:
+        ready = _batched_pieces(A, B, I, J, sections, t)
+    except (CoonsError, ValueError, ArithmeticError) as exc:  # the loop below meets it again, naming the pair
+        _log.debug("batched clips failed (%s: %s); per pair instead", type(exc).__name__, exc)
+        ready = {}
     for k, (i, j) in enumerate(zip(I.tolist(), J.tolist())):
         X, Y = A.specs[i], B.specs[j]
         try:

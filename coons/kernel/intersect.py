@@ -1508,8 +1508,11 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     slack = tol.solver * np.maximum(1.0, fin.max(axis=1))
     m = _BATCH_MARGIN * slack
     N, Z = Fp[:, 2], Fc[:, 2]
-    ok = np.linalg.norm(_cross(N, Z), axis=1) <= 0.5 * tol.angular  # (_plane_cylinder: coaxial; _common_axis)
-    ok &= R > 2.0 * tol.linear  # (else _coaxial finds a contact point)
+    # The coaxial case of _plane_cylinder and _common_axis (sine <= tol.angular) and a circle, not a
+    # contact point (radius > tol.linear), each with a factor 2 of margin: a pair near either threshold
+    # is decided by the per-pair expressions.
+    ok = np.linalg.norm(_cross(N, Z), axis=1) <= 0.5 * tol.angular
+    ok &= R > 2.0 * tol.linear
     # The circle (_coaxial): centre on the axis at the plane's height, X perpendicular_direction(Z).
     h = np.einsum("kj,kj->k", Op - Oc, Z)
     C = Oc + h[:, None] * Z
@@ -1527,7 +1530,7 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     value = np.einsum("kj,kj->k", _cross(np.where(fl, N, nc), np.where(fl, nc, N)), T)
     scale = np.maximum(1.0 + np.abs(P).max(axis=1), 1.0 + np.abs(Oc).max(axis=1))
     bound = _UNIFORM_MIN_SINE + _UNIFORM_SLACK * (tol.angular + (tol.linear + _EPS * scale) / R)
-    ok &= np.abs(value) > 2.0 * bound * np.linalg.norm(T, axis=1)
+    ok &= np.abs(value) > 2.0 * bound * np.linalg.norm(T, axis=1)  # (a factor 2 of margin, as above)
     sg = np.where(value > 0.0, 1.0, -1.0)
     Y = sg[:, None] * Y
     Z = sg[:, None] * Z

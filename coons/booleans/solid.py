@@ -52,7 +52,12 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    confirms is exactly the spec it was sewn from (``sew.sewn_from``) is that spec, with its per-face
    data (``_FACE_DATA``, its space box included) already computed.
 2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
-3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``;
+3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``
+   (plane–cylinder pairs whose plane is perpendicular to the axis — a plate's faces against the
+   walls of its holes — all at once first: ``_batched_sections``, the closed-form circles of
+   :func:`~coons.kernel.intersect._plane_cylinder_circles`, and for their branches the clips,
+   length tests and end tolerances below in array passes over all of them, ``_batched_pieces``;
+   a pair the batch does not cover plainly, clear of every near-tie, takes the per-pair path);
    a branch recording a deviation above ``10 tol.linear`` has each p-curve that strays from its
    3-D curve rebuilt by ``pcurve_on`` (``_refitted``: a fit gone wrong near a pole must not
    widen the cut's tolerance to the size of the face); every branch is clipped to both
@@ -73,7 +78,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    branches (its polygon's sides, the cut ends, the midpoints of its cuts) are handled in Python
    floats by the array paths' own expressions, or decided where round-off cannot change the
    decision and left to the arrays where it could, so that every cut, tolerance and link is the
-   same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).
+   same bit for bit (``tests/booleans/test_solid_intersect_paths.py``).  The batched pairs repeat
+   the per-pair expressions on stacked arrays; they promise the same cuts to round-off only
+   (the tests find them the same bit for bit up to the signs of zeros in circle frames).
 4. ``_split`` (stage ``"split"``): ``split_face`` of every face with cuts (or, when the cuts
    form separate simple closed cycles clear of the face's loops — a hole drilled through a
    plate — ``_split_islands`` builds the holed face and one island per cycle directly, testing
@@ -1006,40 +1013,42 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
     cuts_a: dict[int, list[EdgeSpec]] = {}
     cuts_b: dict[int, list[EdgeSpec]] = {}
     bounded: set[int] = set()  # ids of the cuts whose ends _end_tolerance found on their face's boundary
-    for i, j in zip(I.tolist(), J.tolist()):
+    sections = _batched_sections(A, B, I, J, t)
+    try:
+        ready = _batched_pieces(A, B, I, J, sections, t)
+    except (CoonsError, ValueError, ArithmeticError) as exc:  # the loop below meets it again, naming the pair
+        _log.debug("batched clips failed (%s: %s); per pair instead", type(exc).__name__, exc)
+        ready = {}
+    for k, (i, j) in enumerate(zip(I.tolist(), J.tolist())):
         X, Y = A.specs[i], B.specs[j]
         try:
-            si = intersect_surfaces(X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
-            if si.coincident:
-                _imprint(X, Y, A.uv_box[i], cuts_a.setdefault(i, []), t)
-                _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
-                continue
-            for c in si.curves:
-                if c.tol > _REFIT_FACTOR * t.linear:
-                    c = _refitted(c, X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
-                ra = _clip(A, i, c.pcurve_a, c.t0, c.t1, t, c.curve)
-                if not ra:
+            curves = sections[k]
+            if curves is None:
+                si = intersect_surfaces(X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
+                if si.coincident:
+                    _imprint(X, Y, A.uv_box[i], cuts_a.setdefault(i, []), t)
+                    _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
                     continue
-                rb = _clip(B, j, c.pcurve_b, c.t0, c.t1, t, c.curve)
-                for a0, a1, wa in ra:
-                    for b0, b1, wb in rb:
-                        s0, s1 = max(a0, b0), min(a1, b1)
-                        if s1 <= s0 or not _long_enough(c.curve, s0, s1, t):
-                            continue
-                        near = [[math.inf, math.inf], [math.inf, math.inf]]
-                        etol = _end_tolerance(c, (s0, s1), (A.edge_boxes(i), B.edge_boxes(j)), t, near)
-                        # Both ends within _check_cut_ends's reach of this face's boundary, for sure.
-                        reach = 10.0 * max(t.linear, etol)
-                        if wa == "inside":
-                            cuts_a.setdefault(i, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
-                            if max(near[0]) <= reach:
-                                bounded.add(id(e))
-                        if wb == "inside":
-                            cuts_b.setdefault(j, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
-                            if max(near[1]) <= reach:
-                                bounded.add(id(e))
-                        if wa == "inside" and wb == "inside" and links is not None:
-                            links.setdefault(id(c.curve), []).append(_Link(s0, s1, (i, j), (c.pcurve_a, c.pcurve_b)))
+                curves = si.curves
+            for c in curves:
+                pieces = ready.get(id(c))
+                if pieces is None:
+                    if c.tol > _REFIT_FACTOR * t.linear:
+                        c = _refitted(c, X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
+                    pieces = _branch_pieces(A, B, i, j, c, t)
+                for s0, s1, wa, wb, etol, near in pieces:
+                    # Both ends within _check_cut_ends's reach of this face's boundary, for sure.
+                    reach = 10.0 * max(t.linear, etol)
+                    if wa == "inside":
+                        cuts_a.setdefault(i, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
+                        if max(near[0]) <= reach:
+                            bounded.add(id(e))
+                    if wb == "inside":
+                        cuts_b.setdefault(j, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
+                        if max(near[1]) <= reach:
+                            bounded.add(id(e))
+                    if wa == "inside" and wb == "inside" and links is not None:
+                        links.setdefault(id(c.curve), []).append(_Link(s0, s1, (i, j), (c.pcurve_a, c.pcurve_b)))
         except BooleanError:
             raise
         except (CoonsError, ValueError, ArithmeticError) as exc:  # numpy's LinAlgError is a ValueError
@@ -1060,6 +1069,398 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
         for key in repeated:
             links.pop(key, None)
     return cuts_a, cuts_b
+
+
+#: Fewest plane–cylinder pairs that :func:`_batched_sections` takes together (fewer go pair by pair).
+_BATCHED_SECTIONS = 2
+
+
+def _batched_sections(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolerance) -> list:
+    """Per pair ``(I[k], J[k])``, its branches where a batched closed form covers it, else None.
+
+    Pairs of a plane and a cylinder (either way round) go to
+    :func:`~coons.kernel.intersect._plane_cylinder_circles` together (a plate's faces against
+    the walls of many holes: one array pass instead of one closed form per pair); the pairs it
+    does not cover, and all others, are left to :func:`~coons.kernel.intersect.intersect_surfaces`.
+
+    When the batch raises (a degenerate circle or p-curve), every pair is left to the per-pair
+    path, which reports the failing pair.
+    """
+    from coons.kernel.analytic import CylindricalSurface
+    from coons.kernel.intersect import _plane_cylinder_circles
+
+    out: list = [None] * len(I)
+    if len(I) < _BATCHED_SECTIONS:
+        return out
+    pc = (PlanarSurface, CylindricalSurface)
+    rows, items = [], []
+    for k, (i, j) in enumerate(zip(I.tolist(), J.tolist())):
+        Sa, Sb = A.specs[i].surface, B.specs[j].surface
+        ta, tb = type(Sa), type(Sb)
+        if ta is not tb and ta in pc and tb in pc:
+            rows.append(k)
+            items.append((Sa, Sb, A.uv_box[i], B.uv_box[j]))
+    if len(rows) < _BATCHED_SECTIONS:
+        return out
+    try:
+        found = _plane_cylinder_circles(items, t)
+    except (CoonsError, ValueError, ArithmeticError) as exc:
+        # The per-pair path runs instead, and names the pair that fails.
+        _log.debug("batched plane-cylinder sections failed (%s: %s); per pair instead", type(exc).__name__, exc)
+        return out
+    for k, curves in zip(rows, found):
+        out[k] = curves
+    return out
+
+
+def _branch_pieces(A: _Operand, B: _Operand, i: int, j: int, c, t: Tolerance) -> list[tuple]:
+    """The cuts that branch ``c`` of face pair ``(i, j)`` makes: ``(s0, s1, where on A, where on B, end tolerance,
+    near)`` per common sub-range of its clips to both faces that is long enough (``near``: per face, per end,
+    the bound :func:`_end_tolerance` found on the end's distance to the face's boundary)."""
+    ra = _clip(A, i, c.pcurve_a, c.t0, c.t1, t, c.curve)
+    if not ra:
+        return []
+    rb = _clip(B, j, c.pcurve_b, c.t0, c.t1, t, c.curve)
+    out = []
+    for a0, a1, wa in ra:
+        for b0, b1, wb in rb:
+            s0, s1 = max(a0, b0), min(a1, b1)
+            if s1 <= s0 or not _long_enough(c.curve, s0, s1, t):
+                continue
+            near = [[math.inf, math.inf], [math.inf, math.inf]]
+            etol = _end_tolerance(c, (s0, s1), (A.edge_boxes(i), B.edge_boxes(j)), t, near)
+            out.append((s0, s1, wa, wb, etol, near))
+    return out
+
+
+def _batched_pieces(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, sections: list, t: Tolerance) -> dict:
+    """``id(branch) -> `` :func:`_branch_pieces` of the batched sections' branches, in array passes: the clips
+    (:func:`_clip_many` on each operand), the length test (:func:`_long_enough_many`) and the end
+    tolerances (:func:`_end_tolerance_many`).  Branches whose deviation calls for :func:`_refitted` are
+    left to the per-pair loop."""
+    rows = [(i, j, c) for (i, j), curves in zip(zip(I.tolist(), J.tolist()), sections) if curves
+            for c in curves if c.tol <= _REFIT_FACTOR * t.linear]
+    if not rows:
+        return {}
+    branches = [c for _, _, c in rows]
+    ra = _clip_many(A, [i for i, _, _ in rows], [c.pcurve_a for c in branches], branches, t)
+    rb = _clip_many(B, [j for _, j, _ in rows], [c.pcurve_b for c in branches], branches, t)
+    spans = []  # (row, s0, s1, where on A, where on B)
+    for r, (a, b) in enumerate(zip(ra, rb)):
+        if a:
+            spans += [(r, max(a0, b0), min(a1, b1), wa, wb) for a0, a1, wa in a for b0, b1, wb in b
+                      if min(a1, b1) > max(a0, b0)]
+    out: dict = {id(c): [] for c in branches}
+    if not spans:
+        return out
+    long = _long_enough_many([branches[r].curve for r, *_ in spans], [x[1] for x in spans], [x[2] for x in spans], t)
+    spans = [x for x, ok in zip(spans, long) if ok]
+    if not spans:
+        return out
+    etol, near = _end_tolerance_many([branches[r] for r, *_ in spans], [(x[1], x[2]) for x in spans],
+                                     [(A, rows[r][0]) for r, *_ in spans], [(B, rows[r][1]) for r, *_ in spans], t)
+    for (r, s0, s1, wa, wb), e, nr in zip(spans, etol, near):
+        out[id(branches[r])].append((s0, s1, wa, wb, e, nr))
+    return out
+
+
+def _long_enough_many(curves: list, s0: list[float], s1: list[float], t: Tolerance) -> list[bool]:
+    """:func:`_long_enough` of many ranges: circles in one array pass (the same five points), other curves one by one."""
+    out = [None] * len(curves)
+    rows = [k for k, c in enumerate(curves) if type(c) is Circle and math.isfinite(s0[k]) and math.isfinite(s1[k])]
+    if rows:
+        C = np.array([curves[k]._origin for k in rows])
+        F = np.array([curves[k]._frame for k in rows])
+        R = np.array([curves[k].radius for k in rows])
+        tt = np.linspace([s0[k] for k in rows], [s1[k] for k in rows], 5, axis=1)
+        P = ((R[:, None] * np.cos(tt))[..., None] * F[:, None, 0] + (R[:, None] * np.sin(tt))[..., None] * F[:, None, 1]
+             ) + C[:, None]
+        D = P - P[:, :1]
+        far = np.sqrt(np.max(np.add.reduce(D * D, axis=2), axis=1)) > t.linear
+        for k, ok in zip(rows, far.tolist()):
+            out[k] = ok
+    return [ok if ok is not None else _long_enough(c, a, b, t) for c, a, b, ok in zip(curves, s0, s1, out)]
+
+
+def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a: list[tuple], face_b: list[tuple],
+                        t: Tolerance) -> tuple[list[float], list[list[list[float]]]]:
+    """:func:`_end_tolerance` (with ``near``) of many cut ranges, in array passes: ``(tolerances, nears)``.
+
+    ``face_a[k], face_b[k]``: ``(operand, face)`` of the two faces of range ``k``.  The ends and their
+    tangents of circle branches, every (range, face, edge) box test, and the distance and sine at edges on
+    lines, in arrays; ends of other branches and edges on other curves by :func:`_end_tolerance`'s own
+    per-range expressions (:func:`_end_sines`).
+    """
+    from coons.kernel.intersect import _curve_tangents
+
+    M = len(branches)
+    base = np.array([max(t.linear, c.tol) for c in branches])
+    ts = np.array(ends, dtype=np.float64)  # (M, 2)
+    P = np.empty((M, 2, 3))
+    T = np.empty((M, 2, 3))
+    circ = np.array([type(c.curve) is Circle and math.isfinite(a) and math.isfinite(b)
+                     for c, (a, b) in zip(branches, ends)], dtype=bool)
+    if circ.any():
+        rows = np.flatnonzero(circ)
+        C = np.array([branches[k].curve._origin for k in rows.tolist()])
+        F = np.array([branches[k].curve._frame for k in rows.tolist()])
+        R = np.array([branches[k].curve.radius for k in rows.tolist()])[:, None, None]
+        cs, sn = np.cos(ts[rows])[..., None], np.sin(ts[rows])[..., None]
+        P[rows] = (R * cs * F[:, None, 0] + R * sn * F[:, None, 1]) + C[:, None]
+        T[rows] = R * -sn * F[:, None, 0] + R * cs * F[:, None, 1]
+    for k in np.flatnonzero(~circ).tolist():
+        c, (a, b) = branches[k], ends[k]
+        if math.isfinite(a) and math.isfinite(b):
+            P[k], T[k] = _curve_tangents(c.curve, ts[k])
+        else:
+            D = np.asarray(c.curve.derivatives(ts[k], 1), dtype=np.float64)
+            P[k], T[k] = D[:, 0], D[:, 1]
+    T = T / np.maximum(np.sqrt(np.add.reduce(T * T, axis=2, keepdims=True)), 1e-300)
+    size = 1.0 + np.abs(P).max(axis=(1, 2))
+    # Every (range, side, edge) row, and the rows whose edge box comes near an end.
+    ent, side, edge_of, lo, hi, etol = [], [], [], [], [], []
+    for s, faces in enumerate((face_a, face_b)):
+        for k, (X, f) in enumerate(faces):
+            edges, elo, ehi, tol = X.edge_boxes(f)
+            n = len(edges)
+            ent.append(np.full(n, k))
+            side.append(np.full(n, s))
+            edge_of += edges
+            lo.append(elo)
+            hi.append(ehi)
+            etol.append(tol)
+    ent, side = np.concatenate(ent), np.concatenate(side)
+    lo, hi, etol = np.concatenate(lo), np.concatenate(hi), np.concatenate(etol)
+    reach = (10.0 * np.maximum(base[ent], etol))[:, None, None]
+    Pe = P[ent]
+    hit = np.any(np.all((Pe >= lo[:, None] - reach) & (Pe <= hi[:, None] + reach), axis=2), axis=1)
+    worst = base.copy()
+    near = np.full((M, 2, 2), np.inf)
+    rows = np.flatnonzero(hit)
+    if rows.size:
+        kinds = [type(edge_of[r].curve) for r in rows.tolist()]
+        line = np.array([kd is Line for kd in kinds], dtype=bool)
+        delta = np.maximum(base[ent[rows]], np.array([edge_of[r].tol or 0.0 for r in rows.tolist()]))
+        d = np.empty((rows.size, 2))
+        sine = np.empty((rows.size, 2))
+        if line.any():
+            lr = rows[line]
+            O = np.array([edge_of[r].curve.origin for r in lr.tolist()])
+            D = np.array([edge_of[r].curve.direction for r in lr.tolist()])
+            lo_t = np.array([min(edge_of[r].t0, edge_of[r].t1) for r in lr.tolist()])[:, None]
+            hi_t = np.array([max(edge_of[r].t0, edge_of[r].t1) for r in lr.tolist()])[:, None]
+            Q = P[ent[lr]]  # (n, 2, 3)
+            te = np.clip(np.einsum("nej,nj->ne", Q - O[:, None], D), lo_t, hi_t)
+            d[line] = np.linalg.norm(O[:, None] + te[..., None] * D[:, None] - Q, axis=2)
+            U = D / np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
+            sine[line] = np.maximum(np.linalg.norm(_cross3(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
+        for q in np.flatnonzero(~line).tolist():
+            r = int(rows[q])
+            e, k = edge_of[r], int(ent[r])
+            dq, sq = _end_sines(e.curve, P[k], T[k], min(e.t0, e.t1), max(e.t0, e.t1), 10.0 * float(delta[q]), t)
+            d[q], sine[q] = dq, sq
+        on = d <= 10.0 * delta[:, None]
+        ratio = np.where(on, delta[:, None] / sine, -np.inf).max(axis=1)
+        np.maximum.at(worst, ent[rows], ratio)
+        known = np.array([kd in (Line, Circle, Ellipse) for kd in kinds], dtype=bool)
+        if known.any():
+            kr = rows[known]
+            O = np.array([(edge_of[r].curve.origin if type(edge_of[r].curve) is Line else edge_of[r].curve._origin)
+                          for r in kr.tolist()])
+            slack = 1e-12 * (size[ent[kr]] + np.abs(O).max(axis=1))
+            np.minimum.at(near, (ent[kr], side[kr]), d[known] + slack[:, None])
+    return worst.tolist(), near.tolist()
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` of broadcast arrays ``(..., 3)``."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _clip_many(X: _Operand, faces: list[int], pcurves: list, branches: list, t: Tolerance) -> list[list]:
+    """:func:`_clip` of many branches ``branches[k]`` (``curve, t0, t1``) with p-curves ``pcurves[k]`` on faces
+    ``faces[k]`` of X, in array passes over all of them.
+
+    The same steps in the same order: the closed-form clip of a straight p-curve on a straight-sided face
+    (:func:`_clip_straight_many`), then the sampled test of a ``Line2D`` or ``Trig2D`` p-curve that stays
+    clear of its face's loops; the branches neither answers go through :func:`_clip` one by one.
+    """
+    n = len(faces)
+    out: list = [None] * n
+    st = [k for k in range(n) if type(pcurves[k]) is Line2D and _straight_data(X, faces[k], t) is not None]
+    if st:
+        for k, r in zip(st, _clip_straight_many(X, [faces[k] for k in st], [pcurves[k] for k in st],
+                                                 [branches[k] for k in st], t)):
+            out[k] = r
+    sm = [k for k in range(n) if out[k] is None and type(pcurves[k]) in (Line2D, Trig2D)
+          and math.isfinite(branches[k].t0) and math.isfinite(branches[k].t1)]
+    if sm:
+        for k, r in zip(sm, _clear_many(X, [faces[k] for k in sm], [pcurves[k] for k in sm],
+                                        [branches[k] for k in sm])):
+            out[k] = r
+    for k in range(n):
+        if out[k] is None:
+            c = branches[k]
+            out[k] = _clip(X, faces[k], pcurves[k], c.t0, c.t1, t, c.curve)
+    return out
+
+
+def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: list, t: Tolerance) -> list:
+    """:func:`_clip_straight` of many ``Line2D`` p-curves on straight-sided faces (:func:`_straight_data` not None),
+    in array passes: the sides of all faces padded to the most (padding sides have no length and meet
+    nothing), the crossings and clearances by :func:`_straight_crossings_arrays`'s expressions, the pieces'
+    midpoints against their faces by :func:`_in_faces`.  Per branch the clip, or None where it declines."""
+    K = len(faces)
+    data = [_straight_data(X, f, t) for f in faces]
+    width = max(len(d[3]) for d in data)
+    A = np.zeros((K, width, 2))
+    E = np.zeros((K, width, 2))
+    L = np.zeros((K, width))
+    valid = np.zeros((K, width), dtype=bool)
+    for k, d in enumerate(data):
+        m = len(d[3])
+        A[k, :m], E[k, :m], L[k, :m], valid[k, :m] = d[1], d[2], d[3], True
+    sp = np.array([d[0] for d in data])
+    largest = np.array([d[6] for d in data])
+    o = np.array([p.origin for p in pcurves])
+    dd = np.array([p.direction for p in pcurves])
+    t0 = np.array([c.t0 for c in branches])
+    t1 = np.array([c.t1 for c in branches])
+    lo_t, hi_t = np.minimum(t0, t1), np.maximum(t0, t1)
+    p0, d = o * sp, dd * sp
+    Bk = np.stack([p0 + lo_t[:, None] * d, p0 + hi_t[:, None] * d], axis=1)  # (K, 2, 2) the branches' ends
+    scale = 1.0 + np.maximum(largest, np.abs(Bk).max(axis=(1, 2)))
+    margin = (_STRAIGHT_CLEARANCE * t.linear + 1e-12 * scale)[:, None]
+    dn = np.hypot(d[:, 0], d[:, 1])[:, None]
+    d0, d1 = d[:, 0:1], d[:, 1:2]
+    W = A - p0[:, None]
+    cross = d0 * E[..., 1] - d1 * E[..., 0]
+    lo, hi = lo_t[:, None], hi_t[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sc = (W[..., 0] * E[..., 1] - W[..., 1] * E[..., 0]) / cross  # branch parameter of the crossing
+        w = (W[..., 0] * d1 - W[..., 1] * d0) / cross  # fraction along the side
+        meets = valid & (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (sc >= lo) & (sc <= hi)
+    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
+        & ((1.0 - w) * L > margin) & ((sc - lo) * dn > margin) & ((hi - sc) * dn > margin)
+    # Clearance (_straight_clearance_arrays): the sides' ends from the branch, the branch's ends from the sides.
+    V = np.concatenate([A, A + E], axis=1)
+    tv = np.clip(np.einsum("kvj,kj->kv", V - p0[:, None], d) / (dn * dn), lo, hi)
+    near = np.hypot(*np.moveaxis(V - p0[:, None] - tv[..., None] * d[:, None], 2, 0))
+    near = np.where(np.concatenate([valid, valid], axis=1), near, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fb = np.clip(np.einsum("kbsj,ksj->kbs", Bk[:, :, None] - A[:, None], E) / (L * L)[:, None], 0.0, 1.0)
+    Fb = Bk[:, :, None] - A[:, None] - fb[..., None] * E[:, None]
+    far = np.where(valid[:, None], np.hypot(Fb[..., 0], Fb[..., 1]), np.inf)
+    clearance = np.minimum(near.min(axis=1), far.min(axis=(1, 2)))
+    ok = ~np.any(meets & ~crossing, axis=1) & (clearance > margin[:, 0])
+    out: list = [None] * K
+    pieces, mids, owners = {}, [], []
+    for k in np.flatnonzero(ok).tolist():
+        found = sc[k][crossing[k]]
+        br = [float(lo_t[k])] + np.sort(found).tolist() + [float(hi_t[k])]
+        if any((b - a) * float(dn[k, 0]) <= float(margin[k, 0]) for a, b in zip(br[:-1], br[1:])):
+            continue  # two crossings at one place: a vertex, let the general path decide
+        pieces[k] = br
+        mids += [0.5 * (a + b) for a, b in zip(br[:-1], br[1:])]
+        owners += [k] * (len(br) - 1)
+    if not pieces:
+        return out
+    own = np.array(owners)
+    mid = np.array(mids)
+    inside = _in_faces(X, np.array(faces)[own], o[own] + mid[:, None] * dd[own]).tolist()
+    at = 0
+    for k, br in pieces.items():
+        runs: list[list] = []
+        for a, b in zip(br[:-1], br[1:]):
+            ins = inside[at]
+            at += 1
+            if runs and runs[-1][2] == ins:
+                runs[-1][1] = b
+            else:
+                runs.append([a, b, ins])
+        res = [(a, b, "inside") for a, b, ins in runs if ins]
+        S = X.specs[faces[k]].surface
+        if not res and (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
+            continue  # (as in _clip_straight: a period away is the general path's business)
+        if t0[k] > t1[k]:
+            res = [(b, a, w_) for a, b, w_ in reversed(res)]
+        out[k] = res
+    return out
+
+
+def _pcurve_rows(pcurves: list, T: np.ndarray) -> np.ndarray:
+    """Points ``(k, m, 2)`` of ``Line2D`` or ``Trig2D`` p-curves ``k`` at parameters ``T (k, m)``."""
+    trig = np.array([type(p) is Trig2D for p in pcurves])
+    O = np.array([p.center if tr else p.origin for p, tr in zip(pcurves, trig.tolist())])
+    U = np.array([p.a if tr else p.direction for p, tr in zip(pcurves, trig.tolist())])
+    V = np.array([p.b if tr else (0.0, 0.0) for p, tr in zip(pcurves, trig.tolist())])
+    c = np.where(trig[:, None], np.cos(T), T)
+    s = np.where(trig[:, None], np.sin(T), 0.0)
+    return O[:, None] + c[..., None] * U[:, None] + s[..., None] * V[:, None]
+
+
+def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) -> list:
+    """The sampled test of :func:`_clip` for many branches: ``[(t0, t1, "inside")]``, ``[]`` or None (undecided)."""
+    T = np.linspace([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES, axis=1)
+    Q = _pcurve_rows(pcurves, T)
+    dQ = Q[:, 1:] - Q[:, :-1]
+    step = np.sqrt(np.max(np.add.reduce(dQ * dQ, axis=2), axis=1))[:, None]
+    scale = 1.0 + np.max(np.abs(Q), axis=(1, 2))[:, None]
+    lo = Q.min(axis=1) - step - 1e-9 * scale  # rounding margin of parameter values
+    hi = Q.max(axis=1) + step + 1e-9 * scale
+    fa = np.array(faces)
+    meet = np.zeros(len(faces), dtype=bool)
+    for f in np.unique(fa).tolist():
+        rows = np.flatnonzero(fa == f)
+        meet[rows] = np.any(np.all((X.seg_lo[f][None] <= hi[rows, None]) & (X.seg_hi[f][None] >= lo[rows, None]),
+                                   axis=2), axis=1)
+    out: list = [None] * len(faces)
+    clear = np.flatnonzero(~meet)
+    if clear.size:
+        inside = _in_faces(X, fa[clear], Q[clear, _CLEAR_SAMPLES // 2])
+        for k, ins in zip(clear.tolist(), inside.tolist()):
+            S = X.specs[faces[k]].surface
+            if ins:
+                out[k] = [(branches[k].t0, branches[k].t1, "inside")]
+            elif not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
+                out[k] = []
+    return out
+
+
+#: Faces of at most this many polygon segments are tested together by :func:`_in_faces`, padded to the
+#: largest; larger ones one face at a time.
+_PAD_SEGMENTS = 256
+
+
+def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """:func:`~coons.booleans.classify._in_polygon` of points ``Q (m, 2)``, each against its face ``faces[m]`` of X
+    (the same crossings and comparisons; padding segments straddle no line)."""
+    from coons.booleans.classify import _in_polygon
+
+    out = np.zeros(len(Q), dtype=bool)
+    uniq, inv = np.unique(faces, return_inverse=True)
+    sizes = [len(X.segments[f]) for f in uniq.tolist()]
+    small = [u for u, n in enumerate(sizes) if 0 < n <= _PAD_SEGMENTS]
+    for u, n in enumerate(sizes):
+        if n > _PAD_SEGMENTS:
+            rows = np.flatnonzero(inv == u)
+            f = int(uniq[u])
+            out[rows] = _in_polygon(Q[rows], X.segments[f], _slopes(X, f))
+    if small:
+        width = max(sizes[u] for u in small)
+        pad = np.full((len(uniq), 4, width), np.nan)  # rows: start x, start y, end y, slope
+        for u in small:
+            f = int(uniq[u])
+            seg, m = X.segments[f], _slopes(X, f)
+            pad[u, :, : len(m)] = (seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1], m)
+        rows = np.flatnonzero(np.isin(inv, small))
+        ax, ay, cy, m = np.moveaxis(pad[inv[rows]], 1, 0)
+        x, y = Q[rows, 0:1], Q[rows, 1:2]
+        with np.errstate(invalid="ignore"):
+            hit = ((ay > y) != (cy > y)) & (x < ax + (y - ay) * m)
+        out[rows] = np.count_nonzero(hit, axis=1) % 2 == 1
+    return out
 
 
 #: A branch whose recorded deviation exceeds this many ``tol.linear`` gets its p-curves rebuilt
@@ -1407,10 +1808,17 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
     from coons.kernel.intersect import _curve_points
 
     ends, thr = [], []
-    for c in cuts:
+    # Many cuts (a plate crossed by many holes): the ends of those on lines and conics in one pass
+    # (_curve_points_many: the same expressions).
+    simple = [k for k, c in enumerate(cuts) if type(c.curve) in (Line, Circle, Ellipse)
+              and math.isfinite(c.t0) and math.isfinite(c.t1)] if len(cuts) > _SCALAR_ENDS else []
+    known = dict(zip(simple, _curve_points_many([cuts[k].curve for k in simple],
+                                                np.array([[cuts[k].t0, cuts[k].t1] for k in simple]))
+                     if simple else []))
+    for k, c in enumerate(cuts):
         tt = np.array([c.t0, c.t1])
-        P = _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) else \
-            np.asarray(c.curve.evaluate(tt), dtype=np.float64)
+        P = known[k] if k in known else _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) \
+            else np.asarray(c.curve.evaluate(tt), dtype=np.float64)
         lim = max(t.linear, c.tol or 0.0)
         p, q = P.tolist()
         gap = _distance(p, q)
@@ -1700,8 +2108,16 @@ def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None =
         return list(cuts)
     P = np.empty((n, 3, 3))
     groups: dict[int, list[int]] = {}
+    simple = []  # cuts on lines and conics: all in one pass (_curve_points_many, evaluate's expressions)
     for k, c in enumerate(cuts):
-        groups.setdefault(id(c.curve), []).append(k)
+        if type(c.curve) in (Line, Circle, Ellipse) and math.isfinite(c.t0) and math.isfinite(c.t1):
+            simple.append(k)
+        else:
+            groups.setdefault(id(c.curve), []).append(k)
+    if simple:
+        t0 = np.array([cuts[k].t0 for k in simple])
+        t1 = np.array([cuts[k].t1 for k in simple])
+        P[simple] = _curve_points_many([cuts[k].curve for k in simple], np.stack([t0, 0.5 * (t0 + t1), t1], axis=1))
     for rows in groups.values():  # one evaluation per curve object
         r = np.asarray(rows)
         t0 = np.array([cuts[k].t0 for k in rows])
@@ -3325,30 +3741,33 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     # periods when they differ by one (a face pair across u = 0 of a cylinder).
     ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
     ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
-    B = _period_shifted(B, A.surface, np.mean(ua - ub, axis=0))
+    offset = np.mean(ua - ub, axis=0)
+    if _wraps(A, B, _whole_periods(A.surface, offset)):
+        return None  # (the cheap form of _fuse's own full-period test, before B is shifted: two half cylinders)
+    B = _period_shifted(B, A.surface, offset)
     if B is None:
         return None
     eb = B.loops[uq[0]][uq[1]]
     ub = _edge_uv(eb, A.surface, 3)[::-1]
     if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
         return None
-    if _wraps(A, B):
-        return None  # (the cheap form of _fuse's own full-period test: two half cylinders)
     return _fuse(A, B, up, uq, t)
 
 
-def _wraps(A: FaceSpec, B: FaceSpec) -> bool:
-    """Whether faces A and B (B's p-curves on A's surface) together span a full period of a periodic parameter.
+def _wraps(A: FaceSpec, B: FaceSpec, shift: np.ndarray | None = None) -> bool:
+    """Whether faces A and B (B's p-curves on A's surface, moved by ``shift (2,)`` when given: the whole
+    periods :func:`_period_shifted` would move them by) together span a full period of a periodic parameter.
 
     The samples are a subset of those :func:`_fuse` tests, so this never rejects a merge that
-    ``_fuse`` would make.
+    ``_fuse`` would make (up to the round-off of adding the shift before or after evaluating).
     """
     S = A.surface
     pers = [(k, getattr(S, name, None)) for k, name in ((0, "period_u"), (1, "period_v"))]
     pers = [(k, p) for k, p in pers if p]
     if not pers:
         return False
-    U = _uses_uv([e for F in (A, B) for loop in F.loops for e in loop], S, 5)
+    UB = _uses_uv([e for loop in B.loops for e in loop], S, 5)
+    U = np.concatenate([_uses_uv([e for loop in A.loops for e in loop], S, 5), UB if shift is None else UB + shift])
     return any(float(np.ptp(U[:, k])) >= p - 1e-9 * p for k, p in pers)
 
 

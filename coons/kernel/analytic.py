@@ -436,6 +436,49 @@ class Circle(_Conic):
         self._init_frame("Circle", "center", "axis", "x_dir")
         object.__setattr__(self, "radius", _checked("Circle", conics._positive, self.radius, "radius"))
 
+    @classmethod
+    def many(cls, centers, frames, radii) -> list["Circle"]:
+        """One circle per row of ``centers (k, 3)``, ``frames (k, 3, 3)`` (rows ``X, Y, Z``) and ``radii (k,)``.
+
+        For the callers that build many circles at once (the Booleans' batched plane–cylinder
+        sections): the frames are taken as they are, after one check in arrays that each is
+        right-handed and orthonormal to ``1e3`` ulps (what an orthonormalisation's round-off
+        leaves), so each circle holds read-only rows of them, as the constructor would give.
+
+        Raises
+        ------
+        InvalidGeometryError
+            Shapes other than ``(k, 3)``, ``(k, 3, 3)``, ``(k,)``, non-finite values, a frame that is
+            not right-handed orthonormal or a non-positive radius (the first bad row is named).
+        """
+        C = np.array(centers, dtype=np.float64)
+        F = np.array(frames, dtype=np.float64)
+        R = np.array(radii, dtype=np.float64)
+        k = len(C)
+        if C.shape != (k, 3) or F.shape != (k, 3, 3) or R.shape != (k,):
+            raise InvalidGeometryError(f"Circle.many needs (k, 3), (k, 3, 3) and (k,) arrays, got shapes "
+                                       f"{C.shape}, {F.shape} and {R.shape}")
+        # Orthonormal rows and Z = X × Y, to round-off (1e3 ulps is far below any tolerance).
+        G = np.einsum("kij,klj->kil", F, F) - np.eye(3)
+        det = np.einsum("kj,kj->k", np.cross(F[:, 0], F[:, 1]), F[:, 2])
+        bad = np.flatnonzero(~np.isfinite(C).all(axis=1) | ~np.isfinite(R) | ~(R > 0.0)
+                             | ~(np.abs(G).max(axis=(1, 2), initial=0.0) <= 1e3 * np.finfo(np.float64).eps)
+                             | ~(np.abs(det - 1.0) <= 1e3 * np.finfo(np.float64).eps))
+        if bad.size:
+            i = int(bad[0])
+            raise InvalidGeometryError(f"Circle.many: row {i} (center {C[i].tolist()}, frame {F[i].tolist()}, radius "
+                                       f"{R[i]!r}) is not finite, not a right-handed orthonormal frame or not positive")
+        C.setflags(write=False)
+        F.setflags(write=False)
+        out = []
+        for c, f, r in zip(C, F, R.tolist()):
+            circle = object.__new__(cls)
+            for name, value in (("center", c), ("_origin", c), ("axis", f[2]), ("x_dir", f[0]), ("_frame", f),
+                                ("radius", r)):
+                object.__setattr__(circle, name, value)
+            out.append(circle)
+        return out
+
     def _radii(self) -> tuple[float, float]:
         return self.radius, self.radius
 

@@ -61,7 +61,10 @@ direction rule).
 on a handful of values: where every p-curve coordinate is exact, the branch's window is clipped
 to the boxes in Python floats (``_exact_runs``), and the measured deviation evaluates the curves
 without their argument checks (``_curve_points`` and its siblings); both repeat the array
-expressions value for value, so the branches are the same bit for bit.
+expressions value for value, so the branches are the same bit for bit.  Many plane–cylinder
+pairs with the plane perpendicular to the axis (a plate against the walls of its holes) are
+solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
+it); it takes only pairs clear of every near-tie and leaves the rest to this dispatcher.
 
 *Tolerances.*  ``tol.linear`` decides tangency, coincidence and whether a curve passes
 through a pole or apex; ``tol.angular`` decides parallel directions.  Each branch records the
@@ -1472,6 +1475,170 @@ def _surface_points(surface, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         rho, h = surface._meridian(v, 0)
         return (rho[0][..., None] * e + h[0][..., None] * Z) + surface._origin
     return surface.evaluate(u, v)
+
+
+# ---------------------------------------------------------------------------- batched sections
+#: Margin, in slacks (``tol.solver`` of the boxes' size), by which every decision of the batched
+#: plane–cylinder sections must clear its threshold; closer pairs take the general path, where the
+#: round-off of the per-pair expressions (which the batch does not repeat bit for bit) decides.
+_BATCH_MARGIN = 1e3
+
+
+def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[IntersectionCurve] | None]:
+    """The branches of many plane–cylinder pairs whose plane is perpendicular to the cylinder's axis, in array passes.
+
+    ``items``: ``(a, b, box_a, box_b)`` as :func:`intersect_surfaces` takes them, one surface of
+    each pair a :class:`PlanarSurface` and the other a :class:`CylindricalSurface` (exact types).
+    The section is the circle about the axis at the plane's height (the coaxial case of
+    :func:`_coaxial`); the per-pair steps of :func:`_branches` are done for all pairs at once:
+    the direction along ``n_a × n_b`` (:func:`_uniform_side`'s one-point rule), both p-curves in
+    closed form (:func:`_closed_coords`: a :class:`Trig2D` on the plane, a :class:`Line2D`
+    ``u = u₀ ± t, v = h`` on the cylinder), the window starting at the cylinder box's lower
+    ``u`` bound (:func:`_start`), the one run of it inside the boxes and the measured deviation
+    (:func:`_finished`), with the same expressions, so that the branches agree with the general
+    path's to round-off.  The batch covers only the plain case: a cylinder box spanning less than
+    a period, a circle whose plane coordinates stay inside or outside the plane's box and whose
+    height is inside or outside the cylinder's ``v`` range, each by a margin of
+    ``_BATCH_MARGIN`` slacks, and a pair the one-point direction rule decides.  Every other pair
+    (oblique, parallel, a circle crossing the plane box, a near-tie) gets ``None``: the caller
+    runs :func:`intersect_surfaces` on it.
+
+    Returns
+    -------
+    list
+        Per pair, its branches (one arc or none) or ``None``.
+    """
+    K = len(items)
+    out: list[list[IntersectionCurve] | None] = [None] * K
+    if K == 0:
+        return out
+    first = np.array([type(it[0]) is PlanarSurface for it in items])
+    planes = [it[0] if f else it[1] for it, f in zip(items, first.tolist())]
+    cyls = [it[1] if f else it[0] for it, f in zip(items, first.tolist())]
+
+    def gathered(objs, *attrs):  # one stack per distinct surface object, then indexed per pair
+        index: dict[int, int] = {}
+        rows = [index.setdefault(id(o), len(index)) for o in objs]
+        uniq = list({id(o): o for o in objs}.values())
+        return [np.array([getattr(o, a) for o in uniq], dtype=np.float64)[rows] for a in attrs]
+
+    Op, Fp = gathered(planes, "_origin", "_frame")
+    Oc, Fc, R = gathered(cyls, "_origin", "_frame", "radius")
+    boxes = np.array([[it[2], it[3]] for it in items], dtype=np.float64)  # (K, 2, 2, 2): box_a, box_b
+    PB = np.where(first[:, None, None], boxes[:, 0], boxes[:, 1])
+    CB = np.where(first[:, None, None], boxes[:, 1], boxes[:, 0])
+    fin = np.where(np.isfinite(boxes), np.abs(boxes), 0.0).reshape(K, -1)
+    slack = tol.solver * np.maximum(1.0, fin.max(axis=1))
+    m = _BATCH_MARGIN * slack
+    N, Z = Fp[:, 2], Fc[:, 2]
+    # The coaxial case of _plane_cylinder and _common_axis (sine <= tol.angular) and a circle, not a
+    # contact point (radius > tol.linear), each with a factor 2 of margin: a pair near either threshold
+    # is decided by the per-pair expressions.
+    ok = np.linalg.norm(_cross(N, Z), axis=1) <= 0.5 * tol.angular
+    ok &= R > 2.0 * tol.linear
+    # The circle (_coaxial): centre on the axis at the plane's height, X perpendicular_direction(Z).
+    h = np.einsum("kj,kj->k", Op - Oc, Z)
+    C = Oc + h[:, None] * Z
+    X = _perpendicular_rows(Z)
+    Y = _cross(Z, X)
+    # Direction (_uniform_side at the first turn sample): reversed circles have axis -Z, the same X.
+    ts = float(_TURN_SAMPLES[0])
+    c, s = math.cos(ts), math.sin(ts)
+    P = C + R[:, None] * (c * X + s * Y)
+    T = R[:, None] * (c * Y - s * X)
+    w = P - Oc
+    w = w - np.einsum("kj,kj->k", w, Z)[:, None] * Z
+    nc = w / np.linalg.norm(w, axis=1)[:, None]
+    fl = first[:, None]
+    value = np.einsum("kj,kj->k", _cross(np.where(fl, N, nc), np.where(fl, nc, N)), T)
+    scale = np.maximum(1.0 + np.abs(P).max(axis=1), 1.0 + np.abs(Oc).max(axis=1))
+    bound = _UNIFORM_MIN_SINE + _UNIFORM_SLACK * (tol.angular + (tol.linear + _EPS * scale) / R)
+    ok &= np.abs(value) > 2.0 * bound * np.linalg.norm(T, axis=1)  # (a factor 2 of margin, as above)
+    sg = np.where(value > 0.0, 1.0, -1.0)
+    Y = sg[:, None] * Y
+    Z = sg[:, None] * Z
+    # The plane's p-curve (_closed_coords): o + α cos t + β sin t per coordinate, tiny terms dropped.
+    F2 = Fp[:, :2]
+    tf, basis = _form_basis(0.0, TWO_PI)
+    coef = np.zeros((K, 2, 4))
+    coef[:, :, 0] = np.einsum("kij,kj->ki", F2, C - Op)
+    coef[:, :, 2] = R[:, None] * np.einsum("kij,kj->ki", F2, X)
+    coef[:, :, 3] = R[:, None] * np.einsum("kij,kj->ki", F2, Y)
+    sizes = np.abs(np.einsum("sj,kij->kis", basis, coef)).max(axis=2)
+    coef[np.abs(coef) <= (tol.solver * np.maximum(sizes, TWO_PI))[:, :, None]] = 0.0
+    o, al, be = coef[:, :, 0], coef[:, :, 2], coef[:, :, 3]
+    ok &= al[:, 0] * be[:, 1] - al[:, 1] * be[:, 0] != 0.0
+    # The cylinder's (_closed_coords, _first_parameters): u = u0 - sg t0 + sg t, v = v0.
+    t0 = float(tf[0])
+    L = np.einsum("kij,kj->ki", Fc, C + R[:, None] * (math.cos(t0) * X + math.sin(t0) * Y) - Oc)
+    u0 = np.arctan2(L[:, 1], L[:, 0])
+    u0 = np.where(u0 < 0.0, u0 + TWO_PI, u0)
+    u0 = np.where((u0 >= TWO_PI) | ((L[:, 0] == 0.0) & (L[:, 1] == 0.0)), 0.0, u0)
+    ou, ov = u0 - sg * t0, L[:, 2]
+    size_u = np.abs(ou[:, None] + sg[:, None] * tf[None]).max(axis=1)
+    ou = np.where(np.abs(ou) <= tol.solver * np.maximum(size_u, TWO_PI), 0.0, ou)
+    ov = np.where(np.abs(ov) <= tol.solver * np.maximum(np.abs(ov), TWO_PI), 0.0, ov)
+    # Boxes: the cylinder's u range less than a period; every other coordinate clearly in or out.
+    (lo_u, hi_u), (lo_v, hi_v) = CB[:, 0].T, CB[:, 1].T
+    span = hi_u - lo_u
+    ok &= np.isfinite(lo_u) & np.isfinite(hi_u) & (span > m) & (span < TWO_PI - m)
+    inside = (ov >= lo_v - slack + m) & (ov <= hi_v + slack - m)
+    outside = (ov < lo_v - slack - m) | (ov > hi_v + slack + m)
+    r = np.hypot(al, be)
+    for i in (0, 1):
+        lo, hi = PB[:, i, 0], PB[:, i, 1]
+        inside &= (o[:, i] - r[:, i] > lo + m) & (o[:, i] + r[:, i] < hi - m)
+        outside |= (o[:, i] + r[:, i] < lo - slack - m) | (o[:, i] - r[:, i] > hi + slack + m)
+    ok &= inside | outside
+    # The window starts where u is at its lower bound (_start); the run ends where it crosses the upper one.
+    w0 = np.where(sg > 0.0, (lo_u - ou) / sg, (lo_u + TWO_PI - ou) / sg)
+    w1 = w0 + TWO_PI
+    cross_hi = (hi_u - ou) / sg
+    s0 = np.where(sg > 0.0, w0, cross_hi)
+    s1 = np.where(sg > 0.0, cross_hi, w1)
+    tm = 0.5 * (s0 + s1)
+    du = TWO_PI * np.ceil((lo_u - slack - (ou + sg * tm)) / TWO_PI)  # (_shift)
+    for k in np.flatnonzero(ok & outside).tolist():
+        out[k] = []
+    todo = np.flatnonzero(ok & ~outside)
+    if todo.size == 0:
+        return out
+    # The deviation (_finished) of all branches at once.
+    C, X, Y, Z, R, o, al, be = C[todo], X[todo], Y[todo], Z[todo], R[todo], o[todo], al[todo], be[todo]
+    s0, s1, ou, ov, sg = s0[todo], s1[todo], ou[todo] + du[todo], ov[todo] + 0.0, sg[todo]  # (the shifts: _piece)
+    t = s0[:, None] + (s1 - s0)[:, None] * _CHECK_FRACTIONS[None]
+    cs, sn = np.cos(t), np.sin(t)
+    Pk = ((R[:, None] * cs)[..., None] * X[:, None] + (R[:, None] * sn)[..., None] * Y[:, None]) + C[:, None]
+    uv = o[:, None] + cs[..., None] * al[:, None] + sn[..., None] * be[:, None]
+    Fpt, Opt, Fct, Oct = Fp[todo], Op[todo], Fc[todo], Oc[todo]
+    Pp = Opt[:, None] + uv[..., 0:1] * Fpt[:, None, 0] + uv[..., 1:2] * Fpt[:, None, 1]
+    u = ou[:, None] + sg[:, None] * t
+    e = np.cos(u)[..., None] * Fct[:, None, 0] + np.sin(u)[..., None] * Fct[:, None, 1]
+    Pc = (R[:, None, None] * e + ov[:, None, None] * Fct[:, None, 2]) + Oct[:, None]  # (the cylinder's radius)
+    gaps = np.concatenate([Pp - Pk, Pc - Pk, Pp - Pc], axis=1)
+    dev = np.sqrt(np.max(np.add.reduce(gaps * gaps, axis=-1), axis=1))
+    circles = Circle.many(C, np.stack([X, Y, Z], axis=1), R)
+    on_plane = Trig2D.many(o, al, be)
+    on_cylinder = Line2D.many(np.stack([ou, ov], axis=1), np.stack([sg, np.zeros_like(sg)], axis=1))
+    for k, circle, pp, pc, a, b, d, f in zip(todo.tolist(), circles, on_plane, on_cylinder, s0.tolist(), s1.tolist(),
+                                             dev.tolist(), first[todo].tolist()):
+        out[k] = [IntersectionCurve(circle, a, b, pp if f else pc, pc if f else pp, False, d, False)]
+    return out
+
+
+def _perpendicular_rows(Z: np.ndarray) -> np.ndarray:
+    """:func:`~coons.kernel.conics.perpendicular_direction` of unit rows ``Z (k, 3)``, ``(k, 3)``: the coordinate of
+    least magnitude set to zero, the other two swapped with one sign change, normalised."""
+    a, b, c = Z.T
+    A, B, Cm = np.abs(Z).T
+    zero = np.zeros_like(a)
+    by_y = (B <= A) & (B <= Cm)
+    by_x = ~by_y & (A <= B) & (A <= Cm)
+    d = np.where(by_y[:, None], np.where((A > Cm)[:, None], np.stack([-c, zero, a], 1), np.stack([c, zero, -a], 1)),
+                 np.where(by_x[:, None],
+                          np.where((B > Cm)[:, None], np.stack([zero, -c, b], 1), np.stack([zero, c, -b], 1)),
+                          np.where((A > B)[:, None], np.stack([-b, a, zero], 1), np.stack([b, -a, zero], 1))))
+    return d / np.linalg.norm(d, axis=1)[:, None]
 
 
 # ---------------------------------------------------------------------------- dispatcher

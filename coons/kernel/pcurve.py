@@ -162,6 +162,35 @@ class Trig2D:
         if self.a[0] * self.b[1] - self.a[1] * self.b[0] == 0.0:
             raise InvalidGeometryError("Trig2D axes a and b must not be parallel")
 
+    @classmethod
+    def many(cls, centers, a, b) -> list["Trig2D"]:
+        """One curve per row of ``centers``, ``a`` and ``b`` (``(k, 2)`` each), checked in one pass (as :meth:`Line2D.many`).
+
+        Raises
+        ------
+        InvalidGeometryError
+            Shapes other than ``(k, 2)``, non-finite values or parallel ``a`` and ``b`` (the first bad row is named).
+        """
+        C, A, B = (np.array(x, dtype=np.float64) for x in (centers, a, b))
+        if C.ndim != 2 or C.shape[1:] != (2,) or A.shape != C.shape or B.shape != C.shape:
+            raise InvalidGeometryError(f"Trig2D.many needs three (k, 2) arrays, got shapes {C.shape}, {A.shape}, {B.shape}")
+        bad = np.flatnonzero(~np.isfinite(np.concatenate([C, A, B], axis=1)).all(axis=1)
+                             | (A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0] == 0.0))
+        if bad.size:
+            k = int(bad[0])
+            raise InvalidGeometryError(f"Trig2D.many: row {k} (center {C[k].tolist()}, a {A[k].tolist()}, b {B[k].tolist()}) "
+                                       "is not finite or has parallel axes")
+        out = []
+        for X in (C, A, B):
+            X.setflags(write=False)
+        for c, u, v in zip(C, A, B):
+            curve = object.__new__(cls)
+            object.__setattr__(curve, "center", c)
+            object.__setattr__(curve, "a", u)
+            object.__setattr__(curve, "b", v)
+            out.append(curve)
+        return out
+
     def evaluate(self, t) -> np.ndarray:
         t = _params(t)
         return self.center + np.cos(t)[..., None] * self.a + np.sin(t)[..., None] * self.b

@@ -300,7 +300,14 @@ def test_incomplete_intersection_is_reported(monkeypatch):
         cut = tuple(dataclasses.replace(c, t1=0.5 * (c.t0 + c.t1), closed=False) for c in si.curves)
         return dataclasses.replace(si, curves=cut)
 
+    real_batch = inter._plane_cylinder_circles
+
+    def half_batch(items, tol):  # (the plane-cylinder pairs of _intersect take the batched sections)
+        return [None if found is None else [dataclasses.replace(c, t1=0.5 * (c.t0 + c.t1), closed=False) for c in found]
+                for found in real_batch(items, tol)]
+
     monkeypatch.setattr(inter, "intersect_surfaces", half_curves)
+    monkeypatch.setattr(inter, "_plane_cylinder_circles", half_batch)
     with pytest.raises(BooleanError, match=r"\[intersect\] operand A, face \d+ \(plane\): a cut ends at .*\(a branch "
                                            r"of a surface intersection is missing\)") as ei:
         S.difference(Box(10, 10, 10), Cylinder(3, 20))
@@ -399,6 +406,7 @@ def test_stage_errors_name_the_faces(monkeypatch):
 
     with monkeypatch.context() as m:
         m.setattr(inter, "intersect_surfaces", fail_intersect)
+        m.setattr(inter, "_plane_cylinder_circles", fail_intersect)  # (a failed batch falls back to the pairs)
         with pytest.raises(BooleanError, match=r"\[intersect\] face \d+ of A \(plane\) and face \d+ of B") as ei:
             S.difference(box, cyl)
         assert ei.value.stage == "intersect" and {"face_a", "face_b"} <= set(ei.value.diagnostics)

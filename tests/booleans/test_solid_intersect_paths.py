@@ -105,31 +105,35 @@ def test_long_enough_in_floats_is_the_array_test(c, r, s0, ds, kind):
     assert S._long_enough(curve, s0, s1, T) == bool(np.max(np.linalg.norm(P - P[0], axis=1)) > T.linear)
 
 
-def _canon(x) -> str:
-    """A canonical text of phase 3's output: floats in hex, arrays by their bytes, objects by their fields."""
+def _canon(x, signed: bool = True) -> str:
+    """A canonical text of phase 3's output: floats in hex, arrays by their bytes, objects by their fields
+    (``signed=False``: zeros without their signs)."""
     if isinstance(x, float):
-        return float.hex(x)
+        return float.hex(x if signed else x + 0.0)
     if isinstance(x, (bool, int, str, type(None))):
         return repr(x)
     if isinstance(x, np.generic):
-        return _canon(x.item())
+        return _canon(x.item(), signed)
     if isinstance(x, np.ndarray):
+        if not signed and x.dtype.kind == "f":
+            x = x + 0.0  # (-0.0 + 0.0 is 0.0)
         return f"{x.dtype}{x.shape}" + hashlib.sha1(np.ascontiguousarray(x).tobytes()).hexdigest()
     if isinstance(x, (list, tuple)):
-        return "[" + ",".join(_canon(y) for y in x) + "]"
+        return "[" + ",".join(_canon(y, signed) for y in x) + "]"
     if isinstance(x, dict):
-        return "{" + ",".join(_canon(k) + ":" + _canon(v) for k, v in x.items()) + "}"
+        return "{" + ",".join(_canon(k, signed) + ":" + _canon(v, signed) for k, v in x.items()) + "}"
     fields = getattr(x, "__slots__", None) or sorted(vars(x))
-    return type(x).__name__ + "(" + ",".join(f + "=" + _canon(getattr(x, f)) for f in fields if hasattr(x, f)) + ")"
+    return type(x).__name__ + "(" + ",".join(f + "=" + _canon(getattr(x, f), signed) for f in fields
+                                             if hasattr(x, f)) + ")"
 
 
-def _phase3(a, b):
+def _phase3(a, b, signed: bool = True):
     """``_intersect``'s cuts and links of A = a, B = b (ids of curves replaced by their order)."""
     A, B = S._Operand(a, "A", T), S._Operand(b, "B", T)
     I, J = S._broad_phase(A, B)
     links: dict = {}
     cuts_a, cuts_b = S._intersect(A, B, I, J, T, links)
-    return _canon([cuts_a, cuts_b, list(links.values())])
+    return _canon([cuts_a, cuts_b, list(links.values())], signed)
 
 
 CASES = {
@@ -153,6 +157,7 @@ def test_phase_3_is_the_same_with_the_cheap_paths_switched_off(name):
     a, b = CASES[name]()
     decided = {"_uniform_side": 0, "_exact_runs": 0}
     with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_BATCHED_SECTIONS", 1 << 60)  # pair by pair (the batch: the next test)
         for fn in decided:
             real = getattr(I, fn)
 
@@ -170,6 +175,7 @@ def test_phase_3_is_the_same_with_the_cheap_paths_switched_off(name):
     if name == "box - cylinder":
         assert all(decided.values())
     with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_BATCHED_SECTIONS", 1 << 60)
         m.setattr(I, "_uniform_side", lambda *args: None)
         m.setattr(I, "_exact_runs", lambda *args: None)
         for switch in ("_SCALAR_SIDES", "_SCALAR_CUTS", "_SCALAR_BOXES"):
@@ -179,6 +185,35 @@ def test_phase_3_is_the_same_with_the_cheap_paths_switched_off(name):
         S._FACE_DATA.clear()  # (the closed-form clip's per-face data is kept with the face's)
         slow = _phase3(a, b)
     assert fast == slow
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_phase_3_is_the_same_with_the_batched_pairs_switched_off(name):
+    """The batched plane-cylinder pairs (sections, clips, lengths and end tolerances in array passes) give the
+    cuts, tolerances and links of the pair-by-pair path bit for bit on these cases up to the signs of zeros in
+    the circles' frames (their expressions are the same; the batch promises agreement only to round-off), and
+    take every plane-cylinder pair of a plate."""
+    import coons.kernel.intersect as I
+
+    a, b = CASES[name]()
+    taken = []
+    real = I._plane_cylinder_circles
+
+    def spy(items, tol):
+        got = real(items, tol)
+        taken.extend(g is not None for g in got)
+        return got
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "_plane_cylinder_circles", spy)
+        batched = _phase3(a, b, signed=False)
+    if name in ("box - cylinder", "plate - 3x3 holes"):
+        assert taken and all(taken)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_BATCHED_SECTIONS", 1 << 60)
+        S._FACE_DATA.clear()
+        single = _phase3(a, b, signed=False)
+    assert batched == single
 
 
 def test_cut_ends_found_on_the_boundary_need_no_check():

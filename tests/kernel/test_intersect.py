@@ -1061,3 +1061,66 @@ def test_illinois_brackets_roots_to_the_spacing_of_doubles():
     root = _illinois(fn, lo, hi, fn(lo, ks), fn(hi, ks))
     expected = np.array([math.pi / 2, 2.0 ** (1.0 / 3.0), 0.3, 0.5])
     np.testing.assert_allclose(root, expected, rtol=0, atol=4 * np.finfo(float).eps)
+
+
+_AXES = st.sampled_from([(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, 1, 0), (0.3, 0.2, 1.0), (-1.0, 2.0, 0.5)])
+
+
+@settings(max_examples=60)
+@given(axis=_AXES, x_dir=st.sampled_from([(1, 0, 0), (0, 1, 0), (0.5, -0.3, 0.2)]), flip=st.booleans(),
+       radius=st.floats(0.01, 20.0), height=st.floats(-20.0, 20.0), shift=st.tuples(*[st.floats(-50.0, 50.0)] * 3),
+       u_box=st.tuples(st.floats(-7.0, 7.0), st.floats(0.1, 7.0)), v_box=st.tuples(st.floats(-30.0, 30.0),
+                                                                                    st.floats(0.1, 40.0)),
+       plane_half=st.floats(0.5, 80.0), plane_first=st.booleans())
+def test_batched_plane_cylinder_circles_are_the_dispatchers(axis, x_dir, flip, radius, height, shift, u_box, v_box,
+                                                             plane_half, plane_first):
+    """``_plane_cylinder_circles`` (the Booleans' batch) gives the branches of ``intersect_surfaces`` on the pairs it
+    takes (to round-off: the same types, ranges, curves and p-curves), and takes the plain ones."""
+    from coons.kernel.intersect import _plane_cylinder_circles
+
+    A = np.array(axis, dtype=float)
+    if np.linalg.norm(np.cross(A / np.linalg.norm(A), x_dir)) < 1e-3:
+        x_dir = (0.0, 0.0, 1.0)
+    O = np.array(shift)
+    cyl = CylindricalSurface(O, A, x_dir, radius)
+    pl = PlanarSurface(O + height * cyl.axis, -A if flip else A, x_dir)
+    cyl_box = ((u_box[0], u_box[0] + u_box[1]), (v_box[0], v_box[0] + v_box[1]))
+    # the plane's box about the point of the axis, or off it
+    pc = pl.closest_parameters(O + height * cyl.axis)
+    plane_box = ((pc[0] - plane_half, pc[0] + plane_half), (pc[1] - plane_half, pc[1] + 0.5 * plane_half))
+    pairs = [(pl, cyl, plane_box, cyl_box)] if plane_first else [(cyl, pl, cyl_box, plane_box)]
+    (got,) = _plane_cylinder_circles(pairs * 3, DEFAULT_TOLERANCE)[:1]
+    if got is None:
+        return  # (the general path's business: a near tie, a circle across the plane's box)
+    ref = intersect_surfaces(*pairs[0], tol=DEFAULT_TOLERANCE).curves
+    assert len(got) == len(ref)
+    for g, r in zip(got, ref):
+        assert type(g.curve) is type(r.curve) is Circle
+        assert (type(g.pcurve_a), type(g.pcurve_b)) == (type(r.pcurve_a), type(r.pcurve_b))
+        scale = 1.0 + float(np.max(np.abs(O))) + radius + abs(height)
+        np.testing.assert_allclose([g.t0, g.t1], [r.t0, r.t1], rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(g.curve.frame, r.curve.frame, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(g.curve.center, r.curve.center, rtol=0, atol=1e-14 * scale)
+        t = np.linspace(r.t0, r.t1, 9)
+        for pg, pr in ((g.pcurve_a, r.pcurve_a), (g.pcurve_b, r.pcurve_b)):
+            np.testing.assert_allclose(pg.evaluate(t), pr.evaluate(t), rtol=0, atol=1e-12 * scale)
+        assert g.tol <= max(10 * r.tol, 1e-12 * scale) and not g.closed and not g.tangent
+
+
+def test_batched_plane_cylinder_circles_take_the_plate_pairs():
+    """A plate's faces against the walls of holes: every pair batched, the same arcs as pair by pair."""
+    from coons.kernel.intersect import _plane_cylinder_circles
+
+    top = PlanarSurface([0, 0, 5], [0, 0, 1], [1, 0, 0])
+    bottom = PlanarSurface([0, 0, -5], [0, 0, -1], [1, 0, 0])
+    walls = [CylindricalSurface([x, y, -10], [0, 0, 1], [1, 0, 0], 2.0) for x in (-10.0, 0.0, 10.0) for y in (-5.0, 5.0)]
+    halves = [((-0.0314, 3.1730), (-0.2, 20.2)), ((3.1102, 6.3146), (-0.2, 20.2))]
+    pairs = [(p, w, ((-20.2, 20.2), (-20.2, 20.2)), h) for p in (top, bottom) for w in walls for h in halves]
+    got = _plane_cylinder_circles(pairs, DEFAULT_TOLERANCE)
+    assert all(g is not None and len(g) == 1 for g in got)
+    for g, pair in zip(got, pairs):
+        (r,) = intersect_surfaces(*pair, tol=DEFAULT_TOLERANCE).curves
+        (g,) = g
+        assert [g.t0, g.t1] == pytest.approx([r.t0, r.t1], abs=1e-13)
+        np.testing.assert_allclose(g.curve.evaluate(np.linspace(g.t0, g.t1, 5)), r.curve.evaluate(np.linspace(r.t0, r.t1, 5)),
+                                   rtol=0, atol=1e-13)

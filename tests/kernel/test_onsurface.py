@@ -479,3 +479,50 @@ def test_curve_derivatives_are_each_curves_own():
         curve_derivatives([space[0], plane[1]], np.zeros((2, 1)), 1)
     with pytest.raises(InvalidInputError, match="finite"):
         curve_derivatives(plane, np.full((3, 1), np.nan))
+
+
+def test_trig2d_many_is_the_constructor_row_by_row():
+    from coons.kernel.pcurve import Trig2D
+
+    C = np.array([[0.0, 1.0], [2.5, -3.0]])
+    A = np.array([[1.0, 0.0], [0.5, 0.25]])
+    B = np.array([[0.0, 2.0], [-0.25, 0.5]])
+    curves = Trig2D.many(C, A, B)
+    t = np.array([0.0, 0.7, 2.0])
+    for c, a, b, tr in zip(C, A, B, curves):
+        np.testing.assert_array_equal(tr.evaluate(t), Trig2D(c, a, b).evaluate(t))
+        assert not (tr.center.flags.writeable or tr.a.flags.writeable or tr.b.flags.writeable)
+    C[0, 0] = 99.0  # the curves hold copies
+    assert curves[0].center[0] == 0.0
+    assert Trig2D.many(np.empty((0, 2)), np.empty((0, 2)), np.empty((0, 2))) == []
+    with pytest.raises(InvalidGeometryError, match="row 1 .* parallel axes"):
+        Trig2D.many(C, A, [[0.0, 2.0], [1.0, 0.5]])
+    with pytest.raises(InvalidGeometryError, match="row 0"):
+        Trig2D.many([[math.nan, 0.0]], [[1.0, 0.0]], [[0.0, 1.0]])
+    with pytest.raises(InvalidGeometryError, match="shapes"):
+        Trig2D.many(np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+def test_circle_many_is_the_constructor_row_by_row():
+    from coons.kernel.analytic import Circle
+    from coons.kernel.conics import orthonormal_frame
+
+    C = np.array([[0.0, 1.0, 2.0], [2.5, -3.0, 0.5]])
+    F = np.array([orthonormal_frame([0, 0, 1], [1, 0, 0]), orthonormal_frame([0.3, -0.4, 1.0], [1, 0, 0])])
+    R = np.array([1.5, 0.25])
+    circles = Circle.many(C, F, R)
+    t = np.array([0.0, 0.7, 4.0])
+    for c, f, r, ci in zip(C, F, R, circles):
+        ref = Circle(c, f[2], f[0], r)
+        np.testing.assert_allclose(ci.evaluate(t), ref.evaluate(t), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(ci.frame, ref.frame, rtol=0, atol=1e-16)
+        assert ci.radius == r and not ci.frame.flags.writeable and not ci.center.flags.writeable
+    assert Circle.many(np.empty((0, 3)), np.empty((0, 3, 3)), np.empty(0)) == []
+    with pytest.raises(InvalidGeometryError, match="row 1 .* not positive"):
+        Circle.many(C, F, [1.0, 0.0])
+    with pytest.raises(InvalidGeometryError, match="row 0"):
+        Circle.many(C, np.array([F[0][[1, 0, 2]], F[1]]), R)  # left-handed
+    with pytest.raises(InvalidGeometryError, match="row 1"):
+        Circle.many(C, np.array([F[0], 2.0 * F[1]]), R)  # not unit
+    with pytest.raises(InvalidGeometryError, match="shapes"):
+        Circle.many(C, F[:, :2], R)

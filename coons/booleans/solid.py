@@ -3780,7 +3780,10 @@ def _uses_uv(edges: list[EdgeSpec], S, n: int) -> np.ndarray:
     lines = [e for e in edges if isinstance(e.pcurve, Line2D)]
     for group, k in ((lines, 2), (trigs, n)):
         if group:
-            T = np.linspace([e.t0 for e in group], [e.t1 for e in group], k, axis=1)
+            ends = np.array([(e.t0, e.t1) for e in group])
+            # (np.linspace's samples to round-off; both ends exact)
+            T = ends if k == 2 else ends[:, :1] + (ends[:, 1:] - ends[:, :1]) * (np.arange(k) / (k - 1.0))
+            T[:, -1] = ends[:, 1]
             parts.append(curve_derivatives([e.pcurve for e in group], T, 0, 2).reshape(-1, 2))
     return np.concatenate(parts) if parts else np.zeros((0, 2))
 

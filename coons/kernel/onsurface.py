@@ -720,36 +720,46 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
     if not np.isfinite(T).all():
         raise InvalidInputError("parameters must be finite, got NaN or inf")
     k = len(curves)
-    kind = np.array([_BATCHED_KIND.get(type(c), 0) for c in curves], dtype=np.int64)
+    groups: dict[int, list[int]] = {}  # (Python lists: the batches are often a handful of curves)
+    for i, c in enumerate(curves):
+        groups.setdefault(_BATCHED_KIND.get(type(c), 0), []).append(i)
     if dimension is None:
-        if k == 0 or kind[0]:
-            dimension = 0 if k == 0 else 2 if kind[0] in (3, 4) else 3
+        first = _BATCHED_KIND.get(type(curves[0]), 0) if k else 0
+        if k == 0 or first:
+            dimension = 0 if k == 0 else 2 if first in (3, 4) else 3
         else:
             dimension = int(np.asarray(curves[0].derivatives(T[0][:1], 0)).shape[-1])
     X = np.empty(T.shape + (order + 1, dimension))
     for code, d in ((1, 3), (2, 3), (3, 2), (4, 2)):
-        rows = np.flatnonzero(kind == code)
-        if not rows.size:
+        rows = groups.get(code)
+        if rows is None:
             continue
-        if d != dimension:
-            raise ValueError(f"curve {int(rows[0])} ({type(curves[int(rows[0])]).__name__}) is not {dimension}-D")
+        if len(rows) == k:
+            rows = slice(None)  # (all of one type: views, not copies)
+            if d != dimension:
+                raise ValueError(f"curve 0 ({type(curves[0]).__name__}) is not {dimension}-D")
+            members = curves
+        else:
+            members = [curves[i] for i in rows]
+            if d != dimension:
+                raise ValueError(f"curve {rows[0]} ({type(curves[rows[0]]).__name__}) is not {dimension}-D")
         t = T[rows][..., None]
         if code in (1, 3):  # O + t D
-            O = np.array([curves[i].origin for i in rows])[:, None, :]
-            D = np.array([curves[i].direction for i in rows])[:, None, :]
+            O = np.array([c.origin for c in members])[:, None, :]
+            D = np.array([c.direction for c in members])[:, None, :]
             X[rows, :, 0] = O + t * D
             if order >= 1:
                 X[rows, :, 1] = D
                 X[rows, :, 2:] = 0.0
             continue
         if code == 2:  # O + (R cos t) X + (R sin t) Y
-            F = np.array([curves[i].frame for i in rows])
-            R = np.array([float(curves[i].radius) for i in rows])[:, None, None]
-            O, A, B = np.array([curves[i].center for i in rows]), F[:, None, 0, :], F[:, None, 1, :]
+            F = np.array([c.frame for c in members])
+            R = np.array([float(c.radius) for c in members])[:, None, None]
+            O, A, B = np.array([c.center for c in members]), F[:, None, 0, :], F[:, None, 1, :]
         else:  # C + cos t a + sin t b
-            O = np.array([curves[i].center for i in rows])
-            A = np.array([curves[i].a for i in rows])[:, None, :]
-            B = np.array([curves[i].b for i in rows])[:, None, :]
+            O = np.array([c.center for c in members])
+            A = np.array([c.a for c in members])[:, None, :]
+            B = np.array([c.b for c in members])[:, None, :]
             R = 1.0
         c, sn = np.cos(t), np.sin(t)
         cycle = ((c, sn), (-sn, c), (-c, -sn), (sn, -c))  # d^j/dt^j (cos t, sin t), period 4
@@ -760,7 +770,7 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
             X[rows, :, 0] += O[:, None, :]
         else:  # (Trig2D.evaluate's order of sums: the same points bit for bit)
             X[rows, :, 0] = O[:, None, :] + c * A + sn * B
-    for i in np.flatnonzero(kind == 0).tolist():
+    for i in groups.get(0, ()):
         D = np.asarray(curves[i].derivatives(T[i], order), dtype=np.float64)
         if D.shape[-1] != dimension:
             raise ValueError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")

@@ -1101,10 +1101,21 @@ def meridian_row(S) -> tuple[float, float, float, float, float] | None:
     return None
 
 
-def _batch(surfaces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``kind (k,)`` (1 plane, 2 surface of revolution, 0 other), origins ``(k, 3)``, frames
-    ``(k, 3, 3)`` and meridian rows ``(k, 5)`` (zeros where they do not apply)."""
+def _batch(surfaces: list, u, v, what: str) -> tuple[np.ndarray, ...]:
+    """The checked parameters ``u, v (k,)``, ``kind (k,)`` (1 plane, 2 surface of revolution, 0 other),
+    origins ``(k, 3)``, frames ``(k, 3, 3)`` and meridian rows ``(k, 5)`` (zeros where they do not apply).
+
+    Raises
+    ------
+    InvalidInputError
+        Non-finite parameters, or not one ``(u, v)`` per surface.
+    """
+    u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
     k = len(surfaces)
+    if u.size != k or v.size != k:
+        raise InvalidInputError(f"{what} needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
+    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+        raise InvalidInputError("parameters must be finite, got NaN or inf")
     kind = np.zeros(k, dtype=np.int64)
     O, F, M = np.zeros((k, 3)), np.zeros((k, 3, 3)), np.zeros((k, 5))
     for i, S in enumerate(surfaces):
@@ -1114,7 +1125,7 @@ def _batch(surfaces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
             row = meridian_row(S)
             if row is not None:
                 kind[i], O[i], F[i], M[i] = 2, S._origin, S._frame, row
-    return kind, O, F, M
+    return u, v, kind, O, F, M
 
 
 def _meridian_many(M: np.ndarray, v: np.ndarray, order: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -1144,14 +1155,8 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1) -> np.ndarray:
         Non-finite parameters, or not one ``(u, v)`` per surface.
     """
     order = _order(order)
-    u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
-    k = len(surfaces)
-    if u.size != k or v.size != k:
-        raise InvalidInputError(f"surface_derivatives needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
-    if not (np.isfinite(u).all() and np.isfinite(v).all()):
-        raise InvalidInputError("parameters must be finite, got NaN or inf")
-    kind, O, F, M = _batch(surfaces)
-    out = np.zeros((k, order + 1, order + 1, 3))
+    u, v, kind, O, F, M = _batch(surfaces, u, v, "surface_derivatives")
+    out = np.zeros((len(surfaces), order + 1, order + 1, 3))
     p = np.flatnonzero(kind == 1)
     if p.size:
         X, Y = F[p, 0], F[p, 1]
@@ -1185,14 +1190,8 @@ def surface_normals(surfaces: list, u, v) -> np.ndarray:
     InvalidInputError
         As :func:`surface_derivatives`.
     """
-    u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
-    k = len(surfaces)
-    if u.size != k or v.size != k:
-        raise InvalidInputError(f"surface_normals needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
-    if not (np.isfinite(u).all() and np.isfinite(v).all()):
-        raise InvalidInputError("parameters must be finite, got NaN or inf")
-    kind, O, F, M = _batch(surfaces)
-    out = np.empty((k, 3))
+    u, v, kind, O, F, M = _batch(surfaces, u, v, "surface_normals")
+    out = np.empty((len(surfaces), 3))
     out[kind == 1] = F[kind == 1, 2]
     r = np.flatnonzero(kind == 2)
     if r.size:

@@ -68,6 +68,7 @@ __all__ = [
     "ConicalSurface",
     "SphericalSurface",
     "ToroidalSurface",
+    "BATCHED_SURFACES",
     "SCALAR_CURVES",
     "angle_to_nurbs_parameter",
     "nurbs_parameter_to_angle",
@@ -1101,23 +1102,32 @@ def meridian_row(S) -> tuple[float, float, float, float, float] | None:
     return None
 
 
-def _batch(surfaces: list, u, v, what: str) -> tuple[np.ndarray, ...]:
+#: Surface types :func:`surface_derivatives` and :func:`surface_normals` evaluate in one expression per type.
+BATCHED_SURFACES = (PlanarSurface, CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface)
+
+
+def _batch(surfaces: list, u, v, what: str, index=None) -> tuple[np.ndarray, ...]:
     """The checked parameters ``u, v (k,)``, ``kind (k,)`` (1 plane, 2 surface of revolution, 0 other),
-    origins ``(k, 3)``, frames ``(k, 3, 3)`` and meridian rows ``(k, 5)`` (zeros where they do not apply).
+    origins ``(k, 3)``, frames ``(k, 3, 3)``, meridian rows ``(k, 5)`` (zeros where they do not apply)
+    and the surface of each row ``(k,)`` (``index``, or each surface once).
 
     Raises
     ------
     InvalidInputError
-        Non-finite parameters, or not one ``(u, v)`` per surface.
+        Non-finite parameters, not one ``(u, v)`` per row, or an index out of range.
     """
     u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
-    k = len(surfaces)
+    n = len(surfaces)
+    index = np.arange(n) if index is None else np.asarray(index, dtype=np.int64).reshape(-1)
+    k = index.size
     if u.size != k or v.size != k:
         raise InvalidInputError(f"{what} needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
+    if k and (index.min() < 0 or index.max() >= n):
+        raise InvalidInputError(f"{what}: surface index out of range [0, {n})")
     if not (np.isfinite(u).all() and np.isfinite(v).all()):
         raise InvalidInputError("parameters must be finite, got NaN or inf")
-    kind = np.zeros(k, dtype=np.int64)
-    O, F, M = np.zeros((k, 3)), np.zeros((k, 3, 3)), np.zeros((k, 5))
+    kind = np.zeros(n, dtype=np.int64)
+    O, F, M = np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 5))
     for i, S in enumerate(surfaces):
         if isinstance(S, PlanarSurface):
             kind[i], O[i], F[i] = 1, S._origin, S._frame
@@ -1125,7 +1135,9 @@ def _batch(surfaces: list, u, v, what: str) -> tuple[np.ndarray, ...]:
             row = meridian_row(S)
             if row is not None:
                 kind[i], O[i], F[i], M[i] = 2, S._origin, S._frame, row
-    return u, v, kind, O, F, M
+    if k != n or not np.array_equal(index, np.arange(n)):
+        kind, O, F, M = kind[index], O[index], F[index], M[index]
+    return u, v, kind, O, F, M, index
 
 
 def _meridian_many(M: np.ndarray, v: np.ndarray, order: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -1142,9 +1154,10 @@ def _meridian_many(M: np.ndarray, v: np.ndarray, order: int) -> tuple[list[np.nd
     return rho, h
 
 
-def surface_derivatives(surfaces: list, u, v, order: int = 1) -> np.ndarray:
-    """Partials of many surfaces, ``surfaces[i]`` at ``(u[i], v[i])``: ``(k, order + 1, order + 1, 3)``,
-    ``[i, a, b] = ∂^(a+b) S_i / ∂u^a ∂v^b`` (the layout of ``derivatives``).
+def surface_derivatives(surfaces: list, u, v, order: int = 1, index=None) -> np.ndarray:
+    """Partials of many surfaces, ``surfaces[i]`` (``surfaces[index[i]]`` when ``index (k,)`` is given)
+    at ``(u[i], v[i])``: ``(k, order + 1, order + 1, 3)``, ``[i, a, b] = ∂^(a+b) S_i / ∂u^a ∂v^b`` (the
+    layout of ``derivatives``).
 
     Planes and surfaces of revolution (cylinders, cones, spheres, tori: one meridian form,
     :func:`meridian_row`) are evaluated in one expression each; any other surface is called once.
@@ -1155,8 +1168,8 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1) -> np.ndarray:
         Non-finite parameters, or not one ``(u, v)`` per surface.
     """
     order = _order(order)
-    u, v, kind, O, F, M = _batch(surfaces, u, v, "surface_derivatives")
-    out = np.zeros((len(surfaces), order + 1, order + 1, 3))
+    u, v, kind, O, F, M, index = _batch(surfaces, u, v, "surface_derivatives", index)
+    out = np.zeros((index.size, order + 1, order + 1, 3))
     p = np.flatnonzero(kind == 1)
     if p.size:
         X, Y = F[p, 0], F[p, 1]
@@ -1176,12 +1189,12 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1) -> np.ndarray:
             out[r, 0, b] += h[b][:, None] * Z
         out[r, 0, 0] += O[r]
     for i in np.flatnonzero(kind == 0).tolist():
-        out[i] = np.asarray(surfaces[i].derivatives(u[i], v[i], order), dtype=np.float64).reshape(out[i].shape)
+        out[i] = np.asarray(surfaces[index[i]].derivatives(u[i], v[i], order), dtype=np.float64).reshape(out[i].shape)
     return out
 
 
-def surface_normals(surfaces: list, u, v) -> np.ndarray:
-    """Unit normals of many surfaces, ``surfaces[i]`` at ``(u[i], v[i])``: ``(k, 3)``, as their
+def surface_normals(surfaces: list, u, v, index=None) -> np.ndarray:
+    """Unit normals of many surfaces, ``surfaces[i]`` (or ``surfaces[index[i]]``) at ``(u[i], v[i])``: ``(k, 3)``, as their
     ``normal`` gives them (a surface of revolution's limit at ``ρ = 0`` included); planes and
     surfaces of revolution in one expression each (:func:`surface_derivatives`).
 
@@ -1190,8 +1203,8 @@ def surface_normals(surfaces: list, u, v) -> np.ndarray:
     InvalidInputError
         As :func:`surface_derivatives`.
     """
-    u, v, kind, O, F, M = _batch(surfaces, u, v, "surface_normals")
-    out = np.empty((len(surfaces), 3))
+    u, v, kind, O, F, M, index = _batch(surfaces, u, v, "surface_normals", index)
+    out = np.empty((index.size, 3))
     out[kind == 1] = F[kind == 1, 2]
     r = np.flatnonzero(kind == 2)
     if r.size:
@@ -1201,5 +1214,5 @@ def surface_normals(surfaces: list, u, v) -> np.ndarray:
         sign = np.where(rho[0] < 0.0, -1.0, 1.0) / np.hypot(rho[1], h[1])
         out[r] = (sign * h[1])[:, None] * e - (sign * rho[1])[:, None] * F[r, 2]
     for i in np.flatnonzero(kind == 0).tolist():
-        out[i] = np.asarray(surfaces[i].normal(u[i], v[i]), dtype=np.float64).reshape(3)
+        out[i] = np.asarray(surfaces[index[i]].normal(u[i], v[i]), dtype=np.float64).reshape(3)
     return out

@@ -697,8 +697,8 @@ def evaluate_curves(curves: list, T: np.ndarray) -> np.ndarray:
 
     Raises
     ------
-    InvalidInputError, ValueError
-        Non-finite parameters, or a curve whose points are not 3-D.
+    InvalidInputError
+        Not one row of parameters per curve, non-finite parameters, or a curve whose points are not 3-D.
     """
     return curve_derivatives(curves, T, 0, 3)[..., 0, :]
 
@@ -713,13 +713,17 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
 
     Raises
     ------
-    InvalidInputError, ValueError
-        Non-finite parameters, or a curve of another dimension.
+    InvalidInputError
+        Not one row of parameters per curve, non-finite parameters, or a curve of another dimension.
     """
     T = np.asarray(T, dtype=np.float64)
+    k = len(curves)
+    if k == 0 and T.size == 0:  # (no curves: no points, whatever the empty T's shape)
+        return np.empty((0, T.shape[1] if T.ndim == 2 else 0, order + 1, dimension or 0))
+    if T.ndim != 2 or T.shape[0] != k:
+        raise InvalidInputError(f"curve_derivatives needs one row of parameters per curve: {k} curves, T {T.shape}")
     if not np.isfinite(T).all():
         raise InvalidInputError("parameters must be finite, got NaN or inf")
-    k = len(curves)
     groups: dict[int, list[int]] = {}  # (Python lists: the batches are often a handful of curves)
     for i, c in enumerate(curves):
         groups.setdefault(_BATCHED_KIND.get(type(c), 0), []).append(i)
@@ -737,12 +741,12 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
         if len(rows) == k:
             rows = slice(None)  # (all of one type: views, not copies)
             if d != dimension:
-                raise ValueError(f"curve 0 ({type(curves[0]).__name__}) is not {dimension}-D")
+                raise InvalidInputError(f"curve 0 ({type(curves[0]).__name__}) is not {dimension}-D")
             members = curves
         else:
             members = [curves[i] for i in rows]
             if d != dimension:
-                raise ValueError(f"curve {rows[0]} ({type(curves[rows[0]]).__name__}) is not {dimension}-D")
+                raise InvalidInputError(f"curve {rows[0]} ({type(curves[rows[0]]).__name__}) is not {dimension}-D")
         t = T[rows][..., None]
         if code in (1, 3):  # O + t D
             O = np.array([c.origin for c in members])[:, None, :]
@@ -773,7 +777,7 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
     for i in groups.get(0, ()):
         D = np.asarray(curves[i].derivatives(T[i], order), dtype=np.float64)
         if D.shape[-1] != dimension:
-            raise ValueError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
+            raise InvalidInputError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
         X[i] = D.reshape(X[i].shape)
     return X
 

@@ -873,8 +873,9 @@ def derivatives_surfaces(surfaces, index, u, v, order: int = 1, tol: Tolerance |
 
     For callers that evaluate a few points on each of many faces (checking, tessellating or
     projecting a model's edges): the :class:`NurbsSurface` entries are grouped by structure
-    (:meth:`NurbsSurfaceStack.key`) and each group is evaluated in one batch; any other surface
-    type (anything with ``derivatives(u, v, order)``) is called once per distinct surface.
+    (:meth:`NurbsSurfaceStack.key`) and each group is evaluated in one batch; planes and surfaces
+    of revolution all together (:func:`coons.kernel.analytic.surface_derivatives`); any other
+    surface type (anything with ``derivatives(u, v, order)``) is called once per distinct surface.
     Parameters are checked and clamped as :meth:`NurbsSurface.derivatives` does.
 
     Parameters
@@ -905,7 +906,21 @@ def derivatives_surfaces(surfaces, index, u, v, order: int = 1, tol: Tolerance |
     if m == 0:
         return out
     t = resolve(tol)
-    for members, rows, local in structure_groups(surfaces, index):
+    # Planes and surfaces of revolution: one expression per type for all their rows.
+    from coons.kernel.analytic import BATCHED_SURFACES, surface_derivatives
+
+    ids, inverse = np.unique(index, return_inverse=True)
+    batched = np.array([isinstance(surfaces[i], BATCHED_SURFACES) for i in ids.tolist()], dtype=bool)
+    if batched.any():
+        rows = np.flatnonzero(batched[inverse])
+        out[rows] = surface_derivatives([surfaces[i] for i in ids.tolist()], u[rows], v[rows], order, inverse[rows])
+        if rows.size == m:
+            return out
+        keep = np.flatnonzero(~batched[inverse])
+    else:
+        keep = np.arange(m)
+    for members, sub, local in structure_groups(surfaces, index[keep]):
+        rows = keep[sub]
         first = surfaces[members[0]]
         if len(members) == 1 or not isinstance(first, NurbsSurface):
             D = first.derivatives(u[rows], v[rows], order, t) if isinstance(first, NurbsSurface) \

@@ -75,7 +75,7 @@ accurate computation of polyhedral mass properties", 1996):
 5. *Adaptive quadrature on NURBS* (NURBS surfaces, and NURBS p-curves on any surface), where
    ``|Su × Sv|`` (always) and the rational integrands are not polynomials: both the outer and
    (on NURBS surfaces) the inner integral use Gauss–Kronrod G7/K15 pieces (QUADPACK's QK15,
-   Piessens et al. 1983), started at one piece per half knot span (the inner integral split at
+   Piessens et al. 1983), started at one piece per knot span (the inner integral split at
    the ``u`` knots, the paths where they cross ``u`` or ``v`` knot lines and at their own
    knots) and bisected, all pieces at once, until for each face (outer) or each inner integral
    and every column ``c`` the summed estimates ``Σ |K15 - G7|`` are at most
@@ -159,6 +159,7 @@ __all__ = [
     "shell_volumes",
     "face_areas",
     "bounding_box",
+    "face_box_bounds",
     "GAUSS_ORDER",
     "POLY_GAUSS_ORDER",
     "ANGLE_STEP",
@@ -1560,46 +1561,60 @@ def _hull(obj) -> tuple[np.ndarray, np.ndarray] | None:
     return c - r, c + r
 
 
-def face_box_bounds(b: BRep, t: Tolerance) -> np.ndarray:
+def face_box_bounds(brep, tol: Tolerance | None = None) -> np.ndarray:
     """Boxes ``(F, 2, 3)`` (rows ``lo, hi``) proven to contain each face, without searching for extrema.
 
     Cheaper and looser than :func:`bounding_box` face by face: the union of the face's edge
-    boxes (:func:`coons.kernel.curve_intersect.curve_box`: exact for lines and arcs, the union of
+    boxes (:func:`coons.kernel.curve_intersect.curve_boxes`: exact for lines and arcs, the union of
     the pieces' control-point boxes for NURBS curves; the end points for edges without a curve),
-    padded by the face's largest edge tolerance and ``t.linear`` (the boundary of the face's
-    parameter region maps within the edge tolerances of its edges; a gap at a pole maps to a
-    vertex).  A coordinate on a plane, cylinder or cone has no interior extremum that is not
+    padded by the largest tolerance of the face's edges and their vertices and ``t.linear`` (the
+    boundary of the face's parameter region maps within the edge tolerances of its edges; a gap
+    at a pole maps to a vertex).  A coordinate on a plane, cylinder or cone has no interior extremum that is not
     also reached on the boundary (it is affine along each ruling); a sphere or torus adds the
     box of the whole surface, a NURBS surface its control points' box (convex hull property,
     positive weights).  Infinite for a face whose curve or surface type is not handled.
-    """
-    from coons.kernel.curve_intersect import curve_box
 
+    Raises
+    ------
+    InvalidInputError
+        Not a BRep or Solid.
+    """
+    from coons.kernel.curve_intersect import curve_box, curve_boxes
+
+    b, t = _as_brep(brep), resolve(tol)
     F = b.n_faces
     E = b.n_edges
     elo, ehi = np.full((E, 3), np.inf), np.full((E, 3), -np.inf)
     ends = b.vertex_point[b.edge_vertex]  # (E, 2, 3)
     elo[:], ehi[:] = ends.min(axis=1), ends.max(axis=1)
-    ranges = b.edge_range.tolist()
-    for e, ci in enumerate(b.edge_curve.tolist()):
-        if ci < 0 or isinstance(b.curves[ci], Line):
-            continue
+    curved = [e for e, ci in enumerate(b.edge_curve.tolist()) if ci >= 0]
+    if curved:
+        curves = [b.curves[int(b.edge_curve[e])] for e in curved]
+        R = b.edge_range[curved]
         try:
-            box = curve_box(b.curves[ci], ranges[e])
-        except InvalidInputError:
-            box = np.array([[-np.inf] * 3, [np.inf] * 3])
-        elo[e] = np.minimum(elo[e], box[0])
-        ehi[e] = np.maximum(ehi[e], box[1])
+            boxes = curve_boxes(curves, R[:, 0], R[:, 1])
+        except InvalidInputError:  # (one by one: a curve that cannot be boxed leaves its faces unknown)
+            boxes = np.empty((len(curved), 2, 3))
+            for k, (c, r) in enumerate(zip(curves, R.tolist())):
+                try:
+                    boxes[k] = curve_box(c, r)
+                except InvalidInputError:
+                    boxes[k] = [[-np.inf] * 3, [np.inf] * 3]
+        elo[curved] = np.minimum(elo[curved], boxes[:, 0])
+        ehi[curved] = np.maximum(ehi[curved], boxes[:, 1])
     lo, hi = np.full((F, 3), np.inf), np.full((F, 3), -np.inf)
     ef = b.edge_face  # (E, 2)
     for side in (0, 1):
         np.minimum.at(lo, ef[:, side], elo)
         np.maximum.at(hi, ef[:, side], ehi)
+    # An edge's points lie within its tolerance of its curve, and its ends within their vertices'.
+    etol = np.maximum(b.edge_tol, b.vertex_tol[b.edge_vertex].max(axis=1)) if E else np.zeros(0)
     pad = np.zeros(F)
     for side in (0, 1):
-        np.maximum.at(pad, ef[:, side], b.edge_tol)
+        np.maximum.at(pad, ef[:, side], etol)
     pad += t.linear
-    lo[(lo > hi).any(axis=1)], hi[(lo > hi).any(axis=1)] = -np.inf, np.inf  # a face without edges: unknown
+    unknown = (lo > hi).any(axis=1)  # a face without edges
+    lo[unknown], hi[unknown] = -np.inf, np.inf
     flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
     for f, si in enumerate(b.face_surface.tolist()):
         S = None if si < 0 else b.surfaces[si]

@@ -1028,12 +1028,13 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
       (:func:`coons.topology.mass.face_box_bounds`), the cones' winding number is the shell's.
     * *Mesh* (a probe inside some face box).  The shell's triangles in the tessellation at the
       default deflection ``d`` (:func:`coons.topology.tessellate.tessellate`): far faces as above,
-      and faces whose box holds the probe count when the probe is farther than ``2 d`` plus the
-      edge tolerances and ``10 tol.linear`` from their triangles (the band of
+      and faces whose box holds the probe count when the probe is farther than ``2 (d + e)``, ``e``
+      the largest edge tolerance, plus ``10 tol.linear`` from their triangles (the band of
       :class:`coons.booleans.classify.Classifier`: mesh and face are within ``d`` of each other,
       so the straight homotopy between them misses the probe).  Where that fails, the
-      deflection is divided by 8, at most three times; a probe still that close
-      to another shell means the shells touch, and raises.
+      deflection is divided by 8, at most three times and while it stays above ``tol.linear``
+      (finer meshes are not cached); a probe within the band's tolerance part, or still within
+      the band at the finest deflection, means the shells touch, and raises.
 
     The probe is the vertex of the void inside the fewest face boxes.  Returns the B-rep built
     before nesting, whose shell volumes (and, when it was made, default mesh) the final build
@@ -1043,11 +1044,11 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
     ------
     TopologyError
         A negative shell inside no positive shell (its faces are oriented inward), or one whose
-        vertices all lie within the mesh band of another shell at the finest deflection tried.
+        probe vertex lies within the mesh band of another shell at the finest deflection tried.
     """
     from coons.topology.from_mesh import _triangle_distances, _winding_numbers
     from coons.topology.mass import face_box_bounds, shell_volumes
-    from coons.topology.tessellate import _resolve_deflection, tessellate
+    from coons.topology.tessellate import _resolve_deflection, _tessellate, tessellate
 
     # Divisions of the deflection by 8 before two shells are declared touching (1/512 of the
     # default: about 2e-6 of the diagonal, far below any wall a Boolean leaves).
@@ -1085,22 +1086,29 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
         else:
             w = None
             d = _resolve_deflection(brep, None, t)
-            for _ in range(refinements + 1):
-                mesh = tessellate(brep, deflection=d, tol=t)
+            etol = float(np.max(brep.edge_tol, initial=0.0))
+            gap_floor = 2.0 * etol + 10.0 * t.linear  # (the band's part no deflection removes)
+            for r in range(refinements + 1):
+                # The default mesh is cached (and shared with the result); finer ones are not kept.
+                mesh = tessellate(brep, deflection=d, tol=t) if r == 0 else _tessellate(brep, d, 0.5, t)
                 tri = mesh.vertices[mesh.triangles]
                 at_near = near[mesh.face_ids]
-                etol = float(np.max(brep.edge_tol, initial=0.0))
                 band = 2.0 * (d + etol) + 10.0 * t.linear
-                if at_near.any() and _triangle_distances(probe, tri[at_near]).min() <= band:
-                    d /= 8.0
-                    continue
-                tri_shell = face_shell[mesh.face_ids]
-                w = np.array([_winding_numbers(probe[None], tri[tri_shell == o])[0] for o in pos.tolist()])
-                break
+                gap = _triangle_distances(probe, tri[at_near]).min() if at_near.any() else np.inf
+                if gap > band:
+                    tri_shell = face_shell[mesh.face_ids]
+                    w = np.array([_winding_numbers(probe[None], tri[tri_shell == o])[0] for o in pos.tolist()])
+                    break
+                # A finer mesh helps only when the gap exceeds the band's fixed part (the tolerances) and
+                # the tessellator accepts the finer deflection (above tol.linear).
+                if gap <= gap_floor or d / 8.0 <= t.linear:
+                    break
+                d /= 8.0
             if w is None:
                 raise TopologyError(
-                    f"shell {s} (faces {brep.shell_face_ids(s)[:8].tolist()}) has its vertex {int(verts[k])} within "
-                    f"{band:.3g} of another shell's tessellation at deflection {d * 8.0:.3g}: the shells touch"
+                    f"shell {s} (faces {brep.shell_face_ids(s)[:8].tolist()}) has its vertex {int(verts[k])} "
+                    f"{gap:.3g} from another shell's tessellation at deflection {d:.3g} (band {band:.3g}, "
+                    f"tolerances {gap_floor:.3g}): the shells touch"
                 )
         # |w| is 1 inside a closed shell and 0 outside.
         containers = pos[np.abs(w) > 0.5]

@@ -662,6 +662,14 @@ def test_surface_derivatives_and_normals_of_many_are_each_surfaces_own():
             rho, h = S._meridian(vs, 0)
             np.testing.assert_allclose(rho[0], al + be * vs + ga * np.cos(vs), rtol=0, atol=1e-12)
             np.testing.assert_allclose(h[0], de * vs + ep * np.sin(vs), rtol=0, atol=1e-12)
+    index = rng.integers(0, len(surfaces), 40)  # (rows naming their surface)
+    ui, vi = rng.uniform(0.0, 1.0, 40), rng.uniform(0.0, 1.0, 40)
+    D, N = surface_derivatives(surfaces, ui, vi, 2, index), surface_normals(surfaces, ui, vi, index)
+    for i, a, b, d, n in zip(index.tolist(), ui, vi, D, N):
+        np.testing.assert_allclose(d, surfaces[i].derivatives(a, b, 2), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(n, surfaces[i].normal(a, b), rtol=0, atol=1e-12)
+    with pytest.raises(InvalidInputError, match="out of range"):
+        surface_normals(surfaces, [0.0], [0.0], [len(surfaces)])
     with pytest.raises(InvalidInputError, match="one \\(u, v\\) per surface"):
         surface_derivatives(surfaces, u[:-1], v)
     with pytest.raises(InvalidInputError, match="finite"):

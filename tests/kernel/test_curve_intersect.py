@@ -494,7 +494,11 @@ def test_curve_boxes_are_curve_box_of_each():
     boxes = curve_boxes(curves, lo, hi)
     assert boxes.shape == (len(curves), 2, 3)
     for c, a, b, box in zip(curves, lo, hi, boxes):
+        # (an arc's curve_box is the scalar twin of the batched formula)
         np.testing.assert_allclose(box, curve_box(c, (a, b)), rtol=0, atol=1e-12)
+        if not isinstance(c, NurbsCurve):  # lines and arcs: exact, as tight as dense samples
+            P = np.asarray(c.evaluate(np.linspace(min(a, b), max(a, b), 20001)))
+            np.testing.assert_allclose(box, [P.min(axis=0), P.max(axis=0)], rtol=0, atol=1e-6)
     planar = [Trig2D([0.3, -0.2], [2.0, 0.5], [-0.3, 1.0]), Line2D([0, 0], [1, 2])]
     np.testing.assert_allclose(curve_boxes(planar, [0.2, -1.0], [5.0, 1.0])[0], curve_box(planar[0], (0.2, 5.0)),
                                rtol=0, atol=1e-12)
@@ -595,15 +599,16 @@ def test_refine_scalar_path_matches_the_general_path(radius, angle, tilt, ds, dt
 
 @settings(max_examples=60)
 @given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.floats(-0.2, 0.2), st.floats(-0.5, 0.5), st.sampled_from([2, 3]),
-       st.sampled_from(["line", "circle"]))
-def test_refine_scalar_path_of_a_nurbs_matches_the_general_path(at, tilt, ds, dt, dim, kind):
-    """Newton on seeds of a polynomial NURBS (several knot spans, seeds on and between knots) against a
-    line or circle, on Python floats through the spans' power forms: the array path's answer to round-off,
-    and a point on the NURBS where the curves cross."""
+       st.sampled_from(["line", "circle"]), st.sampled_from([1.0, 2.0, 0.5]))
+def test_refine_scalar_path_of_a_nurbs_matches_the_general_path(at, tilt, ds, dt, dim, kind, weight):
+    """Newton on seeds of a polynomial NURBS (several knot spans, seeds on and between knots; all weights
+    equal, 1 or not) against a line or circle, on Python floats through the spans' power forms: the array
+    path's answer to round-off, and from a seed off it, a point on the NURBS where the curves cross."""
     rng = np.random.default_rng(7)
     P = np.cumsum(rng.uniform(0.2, 1.0, size=(9, dim)) * [1.0, 0.4, 0.3][:dim], axis=0)
     U = np.concatenate([[0.0] * 4, [0.2, 0.35, 0.5, 0.65, 0.8], [1.0] * 4])
-    c1 = NurbsCurve(P, U, 3)
+    c1 = NurbsCurve(P, U, 3, [weight] * len(P))
+    assert not c1.is_rational
     Q = np.asarray(c1.evaluate(np.array([at])))[0]
     if kind == "circle" and dim == 3:
         # A circle through Q in a plane containing the NURBS's normal direction there.
@@ -622,16 +627,19 @@ def test_refine_scalar_path_of_a_nurbs_matches_the_general_path(at, tilt, ds, dt
     fast = refine_intersections(c1, (0.0, 1.0), other, r2, *seeds)
     general = _general(refine_intersections, c1, (0.0, 1.0), other, r2, *seeds)
     np.testing.assert_allclose(np.array(fast), np.array(general), rtol=0, atol=1e-9)
-    # Q lies on both curves: a seed next to it converges there (or to another crossing just as close).
-    s, t, dist = refine_intersections(c1, (0.0, 1.0), other, r2, [at], [1.0 if kind == "line" else 0.0])
+    # Q lies on both curves: a seed near it converges there (or to another crossing just as close).
+    s, t, dist = refine_intersections(c1, (0.0, 1.0), other, r2, [min(max(at + 0.01, 0.0), 1.0)],
+                                      [(1.0 if kind == "line" else 0.0) + 0.01])
     assert dist[0] <= 1e-9
 
 
+@pytest.mark.parametrize("weight", [1.0, 2.0])
 @pytest.mark.parametrize("shift", [0.0, 0.3, 1e-8, 2.0])
-def test_nurbs_end_feet_on_python_floats_match_the_general_path(shift):
-    """The feet of the range ends on a NURBS (projected one by one on Python floats) and the answers built on
-    them — end contacts, crossings — are the array path's to round-off, for ends on, near and far from it."""
-    c = NurbsCurve([[0, 0], [1, 2], [2, -1], [3, 1], [4, 0.5]], [0, 0, 0, 0, 0.5, 1, 1, 1, 1], 3)
+def test_nurbs_end_feet_on_python_floats_match_the_general_path(shift, weight):
+    """The feet of the range ends on a NURBS (projected one by one on Python floats; all weights equal, 1 or
+    not) and the answers built on them — end contacts, crossings — are the array path's to round-off, for
+    ends on, near and far from it."""
+    c = NurbsCurve([[0, 0], [1, 2], [2, -1], [3, 1], [4, 0.5]], [0, 0, 0, 0, 0.5, 1, 1, 1, 1], 3, [weight] * 5)
     Q = np.asarray(c.evaluate(np.array([0.3, 0.8])))
     other = Line2D(Q[0] + [0.0, shift], Q[1] - Q[0])  # from near c(0.3) to near c(0.8)
     arc = Trig2D(Q[0] + [0.0, shift] - [0.5, 0.0], [0.5, 0.0], [0.0, 0.5])  # starts near c(0.3)

@@ -475,8 +475,10 @@ def test_curve_derivatives_are_each_curves_own():
     T = rng.uniform(-5.0, 5.0, (2, 7))
     for c, t, got in zip(plane[:2], T, curve_derivatives(plane[:2], T, 0)[:, :, 0]):
         assert np.array_equal(got, c.evaluate(t))
-    with pytest.raises(ValueError, match="is not 3-D"):
+    with pytest.raises(InvalidInputError, match="is not 3-D"):
         curve_derivatives([space[0], plane[1]], np.zeros((2, 1)), 1)
+    with pytest.raises(InvalidInputError, match="one row of parameters per curve"):
+        curve_derivatives(space[:1], np.zeros((2, 3)))
     with pytest.raises(InvalidInputError, match="finite"):
         curve_derivatives(plane, np.full((3, 1), np.nan))
 

@@ -992,11 +992,22 @@ def test_face_box_bounds_contain_each_face(make):
     lambda: Box(4, 4, 4) + Sphere(1.5).translate((2, 0.5, 0.3)),
     lambda: Sphere(2.0) - Cylinder(0.5, 6).rotate((0, 0, 0), (0, 1, 0), 20),
     lambda: Torus(2.0, 0.5),
+    # (fitted intersection curves inside the box: their searches are skipped)
+    lambda: Cylinder(2, 20) + Cylinder(1.5, 20, direction=(1, 0, 0)).translate((0, 0, 1)),
+    lambda: Sphere(3.0) + Cylinder(1.0, 8).rotate((0, 0, 0), (1, 1, 0), 25).translate((0.5, 0, 0)),
 ])
 def test_bounding_box_skips_only_searches_that_cannot_widen_it(make, monkeypatch):
     """Skipping the curves and surfaces whose hull lies in the box found so far gives the very box
-    of the full search."""
+    of the full search (and does skip searches on results with fitted intersection curves)."""
     b = make().brep
+    searches = []
+    real = mass._curve_extreme_points
+    monkeypatch.setattr(mass, "_curve_extreme_points", lambda *a: searches.append(1) or real(*a))
     pruned = mass._bounding_box(b)
+    skipping = len(searches)
     monkeypatch.setattr(mass, "_hull", lambda obj: None)
     np.testing.assert_array_equal(pruned, mass._bounding_box(b))
+    full = len(searches) - skipping
+    assert skipping <= full
+    if any(isinstance(c, NurbsCurve) for c in b.curves):
+        assert skipping < full

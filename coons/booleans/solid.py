@@ -1144,12 +1144,13 @@ def _batched_pieces(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, sect
         return {}
     branches = [c for _, _, c in rows]
     ra = _clip_many(A, [i for i, _, _ in rows], [c.pcurve_a for c in branches], branches, t)
-    rb = _clip_many(B, [j for _, j, _ in rows], [c.pcurve_b for c in branches], branches, t)
+    on_a = [r for r, a in enumerate(ra) if a]  # (as the per-pair path: B is clipped only where A's clip is not empty)
+    rb = dict(zip(on_a, _clip_many(B, [rows[r][1] for r in on_a], [branches[r].pcurve_b for r in on_a],
+                                   [branches[r] for r in on_a], t))) if on_a else {}
     spans = []  # (row, s0, s1, where on A, where on B)
-    for r, (a, b) in enumerate(zip(ra, rb)):
-        if a:
-            spans += [(r, max(a0, b0), min(a1, b1), wa, wb) for a0, a1, wa in a for b0, b1, wb in b
-                      if min(a1, b1) > max(a0, b0)]
+    for r in on_a:
+        spans += [(r, max(a0, b0), min(a1, b1), wa, wb) for a0, a1, wa in ra[r] for b0, b1, wb in rb[r]
+                  if min(a1, b1) > max(a0, b0)]
     out: dict = {id(c): [] for c in branches}
     if not spans:
         return out
@@ -1165,16 +1166,13 @@ def _batched_pieces(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, sect
 
 
 def _long_enough_many(curves: list, s0: list[float], s1: list[float], t: Tolerance) -> list[bool]:
-    """:func:`_long_enough` of many ranges: circles in one array pass (the same five points), other curves one by one."""
+    """:func:`_long_enough` of many ranges: circles in one array pass (the same five points,
+    :func:`~coons.kernel.onsurface.curve_derivatives`), other curves one by one."""
     out = [None] * len(curves)
     rows = [k for k, c in enumerate(curves) if type(c) is Circle and math.isfinite(s0[k]) and math.isfinite(s1[k])]
     if rows:
-        C = np.array([curves[k]._origin for k in rows])
-        F = np.array([curves[k]._frame for k in rows])
-        R = np.array([curves[k].radius for k in rows])
         tt = np.linspace([s0[k] for k in rows], [s1[k] for k in rows], 5, axis=1)
-        P = ((R[:, None] * np.cos(tt))[..., None] * F[:, None, 0] + (R[:, None] * np.sin(tt))[..., None] * F[:, None, 1]
-             ) + C[:, None]
+        P = curve_derivatives([curves[k] for k in rows], tt, 0, 3)[:, :, 0]
         D = P - P[:, :1]
         far = np.sqrt(np.max(np.add.reduce(D * D, axis=2), axis=1)) > t.linear
         for k, ok in zip(rows, far.tolist()):
@@ -1202,12 +1200,8 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
                      for c, (a, b) in zip(branches, ends)], dtype=bool)
     if circ.any():
         rows = np.flatnonzero(circ)
-        C = np.array([branches[k].curve._origin for k in rows.tolist()])
-        F = np.array([branches[k].curve._frame for k in rows.tolist()])
-        R = np.array([branches[k].curve.radius for k in rows.tolist()])[:, None, None]
-        cs, sn = np.cos(ts[rows])[..., None], np.sin(ts[rows])[..., None]
-        P[rows] = (R * cs * F[:, None, 0] + R * sn * F[:, None, 1]) + C[:, None]
-        T[rows] = R * -sn * F[:, None, 0] + R * cs * F[:, None, 1]
+        D = curve_derivatives([branches[k].curve for k in rows.tolist()], ts[rows], 1, 3)
+        P[rows], T[rows] = D[:, :, 0], D[:, :, 1]
     for k in np.flatnonzero(~circ).tolist():
         c, (a, b) = branches[k], ends[k]
         if math.isfinite(a) and math.isfinite(b):
@@ -1253,7 +1247,7 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             te = np.clip(np.einsum("nej,nj->ne", Q - O[:, None], D), lo_t, hi_t)
             d[line] = np.linalg.norm(O[:, None] + te[..., None] * D[:, None] - Q, axis=2)
             U = D / np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
-            sine[line] = np.maximum(np.linalg.norm(_cross3(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
+            sine[line] = np.maximum(np.linalg.norm(np.cross(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
         for q in np.flatnonzero(~line).tolist():
             r = int(rows[q])
             e, k = edge_of[r], int(ent[r])
@@ -1270,12 +1264,6 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             slack = 1e-12 * (size[ent[kr]] + np.abs(O).max(axis=1))
             np.minimum.at(near, (ent[kr], side[kr]), d[known] + slack[:, None])
     return worst.tolist(), near.tolist()
-
-
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a × b`` of broadcast arrays ``(..., 3)``."""
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def _clip_many(X: _Operand, faces: list[int], pcurves: list, branches: list, t: Tolerance) -> list[list]:
@@ -1389,21 +1377,12 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
     return out
 
 
-def _pcurve_rows(pcurves: list, T: np.ndarray) -> np.ndarray:
-    """Points ``(k, m, 2)`` of ``Line2D`` or ``Trig2D`` p-curves ``k`` at parameters ``T (k, m)``."""
-    trig = np.array([type(p) is Trig2D for p in pcurves])
-    O = np.array([p.center if tr else p.origin for p, tr in zip(pcurves, trig.tolist())])
-    U = np.array([p.a if tr else p.direction for p, tr in zip(pcurves, trig.tolist())])
-    V = np.array([p.b if tr else (0.0, 0.0) for p, tr in zip(pcurves, trig.tolist())])
-    c = np.where(trig[:, None], np.cos(T), T)
-    s = np.where(trig[:, None], np.sin(T), 0.0)
-    return O[:, None] + c[..., None] * U[:, None] + s[..., None] * V[:, None]
-
-
 def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) -> list:
     """The sampled test of :func:`_clip` for many branches: ``[(t0, t1, "inside")]``, ``[]`` or None (undecided)."""
     T = np.linspace([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES, axis=1)
-    Q = _pcurve_rows(pcurves, T)
+    Q = curve_derivatives(pcurves, T, 0, 2)[:, :, 0]
+    finite = np.isfinite(Q).all(axis=(1, 2))  # (as _clip: non-finite samples leave the branch undecided)
+    Q = np.where(finite[:, None, None], Q, 0.0)
     dQ = Q[:, 1:] - Q[:, :-1]
     step = np.sqrt(np.max(np.add.reduce(dQ * dQ, axis=2), axis=1))[:, None]
     scale = 1.0 + np.max(np.abs(Q), axis=(1, 2))[:, None]
@@ -1416,7 +1395,7 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
         meet[rows] = np.any(np.all((X.seg_lo[f][None] <= hi[rows, None]) & (X.seg_hi[f][None] >= lo[rows, None]),
                                    axis=2), axis=1)
     out: list = [None] * len(faces)
-    clear = np.flatnonzero(~meet)
+    clear = np.flatnonzero(~meet & finite)
     if clear.size:
         inside = _in_faces(X, fa[clear], Q[clear, _CLEAR_SAMPLES // 2])
         for k, ins in zip(clear.tolist(), inside.tolist()):
@@ -2039,7 +2018,7 @@ def _edge_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     if boxed:
         uses = [edges[k] for k in boxed]
         boxes = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
-        boxes.setflags(write=False)
+        boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
         for k, box in zip(boxed, boxes):
             out[k] = box
     return out

@@ -19,7 +19,8 @@ before (a Boolean's result and its operand) samples only its new coedges.  Likew
 checks of a face (its loops crossing, their sense against ``face_sense``) are a function of its
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
-sewing) skips them for a face whose spec passed them in an earlier clean check (``_TRIMS_PASSED``),
+sewing, or for a B-rep assembled without sewing by :func:`~coons.topology.sew.remember_sewn`, which
+finds the unchanged faces by walking the B-rep) skips them for a face whose spec passed them in an earlier clean check (``_TRIMS_PASSED``),
 as a plate's untouched faces do from cut to cut, and with them the same-parameter comparisons of its
 coedges (the deviation measured then, against the same edge tolerance: an unchanged face's uses
 keep theirs; faces whose loop closure was judged against a vertex are never recorded); the
@@ -590,9 +591,11 @@ def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray,
 
 
 # ---------------------------------------------------------------------- trims
-#: B-rep made by :func:`~coons.topology.sew.sew_faces` -> (its face specs in face order, ``(F,)``
-#: bool: the faces equal to their spec, :func:`~coons.topology.sew.sewn_unchanged`).
-_SEWN_FROM: "weakref.WeakKeyDictionary[BRep, tuple[list, np.ndarray]]" = weakref.WeakKeyDictionary()
+#: B-rep made by :func:`~coons.topology.sew.sew_faces` (or recorded by
+#: :func:`~coons.topology.sew.remember_sewn`) -> (its face specs in face order, a tuple; ``(F,)`` bool:
+#: the faces equal to their spec, :func:`~coons.topology.sew.sewn_unchanged`).  Read through
+#: :func:`~coons.topology.sew.sewn_from`.
+_SEWN_FROM: "weakref.WeakKeyDictionary[BRep, tuple[tuple, np.ndarray]]" = weakref.WeakKeyDictionary()
 #: Face spec -> the :func:`_trims_key` values with which a B-rep face equal to it passed the trim
 #: checks (in a check that found no problem at all).
 _TRIMS_PASSED = IdentityMemo()

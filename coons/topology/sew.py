@@ -63,7 +63,7 @@ from coons.topology.check import _SEWN_FROM
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
-           "sewn_unchanged_faces", "point_clusters"]
+           "sewn_unchanged_faces", "sewn_from", "remember_sewn", "point_clusters"]
 
 #: Parameters (fractions of an edge's range) at which two curves are compared point by point.
 _PROBE = np.linspace(0.0, 1.0, 7)
@@ -356,7 +356,8 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
             parts[p][li] = c
             if loop and c[5]:
                 _LOOP_USES.set(loop[0], c)
-    # All missing faces in one pass, each face's table a view of the pass's arrays.
+    # All missing faces in one pass, each face's table a view of the pass's arrays (a cached face
+    # keeps that pass's rows alive: a few kB per face sewn together with it).
     loops = [c for got in parts for c in got]
     per_face = np.array([len(got) for got in parts], dtype=np.int64)
     lens = np.array([c[1].shape[0] for c in loops], dtype=np.int64)
@@ -984,7 +985,7 @@ def _assemble(
     # spec passed before (check._TRIMS_PASSED), and the next Boolean on the result reads its
     # unchanged faces from the record (sewn_unchanged_faces).
     unchanged = _unchanged_faces(faces, uses, primary, other, thr)
-    return Solid(b.build(caches_from=pre, sewn_from=(faces, unchanged)))
+    return Solid(b.build(caches_from=pre, sewn_from=(tuple(faces), unchanged)))
 
 
 def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, other: np.ndarray,
@@ -1201,9 +1202,10 @@ def sewn_unchanged(b: BRep, f: int, spec: FaceSpec) -> bool:
     return bool(sewn_unchanged_faces(b, [spec], rows=[f])[0])
 
 
-def sewn_from(b: BRep) -> list[FaceSpec] | None:
-    """The face specs (in face order) B-rep ``b`` was sewn from, when it was (:func:`sew_faces`,
-    or recorded by :func:`remember_sewn`); None otherwise."""
+def sewn_from(b: BRep) -> tuple[FaceSpec, ...] | None:
+    """The face specs (in face order, a tuple: the record cannot be edited through it) B-rep ``b``
+    was sewn from, when it was (:func:`sew_faces`, or recorded by :func:`remember_sewn`); None
+    otherwise."""
     known = _SEWN_FROM.get(b)
     return None if known is None else known[0]
 
@@ -1213,7 +1215,7 @@ def remember_sewn(b: BRep, specs: Sequence[FaceSpec]) -> None:
     records it while building: which faces equal their spec is found by walking the B-rep
     (:func:`sewn_unchanged_faces`).  For a B-rep assembled without sewing (a disjoint union of
     solids on their own geometry objects)."""
-    specs = list(specs)
+    specs = tuple(specs)
     if len(specs) != b.n_faces:
         raise InvalidInputError(f"remember_sewn needs one spec per face: {len(specs)} specs, {b.n_faces} faces")
     _SEWN_FROM.pop(b, None)

@@ -31,8 +31,9 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    corner), and — for p-curves that are not straight lines on non-planar faces — the
    midpoint of the straight parameter-space chord maps onto the surface within ``d`` of the
    line of the 3-D chord.  The bisection starts from (degree + 1) samples per knot span of a
-   NURBS, far denser than the deflection asks for a curve fitted to an intersection (hundreds
-   of spans); its samples are then *decimated* top-down (:func:`_decimated`): a chord over
+   NURBS (16 per turn of an ellipse or other curve), far denser than the deflection asks for a
+   curve fitted to an intersection (hundreds of spans); the samples of every bisected curve are
+   then *decimated* top-down (:func:`_decimated`): a chord over
    several of them is kept when every one of their chords lies within ``d`` of it (ends'
    distance plus own midpoint deviation), none turns by more than ``θ/2`` from it, and it meets
    the bisection's own tests above (midpoint, turning, C0 knots kept, curved p-curves).  Edges
@@ -391,7 +392,7 @@ def edge_parameters(b: BRep, edge: int, deflection: float, angular_deflection: f
     curve whose multiplicity reaches the degree (a C0 knot: the curve may have a corner there)
     the knot is a sample and the turning allowed between its two chords grows by the jump of
     the tangent direction, so the angular criterion applies within the smooth pieces.  The
-    bisection's samples of a NURBS (from (degree + 1) per knot span) are then thinned to the
+    bisection's samples (of a NURBS from (degree + 1) per knot span) are then thinned to the
     chords that still meet every criterion (:func:`_decimated`).  This
     is the curve's own discretisation: :func:`tessellate` may add samples where the faces of
     the edge ask for them (step 0 of the module docstring).
@@ -428,7 +429,7 @@ def _edge_params(b: BRep, edge: int, deflection: float, angular_deflection: floa
         t = _linspace(t0, t1, 3) if t.size <= 2 else np.union1d(t, 0.5 * (t[:-1] + t[1:]))
     if exact and not curved_sides:
         return t
-    return _bisect_edge(b, edge, curve, t, _curved_sides(b, edge), deflection, a, check_curve=not exact)
+    return _bisect_edge(b, edge, curve, t, _curved_sides(b, edge), deflection, a, check_curve=not exact, closed=closed)
 
 
 def _curved_sides(b: BRep, edge: int) -> list[tuple[object, object]]:
@@ -500,7 +501,7 @@ def _turning(a: np.ndarray, c: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(cosang, -1.0, 1.0))
 
 
-def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool) -> np.ndarray:
+def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool, closed: bool) -> np.ndarray:
     breaks, jumps = _c0_knots(curve, float(t[0]), float(t[-1])) if check_curve else (np.zeros(0), np.zeros(0))
     if breaks.size:
         t = np.union1d(t, breaks)  # the initial samples hold every knot already; this keeps it so
@@ -541,7 +542,6 @@ def _bisect_edge(b, edge, curve, t, sides, d, a, *, check_curve: bool) -> np.nda
         if not bad.any():
             if check_curve and t.size > 3:
                 dev = np.linalg.norm(Pm - 0.5 * (P[:-1] + P[1:]), axis=1)
-                closed = int(b.edge_vertex[edge, 0]) == int(b.edge_vertex[edge, 1])
                 keep = _decimated(b, edge, curve, t, P, dev, sides, d, a, known, breaks, jumps, closed)
                 t, P = t[keep], P[keep]
             return _resolved_samples(t, P, known)

@@ -204,11 +204,20 @@ def test_phase_3_is_the_same_with_the_batched_pairs_switched_off(name):
         taken.extend(g is not None for g in got)
         return got
 
+    per_pair = []
+    real_pieces = S._branch_pieces
+
+    def spy_pieces(*args, **kwargs):
+        per_pair.append(1)
+        return real_pieces(*args, **kwargs)
+
     with pytest.MonkeyPatch.context() as m:
         m.setattr(I, "_plane_cylinder_circles", spy)
+        m.setattr(S, "_branch_pieces", spy_pieces)
         batched = _phase3(a, b, signed=False)
     if name in ("box - cylinder", "plate - 3x3 holes"):
         assert taken and all(taken)
+        assert not per_pair  # (the batched pieces did not fall back to the per-pair path)
     with pytest.MonkeyPatch.context() as m:
         m.setattr(S, "_BATCHED_SECTIONS", 1 << 60)
         S._FACE_DATA.clear()

@@ -350,6 +350,7 @@ def test_end_tolerance_examines_every_edge_near_an_end(monkeypatch):
         return out
 
     monkeypatch.setattr(S, "_end_tolerance", spy)
+    monkeypatch.setattr(S, "_BATCHED_SECTIONS", 1 << 60)  # (the plane-cylinder pairs pair by pair too)
     plate = Box(30, 30, 10) - Cylinder(2, 20).translate((-5, 0, 0))
     _ = plate - Cylinder(2, 20).translate((5, 0, 0))
     _ = Cylinder(2, 20) + Cylinder(1.99, 20, direction=(1, 0, 0)).translate((0, 0, 1))
@@ -358,3 +359,29 @@ def test_end_tolerance_examines_every_edge_near_an_end(monkeypatch):
     for c, ends, faces, t, out in calls:
         unfiltered = [(edges, np.full_like(lo, -np.inf), np.full_like(hi, np.inf), tol) for edges, lo, hi, tol in faces]
         assert real(c, ends, unfiltered, t) == out
+
+
+def test_batched_end_tolerances_are_the_per_range_ones(monkeypatch):
+    """_end_tolerance_many (the batched plane-cylinder branches of a many-hole cut) gives, range by range,
+    the tolerance of _end_tolerance with every edge examined, and its nearest-edge distances (over the
+    edges near an end: both examine those whose box comes near)."""
+    real = S._end_tolerance_many
+    calls = []
+
+    def spy(branches, ends, face_a, face_b, t):
+        out = real(branches, ends, face_a, face_b, t)
+        calls.append((branches, ends, face_a, face_b, t, out))
+        return out
+
+    monkeypatch.setattr(S, "_end_tolerance_many", spy)
+    plate = Box(40, 40, 10) - Cylinder(2, 20).translate((-5, 0, 0))
+    S.difference(plate, *[Cylinder(2, 20).translate((x, y, 0)) for x in (5.0, 15.0) for y in (-10.0, 0.0, 10.0)])
+    assert calls and sum(len(c[0]) for c in calls) >= 12
+    for branches, ends, face_a, face_b, t, (tols, nears) in calls:
+        for c, e, (A, i), (B, j), tol, near in zip(branches, ends, face_a, face_b, tols, nears):
+            faces = (A.edge_boxes(i), B.edge_boxes(j))
+            boxes = [(edges, np.full_like(lo, -np.inf), np.full_like(hi, np.inf), etol) for edges, lo, hi, etol in faces]
+            assert S._end_tolerance(c, e, boxes, t) == pytest.approx(tol, rel=1e-12)
+            expect_near = [[math.inf, math.inf], [math.inf, math.inf]]
+            S._end_tolerance(c, e, faces, t, expect_near)
+            np.testing.assert_allclose(near, expect_near, rtol=1e-9, atol=1e-12)

@@ -1075,7 +1075,7 @@ _AXES = st.sampled_from([(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, 1, 0), (0.3, 0.2,
 def test_batched_plane_cylinder_circles_are_the_dispatchers(axis, x_dir, flip, radius, height, shift, u_box, v_box,
                                                              plane_half, plane_first):
     """``_plane_cylinder_circles`` (the Booleans' batch) gives the branches of ``intersect_surfaces`` on the pairs it
-    takes (to round-off: the same types, ranges, curves and p-curves), and takes the plain ones."""
+    takes (to round-off: the same types, ranges, curves and p-curves), the same for each copy of a pair."""
     from coons.kernel.intersect import _plane_cylinder_circles
 
     A = np.array(axis, dtype=float)
@@ -1089,9 +1089,15 @@ def test_batched_plane_cylinder_circles_are_the_dispatchers(axis, x_dir, flip, r
     pc = pl.closest_parameters(O + height * cyl.axis)
     plane_box = ((pc[0] - plane_half, pc[0] + plane_half), (pc[1] - plane_half, pc[1] + 0.5 * plane_half))
     pairs = [(pl, cyl, plane_box, cyl_box)] if plane_first else [(cyl, pl, cyl_box, plane_box)]
-    (got,) = _plane_cylinder_circles(pairs * 3, DEFAULT_TOLERANCE)[:1]
+    three = _plane_cylinder_circles(pairs * 3, DEFAULT_TOLERANCE)
+    got = three[0]
+    for other in three[1:]:  # (a pair's answer does not depend on the others of its batch)
+        assert (other is None) == (got is None)
+        if got is not None:
+            assert [(g.t0, g.t1, g.tol) for g in other] == [(g.t0, g.t1, g.tol) for g in got]
     if got is None:
-        return  # (the general path's business: a near tie, a circle across the plane's box)
+        return  # (the general path's business: a near tie, a circle across the plane's box; plain pairs
+        #         are asserted taken by test_batched_plane_cylinder_circles_take_the_plate_pairs)
     ref = intersect_surfaces(*pairs[0], tol=DEFAULT_TOLERANCE).curves
     assert len(got) == len(ref)
     for g, r in zip(got, ref):

@@ -227,3 +227,21 @@ def sorted_contains(sorted_keys: np.ndarray, q: np.ndarray) -> np.ndarray:
     pos = np.searchsorted(sorted_keys, q)
     np.minimum(pos, sorted_keys.size - 1, out=pos)
     return sorted_keys[pos] == q
+
+
+def interval_cuts(intervals: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where to put ``count[k]`` evenly spaced new samples inside interval ``intervals[k]``: the owner
+    interval ``(m,)`` of each new sample and its fraction ``(m,)`` of the way along (``x[i] + f (x[i+1] - x[i])``).
+
+    The refinements of fits (p-curve fits, intersection branches) cut each interval that misses the
+    tolerance into ``count + 1`` equal parts at once: an interpolant's error falls with a power of
+    the spacing, so one round usually suffices where halving took several.
+    """
+    count = np.asarray(count, dtype=np.int64)
+    owner = np.repeat(np.asarray(intervals, dtype=np.int64), count)
+    if owner.size == 0:
+        return owner, np.zeros(0)
+    # 1, 2, ..., c for each interval: a running index minus the start of its interval's run
+    first = np.repeat(np.cumsum(count) - count, count)
+    step = np.arange(owner.size) - first + 1
+    return owner, step / np.repeat(count + 1, count)

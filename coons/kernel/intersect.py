@@ -99,6 +99,7 @@ from coons.kernel.analytic import (
     SphericalSurface,
     ToroidalSurface,
 )
+from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -520,7 +521,10 @@ def _unit_meridian(U: np.ndarray) -> np.ndarray:
 
 
 def _meet(p, q, tol: Tolerance) -> tuple[list[tuple[np.ndarray, bool]], bool]:
-    """Intersections ``[(point (2,), tangent)]`` of two meridian pieces, and whether they coincide."""
+    """Intersections ``[(point (2,), tangent)]`` of two meridian pieces, and whether they coincide.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
+    """
     if p[0] == "circle" and q[0] == "line":
         p, q = q, p
     if p[0] == "line" and q[0] == "line":
@@ -585,7 +589,10 @@ def _common_axis(a, b, tol: Tolerance) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def _coaxial(a, b, tol: Tolerance) -> _Exact | None:
-    """Surfaces of revolution (or planes, spheres) about one axis: circles where the meridians meet."""
+    """Surfaces of revolution (or planes, spheres) about one axis: circles where the meridians meet.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
+    """
     axis = _common_axis(a, b, tol)
     if axis is None:
         return None
@@ -697,6 +704,8 @@ def _uniform_side(curve, a, b, tol: Tolerance) -> bool | None:
     decides) gives this same answer.  Planes, cylinders and spheres only (their normals in
     Python floats); None for other surfaces, points on a cylinder's axis or a sphere's centre, and
     near-tangent pairs: the caller samples.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
     """
     if isinstance(curve, Circle):
         X, Y, _ = curve._frame.tolist()
@@ -818,6 +827,8 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
 
     The coefficients are then treated as the fit's are: those below ``tol.solver`` of the
     coordinates' size become 0, a closed curve's slope is rounded to whole turns.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
     """
     t = _form_parameters(window)
     if isinstance(surface, PlanarSurface):
@@ -869,6 +880,8 @@ def _first_parameters(surface, curve, t: np.ndarray) -> tuple[float, float]:
     On a cylinder, the same operations as its ``closest_parameters`` (the local coordinates by the
     same product, then the angle of ``_angle`` in Python floats around numpy's ``arctan2``) without
     its argument checks and array bookkeeping; other surfaces through their method.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
     """
     P = _curve_points(curve, t)
     if type(surface) is not CylindricalSurface:
@@ -1056,7 +1069,10 @@ def _inside(values: np.ndarray, lo: float, hi: float, periodic: bool, slack: flo
 
 
 def _shift(coord: _Coord, t_mid: float, lo: float, hi: float, slack: float) -> float:
-    """The multiple of 2π that moves a periodic coordinate's branch into ``[lo, hi]``."""
+    """The multiple of 2π that moves a periodic coordinate's branch into ``[lo, hi]``.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
+    """
     if not coord.periodic or not math.isfinite(lo):
         return 0.0
     value = coord.values([t_mid])[0] if coord.exact else float(coord(t_mid))
@@ -1122,8 +1138,7 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
         if bad.size == 0:
             return NurbsCurve(spline.c, spline.t, 3), worst
         count = np.clip(np.ceil((e[bad] / bound) ** 0.25) - 1.0, 1, _MAX_FIT_SPLIT if pointwise else 1).astype(np.int64)
-        owner = np.repeat(bad, count)
-        j = np.concatenate([np.arange(1, c + 1) for c in count.tolist()]) / np.repeat(count + 1, count)
+        owner, j = interval_cuts(bad, count)
         new = t[owner] + j * (t[owner + 1] - t[owner])
         if pointwise:
             order = np.argsort(np.concatenate([t, new]), kind="stable")
@@ -1238,6 +1253,8 @@ def _exact_runs(pairs, w0: float, w1: float, full: bool, slack: float) -> list[t
     few values of a conic's window numpy's per-call cost exceeds the arithmetic.  None also where
     a breakpoint is zero or not finite (numpy's sort may order ``-0.0`` and ``0.0`` either way)
     or a crossing has no scalar form (:func:`_exact_crossings`): the array path decides then.
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
     """
     if not all(c.exact for c, _ in pairs):
         return None
@@ -1367,7 +1384,10 @@ def _conic_piece(section: _ConeSection, s0: float, s1: float, a, b, boxes, tol: 
 
 def _start(pairs, slack: float) -> float:
     """Start of the turn of a closed curve: where a winding periodic coordinate is at its box's lower bound
-    (a seam first: a loop that starts on the seam it crosses can stay one closed branch)."""
+    (a seam first: a loop that starts on the seam it crosses can stay one closed branch).
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
+    """
     for c, (lo, hi) in sorted(pairs, key=lambda pair: pair[1][1] - pair[1][0] < TWO_PI):
         if not c.periodic or not math.isfinite(lo):
             continue
@@ -1399,7 +1419,10 @@ def _runs(br: np.ndarray, ok: np.ndarray, hard: np.ndarray, wrap: bool) -> list[
 
 
 def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool) -> IntersectionCurve:
-    """The branch with its measured deviation (the fits' own, and on samples between their nodes)."""
+    """The branch with its measured deviation (the fits' own, and on samples between their nodes).
+
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
+    """
     # An irrational offset keeps the samples off the interpolation nodes of fitted p-curves.
     t = s0 + (s1 - s0) * _CHECK_FRACTIONS
     if math.isfinite(s0) and math.isfinite(s1):  # (else evaluate raises its own error)

@@ -86,6 +86,7 @@ from scipy.sparse.csgraph import connected_components, depth_first_order
 from scipy.spatial import cKDTree
 
 from coons.errors import InvalidInputError
+from coons.kernel._common import interval_cuts
 from coons.kernel.analytic import _Revolved, _surface_params
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import singular_parameters, surface_periods
@@ -1484,9 +1485,10 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
                 br.done = True
                 continue
             idx = np.flatnonzero(bad)
+            # (one cut more than _fitted_pcurve's ceil(r) - 1: a marched branch's samples are corrected
+            # onto both surfaces, and fewer of them made later steps slower, not faster)
             count = np.minimum(np.ceil((e[idx] / (0.5 * t.linear)) ** 0.25), _MAX_SPLIT).astype(np.int64)
-            owner = np.repeat(idx, count)
-            j = np.concatenate([np.arange(1, c + 1) for c in count]) / np.repeat(count + 1, count)
+            owner, j = interval_cuts(idx, count)
             sn = br.s[owner] + j * (br.s[owner + 1] - br.s[owner])
             new_s.append(sn)
             new_x0.append(br.X[owner] + j[:, None] * (br.X[owner + 1] - br.X[owner]))

@@ -79,3 +79,17 @@ def test_prev_corners_are_the_other_rotated_ravel():
     np.testing.assert_array_equal(prev_corners(T), T[:, [2, 0, 1]].ravel())
     np.testing.assert_array_equal(prev_corners(T[::-1, ::-1]), T[::-1, ::-1][:, [2, 0, 1]].ravel())
     assert prev_corners(np.zeros((0, 3), dtype=np.int64)).shape == (0,)
+
+
+def test_interval_cuts_spread_count_samples_evenly_inside_each_interval():
+    from coons.kernel._common import interval_cuts
+
+    rng = np.random.default_rng(4)
+    intervals = np.sort(rng.choice(50, 12, replace=False))
+    count = rng.integers(0, 6, 12)
+    owner, frac = interval_cuts(intervals, count)
+    expect_owner = np.concatenate([[i] * c for i, c in zip(intervals.tolist(), count.tolist())]).astype(np.int64)
+    expect_frac = np.concatenate([np.arange(1, c + 1) / (c + 1) for c in count.tolist()])
+    np.testing.assert_array_equal(owner, expect_owner)
+    np.testing.assert_array_equal(frac, expect_frac)
+    assert interval_cuts(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))[0].size == 0

@@ -707,11 +707,13 @@ class _FaceData:
     ``seg_lo, seg_hi (s, 2)``, ``box (2, 3)`` the padded space box (:func:`_face_box`, None where
     none is proven) and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand); for
     phase 3's clipping, filled on demand: ``slope`` the segments' :func:`_polygon_slopes` and
-    ``straight`` the closed-form clip's data (:func:`_straight_data`, False where it does not apply).
+    ``straight`` the closed-form clip's data (:func:`_straight_data`, False where it does not apply);
+    ``loop_boxes`` (:func:`_loop_boxes`, on demand) each loop's first segment and the union of its
+    segments' padded boxes.
     """
 
     __slots__ = ("t", "loops", "uv_box", "rings", "seg", "seg_lo", "seg_hi", "box", "edge_boxes", "slope",
-                 "straight", "__weakref__")
+                 "straight", "loop_boxes", "__weakref__")
 
 
 #: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
@@ -845,7 +847,7 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     if d is not None and d.t == t:
         return d
     d = _FaceData()
-    d.t, d.edge_boxes, d.slope, d.straight = t, None, None, None
+    d.t, d.edge_boxes, d.slope, d.straight, d.loop_boxes = t, None, None, None, None
     S = spec.surface
     parts = [_cached_loop(loop, S, t) for loop in spec.loops]
     miss = [k for k, ld in enumerate(parts) if ld is None]
@@ -2977,9 +2979,37 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         r = np.asarray(rows)
         lo, hi = Y.seg_lo[j], Y.seg_hi[j]
         q, mr = uv_y[r][:, None, :], m[r][:, None, :]
+        boxes = _loop_boxes(Y._data[j]) if len(Y.specs[j].loops) > _LOOPS_BOXED else None
+        if boxes is not None:
+            # Only the segments of loops whose box comes near a point (a plate's face of many holes).
+            first, llo, lhi = boxes
+            hit = np.any(np.all((q >= llo[None] - mr) & (q <= lhi[None] + mr), axis=2), axis=0)
+            loops = np.flatnonzero(hit)
+            if loops.size == 0:
+                continue
+            ends = np.append(first, lo.shape[0])
+            seg = np.concatenate([np.arange(ends[k], ends[k + 1]) for k in loops.tolist()])
+            lo, hi = lo[seg], hi[seg]
         near = np.any(np.all((q >= lo[None] - mr) & (q <= hi[None] + mr), axis=2), axis=1)
         ok[r[near]] = False
     return ok, cos
+
+
+#: Faces of more loops than this have their points tested against the segments of the loops whose
+#: box comes near only (:func:`_loop_boxes`).
+_LOOPS_BOXED = 8
+
+
+def _loop_boxes(d: "_FaceData") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(first, lo, hi)``: per loop of the face, its first segment in ``d.seg_lo`` and the union
+    ``(L, 2)`` of its segments' padded boxes (a face's loops in order, as ``_face_data`` stacks them);
+    computed once per face data."""
+    if d.loop_boxes is None:
+        n = np.array([ld.seg_lo.shape[0] for ld in d.loops], dtype=np.int64)
+        first = np.concatenate([[0], np.cumsum(n)[:-1]])
+        d.loop_boxes = (first, np.minimum.reduceat(d.seg_lo, first, axis=0),
+                        np.maximum.reduceat(d.seg_hi, first, axis=0))
+    return d.loop_boxes
 
 
 def _propagate(pieces: list[tuple[int, FaceSpec]], free: np.ndarray, status: np.ndarray) -> None:

@@ -101,3 +101,26 @@ def test_local_sign_follows_the_operation():
     for status, ref, decided in _both_ways(a, b):
         np.testing.assert_array_equal(status, ref)
         assert decided > 0
+
+
+def test_local_tests_on_a_face_of_many_loops_look_only_at_nearby_loops(monkeypatch):
+    """On a plate face with more than _LOOPS_BOXED hole loops, the clearance test reads only the loops
+    whose box comes near a point: the same answers as testing every segment of the face."""
+    plate = Box(60, 60, 10)
+    for x in (-20.0, -10.0, 0.0, 10.0, 20.0):
+        for y in (-10.0, 10.0):
+            plate = plate - Cylinder(2, 20).translate((x, y, 0))
+    calls = []
+    real = S._local_tests
+    monkeypatch.setattr(S, "_local_tests", lambda cand, Y, t: calls.append((cand, Y, t)) or real(cand, Y, t))
+    # (a hole next to one of the others: the clearance test near their loops matters)
+    S.difference(plate, Cylinder(2, 20).translate((5.0, 0.0, 0.0)), method="brep")
+    busy = [c for c in calls if any(len(c[1].specs[k[4]].loops) > S._LOOPS_BOXED for k in c[0])]
+    assert busy
+    for cand, Y, t in calls:
+        fast = real(cand, Y, t)
+        monkeypatch.setattr(S, "_LOOPS_BOXED", 1 << 60)
+        every = real(cand, Y, t)
+        monkeypatch.setattr(S, "_LOOPS_BOXED", 8)
+        np.testing.assert_array_equal(fast[0], every[0])
+        np.testing.assert_array_equal(fast[1], every[1])

@@ -97,7 +97,7 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    the cut's tangent in the piece's loop direction and ``N`` the outward normals,
    ``d = N_X × T`` points into the piece, which is IN when ``d · N_Y < 0``; used only where the
    surfaces cross at an angle (``|sin| >= 1e-2``) and ``q`` is clear of the other face's loops,
-   all candidates in one pass per curve, p-curve and surface object (``_local_status``).
+   all candidates in one array pass, curves and surfaces evaluated by type (``_local_status``).
    *Far* (first of all): a face whose box lies outside the other operand's box is OUT.
    *Propagated*: a face in no broad-phase pair (it and its edges are away from the other
    boundary) takes the status of a classified piece across one of its edges (``_propagate``).

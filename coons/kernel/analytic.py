@@ -1165,7 +1165,7 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1, index=None) -> np.
     Raises
     ------
     InvalidInputError
-        Non-finite parameters, or not one ``(u, v)`` per surface.
+        Non-finite parameters, not one ``(u, v)`` per row, or an index out of range.
     """
     order = _order(order)
     u, v, kind, O, F, M, index = _batch(surfaces, u, v, "surface_derivatives", index)
@@ -1194,9 +1194,9 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1, index=None) -> np.
 
 
 def surface_normals(surfaces: list, u, v, index=None) -> np.ndarray:
-    """Unit normals of many surfaces, ``surfaces[i]`` (or ``surfaces[index[i]]``) at ``(u[i], v[i])``: ``(k, 3)``, as their
-    ``normal`` gives them (a surface of revolution's limit at ``ρ = 0`` included); planes and
-    surfaces of revolution in one expression each (:func:`surface_derivatives`).
+    """Unit normals of many surfaces, ``surfaces[i]`` (or ``surfaces[index[i]]``) at ``(u[i], v[i])``:
+    ``(k, 3)``, as their ``normal`` gives them (a surface of revolution's limit at ``ρ = 0``
+    included); planes and surfaces of revolution in one expression each (:func:`surface_derivatives`).
 
     Raises
     ------

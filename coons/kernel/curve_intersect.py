@@ -514,7 +514,8 @@ def curve_boxes(curves: list, lo, hi, tol: Tolerance | None = None) -> np.ndarra
     out = np.empty((n, 2, d))
     lines, arcs, other = [], [], []
     for k, c in enumerate(curves):
-        (lines if isinstance(c, (Line, Line2D)) else arcs if isinstance(c, (Circle, Ellipse, Trig2D)) else other).append(k)
+        kind = lines if isinstance(c, (Line, Line2D)) else arcs if isinstance(c, (Circle, Ellipse, Trig2D)) else other
+        kind.append(k)
     if lines:
         O = np.array([curves[k].origin for k in lines], dtype=np.float64)
         D = np.array([curves[k].direction for k in lines], dtype=np.float64)

@@ -164,7 +164,8 @@ class Trig2D:
 
     @classmethod
     def many(cls, centers, a, b) -> list["Trig2D"]:
-        """One curve per row of ``centers``, ``a`` and ``b`` (``(k, 2)`` each), checked in one pass (as :meth:`Line2D.many`).
+        """One curve per row of ``centers``, ``a`` and ``b`` (``(k, 2)`` each), checked in one pass
+        (as :meth:`Line2D.many`).
 
         Raises
         ------
@@ -173,13 +174,14 @@ class Trig2D:
         """
         C, A, B = (np.array(x, dtype=np.float64) for x in (centers, a, b))
         if C.ndim != 2 or C.shape[1:] != (2,) or A.shape != C.shape or B.shape != C.shape:
-            raise InvalidGeometryError(f"Trig2D.many needs three (k, 2) arrays, got shapes {C.shape}, {A.shape}, {B.shape}")
+            raise InvalidGeometryError(
+                f"Trig2D.many needs three (k, 2) arrays, got shapes {C.shape}, {A.shape}, {B.shape}")
         bad = np.flatnonzero(~np.isfinite(np.concatenate([C, A, B], axis=1)).all(axis=1)
                              | (A[:, 0] * B[:, 1] - A[:, 1] * B[:, 0] == 0.0))
         if bad.size:
             k = int(bad[0])
-            raise InvalidGeometryError(f"Trig2D.many: row {k} (center {C[k].tolist()}, a {A[k].tolist()}, b {B[k].tolist()}) "
-                                       "is not finite or has parallel axes")
+            raise InvalidGeometryError(f"Trig2D.many: row {k} (center {C[k].tolist()}, a {A[k].tolist()}, "
+                                       f"b {B[k].tolist()}) is not finite or has parallel axes")
         out = []
         for X in (C, A, B):
             X.setflags(write=False)

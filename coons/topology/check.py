@@ -20,8 +20,9 @@ checks of a face (its loops crossing, their sense against ``face_sense``) are a 
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
 sewing, or for a B-rep assembled without sewing by :func:`~coons.topology.sew.remember_sewn`, which
-finds the unchanged faces by walking the B-rep) skips them for a face whose spec passed them in an earlier clean check (``_TRIMS_PASSED``),
-as a plate's untouched faces do from cut to cut, and with them the same-parameter comparisons of its
+finds the unchanged faces by walking the B-rep) skips them for a face whose spec passed them in
+an earlier clean check (``_TRIMS_PASSED``), as a plate's untouched faces do from cut to cut, and
+with them the same-parameter comparisons of its
 coedges (the deviation measured then, against the same edge tolerance: an unchanged face's uses
 keep theirs; faces whose loop closure was judged against a vertex are never recorded); the
 ends of every edge are still compared with its vertices.  A face on a plane or cylinder whose loops extend,

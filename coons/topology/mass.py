@@ -118,8 +118,9 @@ best samples; every candidate is a point of the edge or face, so the box never e
 exact one and matches it to round-off wherever Newton converges.  Boxes are not inflated by
 edge or vertex tolerances.  A curve or surface whose proven hull (control points, a sphere's or
 torus's box) lies inside the box of the candidates found so far is not searched (its extreme points
-could not widen it): the intersection curves of a Boolean's result lie inside the box of its faces.  :func:`face_box_bounds` gives
-looser boxes per face without any search (edge curves' piece boxes, whole spheres and tori,
+could not widen it): the intersection curves of a Boolean's result lie inside the box of its
+faces.  :func:`face_box_bounds` gives looser boxes per face without any search (edge curves'
+piece boxes, whole spheres and tori,
 NURBS control points), proven to contain each face.
 """
 

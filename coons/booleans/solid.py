@@ -218,7 +218,7 @@ from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface, surface_derivatives, surface_normals
-from coons.kernel.onsurface import curve_derivatives
+from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
@@ -553,7 +553,7 @@ class _Operand:
         return np.stack([lo - pad, hi + pad], axis=1)
 
     def edge_boxes(self, f: int) -> tuple[list[EdgeSpec], np.ndarray, np.ndarray, np.ndarray]:
-        """Face ``f``'s edge uses in loop order, their space boxes ``lo, hi (k, 3)`` (:func:`_edge_box`,
+        """Face ``f``'s edge uses in loop order, their space boxes ``lo, hi (k, 3)`` (:func:`_edge_boxes`,
         infinite where it gives none) and tolerances ``(k,)``, computed once per face spec."""
         d = self._data[f]
         if d.edge_boxes is None:
@@ -1790,10 +1790,10 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
 
     ends, thr = [], []
     # Many cuts (a plate crossed by many holes): the ends of those on lines and conics in one pass
-    # (_curve_points_many: the same expressions).
+    # (evaluate_curves: the same expressions).
     simple = [k for k, c in enumerate(cuts) if type(c.curve) in (Line, Circle, Ellipse)
               and math.isfinite(c.t0) and math.isfinite(c.t1)] if len(cuts) > _SCALAR_ENDS else []
-    known = dict(zip(simple, _curve_points_many([cuts[k].curve for k in simple],
+    known = dict(zip(simple, evaluate_curves([cuts[k].curve for k in simple],
                                                 np.array([[cuts[k].t0, cuts[k].t1] for k in simple]))
                      if simple else []))
     for k, c in enumerate(cuts):
@@ -2003,11 +2003,6 @@ def _end_sines(curve, P: np.ndarray, T: np.ndarray, lo_t: float, hi_t: float, re
     return d.tolist(), sine.tolist()
 
 
-def _edge_box(e: EdgeSpec):
-    """A proven box ``(2, 3)`` around the edge's curve over its range, or None (:func:`_edge_boxes`)."""
-    return _edge_boxes([e])[0]
-
-
 def _edge_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     """Proven boxes ``(2, 3)`` around the uses' curves over their ranges (lines, conics and NURBS,
     together by :func:`~coons.kernel.curve_intersect.curve_boxes`), None for other curve types."""
@@ -2089,7 +2084,7 @@ def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None =
         return list(cuts)
     P = np.empty((n, 3, 3))
     groups: dict[int, list[int]] = {}
-    simple = []  # cuts on lines and conics: all in one pass (_curve_points_many, evaluate's expressions)
+    simple = []  # cuts on lines and conics: all in one pass (evaluate_curves, evaluate's expressions)
     for k, c in enumerate(cuts):
         if type(c.curve) in (Line, Circle, Ellipse) and math.isfinite(c.t0) and math.isfinite(c.t1):
             simple.append(k)
@@ -2098,7 +2093,7 @@ def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None =
     if simple:
         t0 = np.array([cuts[k].t0 for k in simple])
         t1 = np.array([cuts[k].t1 for k in simple])
-        P[simple] = _curve_points_many([cuts[k].curve for k in simple], np.stack([t0, 0.5 * (t0 + t1), t1], axis=1))
+        P[simple] = evaluate_curves([cuts[k].curve for k in simple], np.stack([t0, 0.5 * (t0 + t1), t1], axis=1))
     for rows in groups.values():  # one evaluation per curve object
         r = np.asarray(rows)
         t0 = np.array([cuts[k].t0 for k in rows])
@@ -2281,71 +2276,24 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
 
 def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:
     """``(n, _CLEAR_SAMPLES, 2)`` samples of the cuts' p-curves at ``linspace(t0, t1)``, or None when a
-    p-curve does not give ``(_CLEAR_SAMPLES, 2)`` points.
+    p-curve cannot be sampled so.
 
     ``Line2D`` and ``Trig2D`` p-curves (the cuts of planes and cylinders) all of a kind in one
-    array pass, with the p-curves' own ``evaluate`` expressions; others one by one.
+    array pass (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own expressions);
+    others one by one.
     """
-    n = len(cuts)
-    Q = np.empty((n, _CLEAR_SAMPLES, 2))
-    kinds: dict[type, list[int]] = {}
-    for k, c in enumerate(cuts):
-        kinds.setdefault(type(c.pcurve), []).append(k)
-    for kind, rows in kinds.items():
-        if kind is Line2D or kind is Trig2D:
-            T = np.linspace([cuts[k].t0 for k in rows], [cuts[k].t1 for k in rows], _CLEAR_SAMPLES, axis=-1)
-            if kind is Line2D:
-                O = np.array([cuts[k].pcurve.origin for k in rows])[:, None, :]
-                D = np.array([cuts[k].pcurve.direction for k in rows])[:, None, :]
-                Q[rows] = O + T[..., None] * D
-            else:
-                C = np.array([cuts[k].pcurve.center for k in rows])[:, None, :]
-                A = np.array([cuts[k].pcurve.a for k in rows])[:, None, :]
-                B = np.array([cuts[k].pcurve.b for k in rows])[:, None, :]
-                Q[rows] = C + np.cos(T)[..., None] * A + np.sin(T)[..., None] * B
-            continue
-        for k in rows:
-            c = cuts[k]
-            q = np.asarray(c.pcurve.evaluate(np.linspace(c.t0, c.t1, _CLEAR_SAMPLES)), dtype=np.float64)
-            if q.shape != (_CLEAR_SAMPLES, 2):
-                return None
-            Q[k] = q
-    return Q
+    T = np.linspace([c.t0 for c in cuts], [c.t1 for c in cuts], _CLEAR_SAMPLES, axis=-1)
+    try:
+        return curve_derivatives([c.pcurve for c in cuts], T, 0, 2)[:, :, 0]
+    except (CoonsError, ValueError, TypeError, AttributeError):
+        return None
 
 
 def _cut_ends(cuts: list[EdgeSpec]) -> np.ndarray:
-    """``(2 n, 3)`` the cuts' 3-D end points (row ``2 k`` at ``t0``, ``2 k + 1`` at ``t1``) by :func:`_curve_points_many`."""
+    """``(2 n, 3)`` the cuts' 3-D end points (row ``2 k`` at ``t0``, ``2 k + 1`` at ``t1``), by
+    :func:`~coons.kernel.onsurface.evaluate_curves`."""
     T = np.array([[c.t0, c.t1] for c in cuts])
-    return _curve_points_many([c.curve for c in cuts], T).reshape(-1, 3)
-
-
-def _curve_points_many(curves: list, T: np.ndarray) -> np.ndarray:
-    """``(k, j, 3)``: ``curves[i].evaluate(T[i])`` for parameters ``T (k, j)``.
-
-    Lines, circles and ellipses (exact types) all of a type in one array pass with the
-    expressions of :func:`~coons.kernel.intersect._curve_points` (their ``evaluate``'s, element
-    by element, on stacked frames); other curves one ``evaluate`` per row.
-    """
-    out = np.empty(T.shape + (3,))
-    kinds: dict[type, list[int]] = {}
-    for i, c in enumerate(curves):
-        kinds.setdefault(type(c), []).append(i)
-    for kind, rows in kinds.items():
-        Tk = T[rows]
-        if kind is Line:
-            O = np.array([curves[i].origin for i in rows])[:, None, :]
-            D = np.array([curves[i].direction for i in rows])[:, None, :]
-            out[rows] = O + Tk[..., None] * D
-        elif kind is Circle or kind is Ellipse:
-            R = np.array([curves[i]._radii() for i in rows])
-            F = np.array([curves[i]._frame for i in rows])
-            O = np.array([curves[i]._origin for i in rows])[:, None, :]
-            c, s = np.cos(Tk), np.sin(Tk)
-            out[rows] = ((R[:, 0, None] * c)[..., None] * F[:, None, 0] + (R[:, 1, None] * s)[..., None] * F[:, None, 1]) + O
-        else:
-            for i in rows:
-                out[i] = np.asarray(curves[i].evaluate(T[i]), dtype=np.float64).reshape(T.shape[1], 3)
-    return out
+    return evaluate_curves([c.curve for c in cuts], T).reshape(-1, 3)
 
 
 def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray,
@@ -2405,7 +2353,7 @@ def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np
     ``rings (n, s, 2)``: each use's samples after its first, in traversal order; cycle ``c``
     is the uses ``c0[c] : c0[c] + size[c]``, its ring (closed polyline) their samples
     concatenated.  All cycles at once, on the flat array of all ring points: a proper crossing
-    of two non-adjacent segments of one ring by :func:`_self_crossing`'s orientation tests, on
+    of two non-adjacent segments of one ring (:func:`_proper_crossings`), on
     the pairs whose boxes meet (:func:`_ring_box_pairs`: two segments that cross share a point,
     so no crossing is missed, while testing every pair would cost the square of the ring's
     length); the probes (the first point of each of the face's loops) by the even–odd rule of
@@ -2432,16 +2380,8 @@ def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np
     # Non-adjacent pairs of one ring (the first and last segments are adjacent).
     keep = (J > I + 1) & ~((I == start[ring[I]]) & (J == stop[ring[I]] - 1))
     I, J = I[keep], J[keep]
-    a, b, c, d = A[I], B[I], A[J], B[J]
-
-    def orient(p, q, r):
-        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
-
-    d1, d2, d3, d4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    # Zero-length segments (repeated samples where cuts join) are adjacent in effect: skip them.
-    degenerate = np.all(a == b, axis=1) | np.all(c == d, axis=1)
     ok = np.ones(nc, dtype=bool)
-    ok[ring[I[(d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate]]] = False
+    ok[ring[I[_proper_crossings(A[I], B[I], A[J], B[J])]]] = False
     if probes.shape[0]:
         seg = np.stack([A, B], axis=1)
         slope = _polygon_slopes(seg)
@@ -2565,11 +2505,10 @@ def _chord_group(X: _Operand, faces: list[int], cuts: dict[int, list[EdgeSpec]],
     Returns lists ``ends, tau, SL, margin`` per face, ``ends`` None where a test fails; ``tau``
     here is the plane solution, refined by :func:`_chord_feet`.
     """
-    from coons.kernel.analytic import PlanarSurface as _Plane
 
     F = len(faces)
     specs = [X.specs[f] for f in faces]
-    sp = np.array([[1.0, 1.0] if isinstance(s.surface, _Plane) else [float(s.surface.radius), 1.0] for s in specs])
+    sp = np.array([[1.0, 1.0] if isinstance(s.surface, PlanarSurface) else [float(s.surface.radius), 1.0] for s in specs])
     sides = [e for s in specs for e in s.loops[0]]
     chords = [c for f in faces for c in cuts[f]]
     # Sides (m) and chords (n) as segments a + w (b - a), w in [0, 1], in isometric coordinates.
@@ -2679,7 +2618,7 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     R = len(rows)
     ok = [True] * len(feet)
     # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would).
-    ends3 = _curve_points_many([c.curve for _, c, _, _ in rows], np.array([[c.t0, c.t1] for _, c, _, _ in rows]))
+    ends3 = evaluate_curves([c.curve for _, c, _, _ in rows], np.array([[c.t0, c.t1] for _, c, _, _ in rows]))
     Pc = ends3[np.arange(R), [which for _, _, which, _ in rows]]
     tau0 = np.array(tau0)
     x = tau0.copy()
@@ -2708,7 +2647,7 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     # The feet in space (rows that failed keep the cut's end: they are dropped anyway).
     good = [r for r, c in enumerate(sides) if isinstance(c, (Line, Circle))]
     Pe = Pc.copy()
-    Pe[good] = _curve_points_many([sides[r] for r in good], x[good][:, None])[:, 0]
+    Pe[good] = evaluate_curves([sides[r] for r in good], x[good][:, None])[:, 0]
     span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
     thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
     bad = (np.abs(x - tau0) * np.array(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
@@ -2723,20 +2662,25 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
 
 
 def _self_crossing(seg: np.ndarray) -> bool:
-    """Whether two non-adjacent segments of a closed polyline ``(m, 2, 2)`` cross properly (touching is not tested)."""
+    """Whether two non-adjacent segments of a closed polyline ``(m, 2, 2)`` cross properly (touching is not
+    tested): :func:`_proper_crossings` of every pair, the reference of :func:`_cycle_tests`' boxed pairs."""
     m = seg.shape[0]
     i, j = np.triu_indices(m, 2)
     keep = ~((i == 0) & (j == m - 1))
     i, j = i[keep], j[keep]
-    a, b, c, d = seg[i, 0], seg[i, 1], seg[j, 0], seg[j, 1]
+    return bool(np.any(_proper_crossings(seg[i, 0], seg[i, 1], seg[j, 0], seg[j, 1])))
 
+
+def _proper_crossings(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``(k,)`` whether segment ``a b`` properly crosses ``c d`` (rows ``(k, 2)``): strict orientation
+    signs on both sides.  Zero-length segments (repeated samples where cuts join) are adjacent in
+    effect: they never cross."""
     def orient(p, q, r):
         return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
 
     d1, d2, d3, d4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    # Zero-length segments (repeated samples where cuts join) are adjacent in effect: skip them.
     degenerate = np.all(a == b, axis=1) | np.all(c == d, axis=1)
-    return bool(np.any((d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate))
+    return (d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate
 
 
 def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.ndarray:
@@ -3605,7 +3549,7 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
 
 
 def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
-    """:func:`_edge_box` of each use, cached per use (an EdgeSpec is immutable; one memo look-up
+    """:func:`_edge_boxes` of each use, cached per use (an EdgeSpec is immutable; one memo look-up
     for all, the missing ones boxed together by :func:`_edge_boxes`).  The uses of the faces a
     Boolean result carries over to the next Boolean are the same objects (``sew.sewn_from``): their boxes
     are computed once for a chain of cuts."""
@@ -3619,7 +3563,7 @@ def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
 
 
 _NO_BOX = object()
-#: Edge use -> its :func:`_edge_box` (``_NO_BOX`` for none).
+#: Edge use -> its box of :func:`_edge_boxes` (``_NO_BOX`` for none).
 _USE_BOXES = IdentityMemo()
 
 
@@ -3790,9 +3734,7 @@ def _uses_uv(edges: list[EdgeSpec], S, n: int) -> np.ndarray:
     for group, k in ((lines, 2), (trigs, n)):
         if group:
             ends = np.array([(e.t0, e.t1) for e in group])
-            # (np.linspace's samples to round-off; both ends exact)
-            T = ends if k == 2 else ends[:, :1] + (ends[:, 1:] - ends[:, :1]) * (np.arange(k) / (k - 1.0))
-            T[:, -1] = ends[:, 1]
+            T = ends if k == 2 else np.linspace(ends[:, 0], ends[:, 1], k, axis=1)
             parts.append(curve_derivatives([e.pcurve for e in group], T, 0, 2).reshape(-1, 2))
     return np.concatenate(parts) if parts else np.zeros((0, 2))
 

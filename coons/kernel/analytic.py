@@ -1108,8 +1108,9 @@ BATCHED_SURFACES = (PlanarSurface, CylindricalSurface, ConicalSurface, Spherical
 
 def _batch(surfaces: list, u, v, what: str, index=None) -> tuple[np.ndarray, ...]:
     """The checked parameters ``u, v (k,)``, ``kind (k,)`` (1 plane, 2 surface of revolution, 0 other),
-    origins ``(k, 3)``, frames ``(k, 3, 3)``, meridian rows ``(k, 5)`` (zeros where they do not apply)
-    and the surface of each row ``(k,)`` (``index``, or each surface once).
+    origins ``(k, 3)``, frames ``(k, 3, 3)``, meridian rows ``(k, 5)`` (zeros where they do not apply),
+    the surface of each row ``(k,)`` and the distinct surfaces it indexes (``surfaces`` itself when
+    ``index`` is given; else one per distinct object of ``surfaces``).
 
     Raises
     ------
@@ -1117,8 +1118,13 @@ def _batch(surfaces: list, u, v, what: str, index=None) -> tuple[np.ndarray, ...
         Non-finite parameters, not one ``(u, v)`` per row, or an index out of range.
     """
     u, v = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (u, v))
+    if index is None:  # one surface per row, often the same object many times: each distinct one once
+        slot: dict[int, int] = {}
+        index = np.array([slot.setdefault(id(S), len(slot)) for S in surfaces], dtype=np.int64)
+        surfaces = list({id(S): S for S in surfaces}.values())
+    else:
+        index = np.asarray(index, dtype=np.int64).reshape(-1)
     n = len(surfaces)
-    index = np.arange(n) if index is None else np.asarray(index, dtype=np.int64).reshape(-1)
     k = index.size
     if u.size != k or v.size != k:
         raise InvalidInputError(f"{what} needs one (u, v) per surface: {k} surfaces, {u.size}, {v.size}")
@@ -1137,7 +1143,16 @@ def _batch(surfaces: list, u, v, what: str, index=None) -> tuple[np.ndarray, ...
                 kind[i], O[i], F[i], M[i] = 2, S._origin, S._frame, row
     if k != n or not np.array_equal(index, np.arange(n)):
         kind, O, F, M = kind[index], O[index], F[index], M[index]
-    return u, v, kind, O, F, M, index
+    return u, v, kind, O, F, M, index, surfaces
+
+
+def _each_other(kind: np.ndarray, index: np.ndarray) -> list[np.ndarray]:
+    """The rows of the surfaces :func:`_batch` does not handle (``kind`` 0), grouped by surface."""
+    rows = np.flatnonzero(kind == 0)
+    groups: dict[int, list[int]] = {}
+    for r, i in zip(rows.tolist(), index[rows].tolist()):
+        groups.setdefault(i, []).append(r)
+    return [np.asarray(g) for g in groups.values()]
 
 
 def _meridian_many(M: np.ndarray, v: np.ndarray, order: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -1168,7 +1183,7 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1, index=None) -> np.
         Non-finite parameters, not one ``(u, v)`` per row, or an index out of range.
     """
     order = _order(order)
-    u, v, kind, O, F, M, index = _batch(surfaces, u, v, "surface_derivatives", index)
+    u, v, kind, O, F, M, index, surfaces = _batch(surfaces, u, v, "surface_derivatives", index)
     out = np.zeros((index.size, order + 1, order + 1, 3))
     p = np.flatnonzero(kind == 1)
     if p.size:
@@ -1188,8 +1203,9 @@ def surface_derivatives(surfaces: list, u, v, order: int = 1, index=None) -> np.
         for b in range(order + 1):
             out[r, 0, b] += h[b][:, None] * Z
         out[r, 0, 0] += O[r]
-    for i in np.flatnonzero(kind == 0).tolist():
-        out[i] = np.asarray(surfaces[index[i]].derivatives(u[i], v[i], order), dtype=np.float64).reshape(out[i].shape)
+    for r in _each_other(kind, index):  # one call per surface
+        D = surfaces[index[r[0]]].derivatives(u[r], v[r], order)
+        out[r] = np.asarray(D, dtype=np.float64).reshape(out[r].shape)
     return out
 
 
@@ -1203,7 +1219,7 @@ def surface_normals(surfaces: list, u, v, index=None) -> np.ndarray:
     InvalidInputError
         As :func:`surface_derivatives`.
     """
-    u, v, kind, O, F, M, index = _batch(surfaces, u, v, "surface_normals", index)
+    u, v, kind, O, F, M, index, surfaces = _batch(surfaces, u, v, "surface_normals", index)
     out = np.empty((index.size, 3))
     out[kind == 1] = F[kind == 1, 2]
     r = np.flatnonzero(kind == 2)
@@ -1213,6 +1229,6 @@ def surface_normals(surfaces: list, u, v, index=None) -> np.ndarray:
         rho, h = _meridian_many(M[r], v[r], 1)
         sign = np.where(rho[0] < 0.0, -1.0, 1.0) / np.hypot(rho[1], h[1])
         out[r] = (sign * h[1])[:, None] * e - (sign * rho[1])[:, None] * F[r, 2]
-    for i in np.flatnonzero(kind == 0).tolist():
-        out[i] = np.asarray(surfaces[index[i]].normal(u[i], v[i]), dtype=np.float64).reshape(3)
+    for r in _each_other(kind, index):  # one call per surface
+        out[r] = np.asarray(surfaces[index[r[0]]].normal(u[r], v[r]), dtype=np.float64).reshape(r.size, 3)
     return out

@@ -298,15 +298,15 @@ class _PowerForm:
         keep = (b > lo) & (a < hi)
         return span[keep], xa[keep], xb[keep], a[keep], b[keep], P[keep]
 
-    def pieces(self, lo: float, hi: float, bezier: tuple | None = None):
-        """The pieces of :meth:`bezier` (or its answer ``bezier`` for this range), clipped to ``[lo, hi]``, with
+    def pieces(self, lo: float, hi: float, bezier: tuple):
+        """The pieces of :meth:`bezier` (its answer ``bezier`` for this range), clipped to ``[lo, hi]``, with
         the boxes of their Bézier control points (convex hull property, positive weights).
 
         Returns
         -------
         a, b : (m,) float64; box_lo, box_hi : (m, d) float64
         """
-        _, _, _, a, b, P = self.bezier(lo, hi) if bezier is None else bezier
+        _, _, _, a, b, P = bezier
         return np.maximum(a, lo), np.minimum(b, hi), P.min(axis=1), P.max(axis=1)
 
     def derivatives(self, t: np.ndarray, order: int) -> np.ndarray:
@@ -1104,8 +1104,8 @@ def _nurbs_line(c1, r1, c2, r2, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     ``f² / 2`` in one variable (full second derivative where positive: crossings and tangential
     touchings alike; the Newton step on ``f`` tried too, the smaller ``|f|`` kept, as in
     :func:`_newton_pairs`), on the span's power coefficients, all pieces at once and kept in their
-    piece (a root in a neighbour is that neighbour's).  A piece whose coefficients change sign more
-    than once is seeded twice.  The solutions' distance is then measured between the curves (the
+    piece (a root in a neighbour is that neighbour's).  Each piece is seeded at its middle and at the
+    real parts of the roots of ``f`` and ``f'`` inside it (:func:`_root_seeds`).  The solutions' distance is then measured between the curves (the
     foot clipped to the line's range), so the steps after this one see what the general path gives.
     """
     swap = isinstance(c1, Line2D)

@@ -102,6 +102,7 @@ from coons.kernel.analytic import (
 from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
 from coons.kernel.curve import NurbsCurve
+from coons.kernel.fitting import _averaging
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 
@@ -333,9 +334,10 @@ def _plane_cylinder(p: PlanarSurface, c: CylindricalSurface, tol: Tolerance) -> 
     c = min(abs(cos), 1.0)
     excess = R * sine * sine / (c * (1.0 + c))
     if excess <= tol.solver * R:
-        # The semi-axes agree to the relative accuracy asked of solvers: the circle of radius R about
-        # C in the plane (within ``excess`` of the ellipse and of the cylinder, which keeps the exact
-        # forms exact; a gap up to tol.linear would leave the fitted p-curve on the cylinder no room).
+        # The semi-axes agree to the relative accuracy asked of solvers: a near-circular ellipse is
+        # stored as its circle of radius R about C in the plane (within ``excess`` of the ellipse and
+        # of the cylinder).  (The crash near perpendicular planes was the major radius computed below
+        # the minor one; the cancellation-free ``excess`` above is what fixed it.)
         return _Exact((_Candidate(Circle(C, n, perpendicular_direction(n), R)),))
     w = _unit(np.cross(Z, n))
     m = np.cross(n, w)
@@ -1093,18 +1095,15 @@ def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: 
                           pointwise=True)
 
 
-def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False):
+def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,
+                   max_split: int = _MAX_FIT_SPLIT):
     """``(p-curve, deviation)``: cubic interpolation of the exact parameters ``f(t)`` (The NURBS Book A9.1 with
     the averaged knots of eq. 9.8, solved by scipy's banded collocation of ``make_interp_spline``),
     refined adaptively: every interval whose image on ``surface`` misses ``curve`` by ``e`` more than
     ``b = tol.linear / 2`` at its quarter points is cut into ``ceil((e / b)^(1/4))`` equal parts (at least two,
-    at most ``_MAX_FIT_SPLIT + 1``) by new samples, until none misses: the error of a cubic interpolant falls
+    at most ``max_split + 1``) by new samples, until none misses: the error of a cubic interpolant falls
     with the fourth power of the spacing, so one round usually brings an interval within ``b`` where halving
-    took several (each round refits and re-measures every interval).  A fit that is not ``pointwise`` (the
-    p-curve of a conic arc on a cone) still halves its intervals: with the larger cuts the arc's p-curves come
-    out on other samples, and OCCT's BRepMesh of the result converted to OCCT then leaves a cone face
-    (tests/booleans/test_solid_vs_occt.py, box-cone-0 intersection; coons's own result is the same
-    within its tolerance: volume to 1e-8).
+    took several (each round refits and re-measures every interval).
 
     The rounds work on scipy's spline and evaluate without argument checks (``_surface_points``,
     ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
@@ -1126,9 +1125,8 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     quarters = np.array([0.25, 0.5, 0.75])
     bound = 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
     while len(t) <= _MAX_FIT_SAMPLES:
-        # Averaged knots (The NURBS Book eq. 9.8), scipy's banded collocation solve.
-        knots = np.concatenate([np.full(4, t[0]), (t[1:-3] + t[2:-2] + t[3:-1]) / 3.0, np.full(4, t[-1])])
-        spline = make_interp_spline(t, Q, k=3, t=knots)
+        # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), scipy's banded collocation solve.
+        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
         tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         uv = spline(tm)
         gap = _surface_points(surface, uv[:, 0], uv[:, 1]) - _curve_points(curve, tm)
@@ -1137,7 +1135,7 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
         bad = np.flatnonzero(e > bound)
         if bad.size == 0:
             return NurbsCurve(spline.c, spline.t, 3), worst
-        count = np.clip(np.ceil((e[bad] / bound) ** 0.25) - 1.0, 1, _MAX_FIT_SPLIT if pointwise else 1).astype(np.int64)
+        count = np.clip(np.ceil((e[bad] / bound) ** 0.25) - 1.0, 1, max_split).astype(np.int64)
         owner, j = interval_cuts(bad, count)
         new = t[owner] + j * (t[owner + 1] - t[owner])
         if pointwise:
@@ -1376,7 +1374,11 @@ def _conic_piece(section: _ConeSection, s0: float, s1: float, a, b, boxes, tol: 
             uv[:, 0] += TWO_PI * math.ceil((lo - mid) / TWO_PI) if math.isfinite(lo) else 0.0
             return uv
 
-        fitted, dev = _fitted_pcurve(f, 0.0, 1.0, s, arc, tol)
+        # Halving only (max_split 1): with larger cuts the arc's p-curves come out on other samples,
+        # and OCCT's BRepMesh of the result converted to OCCT then leaves a cone face
+        # (tests/booleans/test_solid_vs_occt.py, box-cone-0 intersection; coons's own result is the
+        # same within its tolerance: volume to 1e-8).
+        fitted, dev = _fitted_pcurve(f, 0.0, 1.0, s, arc, tol, max_split=1)
         pcurves.append(fitted)
         fit_dev = max(fit_dev, dev)
     return _finished(arc, 0.0, 1.0, pcurves, fit_dev, a, b, False, False)

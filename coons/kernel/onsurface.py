@@ -685,8 +685,14 @@ def _samples(items: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     return ab, ts, X
 
 
+#: Types :func:`curve_derivatives` batches: 1 line, 2 circle, 3 straight and 4 trigonometric p-curve,
+#: and the dimension of each kind.
+_BATCHED_KIND = {Line: 1, Circle: 2, Line2D: 3, Trig2D: 4}
+_BATCHED_DIM = {1: 3, 2: 3, 3: 2, 4: 2}
+
+
 #: Curve types :func:`evaluate_curves` evaluates as one array expression each (most edges of a model).
-BATCHED_CURVES = (Line, Circle)
+BATCHED_CURVES = tuple(kind for kind, code in _BATCHED_KIND.items() if _BATCHED_DIM[code] == 3)
 
 
 def evaluate_curves(curves: list, T: np.ndarray) -> np.ndarray:
@@ -727,26 +733,20 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
     groups: dict[int, list[int]] = {}  # (Python lists: the batches are often a handful of curves)
     for i, c in enumerate(curves):
         groups.setdefault(_BATCHED_KIND.get(type(c), 0), []).append(i)
-    if dimension is None:
-        first = _BATCHED_KIND.get(type(curves[0]), 0) if k else 0
-        if k == 0 or first:
-            dimension = 0 if k == 0 else 2 if first in (3, 4) else 3
-        else:
-            dimension = int(np.asarray(curves[0].derivatives(T[0][:1], 0)).shape[-1])
+    if dimension is None:  # (k >= 1 here)
+        first = _BATCHED_KIND.get(type(curves[0]), 0)
+        dimension = _BATCHED_DIM[first] if first else int(np.asarray(curves[0].derivatives(T[0][:1], 0)).shape[-1])
     X = np.empty(T.shape + (order + 1, dimension))
-    for code, d in ((1, 3), (2, 3), (3, 2), (4, 2)):
+    for code, d in _BATCHED_DIM.items():
         rows = groups.get(code)
         if rows is None:
             continue
+        if d != dimension:
+            raise InvalidInputError(f"curve {rows[0]} ({type(curves[rows[0]]).__name__}) is not {dimension}-D")
         if len(rows) == k:
-            rows = slice(None)  # (all of one type: views, not copies)
-            if d != dimension:
-                raise InvalidInputError(f"curve 0 ({type(curves[0]).__name__}) is not {dimension}-D")
-            members = curves
+            rows, members = slice(None), curves  # (all of one type: views, not copies)
         else:
             members = [curves[i] for i in rows]
-            if d != dimension:
-                raise InvalidInputError(f"curve {rows[0]} ({type(curves[rows[0]]).__name__}) is not {dimension}-D")
         t = T[rows][..., None]
         if code in (1, 3):  # O + t D
             O = np.array([c.origin for c in members])[:, None, :]
@@ -780,10 +780,6 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
             raise InvalidInputError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
         X[i] = D.reshape(X[i].shape)
     return X
-
-
-#: Types :func:`curve_derivatives` batches: 1 line, 2 circle, 3 straight and 4 trigonometric p-curve.
-_BATCHED_KIND = {Line: 1, Circle: 2, Line2D: 3, Trig2D: 4}
 
 
 def _cheap_analytic_many(requests: list, t: Tolerance) -> None:

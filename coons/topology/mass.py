@@ -1617,22 +1617,18 @@ def face_box_bounds(brep, tol: Tolerance | None = None) -> np.ndarray:
     unknown = (lo > hi).any(axis=1)  # a face without edges
     lo[unknown], hi[unknown] = -np.inf, np.inf
     flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
+    hulls: dict[int, tuple | None] = {}  # (per surface, not per face)
     for f, si in enumerate(b.face_surface.tolist()):
         S = None if si < 0 else b.surfaces[si]
         if S is None or isinstance(S, flat):
             continue
-        if isinstance(S, SphericalSurface):
-            c, r = np.asarray(S.center, dtype=np.float64), float(S.radius)
-        elif isinstance(S, ToroidalSurface):
-            c, r = np.asarray(S.center, dtype=np.float64), float(S.major_radius + S.minor_radius)
-        elif isinstance(S, NurbsSurface):
-            P = np.asarray(S.control_points, dtype=np.float64).reshape(-1, np.shape(S.control_points)[-1])
-            lo[f], hi[f] = np.minimum(lo[f], P.min(axis=0)), np.maximum(hi[f], P.max(axis=0))
-            continue
-        else:
+        if si not in hulls:
+            hulls[si] = _hull(S)
+        h = hulls[si]
+        if h is None:  # a surface type without a proven whole box
             lo[f], hi[f] = -np.inf, np.inf
-            continue
-        lo[f], hi[f] = np.minimum(lo[f], c - r), np.maximum(hi[f], c + r)
+        else:
+            lo[f], hi[f] = np.minimum(lo[f], h[0]), np.maximum(hi[f], h[1])
     return np.stack([lo - pad[:, None], hi + pad[:, None]], axis=1)
 
 

@@ -375,8 +375,7 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
     curve_id = _read_only(np.concatenate([c[2] for c in loops]) if loops else np.empty(0, dtype=np.int64))
     own_tol = _read_only(np.concatenate([c[3] for c in loops]) if loops else np.empty(0))
     complete = _read_only(np.concatenate([c[4] for c in loops]) if loops else np.empty(0, dtype=bool))
-    uses_per_face = np.bincount(np.repeat(np.arange(per_face.size), per_face), weights=lens, minlength=per_face.size)
-    bounds = np.concatenate([[0], np.cumsum(uses_per_face.astype(np.int64))]).tolist()
+    bounds = np.concatenate([[0], np.cumsum([sum(map(len, faces[fi].loops)) for fi in missing])]).tolist()
     for p, fi in enumerate(missing):
         a, b = bounds[p], bounds[p + 1]
         x = _FaceUses()
@@ -1037,7 +1036,8 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
       (finer meshes are not cached); a probe within the band's tolerance part, or still within
       the band at the finest deflection, means the shells touch, and raises.
 
-    The probe is the vertex of the void inside the fewest face boxes.  Returns the B-rep built
+    The probe is a vertex of the void inside no face box (the cones), else the one farthest from the
+    mesh of the faces whose boxes hold it.  Returns the B-rep built
     before nesting, whose shell volumes (and, when it was made, default mesh) the final build
     shares (the next Boolean on the result tessellates it with the same default).
 
@@ -1045,11 +1045,11 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
     ------
     TopologyError
         A negative shell inside no positive shell (its faces are oriented inward), or one whose
-        probe vertex lies within the mesh band of another shell at the finest deflection tried.
+        vertices all lie within the mesh band of another shell at the finest deflection tried.
     """
     from coons.topology.from_mesh import _triangle_distances, _winding_numbers
     from coons.topology.mass import face_box_bounds, shell_volumes
-    from coons.topology.tessellate import _resolve_deflection, _tessellate, tessellate
+    from coons.topology.tessellate import ANGULAR_DEFLECTION, _resolve_deflection, _tessellate, tessellate
 
     # Divisions of the deflection by 8 before two shells are declared touching (1/512 of the
     # default: about 2e-6 of the diagonal, far below any wall a Boolean leaves).
@@ -1079,10 +1079,9 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
         P = V[verts]
         inside = ((P[:, None, :] >= box[None, on_pos, 0]) & (P[:, None, :] <= box[None, on_pos, 1])).all(axis=2)
         k = int(np.argmin(inside.sum(axis=1)))
-        probe = P[k]
-        near = np.zeros(brep.n_faces, dtype=bool)
-        near[np.flatnonzero(on_pos)[inside[k]]] = True
-        if not near.any():
+        pos_faces = np.flatnonzero(on_pos)
+        if not inside[k].any():
+            probe = P[k]
             w = np.array([_winding_numbers(probe[None], cones[cone_shell == o])[0] for o in pos.tolist()])
         else:
             w = None
@@ -1091,11 +1090,20 @@ def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
             gap_floor = 2.0 * etol + 10.0 * t.linear  # (the band's part no deflection removes)
             for r in range(refinements + 1):
                 # The default mesh is cached (and shared with the result); finer ones are not kept.
-                mesh = tessellate(brep, deflection=d, tol=t) if r == 0 else _tessellate(brep, d, 0.5, t)
+                mesh = tessellate(brep, deflection=d, tol=t) if r == 0 else _tessellate(brep, d, ANGULAR_DEFLECTION, t)
                 tri = mesh.vertices[mesh.triangles]
-                at_near = near[mesh.face_ids]
                 band = 2.0 * (d + etol) + 10.0 * t.linear
-                gap = _triangle_distances(probe, tri[at_near]).min() if at_near.any() else np.inf
+                # Any vertex of the void serves as the probe (shells are disjoint): the one farthest
+                # from the triangles of the faces whose boxes hold it, before any finer mesh.
+                gaps = np.full(len(verts), np.inf)
+                for i in range(len(verts)):
+                    near = np.zeros(brep.n_faces, dtype=bool)
+                    near[pos_faces[inside[i]]] = True
+                    at_near = near[mesh.face_ids]
+                    if at_near.any():
+                        gaps[i] = _triangle_distances(P[i], tri[at_near]).min()
+                k = int(np.argmax(gaps))
+                probe, gap = P[k], gaps[k]
                 if gap > band:
                     tri_shell = face_shell[mesh.face_ids]
                     w = np.array([_winding_numbers(probe[None], tri[tri_shell == o])[0] for o in pos.tolist()])

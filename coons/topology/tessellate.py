@@ -181,7 +181,10 @@ from coons.topology._cdt import ConstrainedDelaunay
 from coons.topology.brep import BRep, same_geometry
 from coons.topology.mesh import TriangleMesh
 
-__all__ = ["tessellate", "edge_parameters", "MAX_REFINEMENTS"]
+__all__ = ["tessellate", "edge_parameters", "MAX_REFINEMENTS", "ANGULAR_DEFLECTION"]
+
+#: The default angular deflection of :func:`tessellate` (radians).
+ANGULAR_DEFLECTION = 0.5
 
 #: Re-triangulations per face in the refinement step before giving up with ConvergenceError.
 MAX_REFINEMENTS = 32
@@ -218,7 +221,7 @@ _PLAN_RTOL = 1e-9
 
 # ============================================================================ entry point
 def tessellate(
-    shape, deflection: float | None = None, angular_deflection: float = 0.5, tol: Tolerance | None = None
+    shape, deflection: float | None = None, angular_deflection: float = ANGULAR_DEFLECTION, tol: Tolerance | None = None
 ) -> TriangleMesh:
     """Closed, outward-oriented triangle mesh of a solid within a chordal deflection.
 

@@ -117,10 +117,11 @@ def test_local_tests_on_a_face_of_many_loops_look_only_at_nearby_loops(monkeypat
     S.difference(plate, Cylinder(2, 20).translate((5.0, 0.0, 0.0)), method="brep")
     busy = [c for c in calls if any(len(c[1].specs[k[4]].loops) > S._LOOPS_BOXED for k in c[0])]
     assert busy
+    boxed = S._LOOPS_BOXED
     for cand, Y, t in calls:
         fast = real(cand, Y, t)
         monkeypatch.setattr(S, "_LOOPS_BOXED", 1 << 60)
         every = real(cand, Y, t)
-        monkeypatch.setattr(S, "_LOOPS_BOXED", 8)
+        monkeypatch.setattr(S, "_LOOPS_BOXED", boxed)
         np.testing.assert_array_equal(fast[0], every[0])
         np.testing.assert_array_equal(fast[1], every[1])

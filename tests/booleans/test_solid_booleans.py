@@ -924,7 +924,7 @@ def test_clear_uses_is_the_per_use_box_test(points, ptol):
         for k, e in enumerate(edges):
             g = orig_edges.get(id(e), 0)
             foreign = face_foreign if face_foreign is not None else foreign_of.get(g)
-            box = S._edge_box(e)
+            box = S._edge_boxes([e])[0]
             expect = False
             if foreign is not None and box is not None:
                 pad = (foreign[1] + max(t.linear, e.tol or 0.0))[:, None]
@@ -951,10 +951,11 @@ def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, st
         np.testing.assert_array_equal(got[i], cand[inside])
 
 
-def test_curve_points_many_is_each_curves_evaluate():
-    """Stacked lines, circles and ellipses (and a NURBS curve, evaluated alone) give each curve's own
-    ``evaluate`` bit for bit."""
+def test_cut_ends_are_each_curves_evaluate():
+    """The cut ends of the pipeline (evaluate_curves: lines and circles stacked, ellipses and a NURBS curve
+    one by one) are each curve's own ``evaluate`` bit for bit."""
     from coons.kernel.analytic import Circle, Ellipse, Line
+    from coons.kernel.onsurface import evaluate_curves
 
     rng = np.random.default_rng(7)
     curves = []
@@ -963,7 +964,7 @@ def test_curve_points_many_is_each_curves_evaluate():
         curves.append([Line(O, A), Circle(O, A, X, 0.5 + k), Ellipse(O, A, X, 3.0 + k, 1.0 + k)][k % 3])
     curves.append(Circle(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0).to_nurbs((0.0, 3.0)))
     T = rng.uniform(0.0, 3.0, size=(len(curves), 2))
-    got = S._curve_points_many(curves, T)
+    got = evaluate_curves(curves, T)
     for c, tt, g in zip(curves, T, got):
         np.testing.assert_array_equal(g, np.asarray(c.evaluate(tt), dtype=np.float64))
 

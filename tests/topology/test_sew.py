@@ -615,15 +615,17 @@ def test_per_loop_memos_die_with_their_loops():
 
 
 def test_a_void_touching_another_shell_raises_a_topology_error_and_keeps_no_fine_mesh(monkeypatch):
-    """A void whose corner lies 3e-7 from the ball's surface (within the tolerance band of the mesh
-    test whatever the deflection) raises TopologyError at once, not an error of the tessellator, and
-    a void near the wall but clear of it needs finer meshes, which are not cached with the result."""
+    """A void whose vertices all lie within about 1e-6 of the ball's surface (the tolerance band of the
+    mesh test, whatever the deflection) raises TopologyError, not an error of the tessellator, and
+    a small void near the wall but clear of it needs finer meshes, which are not cached with the
+    result; a larger one near the wall takes its farthest vertex as the probe and needs none."""
     from coons.topology import tessellate as tess
 
     r = 0.01
     corner = r - 3e-7
-    box = Box(2e-6, 2e-6, 2e-6).translate((corner / math.sqrt(3) - 1e-6,) * 3)
-    # The box's far corner lies on the diagonal at |corner| from the centre: 3e-7 inside the sphere.
+    box = Box(5e-7, 5e-7, 5e-7).translate((corner / math.sqrt(3) - 2.5e-7,) * 3)
+    # The box's far corner lies on the diagonal at |corner| from the centre: 3e-7 inside the sphere,
+    # and every vertex within about 1e-6 of it.
     with pytest.raises(TopologyError, match="the shells touch"):
         sew_faces(face_specs(Sphere(r)) + reversed_specs(face_specs(box)))
     from coons.tolerance import resolve
@@ -633,10 +635,17 @@ def test_a_void_touching_another_shell_raises_a_topology_error_and_keeps_no_fine
     real = tess._tessellate
     monkeypatch.setattr(tess, "_tessellate", lambda b, d, *a: made.append(d) or real(b, d, *a))
     ball = Sphere(10)
+    # A 0.01 cube whose far corner is 0.005 from the wall: every vertex within the default mesh's band.
+    cube = Box(0.01, 0.01, 0.01).translate((9.995 / math.sqrt(3) - 0.005,) * 3)
+    solid = sew_faces(face_specs(ball) + reversed_specs(face_specs(cube)))
+    assert check(solid).ok and (solid.brep.n_shells, solid.brep.n_solids) == (2, 1)
+    np.testing.assert_allclose(solid.volume, 4 / 3 * math.pi * 1000 - 1e-6, rtol=1e-9)
+    default = tess._resolve_deflection(solid.brep, None, resolve(None))
+    assert min(made) < default / 4  # the nesting refined the mesh ...
+    assert all(key[0] >= default for m in tess._MESHES.values() for key in m)  # ... and cached no finer one
+    made.clear()
     cube = Box(1, 1, 1).translate((9.995 / math.sqrt(3) - 0.5,) * 3)  # far corner 0.005 from the wall
     solid = sew_faces(face_specs(ball) + reversed_specs(face_specs(cube)))
     assert check(solid).ok and (solid.brep.n_shells, solid.brep.n_solids) == (2, 1)
     np.testing.assert_allclose(solid.volume, 4 / 3 * math.pi * 1000 - 1, rtol=1e-9)
-    default = tess._resolve_deflection(solid.brep, None, resolve(None))
-    assert min(made) < default / 4  # the nesting refined the mesh ...
-    assert all(key[0] >= default for m in tess._MESHES.values() for key in m)  # ... and cached no finer one
+    assert min(made) >= default  # (another corner of the cube is far from the wall: no finer mesh)

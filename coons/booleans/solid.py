@@ -15,7 +15,7 @@ Notation
     The operands; ``R`` the result.  ``X`` is a face of A, ``Y`` a face of B, each a
     :class:`~coons.topology.sew.FaceSpec` (surface, sense, loops of EdgeSpecs with p-curves).
 face pair ``(i, j)``
-    Face ``i`` of A and face ``j`` of B whose space boxes (``_face_box``: the boxes of the
+    Face ``i`` of A and face ``j`` of B whose space boxes (``_new_face_data``: the boxes of the
     face's edge curves joined with the surface's interior extremes over the face, padded by the
     edge tolerances and ``tol.linear``) overlap.
 parameter box
@@ -39,7 +39,7 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
 1. ``_Operand`` (stage ``"input"``): :func:`~coons.topology.sew.face_specs` of each solid, with
    implicit planes given a Newell plane and missing p-curves computed by
    :func:`~coons.kernel.onsurface.pcurve_on`; face boxes in space and in the parameter plane
-   (sampled p-curves).  A space box (``_face_box``) holds the exact face without tessellating
+   (sampled p-curves).  A space box (``_new_face_data``) holds the exact face without tessellating
    it: the box of its edges' curves (:func:`~coons.kernel.curve_intersect.curve_box`) holds the
    image of the trim boundary, and a coordinate's extremes inside the face are critical
    points, which add nothing on planes, cylinders and cones (a coordinate is affine along a
@@ -480,7 +480,7 @@ class _Operand:
     Attributes
     ----------
     specs : list of FaceSpec, every face with a surface and every edge use with a p-curve
-    lo, hi : (F, 3) space boxes of the faces (:func:`_face_box`), padded by their edge tolerances and ``t.linear``
+    lo, hi : (F, 3) space boxes of the faces (:func:`_new_face_data`), padded by their edge tolerances and ``t.linear``
     uv_box : list of ((u0, u1), (v0, v1)) enlarged parameter boxes
     """
 
@@ -509,14 +509,14 @@ class _Operand:
         self.specs: list[FaceSpec] = specs
         fresh = [spec for spec in self.specs if spec not in _FACE_DATA]
         _prefill_samples(fresh)
-        _prefill_loops(fresh, t)
+        _prefill_faces(fresh, t)
         self._data = [_face_data(spec, t) for spec in self.specs]
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
         self.segments = [d.seg for d in self._data]
         self.seg_lo = [d.seg_lo for d in self._data]
         self.seg_hi = [d.seg_hi for d in self._data]
-        # Space boxes from each face's own geometry (:func:`_face_box`, cached with its data: a
+        # Space boxes from each face's own geometry (:func:`_new_face_data`, cached with its data: a
         # face carried over unchanged from an earlier result costs nothing here); the rare face
         # without a proven box (an edge curve curve_box does not bound, a surface type
         # _interior_extremes does not know) takes its box from the operand's tessellation.
@@ -704,7 +704,7 @@ class _FaceData:
 
     ``loops`` the loops' :class:`_LoopData`, ``uv_box`` the enlarged parameter box, ``rings``
     (one per loop, :func:`_loop_rings`), ``seg (s, 2, 2)`` the rings' segments with their padded boxes
-    ``seg_lo, seg_hi (s, 2)``, ``box (2, 3)`` the padded space box (:func:`_face_box`, None where
+    ``seg_lo, seg_hi (s, 2)``, ``box (2, 3)`` the padded space box (:func:`_new_face_data`, None where
     none is proven) and ``edge_boxes`` (:meth:`_Operand.edge_boxes`, filled on demand); for
     phase 3's clipping, filled on demand: ``slope`` the segments' :func:`_polygon_slopes` and
     ``straight`` the closed-form clip's data (:func:`_straight_data`, False where it does not apply);
@@ -745,13 +745,14 @@ class _LoopData:
     ``rest`` the loop's uses after the first, its key (identity-checked on every look-up; the
     first is not held, so that the entry dies with it), ``surface``, ``t``;
     ``ring (k, 2)`` (the uses' :func:`_use_samples` in turn), ``seg (k, 2, 2)`` and its padded
-    boxes ``seg_lo, seg_hi``, the ring's extremes ``rmin, rmax (2,)``, the uses'
-    :func:`_use_boxes` ``use_lo, use_hi (k, 3)`` (infinite where there is none), ``box (2, 3)``
-    their union (None when a use has none) and ``tol`` their largest tolerance.
+    boxes ``seg_lo, seg_hi`` with their union ``seg_min, seg_max (2,)``, the ring's extremes
+    ``rmin, rmax (2,)``, the uses' :func:`_use_boxes` ``use_lo, use_hi (k, 3)`` (infinite where
+    there is none), ``box (2, 3)`` their union (None when a use has none) and ``tol`` their
+    largest tolerance.
     """
 
-    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "rmin", "rmax", "use_lo",
-                 "use_hi", "box", "tol")
+    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "seg_min", "seg_max", "rmin", "rmax",
+                 "use_lo", "use_hi", "box", "tol")
 
 
 #: First use of a loop -> its :class:`_LoopData`.  A face gaining a hole (a plate cut again and
@@ -795,6 +796,8 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     seg_hi = _frozen(seg.max(axis=1) + pad)
     rmin = np.minimum.reduceat(R, start, axis=0)
     rmax = np.maximum.reduceat(R, start, axis=0)
+    seg_min = np.minimum.reduceat(seg_lo, start, axis=0)
+    seg_max = np.maximum.reduceat(seg_hi, start, axis=0)
     boxes = _use_boxes(uses)
     none = np.array([box is None for box in boxes], dtype=bool)
     if none.any():
@@ -811,7 +814,9 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     box_lo = np.minimum.reduceat(lo, use_start, axis=0)
     box_hi = np.maximum.reduceat(hi, use_start, axis=0)
     no_box = np.logical_or.reduceat(none, use_start)
-    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start)
+    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start).tolist()
+    loop_box = _frozen(np.stack([box_lo, box_hi], axis=1))
+    no_box = no_box.tolist()
     out = []
     for k, (loop, S) in enumerate(items):
         a, b = int(start[k]), int(start[k] + n_pts[k])
@@ -819,25 +824,20 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         ld = _LoopData()
         ld.rest, ld.surface, ld.t = tuple(loop[1:]), S, t
         ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
-        ld.rmin, ld.rmax = rmin[k], rmax[k]
+        ld.rmin, ld.rmax, ld.seg_min, ld.seg_max = rmin[k], rmax[k], seg_min[k], seg_max[k]
         ld.use_lo, ld.use_hi = lo[ua:ub], hi[ua:ub]
-        ld.box = None if no_box[k] else np.stack([box_lo[k], box_hi[k]])
-        ld.tol = float(tol[k])
+        ld.box = None if no_box[k] else loop_box[k]
+        ld.tol = tol[k]
         _LOOP_DATA.set(loop[0], ld)
         out.append(ld)
     return out
 
 
-def _prefill_loops(specs: list[FaceSpec], t: Tolerance) -> None:
-    """:func:`_new_loop_data` of every loop of ``specs`` not cached yet, all in one pass."""
-    todo: dict[int, tuple[list[EdgeSpec], object]] = {}
-    for spec in specs:
-        S = spec.surface
-        for loop in spec.loops:
-            if loop and id(loop[0]) not in todo and _cached_loop(loop, S, t) is None:
-                todo[id(loop[0])] = (loop, S)
+def _prefill_faces(specs: list[FaceSpec], t: Tolerance) -> None:
+    """:func:`_face_data` of every spec of ``specs`` not cached yet, all in one pass (:func:`_new_face_data`)."""
+    todo = [spec for spec in specs if spec.loops and spec not in _FACE_DATA]
     if todo:
-        _new_loop_data(list(todo.values()), t)
+        _new_face_data(todo, t)
 
 
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
@@ -846,36 +846,19 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     d = _FACE_DATA.get(spec)
     if d is not None and d.t == t:
         return d
-    d = _FaceData()
-    d.t, d.edge_boxes, d.slope, d.straight, d.loop_boxes = t, None, None, None, None
-    S = spec.surface
-    parts = [_cached_loop(loop, S, t) for loop in spec.loops]
-    miss = [k for k, ld in enumerate(parts) if ld is None]
-    if miss:
-        for k, ld in zip(miss, _new_loop_data([(spec.loops[k], S) for k in miss], t)):
-            parts[k] = ld
-    d.loops = parts
-    d.rings = [ld.ring for ld in parts]
-    (u0, v0) = np.min([ld.rmin for ld in parts], axis=0)
-    (u1, v1) = np.max([ld.rmax for ld in parts], axis=0)
-    mu, mv = _BOX_MARGIN * (u1 - u0) + t.linear, _BOX_MARGIN * (v1 - v0) + t.linear
-    d.uv_box = _within_domain(S, (u0 - mu, u1 + mu), (v0 - mv, v1 + mv), (v0, v1))
-    if len(parts) == 1:
-        d.seg, d.seg_lo, d.seg_hi = parts[0].seg, parts[0].seg_lo, parts[0].seg_hi
-    else:
-        d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
-        d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
-        d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
-    d.box = _face_box(spec, d, t)
-    _FACE_DATA[spec] = d
-    return d
+    return _new_face_data([spec], t)[0]
 
 
-def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance) -> np.ndarray | None:
-    """A box ``(2, 3)`` (rows ``lo, hi``) containing the face, padded by its edges' tolerances
-    and ``t.linear``; None when an edge's curve has no proven box (:func:`_use_boxes`) or the
-    surface's type is not handled (:func:`_interior_extremes`).
+def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
+    """The :class:`_FaceData` of completed specs (each with a loop), computed together and cached.
 
+    The loops missing from the loop cache are computed in one :func:`_new_loop_data` pass; the
+    parameter boxes and the space boxes of all faces are reductions over the stacked loop data
+    (a hundred tools bring four hundred faces), with the expressions of one face at a time.
+
+    The space box ``(2, 3)`` (rows ``lo, hi``) contains the face, padded by its edges'
+    tolerances and ``t.linear``; it is None when an edge's curve has no proven box
+    (:func:`_use_boxes`) or the surface's type is not handled (:func:`_interior_extremes`).
     Each coordinate ``x_k ∘ S`` is a smooth function of ``(u, v)`` on the face's parameter
     region ``D`` (compact), so its extremes lie on ``∂D`` or at interior critical points.  The
     image of ``∂D`` lies within the edge tolerances of the edge curves (``S(pcurve(t)) ≈
@@ -885,22 +868,79 @@ def _face_box(spec: FaceSpec, d: _FaceData, t: Tolerance) -> np.ndarray | None:
     constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
-    if any(ld.box is None for ld in d.loops):
-        return None
-    B = np.stack([ld.box for ld in d.loops])
-    lo, hi = B[:, 0].min(axis=0), B[:, 1].max(axis=0)
-    tol = max(ld.tol for ld in d.loops)
-    # The parameter box that surely holds D: the samples' segment boxes (padded by the chords
-    # of the curved p-curves) and the enlarged uv_box.
-    ub = (min(d.uv_box[0][0], float(d.seg_lo[:, 0].min())), max(d.uv_box[0][1], float(d.seg_hi[:, 0].max())))
-    vb = (min(d.uv_box[1][0], float(d.seg_lo[:, 1].min())), max(d.uv_box[1][1], float(d.seg_hi[:, 1].max())))
-    P = _interior_extremes(spec.surface, ub, vb)
-    if P is None:
-        return None
-    if P.shape[0]:
-        lo, hi = np.minimum(lo, P.min(axis=0)), np.maximum(hi, P.max(axis=0))
-    pad = tol + t.linear
-    return _frozen(np.stack([lo - pad, hi + pad]))
+    from coons.kernel.analytic import ConicalSurface, CylindricalSurface
+
+    todo: dict[int, tuple[list[EdgeSpec], object]] = {}
+    parts_of = []
+    for spec in specs:
+        S = spec.surface
+        parts = [_cached_loop(loop, S, t) for loop in spec.loops]
+        for loop, ld in zip(spec.loops, parts):
+            if ld is None:
+                todo.setdefault(id(loop[0]), (loop, S))
+        parts_of.append(parts)
+    if todo:
+        made = {id(loop[0]): ld for (loop, _), ld in zip(todo.values(), _new_loop_data(list(todo.values()), t))}
+        parts_of = [[made[id(loop[0])] if ld is None else ld for loop, ld in zip(spec.loops, parts)]
+                    for spec, parts in zip(specs, parts_of)]
+    lds = [ld for parts in parts_of for ld in parts]
+    first = np.cumsum([0] + [len(parts) for parts in parts_of[:-1]])
+    # Per face: the rings' extremes (u0, v0, u1, v1), the segment boxes' union, the loop boxes'
+    # union and the largest tolerance.
+    R = np.minimum.reduceat(np.array([ld.rmin for ld in lds]), first, axis=0)
+    Rx = np.maximum.reduceat(np.array([ld.rmax for ld in lds]), first, axis=0)
+    G = np.minimum.reduceat(np.array([ld.seg_min for ld in lds]), first, axis=0)
+    Gx = np.maximum.reduceat(np.array([ld.seg_max for ld in lds]), first, axis=0)
+    no_box = np.logical_or.reduceat(np.array([ld.box is None for ld in lds]), first).tolist()
+    B = np.stack([_NAN_BOX if ld.box is None else ld.box for ld in lds])
+    lo = np.minimum.reduceat(B[:, 0], first, axis=0)
+    hi = np.maximum.reduceat(B[:, 1], first, axis=0)
+    pad = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first) + t.linear
+    mu = _BOX_MARGIN * (Rx - R) + t.linear
+    box_lo, box_hi = (R - mu).tolist(), (Rx + mu).tolist()
+    uv_box = []
+    for spec, b0, b1, r0, r1 in zip(specs, box_lo, box_hi, R.tolist(), Rx.tolist()):
+        uv_box.append(_within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1])))
+    # The parameter box that surely holds each face's region D: the segment boxes (padded by
+    # the chords of curved p-curves) and the enlarged uv_box.
+    U = np.array([(ub[0], vb[0], ub[1], vb[1]) for ub, vb in uv_box]).reshape(-1, 4)
+    P_lo = np.minimum(U[:, :2], G).tolist()
+    P_hi = np.maximum(U[:, 2:], Gx).tolist()
+    no_box_k = []
+    for k, spec in enumerate(specs):
+        if no_box[k]:
+            continue
+        S = spec.surface
+        if isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface)):
+            continue  # (no interior extremes: the test's own first case, without the call)
+        P = _interior_extremes(S, (P_lo[k][0], P_hi[k][0]), (P_lo[k][1], P_hi[k][1]))
+        if P is None:
+            no_box_k.append(k)
+        elif P.shape[0]:
+            lo[k], hi[k] = np.minimum(lo[k], P.min(axis=0)), np.maximum(hi[k], P.max(axis=0))
+    boxes = _frozen(np.stack([lo - pad[:, None], hi + pad[:, None]], axis=1))
+    for k in no_box_k:
+        no_box[k] = True
+    out = []
+    for k, (spec, parts) in enumerate(zip(specs, parts_of)):
+        d = _FaceData()
+        d.t, d.edge_boxes, d.slope, d.straight, d.loop_boxes = t, None, None, None, None
+        d.loops = parts
+        d.rings = [ld.ring for ld in parts]
+        d.uv_box = uv_box[k]
+        if len(parts) == 1:
+            d.seg, d.seg_lo, d.seg_hi = parts[0].seg, parts[0].seg_lo, parts[0].seg_hi
+        else:
+            d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
+            d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
+            d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
+        d.box = None if no_box[k] else boxes[k]
+        _FACE_DATA[spec] = d
+        out.append(d)
+    return out
+
+
+_NAN_BOX = np.full((2, 3), np.nan)
 
 
 #: Parameter slack of the critical-point tests of :func:`_interior_extremes`: many times the
@@ -913,7 +953,7 @@ def _interior_extremes(S, ub: tuple[float, float], vb: tuple[float, float]) -> n
     every point of ``S`` over a face whose parameter region lies in ``ub × vb``; None for a
     surface type not handled.
 
-    Planes, cylinders, cones: none (see :func:`_face_box`).  Spheres and tori: the points where
+    Planes, cylinders, cones: none (see :func:`_new_face_data`).  Spheres and tori: the points where
     the outward normal is ``±e_k`` (``∇(x_k ∘ S) = 0`` there, ``S`` being an immersion), those of
     ``ub × vb`` (periodic directions shifted by whole periods), and the sphere's poles when
     ``vb`` reaches them (where ``Su = 0`` every ``x_k ∘ S`` may be critical).  With the frame

@@ -3666,6 +3666,8 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
                 & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
         pairs = pairs[keep]
+        _prefill_uv_extents([faces[f] for f in np.unique(face_of[pairs]).tolist()
+                             if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
         for (p, q), (fp, fq), (up, uq) in zip(pairs.tolist(), face_of[pairs].tolist(), W[pairs, :2].tolist()):
             A, B = faces[fp], faces[fq]
@@ -3759,9 +3761,70 @@ def _wraps(A: FaceSpec, B: FaceSpec, shift: np.ndarray | None = None) -> bool:
     pers = [(k, p) for k, p in pers if p]
     if not pers:
         return False
+    ea, eb = _uv_extent(A), _uv_extent(B)
+    if ea is not None and eb is not None:
+        # The ptp of the stacked samples below, from each face's extremes (adding the shift
+        # after taking an extreme rounds to the same float: rounding is monotone).
+        sh = (0.0, 0.0) if shift is None else shift.tolist()
+        return any(max(ea[1][k], eb[1][k] + sh[k]) - min(ea[0][k], eb[0][k] + sh[k]) >= p - 1e-9 * p for k, p in pers)
     UB = _uses_uv([e for loop in B.loops for e in loop], S, 5)
     U = np.concatenate([_uses_uv([e for loop in A.loops for e in loop], S, 5), UB if shift is None else UB + shift])
     return any(float(np.ptp(U[:, k])) >= p - 1e-9 * p for k, p in pers)
+
+
+#: Face spec -> the extremes ``((u_min, v_min), (u_max, v_max))`` of its uses' ``_uses_uv(..., 5)``
+#: samples (:func:`_uv_extent`; faces whose uses all have a p-curve, so that no surface enters).
+_UV_EXTENT = IdentityMemo()
+
+
+def _uv_extent(A: FaceSpec) -> tuple | None:
+    """The extremes of the parameter-plane samples :func:`_wraps` takes of face ``A`` (cached per
+    spec, :func:`_prefill_uv_extents`), or None when a use has no p-curve."""
+    got = _UV_EXTENT.get(A)
+    if got is None:
+        _prefill_uv_extents([A])
+        got = _UV_EXTENT.get(A)
+    return got or None
+
+
+def _prefill_uv_extents(faces: list[FaceSpec]) -> None:
+    """:func:`_uv_extent` of the faces not cached yet, their uses evaluated together (the merge
+    of a plate drilled in one call tries two hundred pairs of half-cylinders).
+
+    Per use the samples of :func:`_uses_uv` (``n = 5``): a straight or trigonometric p-curve by
+    :func:`~coons.kernel.onsurface.curve_derivatives` at the same parameters, any other by
+    :func:`_edge_uv`; their extremes are reduced per face.
+    """
+    todo = [f for f in dict.fromkeys(faces) if _UV_EXTENT.get(f) is None and f.loops]
+    if not todo:
+        return
+    good = [all(e.pcurve is not None for loop in f.loops for e in loop) for f in todo]
+    for f, ok in zip(todo, good):
+        if not ok:
+            _UV_EXTENT.set(f, ())  # (falsy: the samples depend on the surface)
+    todo = [f for f, ok in zip(todo, good) if ok]
+    if not todo:
+        return
+    uses = [e for f in todo for loop in f.loops for e in loop]
+    lo = np.empty((len(uses), 2))
+    hi = np.empty((len(uses), 2))
+    kinds = [type(e.pcurve) for e in uses]
+    for kind, k in ((Line2D, 2), (Trig2D, 5)):
+        rows = [i for i, c in enumerate(kinds) if c is kind]
+        if rows:
+            ends = np.array([(uses[i].t0, uses[i].t1) for i in rows])
+            T = ends if k == 2 else np.linspace(ends[:, 0], ends[:, 1], k, axis=1)
+            U = curve_derivatives([uses[i].pcurve for i in rows], T, 0, 2)[:, :, 0]
+            lo[rows], hi[rows] = U.min(axis=1), U.max(axis=1)
+    for i, c in enumerate(kinds):
+        if c is not Line2D and c is not Trig2D:
+            U = _edge_uv(uses[i], None, 5)
+            lo[i], hi[i] = U.min(axis=0), U.max(axis=0)
+    first = np.cumsum([0] + [sum(len(loop) for loop in f.loops) for f in todo[:-1]])
+    lo = np.minimum.reduceat(lo, first, axis=0).tolist()
+    hi = np.maximum.reduceat(hi, first, axis=0).tolist()
+    for f, a, b in zip(todo, lo, hi):
+        _UV_EXTENT.set(f, (tuple(a), tuple(b)))
 
 
 def _uses_uv(edges: list[EdgeSpec], S, n: int) -> np.ndarray:

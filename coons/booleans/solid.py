@@ -1100,8 +1100,11 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
             ) from exc
     repeated: set[int] = set()
     for X, cuts in ((A, cuts_a), (B, cuts_b)):
+        # (the quick test of the faces with few cuts, all in one pass: a hole's wall has two)
+        few = [f for f, cs in cuts.items() if 2 <= len(cs) <= _SCALAR_CUTS]
+        apart = dict(zip(few, _apart_many([cuts[f] for f in few], t)))
         for f in list(cuts):
-            cuts[f] = _unique_cuts(cuts[f], t, repeated)
+            cuts[f] = _unique_cuts(cuts[f], t, repeated, apart.get(f))
             if not cuts[f]:
                 del cuts[f]
                 continue
@@ -1318,6 +1321,7 @@ def _clip_many(X: _Operand, faces: list[int], pcurves: list, branches: list, t: 
     """
     n = len(faces)
     out: list = [None] * n
+    _prefill_straight(X, list(dict.fromkeys(faces[k] for k in range(n) if type(pcurves[k]) is Line2D)), t)
     st = [k for k in range(n) if type(pcurves[k]) is Line2D and _straight_data(X, faces[k], t) is not None]
     if st:
         for k, r in zip(st, _clip_straight_many(X, [faces[k] for k in st], [pcurves[k] for k in st],
@@ -1645,6 +1649,62 @@ def _straight_data(X: _Operand, f: int, t: Tolerance) -> tuple | None:
         d.straight = tuple(_frozen(x) for x in (sp, A, E, L, L * L, V)) + (
             largest, list(zip(A.tolist(), E.tolist(), L.tolist(), (L * L).tolist())), 1.0 + float(np.max(np.abs(V))))
     return d.straight or None
+
+
+def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
+    """:func:`_straight_data` of the faces ``faces`` of X not computed yet, in one array pass over
+    their segments (the walls of a hundred holes), with its expressions face by face."""
+    from coons.kernel.analytic import CylindricalSurface
+
+    todo, speeds = [], []
+    for f in faces:
+        d = X._data[f]
+        if d.straight is not None:
+            continue
+        spec = X.specs[f]
+        S = spec.surface
+        if isinstance(S, PlanarSurface):
+            speed = (1.0, 1.0)
+        elif isinstance(S, CylindricalSurface):
+            speed = (float(S.radius), 1.0)
+        else:
+            d.straight = False
+            continue
+        if any(not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear for loop in spec.loops for e in loop):
+            d.straight = False
+            continue
+        todo.append(f)
+        speeds.append(speed)
+    if len(todo) < 2:
+        return  # (one face: _straight_data itself)
+    counts = [X._data[f].seg.shape[0] for f in todo]
+    first = np.cumsum([0] + counts[:-1])
+    seg = np.concatenate([X._data[f].seg for f in todo])
+    sp_f = np.array(speeds)
+    sp = np.repeat(sp_f, counts, axis=0)
+    A = seg[:, 0] * sp
+    E = seg[:, 1] * sp - A
+    largest = np.maximum.reduceat(np.abs(A).max(axis=1), first).tolist()
+    L = np.hypot(E[:, 0], E[:, 1])
+    side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
+    LL = L * L
+    VA = np.where(side, np.maximum(np.abs(A).max(axis=1), np.abs(A + E).max(axis=1)), -np.inf)
+    vmax = np.maximum.reduceat(VA, first).tolist()
+    # The sides kept, of all faces: face k's are rows kept[k] : kept[k + 1].
+    A, E, L, LL = A[side], E[side], L[side], LL[side]
+    AE = A + E
+    for x in (sp_f, A, E, L, LL):  # (each face's arrays are read-only views of these)
+        _frozen(x)
+    kept = np.concatenate([[0], np.cumsum(np.add.reduceat(side.astype(np.int64), first))]).tolist()
+    sides = list(zip(A.tolist(), E.tolist(), L.tolist(), LL.tolist()))
+    for k, f in enumerate(todo):
+        a, b = kept[k], kept[k + 1]
+        d = X._data[f]
+        if a == b:
+            d.straight = False
+            continue
+        d.straight = (sp_f[k], A[a:b], E[a:b], L[a:b], LL[a:b], _frozen(np.concatenate([A[a:b], AE[a:b]])),
+                      largest[k], sides[a:b], 1.0 + vmax[k])
 
 
 #: Up to this many polygon sides :func:`_clip_straight` tests them in Python floats.
@@ -2092,35 +2152,48 @@ def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
 _SCALAR_CUTS = 16
 
 
-def _apart(cuts: list[EdgeSpec], t: Tolerance) -> bool:
-    """Whether no two cuts' midpoints lie within twice the widest cut tolerance: then no two are within it, and
-    the k-d tree of :func:`_unique_cuts` (whose distances differ from these by round-off) finds no pair."""
-    from coons.kernel.intersect import _curve_points
+def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
+    """Per group of cuts, whether no two cuts' midpoints lie within twice the group's widest cut
+    tolerance: then no two are within it, and the k-d tree of :func:`_unique_cuts` (whose distances
+    differ from these by round-off) finds no pair.  The midpoints of all groups are evaluated
+    together (:func:`~coons.kernel.onsurface.evaluate_curves` for lines and conics)."""
+    cuts = [c for g in groups for c in g]
+    if not cuts:
+        return [True] * len(groups)
+    tm = [0.5 * (c.t0 + c.t1) for c in cuts]
+    simple = [k for k, c in enumerate(cuts) if type(c.curve) in (Line, Circle, Ellipse) and math.isfinite(tm[k])]
+    M = np.empty((len(cuts), 3))
+    if simple:
+        M[simple] = evaluate_curves([cuts[k].curve for k in simple], np.array([[tm[k]] for k in simple]))[:, 0]
+    if len(simple) < len(cuts):
+        for k in sorted(set(range(len(cuts))) - set(simple)):
+            M[k] = np.asarray(cuts[k].curve.evaluate(np.array([tm[k]])), dtype=np.float64).reshape(3)
+    mids = M.tolist()
+    out, s0 = [], 0
+    for g in groups:
+        r = 2.0 * max(max(t.linear, c.tol or 0.0) for c in g)
+        m = mids[s0:s0 + len(g)]
+        s0 += len(g)
+        out.append(all(_distance(p, q) > r for i, p in enumerate(m) for q in m[:i]))
+    return out
 
-    r = 2.0 * max(max(t.linear, c.tol or 0.0) for c in cuts)
-    mids = []
-    for c in cuts:
-        tm = 0.5 * (c.t0 + c.t1)
-        if type(c.curve) in (Line, Circle, Ellipse) and math.isfinite(tm):
-            mids.append(_curve_points(c.curve, np.array([tm]))[0].tolist())
-        else:
-            mids.append(np.asarray(c.curve.evaluate(np.array([tm])), dtype=np.float64).reshape(3).tolist())
-    return all(_distance(p, q) > r for i, p in enumerate(mids) for q in mids[:i])
 
-
-def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None = None) -> list[EdgeSpec]:
+def _unique_cuts(cuts: list[EdgeSpec], t: Tolerance, repeated: set[int] | None = None,
+                 apart: bool | None = None) -> list[EdgeSpec]:
     """Drop cuts that repeat an earlier one (same end points and midpoint within tolerance, either way).
 
     Candidates are found by a k-d tree on the midpoints (within the widest cut tolerance), so the
     cost is about linear in the number of cuts.  ``repeated`` (when given) receives the ``id``
-    of the curve of every cut that repeats or is repeated by another.
+    of the curve of every cut that repeats or is repeated by another.  Up to ``_SCALAR_CUTS``
+    cuts, :func:`_apart_many`'s quick test comes first (``apart``: its answer when the caller
+    has it).
     """
     from scipy.spatial import cKDTree
 
     n = len(cuts)
     if n < 2:
         return list(cuts)
-    if n <= _SCALAR_CUTS and _apart(cuts, t):
+    if n <= _SCALAR_CUTS and (_apart_many([cuts], t)[0] if apart is None else apart):
         return list(cuts)
     P = np.empty((n, 3, 3))
     groups: dict[int, list[int]] = {}

@@ -87,9 +87,10 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    all cuts and all cycles of the face in array passes; when the cuts are straight chords
    across a straight-sided plane or cylinder face — a hole's wall crossing a plate —
    ``_split_chords`` splits the loop at the chords' ends directly, the chord tests of all the
-   operand's faces run first in one pass, ``_chord_data``); each cut
-   must then bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
-   end inside the face, as a line of tangent contact), which ``split_face`` rightly drops.
+   operand's faces run first in one pass, ``_chord_data``); each cut of ``split_face``'s
+   pieces must then bound two pieces (its range used twice), unless it belongs to a dangling tree (a chain with an
+   end inside the face, as a line of tangent contact), which ``split_face`` rightly drops (the two
+   direct splits put every cut into two pieces by construction, and are not checked).
 5. ``_classify`` (stage ``"classify"``), cheapest way first.  *Local*: a piece bounded by a
    cut along a branch stretch that lies inside both faces of its pair (a ``_Link`` recorded by
    ``_intersect``; none for a branch repeated by two faces of the other operand, i.e. along its
@@ -2259,6 +2260,7 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
             pieces = _split_chords(X, f, cuts[f], t, chords)
             if pieces is None:
                 pieces = _split_islands(X, f, cuts[f], t)
+            direct = pieces is not None
             if pieces is None:
                 pieces = split_face(spec, cuts[f], t)
         except (CoonsError, ValueError, ArithmeticError) as exc:
@@ -2266,7 +2268,8 @@ def _split(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> list[t
                 f"operand {X.name}, face {f} ({_kind(spec)}) split by {len(cuts[f])} cut(s): {type(exc).__name__}: {exc}",
                 stage="split", diagnostics={"operand": X.name, "face": f, "cuts": len(cuts[f]), "error": str(exc)},
             ) from exc
-        _check_cuts_used(X, f, cuts[f], pieces, t)
+        if not direct:  # (the direct splits put every cut, whole, into two pieces, once each way)
+            _check_cuts_used(X, f, cuts[f], pieces, t)
         out.extend((f, p) for p in pieces)
     return out
 

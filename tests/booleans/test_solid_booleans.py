@@ -995,6 +995,32 @@ def test_chord_data_of_all_faces_is_that_of_each_face():
             assert _piece_signature(pieces) == _piece_signature(split_face(B.specs[f], cuts_b[f], t))
 
 
+def test_direct_splits_use_every_cut_twice_and_skip_the_coverage_check(monkeypatch):
+    """The chord and island splits put every cut, whole, into two pieces (once each way): the coverage check
+    of split_face's pieces passes on theirs, and _split runs it only for faces that went to split_face."""
+    t = S.resolve(None)
+    plate = Box(40, 40, 6)
+    tools = [Cylinder(1.5, 20).translate((8.0 * i, 8.0 * j, 0)) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    tools.append(Cylinder(1.0, 10).translate((15.0, 0.0, 5.0)))  # a blind hole: its bottom disc via split_face
+    A, B = S._Operand(plate, "A", t), S._Operand(S._gathered(tools, t), "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, cuts_b = S._intersect(A, B, I, J, t)
+    direct = 0
+    for X, cuts in ((A, cuts_a), (B, cuts_b)):
+        for f, cs in cuts.items():
+            pieces = S._split_chords(X, f, cs, t) or S._split_islands(X, f, cs, t)
+            if pieces is not None:
+                S._check_cuts_used(X, f, cs, pieces, t)
+                direct += 1
+    assert direct >= 2 + 18  # the plate's top and bottom (islands), the half-cylinders (chords)
+    checked: list[int] = []
+    real = S._check_cuts_used
+    monkeypatch.setattr(S, "_check_cuts_used", lambda X, f, *a: (checked.append(f), real(X, f, *a))[1])
+    S._split(A, cuts_a, t)
+    S._split(B, cuts_b, t)
+    assert len(checked) == len(cuts_a) + len(cuts_b) - direct
+
+
 def _pieces(a: Solid, b: Solid) -> list:
     t = S.resolve(None)
     A, B = S._Operand(a, "A", t), S._Operand(b, "B", t)

@@ -3035,11 +3035,30 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
     by_face: dict[int, list[int]] = {}
     for i in np.flatnonzero(ok).tolist():
         by_face.setdefault(cand[i][4], []).append(i)
+    # Faces of few loops: every candidate against every padded segment box of its face, all such
+    # faces in one pass over the (candidate, segment) pairs (a hundred holes' walls).
+    few = [j for j in by_face if len(Y.specs[j].loops) <= _LOOPS_BOXED]
+    few = [j for j in few if Y.seg_lo[j].shape[0]]  # (a face without segments: no box to be near)
+    if few:
+        r = np.array([i for j in few for i in by_face[j]], dtype=np.int64)
+        nseg = np.array([Y.seg_lo[j].shape[0] for j in few], dtype=np.int64)
+        per_row = np.repeat(nseg, [len(by_face[j]) for j in few])  # each row's face's segment count
+        seg0 = np.repeat(np.cumsum(nseg) - nseg, [len(by_face[j]) for j in few])  # and its first segment
+        pair_start = np.cumsum(per_row) - per_row
+        row = np.repeat(np.arange(r.size), per_row)
+        seg = np.repeat(seg0 - pair_start, per_row) + np.arange(int(per_row.sum()))
+        lo = np.concatenate([Y.seg_lo[j] for j in few])[seg]
+        hi = np.concatenate([Y.seg_hi[j] for j in few])[seg]
+        q, mr = uv_y[r][row], m[r][row]
+        near = np.all((q >= lo - mr) & (q <= hi + mr), axis=1)
+        ok[r[np.logical_or.reduceat(near, pair_start)]] = False
     for j, rows in by_face.items():
+        if len(Y.specs[j].loops) <= _LOOPS_BOXED:
+            continue  # (above)
         r = np.asarray(rows)
         lo, hi = Y.seg_lo[j], Y.seg_hi[j]
         q, mr = uv_y[r][:, None, :], m[r][:, None, :]
-        boxes = _loop_boxes(Y._data[j]) if len(Y.specs[j].loops) > _LOOPS_BOXED else None
+        boxes = _loop_boxes(Y._data[j])
         if boxes is not None:
             # Only the segments of loops whose box comes near a point (a plate's face of many holes).
             first, llo, lhi = boxes

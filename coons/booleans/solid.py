@@ -793,8 +793,9 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     # A sampled curved edge stays within about one chord of its samples; a straight
     # p-curve (Line2D, sampled by its two ends) is its segment.
     pad = np.repeat([_use_pad(e, S) for loop, S in items for e in loop], cnt)[:, None]
-    seg_lo = _frozen(seg.min(axis=1) - pad)
-    seg_hi = _frozen(seg.max(axis=1) + pad)
+    # (np.minimum of the two ends, not seg.min(axis=1): numpy reduces a short axis slowly)
+    seg_lo = _frozen(np.minimum(R, R[nxt]) - pad)
+    seg_hi = _frozen(np.maximum(R, R[nxt]) + pad)
     rmin = np.minimum.reduceat(R, start, axis=0)
     rmax = np.maximum.reduceat(R, start, axis=0)
     seg_min = np.minimum.reduceat(seg_lo, start, axis=0)
@@ -1685,11 +1686,12 @@ def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
     sp = np.repeat(sp_f, counts, axis=0)
     A = seg[:, 0] * sp
     E = seg[:, 1] * sp - A
-    largest = np.maximum.reduceat(np.abs(A).max(axis=1), first).tolist()
+    absA, absV = np.abs(A), np.abs(A + E)
+    largest = np.maximum.reduceat(np.maximum(absA[:, 0], absA[:, 1]), first).tolist()
     L = np.hypot(E[:, 0], E[:, 1])
     side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
     LL = L * L
-    VA = np.where(side, np.maximum(np.abs(A).max(axis=1), np.abs(A + E).max(axis=1)), -np.inf)
+    VA = np.where(side, np.maximum(np.maximum(absA[:, 0], absA[:, 1]), np.maximum(absV[:, 0], absV[:, 1])), -np.inf)
     vmax = np.maximum.reduceat(VA, first).tolist()
     # The sides kept, of all faces: face k's are rows kept[k] : kept[k + 1].
     A, E, L, LL = A[side], E[side], L[side], LL[side]

@@ -47,7 +47,9 @@ Speed.  The Boolean pipeline clips every intersection branch against a face and 
 the face: what depends on the face alone — its working plane, the working-plane p-curves of
 its loop edges with their boxes, the boundary pieces and the point-in-face polylines — is
 computed once per face and tolerance (:class:`_FaceData`, cached weakly on the frozen
-:class:`FaceSpec`); each call takes fresh pieces for its own split parameters.  Box tests of
+:class:`FaceSpec`); each call takes fresh pieces for its own split parameters.  NURBS pieces are
+evaluated through their span polynomials (:class:`~coons.kernel.curve_intersect._PowerForm`, built
+once per curve object and shared with the curve intersections).  Box tests of
 all piece pairs are one array comparison, and the arrangement's nodes are the connected
 components of the merged ends by array label propagation.  On a face bounded by one convex loop of
 straight pieces (the untouched faces of the primitives are their parameter rectangles) a
@@ -76,7 +78,7 @@ import numpy as np
 from coons.errors import InvalidInputError
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.curve_intersect import curve_box, intersect_curves, refine_intersections
+from coons.kernel.curve_intersect import _derivs, curve_box, intersect_curves, refine_intersections
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.sew import EdgeSpec, FaceSpec
@@ -280,7 +282,19 @@ def _pcurve(plane: _Plane, e: EdgeSpec, what: str) -> Any:
 
 
 def _uv(pc: Any, t) -> np.ndarray:
-    return np.asarray(pc.evaluate(np.asarray(t, dtype=np.float64)), dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    if _FAST and type(pc) is NurbsCurve:
+        return _derivs(pc, t.reshape(-1), 0)[:, 0].reshape(t.shape + (pc.dimension,))
+    return np.asarray(pc.evaluate(t), dtype=np.float64)
+
+
+def _pc_derivatives(pc: Any, t: np.ndarray, order: int) -> np.ndarray:
+    """``pc.derivatives(t, order)``, ``t.shape + (order + 1, 2)``; a NURBS through its cached span polynomials
+    (:class:`~coons.kernel.curve_intersect._PowerForm`: the pieces of one face are evaluated many times)."""
+    t = np.asarray(t, dtype=np.float64)
+    if _FAST and type(pc) is NurbsCurve:
+        return _derivs(pc, t.reshape(-1), order).reshape(t.shape + (order + 1, pc.dimension))
+    return np.asarray(pc.derivatives(t, order), dtype=np.float64)
 
 
 # ====================================================================== pieces
@@ -603,8 +617,6 @@ def _convex_clip(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece], pla
     :func:`clip_to_face`, the crossing is re-solved between the 3-D curves (:func:`_in_space`) and a
     crossing within ``eps`` of a range end is that end.
     """
-    from coons.kernel.curve_intersect import _derivs
-
     ends = _convex_ends(sides, pc, lo, hi, plane)
     if ends is None:
         return None
@@ -708,8 +720,6 @@ def _convex_contacts(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece],
     (the merged end contact of ``intersect_curves``).  An end more than ``eps`` outside a side, a foot
     beyond the side's ends, or a crossing at a sine below :data:`_CONVEX_MIN_SINE` declines.
     """
-    from coons.kernel.curve_intersect import _derivs
-
     lo, hi = min(c.a, c.b), max(c.a, c.b)
     ends = _convex_ends(sides, c.pc, lo, hi, plane)
     if ends is None:
@@ -742,8 +752,6 @@ def _side_root(pc: Any, n: np.ndarray, o: np.ndarray, a: float, b: float, plane:
     """The zero of ``g(t) = n · (pc(t) - o)`` in ``[a, b]`` where ``g`` is increasing or decreasing with
     opposite signs at the ends: Newton kept in the bracket, bisection where a step leaves it
     (None if the signs at the ends do not differ)."""
-    from coons.kernel.curve_intersect import _derivs
-
     D = _derivs(pc, np.array([a, b]), 0)[:, 0]
     ga, gb = float(n @ (D[0] - o)), float(n @ (D[1] - o))
     if ga == 0.0:
@@ -966,7 +974,7 @@ def _foot(pc: Any, a: float, b: float, q: np.ndarray, samples: dict | None = Non
     k = int(np.argmin(np.linalg.norm(S - q, axis=1)))
     x = float(s[k])
     for _ in range(8):
-        D = np.asarray(pc.derivatives(np.array([x]), 2))[0]
+        D = _pc_derivatives(pc, np.array([x]), 2)[0]
         r = D[0] - q
         g, h = float(r @ D[1]), float(D[1] @ D[1] + r @ D[2])
         if not h > 0:
@@ -1112,7 +1120,7 @@ class _Graph:
         for p, ks in by_piece.items():
             ks = np.asarray(ks)
             ab = np.array([[self.sub[k].a, self.sub[k].b] for k in ks])
-            D = np.asarray(self.pieces[p].pc.derivatives(ab, 2))  # (m, 2, 3, 2)
+            D = _pc_derivatives(self.pieces[p].pc, ab, 2)  # (m, 2, 3, 2)
             sign = np.where(ab[:, 1] > ab[:, 0], 1.0, -1.0)[:, None]
             # Forward half-edge leaves a along the travel, backward leaves b against it.
             D1[2 * ks], D2[2 * ks] = sign * D[:, 0, 1], D[:, 0, 2]

@@ -47,9 +47,17 @@ Speed.  The Boolean pipeline clips every intersection branch against a face and 
 the face: what depends on the face alone — its working plane, the working-plane p-curves of
 its loop edges with their boxes, the boundary pieces and the point-in-face polylines — is
 computed once per face and tolerance (:class:`_FaceData`, cached weakly on the frozen
-:class:`FaceSpec`); each call takes fresh pieces for its own split parameters.  Box tests of
+:class:`FaceSpec`); each call takes fresh pieces for its own split parameters.  NURBS pieces are
+evaluated through their span polynomials (:class:`~coons.kernel.curve_intersect._PowerForm`, built
+once per curve object and shared with the curve intersections).  Box tests of
 all piece pairs are one array comparison, and the arrangement's nodes are the connected
-components of the merged ends by array label propagation.
+components of the merged ends by array label propagation.  On a face bounded by one convex loop of
+straight pieces (the untouched faces of the primitives are their parameter rectangles) a
+polynomial NURBS p-curve that nears the sides only close to its ends is clipped, and its
+meetings with the sides as a cut are found, without curve–curve intersection: the control
+points bound its distance to each side's line (convex hull, variation diminishing), and the
+crossing is one scalar root (:func:`_convex_clip`, :func:`_convex_contacts`); anything else,
+and every cut–cut pair, takes the general path.
 
 The module does not compute intersection curves (:mod:`coons.kernel.intersect`), does not
 classify pieces against another solid, does not re-sew, and does not merge faces.  Its
@@ -70,7 +78,7 @@ import numpy as np
 from coons.errors import InvalidInputError
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.curve_intersect import curve_box, intersect_curves, refine_intersections
+from coons.kernel.curve_intersect import _derivs, curve_box, intersect_curves, refine_intersections
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.sew import EdgeSpec, FaceSpec
@@ -156,6 +164,7 @@ class _FaceData:
         self.face_loops, self.t = face.loops, t
         self.loops: list[list[tuple[Any, np.ndarray, np.ndarray, np.ndarray]]] | None = None
         self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
+        self.convex: dict[float, tuple | None] = {}  # per eps: :func:`_convex_sides` of the boundary pieces
 
     def plane(self, cuts: Sequence[EdgeSpec]) -> _Plane:
         t = self.t
@@ -273,7 +282,19 @@ def _pcurve(plane: _Plane, e: EdgeSpec, what: str) -> Any:
 
 
 def _uv(pc: Any, t) -> np.ndarray:
-    return np.asarray(pc.evaluate(np.asarray(t, dtype=np.float64)), dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    if _FAST and type(pc) is NurbsCurve:
+        return _derivs(pc, t.reshape(-1), 0)[:, 0].reshape(t.shape + (pc.dimension,))
+    return np.asarray(pc.evaluate(t), dtype=np.float64)
+
+
+def _pc_derivatives(pc: Any, t: np.ndarray, order: int) -> np.ndarray:
+    """``pc.derivatives(t, order)``, ``t.shape + (order + 1, 2)``; a NURBS through its cached span polynomials
+    (:class:`~coons.kernel.curve_intersect._PowerForm`: the pieces of one face are evaluated many times)."""
+    t = np.asarray(t, dtype=np.float64)
+    if _FAST and type(pc) is NurbsCurve:
+        return _derivs(pc, t.reshape(-1), order).reshape(t.shape + (order + 1, pc.dimension))
+    return np.asarray(pc.derivatives(t, order), dtype=np.float64)
 
 
 # ====================================================================== pieces
@@ -472,6 +493,14 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     pc = _checked_pc(_to_plane(pcurve, plane.surface, "the clipped curve") if planar else pcurve, plane)
     pieces, region = data.pieces(plane)
     lo, hi = min(t0, t1), max(t0, t1)
+    if _FAST:
+        if plane.eps not in data.convex:
+            data.convex[plane.eps] = _convex_sides(pieces, plane)
+        sides = data.convex[plane.eps]
+        if sides is not None:
+            fast = _convex_clip(sides, pieces, plane, pc, lo, hi, curve)
+            if fast is not None:
+                return [fast] if t0 < t1 else [(fast[1], fast[0], fast[2])]
     breaks, along = [lo, hi], []
     box = curve_box(pc, (lo, hi), plane.t)
     B = np.array([_box(p, plane) for p in pieces])  # (n, 2, 2): the box tests of all pieces at once
@@ -529,6 +558,227 @@ def _distinct_points(pc: Any, s: np.ndarray, eps: float) -> tuple[np.ndarray, np
     return s[keep], P[keep]
 
 
+# ====================================================================== convex faces
+#: A p-curve is clipped to a convex face in closed form (:func:`_convex_clip`) only where its
+#: control points keep this many ``eps`` off every side they do not cross, so that the curve keeps
+#: at least that far off (convex hull property): ``clip_to_face`` merges and refines what lies
+#: within ``eps``, so far outside that band both find the same crossings.
+_CONVEX_CLEARANCE = 100.0
+#: Smallest sine of the angle at which a p-curve may cross a side in :func:`_convex_clip`: at a
+#: grazing crossing ``clip_to_face`` may report a touching or a stretch along the side instead.
+_CONVEX_MIN_SINE = 1e-2
+
+
+def _convex_sides(pieces: list[_Piece], plane: _Plane) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(O, N)``: each boundary piece's start ``(k, 2)`` and unit inward normal ``(k, 2)``, for a face whose
+    pieces (with the virtual pole segments) are the straight sides of one convex loop; None otherwise.
+
+    Such a face is the intersection of the sides' half-planes ``N_k · (x - O_k) >= 0``: the untouched
+    faces of the primitives (a cylinder's or sphere's half, a plane's rectangle) are their parameter
+    rectangles.  The loop must be counter-clockwise (outer loops are, in the working plane) and every
+    side's line must keep all vertices on its left (to within ``eps``), which for a simple loop is
+    convexity.
+    """
+    if not pieces or any(type(p.pc) is not Line2D or p.loop != 0 for p in pieces):
+        return None
+    o = np.array([p.pc.origin for p in pieces])
+    d = np.array([p.pc.direction for p in pieces])
+    a = np.array([p.a for p in pieces])[:, None]
+    b = np.array([p.b for p in pieces])[:, None]
+    O, E = o + a * d, o + b * d
+    T = E - O
+    L = np.hypot(T[:, 0], T[:, 1])
+    if not np.all(L > plane.eps):
+        return None
+    N = np.stack([-T[:, 1], T[:, 0]], axis=1) / L[:, None]  # left of the travel: inside a counter-clockwise loop
+    G = np.einsum("kj,kmj->km", N, O[None] - O[:, None])  # G[k, m]: vertex m against side k
+    area = 0.5 * float(np.sum(O[:, 0] * E[:, 1] - O[:, 1] * E[:, 0]))
+    if not (area > 0 and np.all(G >= -plane.eps)):
+        return None
+    return O, N
+
+
+def _convex_clip(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece], plane: _Plane, pc: Any, lo: float,
+                 hi: float, curve: Any) -> tuple[float, float, str] | None:
+    """:func:`clip_to_face` of a polynomial 2-D NURBS ``pc([lo, hi])`` (working plane) on a convex face
+    (:func:`_convex_sides`) whose sides it crosses at most once near each end: ``(s0, s1, "inside")``, or
+    None where that is not proven (the general clip runs).
+
+    The signed distance ``g_k(t) = N_k · (pc(t) - O_k)`` to side ``k``'s line is a spline whose
+    coefficients are those of the control points acting on ``[lo, hi]``.  Control points more than
+    :data:`_CONVEX_CLEARANCE` ``eps`` inside (*deep*) must form one run; the ones before it must
+    increase strictly up to ``p`` past it (and after it decrease from ``p`` before it), so that ``g_k``
+    is increasing on every knot span touching the head (its derivative's coefficients are those
+    differences, The NURBS Book eq. 3.4) and above the clearance on the spans of deep points only
+    (convex hull).  ``g_k`` then has at most one zero in the head, where it crosses, found by
+    safeguarded Newton (likewise in the tail), and the curve lies in the face exactly between the
+    last crossing at the head and the first at the tail.  A crossing at a sine below
+    :data:`_CONVEX_MIN_SINE` or within the clearance of another side (a corner) declines.  As in
+    :func:`clip_to_face`, the crossing is re-solved between the 3-D curves (:func:`_in_space`) and a
+    crossing within ``eps`` of a range end is that end.
+    """
+    ends = _convex_ends(sides, pc, lo, hi, plane)
+    if ends is None:
+        return None
+    heads, tails = ends
+    O, N = sides
+    clear = _CONVEX_CLEARANCE * plane.eps
+    C = _derivs(pc, np.array([lo, hi]), 0)[:, 0]
+    s0, k0 = lo, -1
+    for k, t_deep in heads:
+        if float(N[k] @ (C[0] - O[k])) < 0.0:
+            s = _side_root(pc, N[k], O[k], lo, t_deep, plane)
+            if s is None:
+                return None
+            if s > s0:
+                s0, k0 = s, k
+    s1, k1 = hi, -1
+    for k, t_deep in tails:
+        if float(N[k] @ (C[1] - O[k])) < 0.0:
+            s = _side_root(pc, N[k], O[k], t_deep, hi, plane)
+            if s is None:
+                return None
+            if s < s1:
+                s1, k1 = s, k
+    out = []
+    for s, k, e in ((s0, k0, 0), (s1, k1, 1)):
+        if k >= 0:
+            D = _derivs(pc, np.array([s]), 1)[0]
+            speed = float(np.hypot(D[1, 0], D[1, 1]))
+            if not abs(float(N[k] @ D[1])) >= _CONVEX_MIN_SINE * speed:
+                return None
+            others = np.delete(np.arange(N.shape[0]), k)
+            if not np.all(np.einsum("kj,kj->k", N[others], D[0] - O[others]) > clear):
+                return None  # near a corner: the general clip decides which side it crosses
+            side = pieces[k]
+            u = float((D[0] - side.pc.origin) @ side.pc.direction) / float(side.pc.direction @ side.pc.direction)
+            u = min(max(u, min(side.a, side.b)), max(side.a, side.b))
+            s = float(_in_space(plane, curve, (lo, hi), side.spec, np.array([s]), np.array([u]))[0][0])
+            if np.linalg.norm(_uv(pc, s) - C[e]) <= plane.eps:
+                s = (lo, hi)[e]  # as :func:`_distinct`: a crossing within eps of a range end is that end
+        out.append(s)
+    s0, s1 = out
+    if not (s0 < s1) or np.linalg.norm(_uv(pc, s1) - _uv(pc, s0)) <= plane.eps:
+        return None
+    return float(s0), float(s1), "inside"
+
+
+def _convex_ends(sides: tuple[np.ndarray, np.ndarray], pc: Any, lo: float, hi: float, plane: _Plane
+                 ) -> tuple[list[tuple[int, float]], list[tuple[int, float]]] | None:
+    """The sides a polynomial 2-D NURBS ``pc([lo, hi])`` comes near at its head and at its tail, on a convex face
+    (:func:`_convex_sides`): ``(heads, tails)``, each a list of ``(side, t)`` with ``g_side > clearance`` from
+    ``t`` on (heads) or up to ``t`` (tails) and ``g_side`` increasing before (decreasing after); None where
+    the control points do not prove that shape (see :func:`_convex_clip`).
+
+    The non-deep control points of one side must not be non-deep for another (no corner): the curve
+    then keeps the clearance from every other side wherever it comes near one.
+    """
+    if type(pc) is not NurbsCurve or pc.dimension != 2 or pc.is_rational:
+        return None
+    O, N = sides
+    U, p, P = pc.knots, pc.degree, pc.control_points
+    n = P.shape[0]
+    i0 = max(int(np.searchsorted(U, lo, "right")) - 1 - p, 0)
+    i1 = min(int(np.searchsorted(U, hi, "left")) - 1, n - 1)
+    if i1 - i0 < 1:
+        return None
+    G = np.einsum("kj,mkj->mk", N, P[i0:i1 + 1, None, :] - O[None])  # (m, k) coefficients of g_k
+    clear = _CONVEX_CLEARANCE * plane.eps
+    deep = G > clear
+    if np.any(np.count_nonzero(~deep, axis=1) > 1):
+        return None
+    M = G.shape[0]
+    heads, tails = [], []
+    for k in np.flatnonzero(~deep.all(axis=0)).tolist():
+        run = np.flatnonzero(deep[:, k])
+        if run.size == 0 or run[-1] - run[0] + 1 != run.size:
+            return None
+        J, K = int(run[0]), int(run[-1])
+        if J + p >= K + 1:
+            return None  # no knot span with deep control points only
+        g = G[:, k]
+        if J > 0:
+            if not np.all(np.diff(g[:min(J + p, M - 1) + 1]) > 0):
+                return None
+            heads.append((k, min(float(U[i0 + J + p]), hi)))
+        if K < M - 1:
+            if not np.all(np.diff(g[max(K - p, 0):]) < 0):
+                return None
+            tails.append((k, max(float(U[i0 + K + 1]), lo)))
+    return heads, tails
+
+
+def _convex_contacts(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece], c: _Piece, plane: _Plane
+                     ) -> dict[int, tuple[list[float], list[float]]] | None:
+    """Where cut ``c`` (a polynomial 2-D NURBS) meets the sides of a convex face (:func:`_convex_sides`), as
+    :func:`~coons.kernel.curve_intersect.intersect_curves` finds it: ``side -> (cut parameters, side
+    parameters)`` for the sides it meets, None where that is not proven (the general path runs).
+
+    By :func:`_convex_ends` the cut keeps the clearance from every side except near its ends, where its
+    distance to one side grows monotonically away from the end; it meets that side only at the end, and
+    only when the end lies within ``eps`` of it: the intersection is the end and its foot on the side
+    (the merged end contact of ``intersect_curves``).  An end more than ``eps`` outside a side, a foot
+    beyond the side's ends, or a crossing at a sine below :data:`_CONVEX_MIN_SINE` declines.
+    """
+    lo, hi = min(c.a, c.b), max(c.a, c.b)
+    ends = _convex_ends(sides, c.pc, lo, hi, plane)
+    if ends is None:
+        return None
+    O, N = sides
+    D = _derivs(c.pc, np.array([lo, hi]), 1)
+    out: dict[int, tuple[list[float], list[float]]] = {}
+    for items, e in ((ends[0], 0), (ends[1], 1)):
+        for k, _ in items:
+            P, T = D[e, 0], D[e, 1]
+            g = float(N[k] @ (P - O[k]))
+            if g > plane.eps:
+                continue
+            if g < -plane.eps:
+                return None  # the cut leaves the face: the general path and its checks see it
+            if not abs(float(N[k] @ T)) >= _CONVEX_MIN_SINE * float(np.hypot(T[0], T[1])):
+                return None
+            side = pieces[k]
+            d = side.pc.direction
+            u = float((P - side.pc.origin) @ d) / float(d @ d)
+            if not min(side.a, side.b) <= u <= max(side.a, side.b):
+                return None
+            ss, uu = out.setdefault(k, ([], []))
+            ss.append((lo, hi)[e])
+            uu.append(u)
+    return out
+
+
+def _side_root(pc: Any, n: np.ndarray, o: np.ndarray, a: float, b: float, plane: _Plane) -> float | None:
+    """The zero of ``g(t) = n · (pc(t) - o)`` in ``[a, b]`` where ``g`` is increasing or decreasing with
+    opposite signs at the ends: Newton kept in the bracket, bisection where a step leaves it
+    (None if the signs at the ends do not differ)."""
+    D = _derivs(pc, np.array([a, b]), 0)[:, 0]
+    ga, gb = float(n @ (D[0] - o)), float(n @ (D[1] - o))
+    if ga == 0.0:
+        return a
+    if gb == 0.0:
+        return b
+    if (ga < 0) == (gb < 0):
+        return None
+    x = a + (b - a) * ga / (ga - gb)  # the secant's root
+    for _ in range(60):
+        D = _derivs(pc, np.array([x]), 1)[0]
+        g, g1 = float(n @ (D[0] - o)), float(n @ D[1])
+        if g == 0.0:
+            return x
+        if (g < 0) == (ga < 0):
+            a, ga = x, g
+        else:
+            b, gb = x, g
+        x_new = x - g / g1 if g1 != 0.0 else 0.5 * (a + b)
+        if not (min(a, b) < x_new < max(a, b)):
+            x_new = 0.5 * (a + b)
+        if abs(x_new - x) <= plane.t.solver * (1.0 + abs(x)):
+            return x_new
+        x = x_new
+    return x
+
+
 # ====================================================================== splitting
 def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None = None) -> list[FaceSpec]:
     """Split a trimmed face by cut edges lying in it (see the module docstring).
@@ -581,7 +831,12 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     nb = len(pieces)
     for i, c in enumerate(cuts):
         pieces.append(_Piece(_pcurve(plane, c, f"cuts[{i}]"), c.t0, c.t1, "cut", -1, c, [], []))
-    _intersect_pieces(pieces, nb, plane)
+    sides = None
+    if _FAST:
+        if plane.eps not in data.convex:
+            data.convex[plane.eps] = _convex_sides(pieces[:nb], plane)
+        sides = data.convex[plane.eps]
+    _intersect_pieces(pieces, nb, plane, sides)
     _snap_cut_ends(pieces, nb, plane)
     sub = _sub_pieces(pieces, plane)
     _check_cuts_inside(sub, pieces, region, cuts, plane)
@@ -595,15 +850,27 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     return graph.faces(cycles, face)
 
 
-def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
-    """Record mutual split parameters of cuts against every piece (boundary, virtual, earlier cuts)."""
+def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane,
+                      sides: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    """Record mutual split parameters of cuts against every piece (boundary, virtual, earlier cuts).
+
+    On a convex face (``sides``, :func:`_convex_sides`) a cut's meetings with the boundary come from
+    :func:`_convex_contacts` where it proves them, without curve–curve intersection."""
     B = np.array([_box(p, plane) for p in pieces])  # (n, 2, 2): all pairs' box tests at once
     meet = np.all((B[:, None, 0] <= B[None, :, 1] + plane.eps) & (B[None, :, 0] <= B[:, None, 1] + plane.eps),
                   axis=2)
     for i in range(nb, len(pieces)):
         c = pieces[i]
+        known = _convex_contacts(sides, pieces, c, plane) if sides is not None else None
         for j in np.flatnonzero(meet[i, :i]).tolist():
             o = pieces[j]
+            if known is not None and j < nb:
+                if j in known:
+                    s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, np.array(known[j][0]),
+                                     np.array(known[j][1]))
+                    c.splits += s.tolist()
+                    o.splits += u.tolist()
+                continue
             x = intersect_curves(c.pc, (c.a, c.b), o.pc, (o.a, o.b), plane.t)
             s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, x.t1, x.t2)
             c.splits += s.tolist()
@@ -707,7 +974,7 @@ def _foot(pc: Any, a: float, b: float, q: np.ndarray, samples: dict | None = Non
     k = int(np.argmin(np.linalg.norm(S - q, axis=1)))
     x = float(s[k])
     for _ in range(8):
-        D = np.asarray(pc.derivatives(np.array([x]), 2))[0]
+        D = _pc_derivatives(pc, np.array([x]), 2)[0]
         r = D[0] - q
         g, h = float(r @ D[1]), float(D[1] @ D[1] + r @ D[2])
         if not h > 0:
@@ -853,7 +1120,7 @@ class _Graph:
         for p, ks in by_piece.items():
             ks = np.asarray(ks)
             ab = np.array([[self.sub[k].a, self.sub[k].b] for k in ks])
-            D = np.asarray(self.pieces[p].pc.derivatives(ab, 2))  # (m, 2, 3, 2)
+            D = _pc_derivatives(self.pieces[p].pc, ab, 2)  # (m, 2, 3, 2)
             sign = np.where(ab[:, 1] > ab[:, 0], 1.0, -1.0)[:, None]
             # Forward half-edge leaves a along the travel, backward leaves b against it.
             D1[2 * ks], D2[2 * ks] = sign * D[:, 0, 1], D[:, 0, 2]

@@ -907,3 +907,60 @@ def test_face_with_a_bad_edge_raises_on_every_call():
             split_face(bad, [cut])
         with pytest.raises(InvalidInputError, match="loop 0 edge 3: p-curve must be"):
             clip_to_face(bad, cut.pcurve, cut.t0, cut.t1, curve=cut.curve)
+
+
+def _slant_branches(z0: float, a: float, b: float):
+    """The branches of the plane through ``(0, 0, z0)`` with normal ``(a, b, 1)`` on the half cylinder of
+    ``_cyl_face``: ellipse arcs with fitted NURBS p-curves, over a box a little larger than the face."""
+    from coons.kernel.intersect import intersect_surfaces
+
+    face = _cyl_face(True)
+    plane = PlanarSurface([0.0, 0.0, z0], [a, b, 1.0], [1.0, 0.0, 0.0])
+    box = ((math.pi - 0.05, 2 * math.pi + 0.05), (-0.05, 2.05))
+    return face, intersect_surfaces(face.surface, plane, box, ((-9.0, 9.0), (-9.0, 9.0))).curves
+
+
+@settings(max_examples=30)
+@given(st.booleans(), st.floats(-0.9, 0.9), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
+def test_clip_and_split_of_fitted_pcurves_on_half_cylinder_match_the_general_path(sense, z0, a, b):
+    """Plane sections of a half cylinder (fitted NURBS p-curves crossing its sides, the rectangle's
+    closed-form clip and contacts of ``_convex_clip`` and ``_convex_contacts``): clipping them and
+    splitting by their inside parts gives the general path's answers."""
+    face, branches = _slant_branches(z0, a, b)
+    if not sense:
+        face = _cyl_face(False)
+    cuts = []
+    for c in branches:
+        fast = clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+        general = _general(clip_to_face, face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+        assert [w for *_, w in fast] == [w for *_, w in general]
+        np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=1e-9)
+        cuts += [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
+    if cuts:
+        fast, general = split_face(face, cuts), _general(split_face, face, cuts)
+        assert len(fast) == len(general)
+        for p, q in zip(fast, general):
+            assert [len(lp) for lp in p.loops] == [len(lp) for lp in q.loops]
+            for la, lb in zip(p.loops, q.loops):
+                for ea, eb in zip(la, lb):
+                    assert ea.curve is eb.curve and ea.pcurve is eb.pcurve
+                    np.testing.assert_allclose([ea.t0, ea.t1], [eb.t0, eb.t1], rtol=0, atol=1e-9)
+
+
+def test_fitted_pcurve_across_half_cylinder_is_clipped_and_split_in_closed_form(monkeypatch):
+    """A slanted section crossing both rulings of a half cylinder: the closed forms answer (no
+    curve–curve intersection with the sides), the clip ends on the rulings, the split gives two faces."""
+    from coons.kernel.curve_intersect import intersect_curves
+    from coons.topology import split
+
+    face, branches = _slant_branches(0.0, 0.3, 0.1)
+    (c,) = branches
+    calls = []
+    monkeypatch.setattr(split, "intersect_curves", lambda *a, **k: calls.append(a) or intersect_curves(*a, **k))
+    ((s0, s1, where),) = clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+    assert where == "inside" and not calls
+    u = np.asarray(c.pcurve_a.evaluate(np.array([s0, s1])))[:, 0]
+    np.testing.assert_allclose(np.sort(u), [math.pi, 2 * math.pi], atol=1e-6)
+    halves = split_face(face, [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol)])
+    assert len(halves) == 2 and not calls
+    np.testing.assert_allclose(sum(_area(p) for p in halves), 2 * math.pi, rtol=RTOL_AREA)

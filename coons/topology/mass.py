@@ -604,30 +604,27 @@ def _tables(b: BRep) -> _Tables:
     T = cache.get("tables")
     if T is not None:
         return T
-    codes, rows = [], []
-    for S, got in zip(b.surfaces, _SURFACE_ROWS.get_many(b.surfaces)):
-        if got is None:
-            got = _surface_row(S)
-            if is_value(S):
-                _SURFACE_ROWS.set(S, got)
-        codes.append(got[0])
-        rows.append(got[1])
-    codes.append(_C_PLANE)
-    rows.append(_IMPLICIT_PLANE_ROW)
-    code = np.array(codes, dtype=np.int8)
-    shapes, coefs = [], []
-    for pc, got in zip(b.pcurves, _PCURVE_ROWS.get_many(b.pcurves)):
-        if got is None:
-            kind, row = _pcurve_row(pc)
-            got = (kind, _read_only(np.array(row, dtype=np.float64)))
-            if is_value(pc):
-                _PCURVE_ROWS.set(pc, got)
-        shapes.append(got[0])
-        coefs.append(got[1])
-    shapes.append(_P_MISSING)
-    coefs.append(np.zeros(8))
+    ref = _DONOR[0]
+    donor = ref() if ref is not None else None
+    dcache = _CACHE.get(donor) if donor is not None and donor is not b else None
+    D = dcache.get("tables") if dcache is not None else None
+    if D is not None:
+        index = dcache.get("pool_index")
+        if index is None:
+            index = dcache["pool_index"] = ({id(S): i for i, S in enumerate(donor.surfaces)},
+                                            {id(pc): i for i, pc in enumerate(donor.pcurves)})
+        code, rows = _pool_rows(b.surfaces, donor.surfaces, index[0], D.surface_code, D.surface_rows,
+                                _SURFACE_ROWS, _surface_row)
+        shape, coef = _pool_rows(b.pcurves, donor.pcurves, index[1], D.pcurve_shape, D.pcurve_coef,
+                                 _PCURVE_ROWS, _pcurve_row)
+    else:
+        code, rows = _pool_rows(b.surfaces, (), {}, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_row)
+        shape, coef = _pool_rows(b.pcurves, (), {}, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_row)
+    code = np.append(code, np.int8(_C_PLANE))
+    rows = np.concatenate([rows, _IMPLICIT_PLANE_ROW_2D])
     # (classified as _classify_shapes does)
-    shape, coef = np.array(shapes, dtype=np.int8), np.concatenate(coefs).reshape(len(coefs), 8)
+    shape = np.append(shape, np.int8(_P_MISSING))
+    coef = np.concatenate([coef, _ZEROS8_2D])
     curved = np.array([not isinstance(c, Line) for c in b.curves] + [False]).take(b.edge_curve)
     fs = b.face_surface
     implicit = fs.size > 0 and int(fs.min()) < 0
@@ -635,11 +632,45 @@ def _tables(b: BRep) -> _Tables:
     nurbs = (code[:-1] == _C_NURBS).nonzero()[0]
     if nurbs.size:
         flat[nurbs] = _flat_nets([b.surfaces[i].control_points for i in nurbs])
-    has_planes = implicit or _C_PLANE in codes[:-1] or bool(flat.any())
+    has_planes = implicit or bool((code[:-1] == _C_PLANE).any()) or bool(flat.any())
     implicit_curved = (implicit and bool(curved.any())
                        and bool((fs.take(b.coedge_face.reshape(-1, 2)[curved]) < 0).any()))
-    T = cache["tables"] = _Tables(code, np.array(rows), flat, has_planes, curved, implicit_curved, shape, coef)
+    T = cache["tables"] = _Tables(code, rows, flat, has_planes, curved, implicit_curved, shape, coef)
+    _DONOR[0] = weakref.ref(b)
     return T
+
+
+def _pool_rows(objs: tuple, donor_objs: tuple, donor_index: dict, donor_code: np.ndarray,
+               donor_rows: np.ndarray, memo: IdentityMemo, row_of: Callable) -> tuple[np.ndarray, np.ndarray]:
+    """The codes ``(n,)`` int8 and rows ``(n, w)`` of :class:`_Tables` for the geometry objects
+    ``objs`` of a B-rep's pool (its surfaces or p-curves): those in ``donor_objs`` (the same
+    objects, found by ``donor_index``, id -> position) gathered from the donor's table in one
+    take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A row is a
+    function of its object alone, so it does not matter which table it is read from."""
+    get = donor_index.get
+    pos = np.fromiter([i if (i := get(id(o), -1)) >= 0 and donor_objs[i] is o else -1 for o in objs],
+                      dtype=np.int64, count=len(objs))
+    code = donor_code.take(pos)  # (-1, absent from the donor, reads the sentinel and is overwritten)
+    rows = donor_rows.take(pos, axis=0)
+    miss = np.flatnonzero(pos < 0).tolist()
+    if miss:
+        need = [objs[i] for i in miss]
+        for i, o, got in zip(miss, need, memo.get_many(need)):
+            if got is None:
+                kind, row = row_of(o)
+                got = (kind, _read_only(np.array(row, dtype=np.float64)))
+                if is_value(o):
+                    memo.set(o, got)
+            code[i] = got[0]
+            rows[i] = got[1]
+    return code, rows
+
+
+#: The B-rep whose :class:`_Tables` were built last (a weak reference): the next B-rep's tables (a
+#: Boolean's result, most of whose surfaces and p-curves are its operand's) take the rows of the
+#: objects they share from it in one gather (:func:`_pool_rows`).  It holds nothing once
+#: ``_CACHE`` forgets that B-rep.
+_DONOR: list = [None]
 
 
 def _surface_row(S) -> tuple[int, list[float]]:
@@ -665,7 +696,7 @@ def _pcurve_row(pc) -> tuple[int, list[float]]:
     return (_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD), _ZEROS8
 
 
-#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (its row as a read-only
+#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (code and row as a read-only
 #: array): the per-object rows of :class:`_Tables`, which a B-rep sewn from the faces of another
 #: (a Boolean's result) shares with it.  Rows are never modified.
 _SURFACE_ROWS = IdentityMemo()
@@ -698,7 +729,10 @@ def _flat_nets(nets: list) -> np.ndarray:
 
 _ZEROS2, _ZEROS4, _ZEROS8 = [0.0] * 2, [0.0] * 4, [0.0] * 8
 _NO_SURFACE_ROW = [0.0] * 17
+_NO_CODE = np.zeros(1, dtype=np.int8)  # a donor of one sentinel row, for the tables built without one
+_ZEROS8_2D = _read_only(np.zeros((1, 8)))
 _IMPLICIT_PLANE_ROW = [0.0] * 3 + np.eye(3).ravel().tolist() + [0.0] * 5
+_IMPLICIT_PLANE_ROW_2D = _read_only(np.array([_IMPLICIT_PLANE_ROW]))
 
 
 def _classify_shapes(shape: np.ndarray, coef: np.ndarray) -> None:

@@ -15,7 +15,10 @@ the largest distance from the 3-D curve, the curve's end points) depends only on
 p-curve, surface, edge range and ``samples``, all immutable values: it is remembered per those
 (``_SAME_PARAMETER``, weakly keyed by the p-curve) and compared against the coedge's own edge
 and vertex tolerances every time, so a B-rep sharing most of its geometry with one checked
-before (a Boolean's result and its operand) samples only its new coedges.  Likewise the trim
+before (a Boolean's result and its operand) samples only its new coedges.  The rows of the
+B-rep measured last are also kept as arrays (``_MEASURED``): the next one (a Boolean's result,
+checked after its operand) finds those of the coedges it shares with it in one array pass, by
+the positions of their objects in that B-rep's pools (``_memo.pool_positions``).  Likewise the trim
 checks of a face (its loops crossing, their sense against ``face_sense``) are a function of its
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
@@ -50,7 +53,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]
@@ -505,6 +508,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         speed_m = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
         uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m
         _remember_samples(b, miss, pi, ci, si, e, samples, _packed(uv_m, speed_m, dev_m, Pm[:, [0, -1]], line_m))
+    if n:
+        _remember_measured(b, pi, ci, si, e, samples, _packed(uv, speed, dev, ends_pts[rr], line))
     for k in np.flatnonzero(dev > b.edge_tol[e] + t.linear):
         out.append(Problem("pcurve-deviation", "edge", int(e[k]),
                            f"p-curve in face {int(f[k])} is {dev[k]:.3g} from the 3-D curve (edge tolerance "
@@ -553,25 +558,83 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
 def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
                     samples: int) -> tuple[np.ndarray, np.ndarray]:
     """The coedges (p-curve ``pi``, curve ``ci``, surface ``si``, edge ``e``) measured before:
-    their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``."""
-    idx: list[int] = []
-    got: list[np.ndarray] = []
-    if len(_SAME_PARAMETER) and pi.size:
+    their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``.
+
+    First those measured in the last B-rep checked (:data:`_MEASURED`, a Boolean's operand for
+    its result), found for all coedges at once by their objects' positions in that B-rep's pools
+    (:func:`~coons.topology._memo.pool_positions`, values only) and their edge range; then the
+    others in :data:`_SAME_PARAMETER`, coedge by coedge.  Both hold the same measurements (of the
+    same five immutable values).
+    """
+    n = pi.size
+    width = 3 * samples + 8
+    H = np.empty((n, width))
+    found = np.zeros(n, dtype=bool)
+    r = b.edge_range[e]
+    ref = _LAST_MEASURED[0]
+    donor = ref() if ref is not None else None
+    rec = _MEASURED.get(donor) if donor is not None and donor is not b and n else None
+    if rec is not None and rec.samples == samples and rec.key.size:
+        # A position of -1 (index -1 reads the appended -1): not in the donor, or not a value.
+        pp = np.append(pool_positions(b, donor, "pcurves"), -1)[pi]
+        cp = np.append(pool_positions(b, donor, "curves"), -1)[ci]
+        sp = np.append(pool_positions(b, donor, "surfaces"), -1)[si]
+        ok = (ci >= 0) & (pp >= 0) & (cp >= 0) & (sp >= 0)
+        key = (pp * rec.n_curves + cp) * rec.n_surfaces + sp
+        j = np.minimum(np.searchsorted(rec.key, key), rec.key.size - 1)
+        # (Of several donor coedges with one key, the first is compared; another range goes below.)
+        ok &= (rec.key[j] == key) & (rec.r0[j] == r[:, 0]) & (rec.r1[j] == r[:, 1])
+        found = ok
+        H[ok] = rec.rows[j[ok]]
+    if len(_SAME_PARAMETER) and not found.all():
         pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
-        r = b.edge_range[e]
-        found = _SAME_PARAMETER.get_many([pcurves[p] for p in pi.tolist()])
-        for k, (entries, c, s, r0, r1) in enumerate(zip(found, ci.tolist(), si.tolist(), r[:, 0].tolist(),
-                                                        r[:, 1].tolist())):
-            if entries is None or c < 0:
+        rest = np.flatnonzero(~found & (ci >= 0))
+        got = _SAME_PARAMETER.get_many([pcurves[p] for p in pi[rest].tolist()])
+        for k, entries, c, s, r0, r1 in zip(rest.tolist(), got, ci[rest].tolist(), si[rest].tolist(),
+                                            r[rest, 0].tolist(), r[rest, 1].tolist()):
+            if entries is None:
                 continue
             curve, surface = curves[c], surfaces[s]
             h = entries.get((id(curve), id(surface), r0, r1, samples))
             if h is not None and h.curve is curve and h.surface is surface:
-                idx.append(k)
-                got.append(h.row)
-    if not idx:
-        return np.empty(0, dtype=np.int64), np.empty((0, 3 * samples + 8))
-    return np.array(idx, dtype=np.int64), np.concatenate(got).reshape(len(got), -1)
+                found[k] = True
+                H[k] = h.row
+    idx = np.flatnonzero(found)
+    return idx, H[idx]
+
+
+class _Measured:
+    """The same-parameter rows of every coedge of one B-rep that has a curve, for the next check
+    (:func:`_cached_samples`): ``key (m,)`` int64 ``(pcurve · n_curves + curve) · n_surfaces +
+    surface`` (positions in the B-rep's pools), sorted; ``r0, r1 (m,)`` the edge range; ``rows (m,
+    3 samples + 8)`` (:func:`_packed`)."""
+
+    __slots__ = ("samples", "n_curves", "n_surfaces", "key", "r0", "r1", "rows")
+
+
+def _remember_measured(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray, samples: int,
+                       R: np.ndarray) -> None:
+    """Record the rows ``R`` of the coedges of :func:`_check_geometry` as :data:`_MEASURED` of ``b``
+    (the only entry: the next B-rep checked reads it)."""
+    rec = _Measured()
+    has = np.flatnonzero(ci >= 0)
+    rec.samples, rec.n_curves, rec.n_surfaces = samples, len(b.curves), len(b.surfaces)
+    key = (pi[has] * rec.n_curves + ci[has]) * rec.n_surfaces + si[has]
+    o = np.argsort(key, kind="stable")
+    rec.key = key[o]
+    r = b.edge_range[e[has[o]]]
+    rec.r0, rec.r1 = r[:, 0].copy(), r[:, 1].copy()
+    rec.rows = R[has[o]]
+    _MEASURED.clear()
+    _MEASURED.set(b, rec)
+    _LAST_MEASURED[0] = weakref.ref(b)
+
+
+#: The last B-rep checked -> its :class:`_Measured` (one entry), and a weak reference to that
+#: B-rep: a Boolean's result takes the measurements of the coedges it shares with its operand
+#: from there in one gather (:func:`_cached_samples`).
+_MEASURED = IdentityMemo()
+_LAST_MEASURED: list = [None]
 
 
 def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,

@@ -151,7 +151,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
@@ -609,17 +609,15 @@ def _tables(b: BRep) -> _Tables:
     dcache = _CACHE.get(donor) if donor is not None and donor is not b else None
     D = dcache.get("tables") if dcache is not None else None
     if D is not None:
-        index = dcache.get("pool_index")
-        if index is None:
-            index = dcache["pool_index"] = ({id(S): i for i, S in enumerate(donor.surfaces)},
-                                            {id(pc): i for i, pc in enumerate(donor.pcurves)})
-        code, rows = _pool_rows(b.surfaces, donor.surfaces, index[0], D.surface_code, D.surface_rows,
+        code, rows = _pool_rows(b.surfaces, pool_positions(b, donor, "surfaces"), D.surface_code, D.surface_rows,
                                 _SURFACE_ROWS, _surface_row)
-        shape, coef = _pool_rows(b.pcurves, donor.pcurves, index[1], D.pcurve_shape, D.pcurve_coef,
+        shape, coef = _pool_rows(b.pcurves, pool_positions(b, donor, "pcurves"), D.pcurve_shape, D.pcurve_coef,
                                  _PCURVE_ROWS, _pcurve_row)
     else:
-        code, rows = _pool_rows(b.surfaces, (), {}, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_row)
-        shape, coef = _pool_rows(b.pcurves, (), {}, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_row)
+        none = np.full(len(b.surfaces), -1, dtype=np.int64)
+        code, rows = _pool_rows(b.surfaces, none, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_row)
+        none = np.full(len(b.pcurves), -1, dtype=np.int64)
+        shape, coef = _pool_rows(b.pcurves, none, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_row)
     code = np.append(code, np.int8(_C_PLANE))
     rows = np.concatenate([rows, _IMPLICIT_PLANE_ROW_2D])
     # (classified as _classify_shapes does)
@@ -640,29 +638,29 @@ def _tables(b: BRep) -> _Tables:
     return T
 
 
-def _pool_rows(objs: tuple, donor_objs: tuple, donor_index: dict, donor_code: np.ndarray,
-               donor_rows: np.ndarray, memo: IdentityMemo, row_of: Callable) -> tuple[np.ndarray, np.ndarray]:
+def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows: np.ndarray, memo: IdentityMemo,
+               row_of: Callable) -> tuple[np.ndarray, np.ndarray]:
     """The codes ``(n,)`` int8 and rows ``(n, w)`` of :class:`_Tables` for the geometry objects
-    ``objs`` of a B-rep's pool (its surfaces or p-curves): those in ``donor_objs`` (the same
-    objects, found by ``donor_index``, id -> position) gathered from the donor's table in one
-    take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A row is a
-    function of its object alone, so it does not matter which table it is read from."""
-    get = donor_index.get
-    pos = np.fromiter([i if (i := get(id(o), -1)) >= 0 and donor_objs[i] is o else -1 for o in objs],
-                      dtype=np.int64, count=len(objs))
+    ``objs`` of a B-rep's pool (its surfaces or p-curves): those at positions ``pos >= 0`` of a
+    donor's pool (:func:`~coons.topology._memo.pool_positions`) gathered from the donor's table
+    in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A
+    row is a function of its object alone, so it does not matter which table it is read from."""
     code = donor_code.take(pos)  # (-1, absent from the donor, reads the sentinel and is overwritten)
     rows = donor_rows.take(pos, axis=0)
-    miss = np.flatnonzero(pos < 0).tolist()
-    if miss:
-        need = [objs[i] for i in miss]
-        for i, o, got in zip(miss, need, memo.get_many(need)):
+    miss = np.flatnonzero(pos < 0)
+    if miss.size:
+        need = [objs[i] for i in miss.tolist()]
+        kinds, found = [], []
+        for o, got in zip(need, memo.get_many(need)):
             if got is None:
                 kind, row = row_of(o)
                 got = (kind, _read_only(np.array(row, dtype=np.float64)))
                 if is_value(o):
                     memo.set(o, got)
-            code[i] = got[0]
-            rows[i] = got[1]
+            kinds.append(got[0])
+            found.append(got[1])
+        code[miss] = kinds
+        rows[miss] = np.concatenate(found).reshape(miss.size, -1)
     return code, rows
 
 

@@ -418,7 +418,8 @@ def _packed(uv: np.ndarray, speed: np.ndarray, dev: np.ndarray, ends: np.ndarray
     """Rows ``(m, 3 samples + 8)`` holding ``uv (m, samples, 2)``, ``speed (m, samples)``, ``dev (m,)``,
     ``ends (m, 2, 3)`` and ``line (m,)`` (as 0 or 1)."""
     m = dev.shape[0]
-    return np.concatenate([uv.reshape(m, -1), speed, dev[:, None], ends.reshape(m, 6), line[:, None]], axis=1)
+    return np.concatenate([uv.reshape(m, 2 * uv.shape[1]), speed, dev[:, None], ends.reshape(m, 6), line[:, None]],
+                          axis=1)
 
 
 def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
@@ -484,7 +485,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     ends_pts[rr[hit]] = ends_h  # (both uses of an edge measure the same curve over the same range)
     ends_pts[sub] = Ps[:, [0, -1]]
     if ends_only.size:
-        ends_pts[ends_only] = _edge_samples(b, 2, rows[ends_only])[1]
+        ends_pts[ends_only] = _edge_ends(b, rows[ends_only])
     ev = b.edge_vertex[rows]
     ends = b.vertex_point[ev]  # (k, 2, 3)
     allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
@@ -508,8 +509,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         speed_m = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
         uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m
         _remember_samples(b, miss, pi, ci, si, e, samples, _packed(uv_m, speed_m, dev_m, Pm[:, [0, -1]], line_m))
-    if n:
-        _remember_measured(b, pi, ci, si, e, samples, _packed(uv, speed, dev, ends_pts[rr], line))
+    if rows.size:
+        _remember_measured(b, pi, ci, si, e, samples, _packed(uv, speed, dev, ends_pts[rr], line), rows, ends_pts)
     for k in np.flatnonzero(dev > b.edge_tol[e] + t.linear):
         out.append(Problem("pcurve-deviation", "edge", int(e[k]),
                            f"p-curve in face {int(f[k])} is {dev[k]:.3g} from the 3-D curve (edge tolerance "
@@ -581,11 +582,8 @@ def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: 
         sp = np.append(pool_positions(b, donor, "surfaces"), -1)[si]
         ok = (ci >= 0) & (pp >= 0) & (cp >= 0) & (sp >= 0)
         key = (pp * rec.n_curves + cp) * rec.n_surfaces + sp
-        j = np.minimum(np.searchsorted(rec.key, key), rec.key.size - 1)
-        # (Of several donor coedges with one key, the first is compared; another range goes below.)
-        ok &= (rec.key[j] == key) & (rec.r0[j] == r[:, 0]) & (rec.r1[j] == r[:, 1])
-        found = ok
-        H[ok] = rec.rows[j[ok]]
+        found, j = _lookup(rec.key, rec.r0, rec.r1, key, r, ok)
+        H[found] = rec.rows[j[found]]
     if len(_SAME_PARAMETER) and not found.all():
         pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
         rest = np.flatnonzero(~found & (ci >= 0))
@@ -604,18 +602,22 @@ def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: 
 
 
 class _Measured:
-    """The same-parameter rows of every coedge of one B-rep that has a curve, for the next check
-    (:func:`_cached_samples`): ``key (m,)`` int64 ``(pcurve · n_curves + curve) · n_surfaces +
-    surface`` (positions in the B-rep's pools), sorted; ``r0, r1 (m,)`` the edge range; ``rows (m,
-    3 samples + 8)`` (:func:`_packed`)."""
+    """What :func:`_check_geometry` measured on one B-rep, for the next check (:func:`_cached_samples`,
+    :func:`_edge_ends`).  Coedges that have a curve: ``key (m,)`` int64 ``(pcurve · n_curves +
+    curve) · n_surfaces + surface`` (positions in the B-rep's pools), sorted; ``r0, r1 (m,)`` the
+    edge range; ``rows (m, 3 samples + 8)`` (:func:`_packed`).  Edges that have a curve:
+    ``edge_key (k,)`` the curve's position, sorted; ``edge_r0, edge_r1 (k,)``; ``ends (k, 2, 3)``
+    the curve at the ends of the range."""
 
-    __slots__ = ("samples", "n_curves", "n_surfaces", "key", "r0", "r1", "rows")
+    __slots__ = ("samples", "n_curves", "n_surfaces", "key", "r0", "r1", "rows", "edge_key", "edge_r0", "edge_r1",
+                 "ends")
 
 
 def _remember_measured(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray, samples: int,
-                       R: np.ndarray) -> None:
-    """Record the rows ``R`` of the coedges of :func:`_check_geometry` as :data:`_MEASURED` of ``b``
-    (the only entry: the next B-rep checked reads it)."""
+                       R: np.ndarray, edges: np.ndarray, ends: np.ndarray) -> None:
+    """Record the rows ``R`` of the coedges of :func:`_check_geometry` and the curve ends ``ends (k, 2,
+    3)`` of its ``edges`` as :data:`_MEASURED` of ``b`` (the only entry: the next B-rep checked
+    reads it)."""
     rec = _Measured()
     has = np.flatnonzero(ci >= 0)
     rec.samples, rec.n_curves, rec.n_surfaces = samples, len(b.curves), len(b.surfaces)
@@ -625,9 +627,58 @@ def _remember_measured(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, 
     r = b.edge_range[e[has[o]]]
     rec.r0, rec.r1 = r[:, 0].copy(), r[:, 1].copy()
     rec.rows = R[has[o]]
+    ec = b.edge_curve[edges]
+    has = np.flatnonzero(ec >= 0)
+    o = has[np.argsort(ec[has], kind="stable")]
+    rec.edge_key = ec[o]
+    r = b.edge_range[edges[o]]
+    rec.edge_r0, rec.edge_r1 = r[:, 0].copy(), r[:, 1].copy()
+    rec.ends = ends[o]
     _MEASURED.clear()
     _MEASURED.set(b, rec)
     _LAST_MEASURED[0] = weakref.ref(b)
+
+
+#: Entries with one key (the arcs of one circle, the coedges of one p-curve) compared per look-up;
+#: a range found among none of them is measured again.
+_SAME_KEY = 4
+
+
+def _lookup(keys: np.ndarray, r0: np.ndarray, r1: np.ndarray, key: np.ndarray, r: np.ndarray,
+            valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``(key, r[:, 0], r[:, 1])`` occurs among the entries ``(keys, r0, r1)`` (``keys`` sorted):
+    ``(found (n,) bool, index (n,))`` for the queries with ``valid``; ranges compared exactly."""
+    found = np.zeros(key.size, dtype=bool)
+    at = np.zeros(key.size, dtype=np.int64)
+    j = np.searchsorted(keys, key)
+    last = keys.size - 1
+    for step in range(_SAME_KEY):
+        k = np.minimum(j + step, last)
+        hit = valid & ~found & (keys[k] == key) & (r0[k] == r[:, 0]) & (r1[k] == r[:, 1])
+        at[hit] = k[hit]
+        found |= hit
+    return found, at
+
+
+def _edge_ends(b: BRep, edges: np.ndarray) -> np.ndarray:
+    """The edges' curves (their chords where they have none) at the ends of their ranges, ``(k, 2, 3)``:
+    those of edges with the same curve and range in the B-rep measured last (:data:`_MEASURED`)
+    gathered in one pass, the others evaluated (:func:`_edge_samples`).  The curve's end points are
+    a function of the curve and the range alone."""
+    ref = _LAST_MEASURED[0]
+    donor = ref() if ref is not None else None
+    rec = _MEASURED.get(donor) if donor is not None and donor is not b else None
+    if rec is None or not rec.edge_key.size:
+        return _edge_samples(b, 2, edges)[1]
+    ci = b.edge_curve[edges]
+    key = np.append(pool_positions(b, donor, "curves"), -1)[ci]
+    ok, j = _lookup(rec.edge_key, rec.edge_r0, rec.edge_r1, key, b.edge_range[edges], (ci >= 0) & (key >= 0))
+    out = np.empty((edges.size, 2, 3))
+    out[ok] = rec.ends[j[ok]]
+    miss = np.flatnonzero(~ok)
+    if miss.size:
+        out[miss] = _edge_samples(b, 2, edges[miss])[1]
+    return out
 
 
 #: The last B-rep checked -> its :class:`_Measured` (one entry), and a weak reference to that

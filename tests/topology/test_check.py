@@ -894,6 +894,9 @@ def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monk
 
     monkeypatch.setattr(check_module, "_cached_samples", spy)
     check_module._SAME_PARAMETER.clear()  # only the carried rows remain
+    edges = np.flatnonzero(two.brep.edge_curve >= 0)
+    ends = check_module._edge_ends(two.brep, edges)  # the curve ends, most carried
+    np.testing.assert_array_equal(ends, check_module._edge_samples(two.brep, 2, edges)[1])
     warm = _check_geometry(two.brep, T, 9, out := [])
     n, hits = found[-1]
     assert 0 < hits < n  # the new hole's coedges are measured

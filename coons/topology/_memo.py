@@ -8,6 +8,10 @@ Boolean passes through unchanged keep their curve, p-curve and surface objects) 
 (:func:`is_value`) may be keys.  A result that also depends on other inputs (a parameter range, a
 second object) is stored under a key of those inside the entry, by the caller.  Results never
 depend on what is remembered, only the time does; :func:`clear_all` forgets everything.
+
+:func:`pool_positions` carries tables between B-reps as arrays instead: the positions of one
+B-rep's geometry objects in another's pools (a Boolean's result in its operand's), by which rows
+built per object are gathered in one take.
 """
 
 from __future__ import annotations

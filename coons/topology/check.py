@@ -572,9 +572,7 @@ def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: 
     H = np.empty((n, width))
     found = np.zeros(n, dtype=bool)
     r = b.edge_range[e]
-    ref = _LAST_MEASURED[0]
-    donor = ref() if ref is not None else None
-    rec = _MEASURED.get(donor) if donor is not None and donor is not b and n else None
+    donor, rec = _donor(b) if n else (None, None)
     if rec is not None and rec.samples == samples and rec.key.size:
         # A position of -1 (index -1 reads the appended -1): not in the donor, or not a value.
         pp = np.append(pool_positions(b, donor, "pcurves"), -1)[pi]
@@ -634,9 +632,28 @@ def _remember_measured(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, 
     r = b.edge_range[edges[o]]
     rec.edge_r0, rec.edge_r1 = r[:, 0].copy(), r[:, 1].copy()
     rec.ends = ends[o]
+    # Kept: b, and the last sewn B-rep measured (b itself when it is sewn).
+    ref = weakref.ref(b)
+    sewn = _LAST_MEASURED[0]() if _LAST_MEASURED[0] is not None and b not in _SEWN_FROM else None
+    kept = _MEASURED.get(sewn) if sewn is not None else None
     _MEASURED.clear()
     _MEASURED.set(b, rec)
-    _LAST_MEASURED[0] = weakref.ref(b)
+    if kept is not None:
+        _MEASURED.set(sewn, kept)
+    _LAST_MEASURED[:] = [_LAST_MEASURED[0] if kept is not None else ref if b in _SEWN_FROM else None, ref]
+
+
+def _donor(b: BRep) -> tuple[BRep | None, "_Measured | None"]:
+    """The B-rep whose measurements ``b`` reads, with its :class:`_Measured`: the last sewn B-rep
+    measured (a Boolean's operand, for its result: a tool made and checked since, such as a cylinder
+    built and moved for the cut, does not displace it), else the last B-rep measured."""
+    for ref in _LAST_MEASURED:
+        donor = ref() if ref is not None else None
+        if donor is not None and donor is not b:
+            rec = _MEASURED.get(donor)
+            if rec is not None:
+                return donor, rec
+    return None, None
 
 
 #: Entries with one key (the arcs of one circle, the coedges of one p-curve) compared per look-up;
@@ -665,9 +682,7 @@ def _edge_ends(b: BRep, edges: np.ndarray) -> np.ndarray:
     those of edges with the same curve and range in the B-rep measured last (:data:`_MEASURED`)
     gathered in one pass, the others evaluated (:func:`_edge_samples`).  The curve's end points are
     a function of the curve and the range alone."""
-    ref = _LAST_MEASURED[0]
-    donor = ref() if ref is not None else None
-    rec = _MEASURED.get(donor) if donor is not None and donor is not b else None
+    donor, rec = _donor(b)
     if rec is None or not rec.edge_key.size:
         return _edge_samples(b, 2, edges)[1]
     ci = b.edge_curve[edges]
@@ -681,11 +696,12 @@ def _edge_ends(b: BRep, edges: np.ndarray) -> np.ndarray:
     return out
 
 
-#: The last B-rep checked -> its :class:`_Measured` (one entry), and a weak reference to that
-#: B-rep: a Boolean's result takes the measurements of the coedges it shares with its operand
-#: from there in one gather (:func:`_cached_samples`).
+#: The last B-rep measured and the last sewn one (``_SEWN_FROM``) -> their :class:`_Measured` (at
+#: most these two entries), and weak references to those two B-reps (sewn first): a Boolean's
+#: result takes the measurements of the coedges it shares with its operand from there in one
+#: gather (:func:`_donor`, :func:`_cached_samples`, :func:`_edge_ends`).
 _MEASURED = IdentityMemo()
-_LAST_MEASURED: list = [None]
+_LAST_MEASURED: list = [None, None]
 
 
 def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,

@@ -605,10 +605,15 @@ def _tables(b: BRep) -> _Tables:
     T = cache.get("tables")
     if T is not None:
         return T
-    ref = _DONOR[0]
-    donor = ref() if ref is not None else None
-    dcache = _CACHE.get(donor) if donor is not None and donor is not b else None
-    D = dcache.get("tables") if dcache is not None else None
+    from coons.topology.check import _SEWN_FROM
+
+    donor = D = None
+    for ref in _DONOR:  # the last sewn B-rep tabled first (a Boolean's operand, for its result)
+        d = ref() if ref is not None else None
+        D = _CACHE.get(d, {}).get("tables") if d is not None and d is not b else None
+        if D is not None:
+            donor = d
+            break
     if D is not None:
         code, rows = _pool_rows(b.surfaces, pool_positions(b, donor, "surfaces"), D.surface_code, D.surface_rows,
                                 _SURFACE_ROWS, _surface_row)
@@ -635,7 +640,8 @@ def _tables(b: BRep) -> _Tables:
     implicit_curved = (implicit and bool(curved.any())
                        and bool((fs.take(b.coedge_face.reshape(-1, 2)[curved]) < 0).any()))
     T = cache["tables"] = _Tables(code, rows, flat, has_planes, curved, implicit_curved, shape, coef)
-    _DONOR[0] = weakref.ref(b)
+    ref = weakref.ref(b)
+    _DONOR[:] = [ref if b in _SEWN_FROM else _DONOR[0], ref]
     return T
 
 
@@ -665,11 +671,12 @@ def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows:
     return code, rows
 
 
-#: The B-rep whose :class:`_Tables` were built last (a weak reference): the next B-rep's tables (a
-#: Boolean's result, most of whose surfaces and p-curves are its operand's) take the rows of the
-#: objects they share from it in one gather (:func:`_pool_rows`).  It holds nothing once
-#: ``_CACHE`` forgets that B-rep.
-_DONOR: list = [None]
+#: The last sewn B-rep (``check._SEWN_FROM``) whose :class:`_Tables` were built and the last B-rep
+#: whose tables were built (weak references): the next B-rep's tables (a Boolean's result, most of
+#: whose surfaces and p-curves are its operand's) take the rows of the objects they share from the
+#: first of them alive in one gather (:func:`_pool_rows`); a tool tabled since the operand does not
+#: displace it.  They hold nothing once ``_CACHE`` forgets those B-reps.
+_DONOR: list = [None, None]
 
 
 def _surface_row(S) -> tuple[int, list[float]]:

@@ -15,10 +15,11 @@ the largest distance from the 3-D curve, the curve's end points) depends only on
 p-curve, surface, edge range and ``samples``, all immutable values: it is remembered per those
 (``_SAME_PARAMETER``, weakly keyed by the p-curve) and compared against the coedge's own edge
 and vertex tolerances every time, so a B-rep sharing most of its geometry with one checked
-before (a Boolean's result and its operand) samples only its new coedges.  The rows of the
-B-rep measured last are also kept as arrays (``_MEASURED``): the next one (a Boolean's result,
-checked after its operand) finds those of the coedges it shares with it in one array pass, by
-the positions of their objects in that B-rep's pools (``_memo.pool_positions``).  Likewise the trim
+before (a Boolean's result and its operand) samples only its new coedges.  The rows and curve
+ends of the last sewn B-rep measured (and of the last B-rep measured) are also kept as arrays
+(``_MEASURED``): a Boolean's result, checked after its operand, finds those of the coedges and
+edges it shares with it in one array pass, by the positions of their objects in the operand's
+pools (``_memo.pool_positions``).  Likewise the trim
 checks of a face (its loops crossing, their sense against ``face_sense``) are a function of its
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the

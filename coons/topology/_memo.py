@@ -8,6 +8,10 @@ Boolean passes through unchanged keep their curve, p-curve and surface objects) 
 (:func:`is_value`) may be keys.  A result that also depends on other inputs (a parameter range, a
 second object) is stored under a key of those inside the entry, by the caller.  Results never
 depend on what is remembered, only the time does; :func:`clear_all` forgets everything.
+
+:func:`pool_positions` carries tables between B-reps as arrays instead: the positions of one
+B-rep's geometry objects in another's pools (a Boolean's result in its operand's), by which rows
+built per object are gathered in one take.
 """
 
 from __future__ import annotations
@@ -40,7 +44,12 @@ def read_only(a: np.ndarray) -> np.ndarray:
 def is_value(obj: Any) -> bool:
     """Whether ``obj`` is an immutable value: an instance of a frozen dataclass (every curve, p-curve,
     surface and face spec of coons), so that what is computed from it alone may be remembered."""
-    kind = type(obj)
+    got = _VALUE_TYPES.get(type(obj))
+    return _value_type(type(obj)) if got is None else got
+
+
+def _value_type(kind: type) -> bool:
+    """Whether instances of ``kind`` are values (:func:`is_value`)."""
     got = _VALUE_TYPES.get(kind)
     if got is None:
         params = getattr(kind, "__dataclass_params__", None)
@@ -116,3 +125,59 @@ class IdentityMemo:
 
 
 _MISSING = object()
+
+
+#: B-rep -> ``{pool name: (sorted ids, their positions)}`` of the value objects of its geometry
+#: pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`).
+_POOL_IDS = IdentityMemo()
+#: B-rep -> ``{(pool name, id(donor)): (weak reference to the donor, positions)}``: what
+#: :func:`pool_positions` found, shared by the checker and the mass tables of one B-rep.
+_POSITIONS = IdentityMemo()
+
+
+def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ids ``(n,)`` of the pool ``name`` of ``b`` in pool order, and the sorted ids of its value
+    objects (:func:`is_value`) with their positions."""
+    got = _POOL_IDS.get(b)
+    if got is None:
+        got = {}
+        _POOL_IDS.set(b, got)
+    hit = got.get(name)
+    if hit is None:
+        pool = getattr(b, name)
+        ids = np.fromiter(map(id, pool), dtype=np.uint64, count=len(pool))  # (CPython ids are addresses, >= 0)
+        keep = np.arange(len(pool))
+        if not all(map(_value_type, set(map(type, pool)))):
+            keep = np.flatnonzero(np.fromiter(map(is_value, pool), dtype=bool, count=len(pool)))
+        o = keep[np.argsort(ids[keep], kind="stable")]
+        hit = got[name] = (read_only(ids), read_only(ids[o]), read_only(o))
+    return hit
+
+
+def pool_positions(b: Any, donor: Any, name: str) -> np.ndarray:
+    """Position ``(n,)`` int64 of each object of the pool ``name`` of B-rep ``b`` in the same pool of
+    ``donor`` (the very object), -1 where absent or not a value (:func:`is_value`).
+
+    Tables built per pool object (the checker's same-parameter rows, the mass tables' surface and
+    p-curve rows) are functions of the object alone: those of a B-rep that shares most of its
+    geometry with an earlier one (a Boolean's result and its operand) are gathered from the
+    earlier table with these positions in one take.  Objects are matched by ``id``: both B-reps
+    are alive and hold their pools, so equal ids are the same object.  Both B-reps are immutable:
+    the result is remembered per ``b`` and donor.
+    """
+    got = _POSITIONS.get(b)
+    if got is None:
+        got = {}
+        _POSITIONS.set(b, got)
+    hit = got.get((name, id(donor)))
+    if hit is not None and hit[0]() is donor:
+        return hit[1]
+    ids = _pool_ids(b, name)[0]
+    _, sorted_ids, order = _pool_ids(donor, name)
+    pos = np.full(ids.size, -1, dtype=np.int64)
+    if sorted_ids.size and ids.size:
+        j = np.minimum(np.searchsorted(sorted_ids, ids), sorted_ids.size - 1)
+        same = sorted_ids[j] == ids
+        pos[same] = order[j[same]]
+    got[(name, id(donor))] = (weakref.ref(donor), read_only(pos))
+    return pos

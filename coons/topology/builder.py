@@ -38,6 +38,7 @@ import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
 from coons.tolerance import Tolerance, resolve
+from coons.topology._components import components
 from coons.topology.brep import BRep
 
 __all__ = ["BRepBuilder"]
@@ -684,16 +685,12 @@ class BRepBuilder:
         if face_ids is None:
             face_ids = self._assemble_loops(edges, v_off, e_off, face_loops, face_surfaces, face_senses)
         # Shells: connected components of faces through shared edges.
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-
         nf = len(face_ids)
         ce = np.arange(2 * e_off, 2 * len(self.ev))
         cf = np.asarray(self.lface, dtype=np.int64)[np.asarray(self.cloop[ce[0]:], dtype=np.int64)] - face_ids[0] \
             if nf and ce.size else np.empty(0, np.int64)
         a, b = cf[0::2], cf[1::2]
-        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
-        n_comp, labels = connected_components(graph, directed=False)
+        n_comp, labels = components(nf, a, b)
         for k in range(n_comp):
             solid = len(self.souter)
             shell = len(self.ssolid)

@@ -15,7 +15,11 @@ the largest distance from the 3-D curve, the curve's end points) depends only on
 p-curve, surface, edge range and ``samples``, all immutable values: it is remembered per those
 (``_SAME_PARAMETER``, weakly keyed by the p-curve) and compared against the coedge's own edge
 and vertex tolerances every time, so a B-rep sharing most of its geometry with one checked
-before (a Boolean's result and its operand) samples only its new coedges.  Likewise the trim
+before (a Boolean's result and its operand) samples only its new coedges.  The rows and curve
+ends of the last sewn B-rep measured (and of the last B-rep measured) are also kept as arrays
+(``_MEASURED``): a Boolean's result, checked after its operand, finds those of the coedges and
+edges it shares with it in one array pass, by the positions of their objects in the operand's
+pools (``_memo.pool_positions``).  Likewise the trim
 checks of a face (its loops crossing, their sense against ``face_sense``) are a function of its
 surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-rep sewn from face
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
@@ -50,7 +54,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]
@@ -415,7 +419,8 @@ def _packed(uv: np.ndarray, speed: np.ndarray, dev: np.ndarray, ends: np.ndarray
     """Rows ``(m, 3 samples + 8)`` holding ``uv (m, samples, 2)``, ``speed (m, samples)``, ``dev (m,)``,
     ``ends (m, 2, 3)`` and ``line (m,)`` (as 0 or 1)."""
     m = dev.shape[0]
-    return np.concatenate([uv.reshape(m, -1), speed, dev[:, None], ends.reshape(m, 6), line[:, None]], axis=1)
+    return np.concatenate([uv.reshape(m, 2 * uv.shape[1]), speed, dev[:, None], ends.reshape(m, 6), line[:, None]],
+                          axis=1)
 
 
 def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
@@ -481,7 +486,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     ends_pts[rr[hit]] = ends_h  # (both uses of an edge measure the same curve over the same range)
     ends_pts[sub] = Ps[:, [0, -1]]
     if ends_only.size:
-        ends_pts[ends_only] = _edge_samples(b, 2, rows[ends_only])[1]
+        ends_pts[ends_only] = _edge_ends(b, rows[ends_only])
     ev = b.edge_vertex[rows]
     ends = b.vertex_point[ev]  # (k, 2, 3)
     allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
@@ -505,6 +510,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         speed_m = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
         uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m
         _remember_samples(b, miss, pi, ci, si, e, samples, _packed(uv_m, speed_m, dev_m, Pm[:, [0, -1]], line_m))
+    if rows.size:
+        _remember_measured(b, pi, ci, si, e, samples, _packed(uv, speed, dev, ends_pts[rr], line), rows, ends_pts)
     for k in np.flatnonzero(dev > b.edge_tol[e] + t.linear):
         out.append(Problem("pcurve-deviation", "edge", int(e[k]),
                            f"p-curve in face {int(f[k])} is {dev[k]:.3g} from the 3-D curve (edge tolerance "
@@ -553,25 +560,149 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
 def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
                     samples: int) -> tuple[np.ndarray, np.ndarray]:
     """The coedges (p-curve ``pi``, curve ``ci``, surface ``si``, edge ``e``) measured before:
-    their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``."""
-    idx: list[int] = []
-    got: list[np.ndarray] = []
-    if len(_SAME_PARAMETER) and pi.size:
+    their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``.
+
+    First those measured in the last B-rep checked (:data:`_MEASURED`, a Boolean's operand for
+    its result), found for all coedges at once by their objects' positions in that B-rep's pools
+    (:func:`~coons.topology._memo.pool_positions`, values only) and their edge range; then the
+    others in :data:`_SAME_PARAMETER`, coedge by coedge.  Both hold the same measurements (of the
+    same five immutable values).
+    """
+    n = pi.size
+    width = 3 * samples + 8
+    H = np.empty((n, width))
+    found = np.zeros(n, dtype=bool)
+    r = b.edge_range[e]
+    donor, rec = _donor(b) if n else (None, None)
+    if rec is not None and rec.samples == samples and rec.key.size:
+        # A position of -1 (index -1 reads the appended -1): not in the donor, or not a value.
+        pp = np.append(pool_positions(b, donor, "pcurves"), -1)[pi]
+        cp = np.append(pool_positions(b, donor, "curves"), -1)[ci]
+        sp = np.append(pool_positions(b, donor, "surfaces"), -1)[si]
+        ok = (ci >= 0) & (pp >= 0) & (cp >= 0) & (sp >= 0)
+        key = (pp * rec.n_curves + cp) * rec.n_surfaces + sp
+        found, j = _lookup(rec.key, rec.r0, rec.r1, key, r, ok)
+        H[found] = rec.rows[j[found]]
+    if len(_SAME_PARAMETER) and not found.all():
         pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
-        r = b.edge_range[e]
-        found = _SAME_PARAMETER.get_many([pcurves[p] for p in pi.tolist()])
-        for k, (entries, c, s, r0, r1) in enumerate(zip(found, ci.tolist(), si.tolist(), r[:, 0].tolist(),
-                                                        r[:, 1].tolist())):
-            if entries is None or c < 0:
+        rest = np.flatnonzero(~found & (ci >= 0))
+        got = _SAME_PARAMETER.get_many([pcurves[p] for p in pi[rest].tolist()])
+        for k, entries, c, s, r0, r1 in zip(rest.tolist(), got, ci[rest].tolist(), si[rest].tolist(),
+                                            r[rest, 0].tolist(), r[rest, 1].tolist()):
+            if entries is None:
                 continue
             curve, surface = curves[c], surfaces[s]
             h = entries.get((id(curve), id(surface), r0, r1, samples))
             if h is not None and h.curve is curve and h.surface is surface:
-                idx.append(k)
-                got.append(h.row)
-    if not idx:
-        return np.empty(0, dtype=np.int64), np.empty((0, 3 * samples + 8))
-    return np.array(idx, dtype=np.int64), np.concatenate(got).reshape(len(got), -1)
+                found[k] = True
+                H[k] = h.row
+    idx = np.flatnonzero(found)
+    return idx, H[idx]
+
+
+class _Measured:
+    """What :func:`_check_geometry` measured on one B-rep, for the next check (:func:`_cached_samples`,
+    :func:`_edge_ends`).  Coedges that have a curve: ``key (m,)`` int64 ``(pcurve · n_curves +
+    curve) · n_surfaces + surface`` (positions in the B-rep's pools), sorted; ``r0, r1 (m,)`` the
+    edge range; ``rows (m, 3 samples + 8)`` (:func:`_packed`).  Edges that have a curve:
+    ``edge_key (k,)`` the curve's position, sorted; ``edge_r0, edge_r1 (k,)``; ``ends (k, 2, 3)``
+    the curve at the ends of the range."""
+
+    __slots__ = ("samples", "n_curves", "n_surfaces", "key", "r0", "r1", "rows", "edge_key", "edge_r0", "edge_r1",
+                 "ends")
+
+
+def _remember_measured(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray, samples: int,
+                       R: np.ndarray, edges: np.ndarray, ends: np.ndarray) -> None:
+    """Record the rows ``R`` of the coedges of :func:`_check_geometry` and the curve ends ``ends (k, 2,
+    3)`` of its ``edges`` as :data:`_MEASURED` of ``b`` (the only entry: the next B-rep checked
+    reads it)."""
+    rec = _Measured()
+    has = np.flatnonzero(ci >= 0)
+    rec.samples, rec.n_curves, rec.n_surfaces = samples, len(b.curves), len(b.surfaces)
+    key = (pi[has] * rec.n_curves + ci[has]) * rec.n_surfaces + si[has]
+    o = np.argsort(key, kind="stable")
+    rec.key = key[o]
+    r = b.edge_range[e[has[o]]]
+    rec.r0, rec.r1 = r[:, 0].copy(), r[:, 1].copy()
+    rec.rows = R[has[o]]
+    ec = b.edge_curve[edges]
+    has = np.flatnonzero(ec >= 0)
+    o = has[np.argsort(ec[has], kind="stable")]
+    rec.edge_key = ec[o]
+    r = b.edge_range[edges[o]]
+    rec.edge_r0, rec.edge_r1 = r[:, 0].copy(), r[:, 1].copy()
+    rec.ends = ends[o]
+    # Kept: b, and the last sewn B-rep measured (b itself when it is sewn).
+    ref = weakref.ref(b)
+    sewn = _LAST_MEASURED[0]() if _LAST_MEASURED[0] is not None and b not in _SEWN_FROM else None
+    kept = _MEASURED.get(sewn) if sewn is not None else None
+    _MEASURED.clear()
+    _MEASURED.set(b, rec)
+    if kept is not None:
+        _MEASURED.set(sewn, kept)
+    _LAST_MEASURED[:] = [_LAST_MEASURED[0] if kept is not None else ref if b in _SEWN_FROM else None, ref]
+
+
+def _donor(b: BRep) -> tuple[BRep | None, "_Measured | None"]:
+    """The B-rep whose measurements ``b`` reads, with its :class:`_Measured`: the last sewn B-rep
+    measured (a Boolean's operand, for its result: a tool made and checked since, such as a cylinder
+    built and moved for the cut, does not displace it), else the last B-rep measured."""
+    for ref in _LAST_MEASURED:
+        donor = ref() if ref is not None else None
+        if donor is not None and donor is not b:
+            rec = _MEASURED.get(donor)
+            if rec is not None:
+                return donor, rec
+    return None, None
+
+
+#: Entries with one key (the arcs of one circle, the coedges of one p-curve) compared per look-up;
+#: a range found among none of them is measured again.
+_SAME_KEY = 4
+
+
+def _lookup(keys: np.ndarray, r0: np.ndarray, r1: np.ndarray, key: np.ndarray, r: np.ndarray,
+            valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``(key, r[:, 0], r[:, 1])`` occurs among the entries ``(keys, r0, r1)`` (``keys`` sorted):
+    ``(found (n,) bool, index (n,))`` for the queries with ``valid``; ranges compared exactly."""
+    found = np.zeros(key.size, dtype=bool)
+    at = np.zeros(key.size, dtype=np.int64)
+    j = np.searchsorted(keys, key)
+    last = keys.size - 1
+    for step in range(_SAME_KEY):
+        k = np.minimum(j + step, last)
+        hit = valid & ~found & (keys[k] == key) & (r0[k] == r[:, 0]) & (r1[k] == r[:, 1])
+        at[hit] = k[hit]
+        found |= hit
+    return found, at
+
+
+def _edge_ends(b: BRep, edges: np.ndarray) -> np.ndarray:
+    """The edges' curves (their chords where they have none) at the ends of their ranges, ``(k, 2, 3)``:
+    those of edges with the same curve and range in the B-rep measured last (:data:`_MEASURED`)
+    gathered in one pass, the others evaluated (:func:`_edge_samples`).  The curve's end points are
+    a function of the curve and the range alone."""
+    donor, rec = _donor(b)
+    if rec is None or not rec.edge_key.size:
+        return _edge_samples(b, 2, edges)[1]
+    ci = b.edge_curve[edges]
+    key = np.append(pool_positions(b, donor, "curves"), -1)[ci]
+    ok, j = _lookup(rec.edge_key, rec.edge_r0, rec.edge_r1, key, b.edge_range[edges], (ci >= 0) & (key >= 0))
+    out = np.empty((edges.size, 2, 3))
+    out[ok] = rec.ends[j[ok]]
+    miss = np.flatnonzero(~ok)
+    if miss.size:
+        out[miss] = _edge_samples(b, 2, edges[miss])[1]
+    return out
+
+
+#: The last B-rep measured and the last sewn one (``_SEWN_FROM``) -> their :class:`_Measured` (at
+#: most these two entries), and weak references to those two B-reps (sewn first): a Boolean's
+#: result takes the measurements of the coedges it shares with its operand from there in one
+#: gather (:func:`_donor`, :func:`_cached_samples`, :func:`_edge_ends`).
+_MEASURED = IdentityMemo()
+_LAST_MEASURED: list = [None, None]
 
 
 def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,

@@ -8,7 +8,8 @@ control nets).  Everything is computed from the B-rep's own geometry: nothing is
 tessellated, and no quantity depends on a deflection.  Results are cached per B-rep (B-reps
 are immutable); the coefficient rows of each surface and p-curve are remembered per object
 (they depend on it alone), so B-reps sharing geometry (a Boolean's result and its operands)
-build their tables without reading every object again.  The module does not compute properties of open shells or
+build their tables without reading every object again; the rows shared with the B-rep tabled
+last are taken from its tables in one gather (``_DONOR``, :func:`~coons.topology._memo.pool_positions`).  The module does not compute properties of open shells or
 lower-dimensional sets (curve lengths, wire centroids), does not weight by density, and does
 not repair orientation (an inside-out B-rep has negative volume).  Faces must lie on planes
 (implicit or :class:`PlanarSurface`), the analytic surfaces of :mod:`coons.kernel.analytic`
@@ -151,7 +152,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
@@ -604,30 +605,30 @@ def _tables(b: BRep) -> _Tables:
     T = cache.get("tables")
     if T is not None:
         return T
-    codes, rows = [], []
-    for S, got in zip(b.surfaces, _SURFACE_ROWS.get_many(b.surfaces)):
-        if got is None:
-            got = _surface_row(S)
-            if is_value(S):
-                _SURFACE_ROWS.set(S, got)
-        codes.append(got[0])
-        rows.append(got[1])
-    codes.append(_C_PLANE)
-    rows.append(_IMPLICIT_PLANE_ROW)
-    code = np.array(codes, dtype=np.int8)
-    shapes, coefs = [], []
-    for pc, got in zip(b.pcurves, _PCURVE_ROWS.get_many(b.pcurves)):
-        if got is None:
-            kind, row = _pcurve_row(pc)
-            got = (kind, _read_only(np.array(row, dtype=np.float64)))
-            if is_value(pc):
-                _PCURVE_ROWS.set(pc, got)
-        shapes.append(got[0])
-        coefs.append(got[1])
-    shapes.append(_P_MISSING)
-    coefs.append(np.zeros(8))
+    from coons.topology.check import _SEWN_FROM
+
+    donor = D = None
+    for ref in _DONOR:  # the last sewn B-rep tabled first (a Boolean's operand, for its result)
+        d = ref() if ref is not None else None
+        D = _CACHE.get(d, {}).get("tables") if d is not None and d is not b else None
+        if D is not None:
+            donor = d
+            break
+    if D is not None:
+        code, rows = _pool_rows(b.surfaces, pool_positions(b, donor, "surfaces"), D.surface_code, D.surface_rows,
+                                _SURFACE_ROWS, _surface_row)
+        shape, coef = _pool_rows(b.pcurves, pool_positions(b, donor, "pcurves"), D.pcurve_shape, D.pcurve_coef,
+                                 _PCURVE_ROWS, _pcurve_row)
+    else:
+        none = np.full(len(b.surfaces), -1, dtype=np.int64)
+        code, rows = _pool_rows(b.surfaces, none, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_row)
+        none = np.full(len(b.pcurves), -1, dtype=np.int64)
+        shape, coef = _pool_rows(b.pcurves, none, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_row)
+    code = np.append(code, np.int8(_C_PLANE))
+    rows = np.concatenate([rows, _IMPLICIT_PLANE_ROW_2D])
     # (classified as _classify_shapes does)
-    shape, coef = np.array(shapes, dtype=np.int8), np.concatenate(coefs).reshape(len(coefs), 8)
+    shape = np.append(shape, np.int8(_P_MISSING))
+    coef = np.concatenate([coef, _ZEROS8_2D])
     curved = np.array([not isinstance(c, Line) for c in b.curves] + [False]).take(b.edge_curve)
     fs = b.face_surface
     implicit = fs.size > 0 and int(fs.min()) < 0
@@ -635,11 +636,47 @@ def _tables(b: BRep) -> _Tables:
     nurbs = (code[:-1] == _C_NURBS).nonzero()[0]
     if nurbs.size:
         flat[nurbs] = _flat_nets([b.surfaces[i].control_points for i in nurbs])
-    has_planes = implicit or _C_PLANE in codes[:-1] or bool(flat.any())
+    has_planes = implicit or bool((code[:-1] == _C_PLANE).any()) or bool(flat.any())
     implicit_curved = (implicit and bool(curved.any())
                        and bool((fs.take(b.coedge_face.reshape(-1, 2)[curved]) < 0).any()))
-    T = cache["tables"] = _Tables(code, np.array(rows), flat, has_planes, curved, implicit_curved, shape, coef)
+    T = cache["tables"] = _Tables(code, rows, flat, has_planes, curved, implicit_curved, shape, coef)
+    ref = weakref.ref(b)
+    _DONOR[:] = [ref if b in _SEWN_FROM else _DONOR[0], ref]
     return T
+
+
+def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows: np.ndarray, memo: IdentityMemo,
+               row_of: Callable) -> tuple[np.ndarray, np.ndarray]:
+    """The codes ``(n,)`` int8 and rows ``(n, w)`` of :class:`_Tables` for the geometry objects
+    ``objs`` of a B-rep's pool (its surfaces or p-curves): those at positions ``pos >= 0`` of a
+    donor's pool (:func:`~coons.topology._memo.pool_positions`) gathered from the donor's table
+    in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A
+    row is a function of its object alone, so it does not matter which table it is read from."""
+    code = donor_code.take(pos)  # (-1, absent from the donor, reads the sentinel and is overwritten)
+    rows = donor_rows.take(pos, axis=0)
+    miss = np.flatnonzero(pos < 0)
+    if miss.size:
+        need = [objs[i] for i in miss.tolist()]
+        kinds, found = [], []
+        for o, got in zip(need, memo.get_many(need)):
+            if got is None:
+                kind, row = row_of(o)
+                got = (kind, _read_only(np.array(row, dtype=np.float64)))
+                if is_value(o):
+                    memo.set(o, got)
+            kinds.append(got[0])
+            found.append(got[1])
+        code[miss] = kinds
+        rows[miss] = np.concatenate(found).reshape(miss.size, -1)
+    return code, rows
+
+
+#: The last sewn B-rep (``check._SEWN_FROM``) whose :class:`_Tables` were built and the last B-rep
+#: whose tables were built (weak references): the next B-rep's tables (a Boolean's result, most of
+#: whose surfaces and p-curves are its operand's) take the rows of the objects they share from the
+#: first of them alive in one gather (:func:`_pool_rows`); a tool tabled since the operand does not
+#: displace it.  They hold nothing once ``_CACHE`` forgets those B-reps.
+_DONOR: list = [None, None]
 
 
 def _surface_row(S) -> tuple[int, list[float]]:
@@ -665,7 +702,7 @@ def _pcurve_row(pc) -> tuple[int, list[float]]:
     return (_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD), _ZEROS8
 
 
-#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (its row as a read-only
+#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (code and row as a read-only
 #: array): the per-object rows of :class:`_Tables`, which a B-rep sewn from the faces of another
 #: (a Boolean's result) shares with it.  Rows are never modified.
 _SURFACE_ROWS = IdentityMemo()
@@ -698,7 +735,10 @@ def _flat_nets(nets: list) -> np.ndarray:
 
 _ZEROS2, _ZEROS4, _ZEROS8 = [0.0] * 2, [0.0] * 4, [0.0] * 8
 _NO_SURFACE_ROW = [0.0] * 17
+_NO_CODE = np.zeros(1, dtype=np.int8)  # a donor of one sentinel row, for the tables built without one
+_ZEROS8_2D = _read_only(np.zeros((1, 8)))
 _IMPLICIT_PLANE_ROW = [0.0] * 3 + np.eye(3).ravel().tolist() + [0.0] * 5
+_IMPLICIT_PLANE_ROW_2D = _read_only(np.array([_IMPLICIT_PLANE_ROW]))
 
 
 def _classify_shapes(shape: np.ndarray, coef: np.ndarray) -> None:

@@ -56,6 +56,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
+from coons.topology._components import components
 from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
@@ -490,8 +491,6 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     larger of those two maxima), so the labels are those of the components of all the points.
     Sewing's vertices and the Booleans' T-junction and fuse passes cluster with it.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     n = X.shape[0]
@@ -510,8 +509,7 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
         d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
         pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
     m = U.shape[0]
-    g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    nc, label = connected_components(g, directed=False)
+    nc, label = components(m, pairs[:, 0], pairs[:, 1])
     label = label[point_of]
     first = np.full(nc, n, dtype=np.int64)
     np.minimum.at(first, label, np.arange(n) if rank is None else rank)

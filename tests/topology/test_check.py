@@ -870,3 +870,56 @@ def test_coedges_of_faces_that_passed_before_are_not_measured_again(monkeypatch)
     assert first > 0 and measured[-1] == 0
     assert check(again).ok and measured[-1] == 0
     assert check(again, samples=17).ok and measured[-1] == first  # another key: measured whole
+
+
+def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monkeypatch):
+    """A Boolean's result takes the same-parameter rows of the coedges it shares with the B-rep
+    checked last (its operand) in one gather (``_MEASURED``): the same table and problems as a cold
+    check, with most rows found there."""
+    from coons.topology import _memo
+    from coons.topology.check import _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    _memo.clear_all()
+    one = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
+    two = one - Cylinder(1.0, 10.0).translate((-4.0, 0.0, -3.0))
+    _check_geometry(one.brep, T, 9, [])  # one is the B-rep measured last, every coedge of it
+    found = []
+    real = check_module._cached_samples
+
+    def spy(b, pi, *args):
+        idx, H = real(b, pi, *args)
+        found.append((int(pi.size), int(idx.size)))
+        return idx, H
+
+    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    check_module._SAME_PARAMETER.clear()  # only the carried rows remain
+    edges = np.flatnonzero(two.brep.edge_curve >= 0)
+    ends = check_module._edge_ends(two.brep, edges)  # the curve ends, most carried
+    np.testing.assert_array_equal(ends, check_module._edge_samples(two.brep, 2, edges)[1])
+    warm = _check_geometry(two.brep, T, 9, out := [])
+    n, hits = found[-1]
+    assert 0 < hits < n  # the new hole's coedges are measured
+    _memo.clear_all()
+    cold = _check_geometry(two.brep, T, 9, out_cold := [])
+    assert found[-1][1] == 0
+    assert out == out_cold == []
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
+
+
+def test_pool_positions_match_objects_by_identity_and_skip_non_values():
+    from coons.topology._memo import pool_positions
+
+    @dataclasses.dataclass(frozen=True, eq=False)
+    class Pools:
+        curves: tuple
+
+    class Mutable:
+        pass
+
+    a, b, c, m = Line2D((0.0, 0.0), (1.0, 0.0)), Line2D((0.0, 0.0), (1.0, 0.0)), Line2D((1.0, 0.0), (0.0, 1.0)), Mutable()
+    donor = Pools((c, m, a))
+    new = Pools((a, b, m, c))  # b equals a but is another object; m is not a value
+    np.testing.assert_array_equal(pool_positions(new, donor, "curves"), [2, -1, -1, 0])
+    assert pool_positions(new, Pools(()), "curves").tolist() == [-1, -1, -1, -1]

@@ -208,6 +208,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import gc
+import itertools
 import logging
 import math
 import operator
@@ -1259,22 +1260,24 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
     T = T / np.maximum(np.sqrt(np.add.reduce(T * T, axis=2, keepdims=True)), 1e-300)
     size = 1.0 + np.abs(P).max(axis=(1, 2))
     # Every (range, side, edge) row, and the rows whose edge box comes near an end.
-    ent, side, edge_of, lo, hi, etol = [], [], [], [], [], []
-    for s, faces in enumerate((face_a, face_b)):
-        for k, (X, f) in enumerate(faces):
-            edges, elo, ehi, tol = X.edge_boxes(f)
-            n = len(edges)
-            ent.append(np.full(n, k))
-            side.append(np.full(n, s))
-            edge_of += edges
-            lo.append(elo)
-            hi.append(ehi)
-            etol.append(tol)
-    ent, side = np.concatenate(ent), np.concatenate(side)
+    counts, edge_of, lo, hi, etol = [], [], [], [], []
+    for X, f in itertools.chain(face_a, face_b):
+        edges, elo, ehi, tol = X.edge_boxes(f)
+        counts.append(len(edges))
+        edge_of += edges
+        lo.append(elo)
+        hi.append(ehi)
+        etol.append(tol)
+    # (the range and side of every row by repeats: per-range arrays cost more than the rows for few edges)
+    ent = np.repeat(np.tile(np.arange(M), 2), counts)
+    side = np.repeat(np.arange(2), [sum(counts[:M]), sum(counts[M:])])
     lo, hi, etol = np.concatenate(lo), np.concatenate(hi), np.concatenate(etol)
     reach = (10.0 * np.maximum(base[ent], etol))[:, None, None]
     Pe = P[ent]
-    hit = np.any(np.all((Pe >= lo[:, None] - reach) & (Pe <= hi[:, None] + reach), axis=2), axis=1)
+    inb = (Pe >= lo[:, None] - reach) & (Pe <= hi[:, None] + reach)
+    # (all over xyz and any over the two ends spelt out: numpy's reductions over such short axes are slow)
+    inb = inb[..., 0] & inb[..., 1] & inb[..., 2]
+    hit = inb[:, 0] | inb[:, 1]
     worst = base.copy()
     near = np.full((M, 2, 2), np.inf)
     rows = np.flatnonzero(hit)

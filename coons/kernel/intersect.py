@@ -1633,15 +1633,23 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     s0, s1, ou, ov, sg = s0[todo], s1[todo], ou[todo] + du[todo], ov[todo] + 0.0, sg[todo]  # (the shifts: _piece)
     t = s0[:, None] + (s1 - s0)[:, None] * _CHECK_FRACTIONS[None]
     cs, sn = np.cos(t), np.sin(t)
-    Pk = ((R[:, None] * cs)[..., None] * X[:, None] + (R[:, None] * sn)[..., None] * Y[:, None]) + C[:, None]
-    uv = o[:, None] + cs[..., None] * al[:, None] + sn[..., None] * be[:, None]
+    Rc, Rs = R[:, None] * cs, R[:, None] * sn
+    # The uv points on both surfaces, then the 3-d points coordinate by coordinate: (k, samples) arrays
+    # rather than (k, samples, 3), whose length-3 inner axis numpy walks slowly; the same expressions, in
+    # the same order, so the deviation is bit-identical to the per-pair one.
+    uv = [(o[:, i, None] + cs * al[:, i, None]) + sn * be[:, i, None] for i in (0, 1)]
     Fpt, Opt, Fct, Oct = Fp[todo], Op[todo], Fc[todo], Oc[todo]
-    Pp = Opt[:, None] + uv[..., 0:1] * Fpt[:, None, 0] + uv[..., 1:2] * Fpt[:, None, 1]
     u = ou[:, None] + sg[:, None] * t
-    e = np.cos(u)[..., None] * Fct[:, None, 0] + np.sin(u)[..., None] * Fct[:, None, 1]
-    Pc = (R[:, None, None] * e + ov[:, None, None] * Fct[:, None, 2]) + Oct[:, None]  # (the cylinder's radius)
-    gaps = np.concatenate([Pp - Pk, Pc - Pk, Pp - Pc], axis=1)
-    dev = np.sqrt(np.max(np.add.reduce(gaps * gaps, axis=-1), axis=1))
+    cu, su = np.cos(u), np.sin(u)
+    d_pk = d_ck = d_pc = 0.0
+    for j in range(3):
+        pk = (Rc * X[:, j, None] + Rs * Y[:, j, None]) + C[:, j, None]
+        pp = (Opt[:, j, None] + uv[0] * Fpt[:, 0, j, None]) + uv[1] * Fpt[:, 1, j, None]
+        e = cu * Fct[:, 0, j, None] + su * Fct[:, 1, j, None]
+        pc = (R[:, None] * e + ov[:, None] * Fct[:, 2, j, None]) + Oct[:, j, None]  # (the cylinder's radius)
+        d_pk, d_ck, d_pc = d_pk + (pp - pk) ** 2, d_ck + (pc - pk) ** 2, d_pc + (pp - pc) ** 2
+    # (the largest squared gap, then its root: sqrt is monotone and correctly rounded)
+    dev = np.sqrt(np.maximum(np.maximum(d_pk, d_ck), d_pc).max(axis=1))
     circles = Circle.many(C, np.stack([X, Y, Z], axis=1), R)
     on_plane = Trig2D.many(o, al, be)
     on_cylinder = Line2D.many(np.stack([ou, ov], axis=1), np.stack([sg, np.zeros_like(sg)], axis=1))

@@ -56,8 +56,12 @@ straight pieces (the untouched faces of the primitives are their parameter recta
 polynomial NURBS p-curve that nears the sides only close to its ends is clipped, and its
 meetings with the sides as a cut are found, without curve–curve intersection: the control
 points bound its distance to each side's line (convex hull, variation diminishing), and the
-crossing is one scalar root (:func:`_convex_clip`, :func:`_convex_contacts`); anything else,
-and every cut–cut pair, takes the general path.
+crossing is one scalar root (:func:`_convex_clip`, :func:`_convex_contacts`); anything else takes
+the general path.  Two cuts sharing one end (consecutive pieces of a branch, branches ending at
+one boundary point) are proven to meet only there when the line through the end between their
+directions keeps each on its side (monotone control-point distances, :func:`_end_contact_only`):
+the end contact is left to the node merge; crossing cuts, and pairs the control points do not
+separate, take the general path.
 
 The module does not compute intersection curves (:mod:`coons.kernel.intersect`), does not
 classify pieces against another solid, does not re-sew, and does not merge faces.  Its
@@ -871,6 +875,8 @@ def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane,
                     c.splits += s.tolist()
                     o.splits += u.tolist()
                 continue
+            if j >= nb and _FAST and _end_contact_only(c, o, plane):
+                continue  # their one meeting is the shared end, which the graph's node merge joins
             x = intersect_curves(c.pc, (c.a, c.b), o.pc, (o.a, o.b), plane.t)
             s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, x.t1, x.t2)
             c.splits += s.tolist()
@@ -879,6 +885,84 @@ def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane,
                 c.splits += [s0, s1]
                 o.splits += [u0, u1]
                 c.dropped.append((s0, s1))
+
+
+#: Smallest sine of half the angle between two cuts leaving a shared end for :func:`_end_contact_only`
+#: (60 degrees between them): a narrower wedge takes the general path, whose end-contact merging
+#: decides touchings along a near-tangent approach.
+_END_MIN_SINE = 0.5
+
+
+def _end_contact_only(c: _Piece, o: _Piece, plane: _Plane) -> bool:
+    """Whether cut pieces ``c`` and ``o`` (polynomial 2-D NURBS) are proven to meet only within about ``eps``
+    of one shared end, where :func:`~coons.kernel.curve_intersect.intersect_curves` would report just
+    that end contact (a split at a range end, or within ``eps`` of it, which :func:`_distinct_points`
+    drops, and a node that :func:`_node_pairs` merges).
+
+    Consecutive pieces of one branch and branches ending at one boundary point share an end ``E``
+    (within ``eps``) and leave it in different directions ``u_c``, ``u_o``.  With ``n`` along
+    ``u_c - u_o`` and ``M`` the middle of the two ends, ``g(t) = n · (pc(t) - M)`` is a spline whose
+    coefficients are the control points' acting on the piece.  As in :func:`_convex_ends`, coefficients
+    increasing strictly away from the end up to ``p`` past the last one within :data:`_CONVEX_CLEARANCE`
+    ``eps`` make ``g`` increase on every knot span touching that head (its derivative's coefficients
+    are their differences, The NURBS Book eq. 3.4) and exceed the clearance beyond it (convex hull);
+    with ``g`` oriented to grow into ``c`` and to fall into ``o``, ``c`` lies in ``g >= h`` and ``o`` in
+    ``g <= -h`` (``h = n · (E_c - E_o) / 2``, ``|h| <= eps / 2``).
+    For ``h >= 0`` they share at most the end itself; for ``h < 0`` only points in the band
+    ``|g| <= -h``, which the check of ``g`` one ``eps`` (of arc) from each end confines to within
+    about ``eps`` of the ends.  Rational curves, two shared ends, a wedge narrower than
+    :data:`_END_MIN_SINE` or coefficients without that shape return False (the general path runs).
+    """
+    pcs = (c.pc, o.pc)
+    if any(type(pc) is not NurbsCurve or pc.dimension != 2 or pc.is_rational for pc in pcs):
+        return False
+    eps = plane.eps
+    rc, ro = (c.a, c.b), (o.a, o.b)
+    Dc, Do = _derivs(c.pc, np.array(rc), 1), _derivs(o.pc, np.array(ro), 1)
+    d = np.linalg.norm(Dc[:, None, 0] - Do[None, :, 0], axis=2)  # (2, 2) distances between the ends
+    near = np.argwhere(d <= eps)
+    if near.shape[0] != 1:
+        return False
+    ic, io = (int(k) for k in near[0])
+    # Tangents leaving the shared end into each piece (the parameter runs away from the end or towards it).
+    sign_c = 1.0 if rc[ic] == min(rc) else -1.0
+    sign_o = 1.0 if ro[io] == min(ro) else -1.0
+    tc, to = sign_c * Dc[ic, 1], sign_o * Do[io, 1]
+    lc, lo_ = float(np.hypot(*tc)), float(np.hypot(*to))
+    if not (lc > 0.0 and lo_ > 0.0):
+        return False
+    n = tc / lc - to / lo_
+    ln = float(np.hypot(*n))
+    if not ln > 0.0:
+        return False
+    n = n / ln
+    if not float(n @ tc) >= _END_MIN_SINE * lc:
+        return False
+    Ec, Eo = Dc[ic, 0], Do[io, 0]
+    M = 0.5 * (Ec + Eo)
+    h = 0.5 * float(n @ (Ec - Eo))
+    clear = _CONVEX_CLEARANCE * eps  # > eps / 2 >= |h|: deep control points are off the band
+    for pc, r, e, sign, E, speed, nn in ((c.pc, rc, ic, sign_c, Ec, lc, n), (o.pc, ro, io, sign_o, Eo, lo_, -n)):
+        lo, hi = min(r), max(r)
+        U, p, P = pc.knots, pc.degree, pc.control_points
+        i0 = max(int(np.searchsorted(U, lo, "right")) - 1 - p, 0)
+        i1 = min(int(np.searchsorted(U, hi, "left")) - 1, P.shape[0] - 1)
+        G = (P[i0:i1 + 1] - M) @ nn  # coefficients of g (oriented to grow into this piece) acting on [lo, hi]
+        if sign < 0.0:
+            G = G[::-1]  # from the shared end on
+        # Past the last control point within the clearance g stays above it (convex hull); up to p past it the
+        # coefficients must increase strictly, so that g increases on every span touching the head.
+        shallow = np.flatnonzero(G <= clear)
+        J = int(shallow[-1]) + 1 if shallow.size else 0
+        if not np.all(np.diff(G[:min(J + p, G.size - 1) + 1]) > 0.0):
+            return False
+        if h < 0.0:
+            # g <= -h only up to about eps of arc from the end: the band holds no point farther off.
+            t = min(max(r[e] + sign * eps / speed, lo), hi)
+            X = _uv(pc, t)
+            if not (float(nn @ (X - M)) > -h and float(np.hypot(*(X - E))) <= 2.0 * eps):
+                return False
+    return True
 
 
 @dataclass

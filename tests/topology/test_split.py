@@ -964,3 +964,68 @@ def test_fitted_pcurve_across_half_cylinder_is_clipped_and_split_in_closed_form(
     halves = split_face(face, [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol)])
     assert len(halves) == 2 and not calls
     np.testing.assert_allclose(sum(_area(p) for p in halves), 2 * math.pi, rtol=RTOL_AREA)
+
+
+@settings(max_examples=30)
+@given(st.floats(-0.6, 0.6), st.floats(-1.2, 1.2), st.floats(-1.2, 1.2), st.floats(-0.6, 0.6),
+       st.floats(-1.2, 1.2), st.floats(-1.2, 1.2), st.floats(0.15, 0.85), st.floats(0.15, 0.85))
+def test_consecutive_and_crossing_fitted_cuts_match_the_general_path(z0, a, b, z1, c, d, f0, f1):
+    """Two plane sections of a half cylinder, each clipped and cut into two consecutive pieces (a shared
+    end, the cut–cut meeting that ``_end_contact_only`` proves without curve–curve intersection),
+    crossing each other or not: the split gives the general path's regions, crossings included."""
+
+    face, first = _slant_branches(z0, a, b)
+    _, second = _slant_branches(z1, c, d)
+    cuts = []
+    for br, f in ((first, f0), (second, f1)):
+        for cv in br:
+            for s0, s1, w in clip_to_face(face, cv.pcurve_a, cv.t0, cv.t1, curve=cv.curve):
+                if w != "inside" or s1 - s0 < 1e-2:
+                    continue
+                m = s0 + f * (s1 - s0)
+                cuts += [EdgeSpec(cv.curve, s0, m, cv.pcurve_a, cv.tol), EdgeSpec(cv.curve, m, s1, cv.pcurve_a, cv.tol)]
+    if not cuts:
+        return
+    try:
+        general = _general(split_face, face, cuts)
+    except InvalidInputError:
+        return  # nearly coincident sections: not what this property is about
+    fast = split_face(face, cuts)
+    assert len(fast) == len(general)
+    for p, q in zip(fast, general):
+        assert [len(lp) for lp in p.loops] == [len(lp) for lp in q.loops]
+        for la, lb in zip(p.loops, q.loops):
+            for ea, eb in zip(la, lb):
+                assert ea.curve is eb.curve and ea.pcurve is eb.pcurve
+                np.testing.assert_allclose([ea.t0, ea.t1], [eb.t0, eb.t1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sum(_area(p) for p in fast), 2 * math.pi, rtol=RTOL_AREA)
+
+
+def test_end_contact_only_proves_a_shared_end_and_declines_a_second_meeting():
+    """Quadratic Bézier arcs leaving the origin: one climbing above and one dipping below meet only
+    there (True, and ``intersect_curves`` agrees); one that dips and climbs across the first also
+    crosses it (False); a narrow wedge declines."""
+    from types import SimpleNamespace
+
+    from coons.kernel.curve_intersect import intersect_curves
+    from coons.topology.split import _end_contact_only, _Piece
+
+    def bezier(*pts):
+        return NurbsCurve(np.array(pts, dtype=float), [0, 0, 0, 1, 1, 1], 2)
+
+    def piece(pc, a=0.0, b=1.0):
+        return _Piece(pc, a, b, "cut", -1, None, [], [])
+
+    plane = SimpleNamespace(eps=1e-7)
+    arch = bezier([0, 0], [1, 2], [3, 3])
+    below = bezier([0, 0], [1, -1], [2, -1])
+    across = bezier([0, 0], [1, -1], [3, 4])  # meets the arch again at s = t = 6/7
+    narrow = bezier([0, 0], [2, 3], [3, 2])
+    assert _end_contact_only(piece(arch), piece(below), plane)
+    assert _end_contact_only(piece(arch, 1.0, 0.0), piece(below), plane)  # travel either way
+    assert _end_contact_only(piece(below), piece(arch, 1.0, 0.0), plane)
+    x = intersect_curves(arch, (0, 1), below, (0, 1))
+    np.testing.assert_allclose(x.points, [[0.0, 0.0]], atol=1e-12)
+    assert not _end_contact_only(piece(arch), piece(across), plane)
+    assert len(intersect_curves(arch, (0, 1), across, (0, 1)).points) == 2
+    assert not _end_contact_only(piece(arch), piece(narrow), plane)

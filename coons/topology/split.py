@@ -628,22 +628,11 @@ def _convex_clip(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece], pla
     O, N = sides
     clear = _CONVEX_CLEARANCE * plane.eps
     C = _derivs(pc, np.array([lo, hi]), 0)[:, 0]
-    s0, k0 = lo, -1
-    for k, t_deep in heads:
-        if float(N[k] @ (C[0] - O[k])) < 0.0:
-            s = _side_root(pc, N[k], O[k], lo, t_deep, plane)
-            if s is None:
-                return None
-            if s > s0:
-                s0, k0 = s, k
-    s1, k1 = hi, -1
-    for k, t_deep in tails:
-        if float(N[k] @ (C[1] - O[k])) < 0.0:
-            s = _side_root(pc, N[k], O[k], t_deep, hi, plane)
-            if s is None:
-                return None
-            if s < s1:
-                s1, k1 = s, k
+    head = _innermost_crossing(heads, pc, sides, C[0], lo, plane, True)
+    tail = _innermost_crossing(tails, pc, sides, C[1], hi, plane, False)
+    if head is None or tail is None:
+        return None
+    (s0, k0), (s1, k1) = head, tail
     out = []
     for s, k, e in ((s0, k0, 0), (s1, k1, 1)):
         if k >= 0:
@@ -665,6 +654,23 @@ def _convex_clip(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece], pla
     if not (s0 < s1) or np.linalg.norm(_uv(pc, s1) - _uv(pc, s0)) <= plane.eps:
         return None
     return float(s0), float(s1), "inside"
+
+
+def _innermost_crossing(items: list[tuple[int, float]], pc: Any, sides: tuple[np.ndarray, np.ndarray], C: np.ndarray,
+                        end: float, plane: _Plane, head: bool) -> tuple[float, int] | None:
+    """Of the sides ``items`` (``(side, t_deep)`` of :func:`_convex_ends`) that the end ``C = pc(end)`` lies outside
+    of, the crossing nearest the inside: ``(s, side)`` (``(end, -1)`` when the end is inside all of them),
+    None when a root is not bracketed.  ``head``: the crossings lie in ``[end, t_deep]`` (else ``[t_deep, end]``)."""
+    O, N = sides
+    best, which = end, -1
+    for k, t_deep in items:
+        if float(N[k] @ (C - O[k])) < 0.0:
+            s = _side_root(pc, N[k], O[k], *((end, t_deep) if head else (t_deep, end)), plane)
+            if s is None:
+                return None
+            if (s > best) if head else (s < best):
+                best, which = s, k
+    return best, which
 
 
 def _convex_ends(sides: tuple[np.ndarray, np.ndarray], pc: Any, lo: float, hi: float, plane: _Plane

@@ -909,6 +909,17 @@ def test_face_with_a_bad_edge_raises_on_every_call():
             clip_to_face(bad, cut.pcurve, cut.t0, cut.t1, curve=cut.curve)
 
 
+def _assert_same_split(fast, general) -> None:
+    """The fast path's faces are the general path's: same loops, same edge objects, ranges to 1e-9."""
+    assert len(fast) == len(general)
+    for p, q in zip(fast, general):
+        assert [len(lp) for lp in p.loops] == [len(lp) for lp in q.loops]
+        for la, lb in zip(p.loops, q.loops):
+            for ea, eb in zip(la, lb):
+                assert ea.curve is eb.curve and ea.pcurve is eb.pcurve
+                np.testing.assert_allclose([ea.t0, ea.t1], [eb.t0, eb.t1], rtol=0, atol=1e-9)
+
+
 def _slant_branches(z0: float, a: float, b: float):
     """The branches of the plane through ``(0, 0, z0)`` with normal ``(a, b, 1)`` on the half cylinder of
     ``_cyl_face``: ellipse arcs with fitted NURBS p-curves, over a box a little larger than the face."""
@@ -937,14 +948,7 @@ def test_clip_and_split_of_fitted_pcurves_on_half_cylinder_match_the_general_pat
         np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=1e-9)
         cuts += [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
     if cuts:
-        fast, general = split_face(face, cuts), _general(split_face, face, cuts)
-        assert len(fast) == len(general)
-        for p, q in zip(fast, general):
-            assert [len(lp) for lp in p.loops] == [len(lp) for lp in q.loops]
-            for la, lb in zip(p.loops, q.loops):
-                for ea, eb in zip(la, lb):
-                    assert ea.curve is eb.curve and ea.pcurve is eb.pcurve
-                    np.testing.assert_allclose([ea.t0, ea.t1], [eb.t0, eb.t1], rtol=0, atol=1e-9)
+        _assert_same_split(split_face(face, cuts), _general(split_face, face, cuts))
 
 
 def test_fitted_pcurve_across_half_cylinder_is_clipped_and_split_in_closed_form(monkeypatch):
@@ -991,13 +995,7 @@ def test_consecutive_and_crossing_fitted_cuts_match_the_general_path(z0, a, b, z
     except InvalidInputError:
         return  # nearly coincident sections: not what this property is about
     fast = split_face(face, cuts)
-    assert len(fast) == len(general)
-    for p, q in zip(fast, general):
-        assert [len(lp) for lp in p.loops] == [len(lp) for lp in q.loops]
-        for la, lb in zip(p.loops, q.loops):
-            for ea, eb in zip(la, lb):
-                assert ea.curve is eb.curve and ea.pcurve is eb.pcurve
-                np.testing.assert_allclose([ea.t0, ea.t1], [eb.t0, eb.t1], rtol=0, atol=1e-9)
+    _assert_same_split(fast, general)
     np.testing.assert_allclose(sum(_area(p) for p in fast), 2 * math.pi, rtol=RTOL_AREA)
 
 

@@ -3604,7 +3604,9 @@ def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) ->
     T = np.linspace([e.t0 for e in uses], [e.t1 for e in uses], 17, axis=1)
     X = evaluate_curves([e.curve for e in uses], T)
     c = X.mean(axis=1)
-    rad = np.max(np.linalg.norm(X - c[:, None, :], axis=2), axis=1)
+    D = X - c[:, None, :]
+    # Coordinate-wise (a norm over the short last axis is several times slower; same sums in the same order).
+    rad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1] + D[..., 2] * D[..., 2]).max(axis=1)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     return X, cKDTree(starts).query_ball_point(c, rad * 1.05 + thr)
 

@@ -2550,17 +2550,23 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
     for k in range(n):
         for w_ in (0, 1):
             at_side.setdefault(ends_l[k][w_], []).append((tau_l[k][w_], 2 * k + w_))
+    # The pieces are made by the trusted constructor (no re-validation of the face's own curves
+    # and tolerances) when their ranges are finite and non-empty, as the tests above make them;
+    # else by the validating one, which raises as before.
+    finite = all(math.isfinite(x) for pair in tau_l for x in pair)
     items: list[tuple[EdgeSpec, int]] = []
     for i, e in enumerate(loop):
         at = at_side.get(i, [])
         at.sort(key=lambda p: p[0], reverse=e.t1 < e.t0)
         if any(abs(a[0] - b[0]) * SL[i] / abs(e.t1 - e.t0) <= margin for a, b in zip(at, at[1:])):
             return None
+        make = (EdgeSpec._trusted if finite and (not at or (at[0][0] != e.t0 and at[-1][0] != e.t1))
+                else EdgeSpec)
         prev, node = e.t0, -1
         for tt, nd in at:
-            items.append((EdgeSpec(e.curve, prev, tt, e.pcurve, e.tol), node))
+            items.append((make(e.curve, prev, tt, e.pcurve, e.tol), node))
             prev, node = tt, nd
-        items.append((EdgeSpec(e.curve, prev, e.t1, e.pcurve, e.tol), node))
+        items.append((make(e.curve, prev, e.t1, e.pcurve, e.tol), node))
     regions: list[list[tuple[EdgeSpec, int]]] = [items]
     for k, c in enumerate(cuts):
         p, q = 2 * k, 2 * k + 1
@@ -2573,9 +2579,10 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
         i, j = starts.index(p), starts.index(q)
         path1 = R[i:j] if i < j else R[i:] + R[:j]
         path2 = R[j:i] if j < i else R[j:] + R[:i]
-        back = EdgeSpec(c.curve, c.t1, c.t0, c.pcurve, c.tol)
+        back = EdgeSpec._trusted(c.curve, c.t1, c.t0, c.pcurve, c.tol)  # a validated cut, reversed
         regions[r:r + 1] = [path1 + [(back, q)], path2 + [(c, p)]]
-    return [FaceSpec(spec.surface, spec.sense, [[e for e, _ in R]]) for R in regions]
+    # One non-empty loop of EdgeSpecs each, on the face's own (validated) surface and sense.
+    return [FaceSpec._trusted(spec.surface, spec.sense, (tuple(e for e, _ in R),)) for R in regions]
 
 
 def _chord_data(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> dict[int, tuple | None]:
@@ -3597,7 +3604,9 @@ def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) ->
     T = np.linspace([e.t0 for e in uses], [e.t1 for e in uses], 17, axis=1)
     X = evaluate_curves([e.curve for e in uses], T)
     c = X.mean(axis=1)
-    rad = np.max(np.linalg.norm(X - c[:, None, :], axis=2), axis=1)
+    D = X - c[:, None, :]
+    # Coordinate-wise (a norm over the short last axis is several times slower; same sums in the same order).
+    rad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1] + D[..., 2] * D[..., 2]).max(axis=1)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     return X, cKDTree(starts).query_ball_point(c, rad * 1.05 + thr)
 

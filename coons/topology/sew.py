@@ -34,7 +34,10 @@ meet, which edges are shared — is recovered from geometry:
    :func:`_nest_voids`), then ``build()``, which runs :func:`~coons.topology.check.check`.
 
 :func:`face_specs` is the inverse: the face specifications of an existing B-rep (used by the
-round-trip tests and by anything that re-sews modified faces).
+round-trip tests and by anything that re-sews modified faces).  It checks each edge once and
+makes the specs with the private ``EdgeSpec._trusted`` / ``FaceSpec._trusted`` constructors
+(no per-use re-validation); so do the Booleans for the pieces of a face split from validated
+parts.  Those constructors take only fields that validation would leave unchanged.
 
 The module does not split or trim faces, does not close gaps larger than the tolerance, does
 not reorient inconsistently oriented faces and does not merge coincident faces: any such input
@@ -116,6 +119,21 @@ class EdgeSpec:
                 raise InvalidInputError(f"EdgeSpec.tol must be a finite number >= 0, got {self.tol!r}")
             object.__setattr__(self, "tol", tol)
 
+    @classmethod
+    def _trusted(cls, curve: Any, t0: float, t1: float, pcurve: Any, tol: float | None) -> "EdgeSpec":
+        """An EdgeSpec made without ``__post_init__``'s checks and conversions, for the kernel's
+        own hot paths (a face's specs read from a B-rep, the pieces of a split face).
+
+        Only for fields that are already what validation would make of them: ``curve`` and
+        ``pcurve`` (or None) from a validated spec or a B-rep, ``t0 != t1`` finite Python floats,
+        ``tol`` a finite Python float >= 0 or None.  The result then equals the validated one
+        field by field; anything less trusted goes through the public constructor.
+        """
+        e = object.__new__(cls)
+        # The frozen dataclass forbids setattr; its instance dict is the one the constructor fills.
+        e.__dict__.update(curve=curve, t0=t0, t1=t1, pcurve=pcurve, tol=tol)
+        return e
+
 
 @dataclass(frozen=True, eq=False)
 class FaceSpec:
@@ -153,6 +171,15 @@ class FaceSpec:
                     raise InvalidInputError(f"FaceSpec loop {i} item {k} must be an EdgeSpec, got {type(e).__name__}")
         object.__setattr__(self, "loops", loops)
         object.__setattr__(self, "sense", bool(self.sense))
+
+    @classmethod
+    def _trusted(cls, surface: Any, sense: bool, loops: tuple[tuple[EdgeSpec, ...], ...]) -> "FaceSpec":
+        """A FaceSpec made without ``__post_init__``'s checks and conversions (see
+        :meth:`EdgeSpec._trusted`): ``sense`` a bool and ``loops`` a non-empty tuple of non-empty
+        tuples of :class:`EdgeSpec`, as validation would make them."""
+        f = object.__new__(cls)
+        f.__dict__.update(surface=surface, sense=sense, loops=loops)
+        return f
 
 
 # ====================================================================== sewing
@@ -1157,42 +1184,77 @@ def face_specs(shape, rows=None) -> list[FaceSpec]:
     b = shape if isinstance(shape, BRep) else getattr(shape, "brep", None)
     if not isinstance(b, BRep):
         raise InvalidInputError(f"face_specs needs a Solid or BRep, got {type(shape).__name__}")
-    curves: dict[int, tuple[Any, float, float, float, float]] = {}
+    if rows is None:
+        rows = range(b.n_faces)
+        # The whole B-rep: its columns read as Python lists once (reading one numpy scalar costs
+        # several list reads; for a few rows of a large B-rep the arrays are read in place).
+        e_curve, e_range, e_pcurve, e_tol = (b.edge_curve.tolist(), b.edge_range.tolist(),
+                                             b.edge_pcurve.tolist(), b.edge_tol.tolist())
+        nxt, l_first, f_ptr, f_loops = (b.coedge_next.tolist(), b.loop_coedge.tolist(),
+                                        b.face_loop_ptr.tolist(), b.face_loops.tolist())
+        f_surface, f_sense = b.face_surface.tolist(), b.face_sense.tolist()
+    else:
+        e_curve, e_range, e_pcurve, e_tol = b.edge_curve, b.edge_range, b.edge_pcurve, b.edge_tol
+        nxt, l_first, f_ptr, f_loops = b.coedge_next, b.loop_coedge, b.face_loop_ptr, b.face_loops
+        f_surface, f_sense = b.face_surface, b.face_sense
+    curves: dict[int, tuple[Any, float, float, float, float, float]] = {}
 
-    def edge_curve(e: int) -> tuple[Any, float, float, float, float]:
-        """(curve, start, end, a, c): the curve over [start, end] and the map t_old = a t + c."""
-        if e not in curves:
-            ci = int(b.edge_curve[e])
-            r0, r1 = (float(x) for x in b.edge_range[e])
+    def edge_curve(e: int) -> tuple[Any, float, float, float, float, float]:
+        """(curve, start, end, a, c, tol): the curve over [start, end], the map t_old = a t + c
+        and the edge's tolerance, checked as :class:`EdgeSpec` would check them (once per edge,
+        so that both uses can be made by ``EdgeSpec._trusted``)."""
+        got = curves.get(e)
+        if got is None:
+            ci = int(e_curve[e])
+            r0, r1 = (float(x) for x in e_range[e])
             if ci >= 0:
-                curves[e] = (b.curves[ci], r0, r1, 1.0, 0.0)
+                got = (b.curves[ci], r0, r1, 1.0, 0.0)
             else:
                 p, q = b.vertex_point[b.edge_vertex[e]]
                 length = float(np.linalg.norm(q - p))
-                curves[e] = (Line(p, q - p), 0.0, length, (r1 - r0) / length, r0)
-        return curves[e]
+                got = (Line(p, q - p), 0.0, length, (r1 - r0) / length, r0)
+            tol = float(e_tol[e])
+            # The checks of EdgeSpec.__post_init__, which the trusted constructor skips.
+            EdgeSpec(got[0], got[1], got[2], None, tol)
+            got = curves[e] = got + (tol,)
+        return got
 
+    limit = 2 * b.n_edges
     out = []
-    for f in (range(b.n_faces) if rows is None else rows):
+    for f in rows:
         f = int(f)
-        si = int(b.face_surface[f])
+        si = int(f_surface[f])
         loops = []
-        for loop in b.face_loop_ids(f):
-            cs = b.loop_coedges(int(loop))
-            if cs.size == 0:
-                raise TopologyError(f"face {f}: loop {int(loop)} is a lone vertex; a FaceSpec loop needs edges")
+        for loop in f_loops[int(f_ptr[f]):int(f_ptr[f + 1])]:
+            loop = int(loop)
+            first = int(l_first[loop])
+            if first < 0:
+                raise TopologyError(f"face {f}: loop {loop} is a lone vertex; a FaceSpec loop needs edges")
             specs = []
-            for c in cs:
-                e, side = int(c) >> 1, int(c) & 1
-                curve, s0, s1, a, cc = edge_curve(e)
-                pi = int(b.edge_pcurve[e, side])
+            c = first
+            while True:
+                e, side = c >> 1, c & 1
+                curve, s0, s1, a, cc, tol = edge_curve(e)
+                pi = int(e_pcurve[e][side])
                 pc = None if pi < 0 else b.pcurves[pi]
-                if pc is not None and (a != 1.0 or cc != 0.0):
-                    pc = _affine_pcurve(pc, a, cc)
+                if pc is not None:
+                    if not callable(getattr(pc, "evaluate", None)):
+                        raise InvalidInputError(
+                            f"EdgeSpec.pcurve must have an evaluate(t) method, got {type(pc).__name__}")
+                    if a != 1.0 or cc != 0.0:
+                        pc = _affine_pcurve(pc, a, cc)
                 t0, t1 = (s0, s1) if side == 0 else (s1, s0)
-                specs.append(EdgeSpec(curve, t0, t1, pc, float(b.edge_tol[e])))
-            loops.append(specs)
-        out.append(FaceSpec(None if si < 0 else b.surfaces[si], bool(b.face_sense[f]), loops))
+                specs.append(EdgeSpec._trusted(curve, t0, t1, pc, tol))
+                c = int(nxt[c])
+                if c == first:
+                    break
+                if len(specs) > limit:
+                    raise InvalidInputError(f"loop {loop} does not close: its next pointers cycle elsewhere")
+            loops.append(tuple(specs))
+        if not loops:
+            raise InvalidInputError("FaceSpec needs at least one loop, got none")
+        # Trusted: every field checked above as EdgeSpec and FaceSpec check them.
+        out.append(FaceSpec._trusted(None if si < 0 else b.surfaces[si], bool(f_sense[f]), tuple(loops)))
     return out
 
 

@@ -282,3 +282,52 @@ def test_merge_vertices_clusters_as_all_pairs_do(ends, seed):
     expect = np.array([first[int(x)] for x in label])
     np.testing.assert_array_equal(vertex, np.stack([expect[:k], expect[k:]], axis=1))
     assert points.shape == (len(first), 3) and np.all(tols >= t.linear)
+
+
+# ---------------------------------------------------------------- trusted spec constructors
+from coons import Box, Cylinder, Sphere, Torus  # noqa: E402
+from coons.errors import InvalidInputError  # noqa: E402
+
+
+def _fields(spec: sew.FaceSpec) -> tuple:
+    return (spec.surface, spec.sense, tuple(tuple((e.curve, e.t0, e.t1, e.pcurve, e.tol) for e in loop)
+                                            for loop in spec.loops))
+
+
+def test_trusted_specs_equal_the_validated_ones_field_by_field():
+    """face_specs builds its specs without re-validation: they equal what the validating
+    constructors make of the same fields (types included), on the whole B-rep and on rows."""
+    for shape in (Box(1, 2, 3), Cylinder(2, 5), Sphere(3), Torus(5, 1), Box(10, 10, 10) - Cylinder(3, 20)):
+        specs = sew.face_specs(shape)
+        for spec in specs:
+            again = sew.FaceSpec(spec.surface, spec.sense,
+                                 [[sew.EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, e.tol) for e in loop]
+                                  for loop in spec.loops])
+            got, want = _fields(spec), _fields(again)
+            assert got[0] is want[0] and got[1] == want[1] and type(got[1]) is bool and type(spec.loops) is tuple
+            for a, b in zip(got[2], want[2], strict=True):
+                for x, y in zip(a, b, strict=True):
+                    assert x[0] is y[0] and x[3] is y[3]
+                    assert [type(v) for v in x[1:3] + x[4:]] == [type(v) for v in y[1:3] + y[4:]]
+                    assert x[1:3] + x[4:] == y[1:3] + y[4:]
+        # A subset of rows reads the arrays in place and gives the same fields (straight edges
+        # without a curve get a fresh Line per call, so compare curves by type and parameters).
+        rows = list(range(shape.brep.n_faces))[::-1]
+        for a, b in zip(sew.face_specs(shape, rows=rows), [specs[r] for r in rows], strict=True):
+            assert a.surface is b.surface and a.sense == b.sense
+            for la, lb in zip(a.loops, b.loops, strict=True):
+                def key(loop):
+                    return [(e.t0, e.t1, e.tol, type(e.curve)) for e in loop]
+
+                assert key(la) == key(lb)
+
+
+def test_face_specs_still_rejects_a_degenerate_edge_range():
+    import dataclasses
+
+    b = Cylinder(1, 2).brep
+    r = b.edge_range.copy()
+    r[0, 1] = r[0, 0]
+    bad = dataclasses.replace(b, edge_range=r)
+    with pytest.raises(InvalidInputError, match="finite, different parameters"):
+        sew.face_specs(bad)

@@ -10,9 +10,11 @@ planes perpendicular to that axis and spheres (symmetric about any line through 
 centre) included, by intersecting their meridians in a half-plane (circles at the heights
 where the meridians meet: plane–sphere, sphere–sphere, plane–torus perpendicular to its axis,
 sphere–cylinder/cone/torus centred on the axis, coaxial cylinders, cones and tori); a plane
-containing a torus' axis (two meridian circles); and cylinders with parallel axes.  Every
-other pair (crossing cylinders, oblique plane–torus, non-coaxial quadrics, NURBS surfaces)
-goes to the general marching method of :mod:`coons.kernel.ssi`.  This module deliberately
+containing a torus' axis (two meridian circles); cylinders with parallel axes; and cylinders
+of equal radius whose axes meet (two ellipses in the bisecting planes, crossing at two singular
+points where each is cut, ``_equal_cylinders``).  Every other pair (crossing cylinders of
+different radii or skew axes, oblique plane–torus, non-coaxial quadrics, NURBS surfaces) goes
+to the general marching method of :mod:`coons.kernel.ssi`.  This module deliberately
 does not march, does not resolve overlaps of coincident surfaces (it reports
 ``coincident=True``; the caller handles the overlap), and does not trim to faces: it clips
 to the parameter boxes it is given.
@@ -55,7 +57,8 @@ cases tolerate (``_uniform_side``): every sample would say the same.
 *Singular points.*  A circle through a pole of a sphere is cut at the pole (the longitude
 jumps there): a great circle through both poles gives two meridian branches.  A ruling
 through a cone's apex is cut at the apex (the cone's ``Su × Sv`` flips there, and with it the
-direction rule).
+direction rule).  The ellipses of two equal cylinders are cut at the points where they cross
+(``n_a × n_b`` vanishes there and changes sign): each arc is oriented on its own.
 
 *Cost.*  A closed-form pair costs a few hundred microseconds, mostly numpy's per-call overhead
 on a handful of values: where every p-curve coordinate is exact, the branch's window is clipped
@@ -256,6 +259,9 @@ class _Candidate:
     curve: Any
     tangent: bool = False
     uniform: bool = False
+    #: Points of the curve where ``n_a × n_b`` vanishes and the branches cross (two equal cylinders'
+    #: ellipses): the curve is cut there and each piece oriented on its own.
+    singular: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -483,6 +489,42 @@ def _parallel_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Toler
     return _Exact(tuple(_Candidate(Line(a.origin + x * e + sgn * y * f, Z), uniform=True) for sgn in (1.0, -1.0)))
 
 
+def _equal_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Tolerance) -> _Exact | None:
+    """Two cylinders of equal radius whose axes cross: two ellipses, crossing at two singular points.
+
+    With the origin where the axes ``Z_a``, ``Z_b`` meet, ``|p|² - (p·Z_a)² = R² = |p|² - (p·Z_b)²``
+    gives ``(p·Z_a)² = (p·Z_b)²``: the intersection is the union of the plane sections of cylinder
+    ``a`` by the bisecting planes ``p·(Z_a ∓ Z_b) = 0`` (ellipses, exact), which cross at the two
+    points ``±R (Z_a × Z_b)/|Z_a × Z_b|`` where the surfaces touch (one of the degenerate pairs of
+    Miller & Goldman whose intersection is two conics).  None when the radii differ by more than
+    ``tol.linear``, the axes are parallel or do not meet within ``tol.linear`` (the general method).
+    """
+    Za, Zb, R = a.axis, b.axis, a.radius
+    if abs(a.radius - b.radius) > tol.linear:
+        return None
+    k = np.cross(Za, Zb)
+    sk = float(np.linalg.norm(k))
+    if sk <= tol.angular:
+        return None
+    k = k / sk
+    w = b.origin - a.origin
+    if abs(float(w @ k)) > tol.linear:
+        return None  # skew axes
+    # Where the axes meet: a.origin + s Za = b.origin + r Zb (in the plane of both axes).
+    c = float(Za @ Zb)
+    s_ = (float(w @ Za) - c * float(w @ Zb)) / (1.0 - c * c)
+    C = a.origin + s_ * Za
+    singular = (C + R * k, C - R * k)
+    out = []
+    for n in (Za - Zb, Za + Zb):
+        n = n / float(np.linalg.norm(n))
+        found = _plane_cylinder(PlanarSurface(C, n, perpendicular_direction(n)), a, tol)
+        if found is None or len(found.candidates) != 1:
+            return None
+        out.append(_Candidate(found.candidates[0].curve, singular=singular))
+    return _Exact(tuple(out))
+
+
 # Meridians in the half-plane (ρ >= 0, z) about a common axis: ("line", point, direction) and
 # ("circle", centre, radius), all 2-D.
 def _axis_of(s) -> tuple[np.ndarray, np.ndarray] | None:
@@ -636,6 +678,8 @@ def _exact(a, b, tol: Tolerance) -> _Exact | None:
             return found
     if isinstance(a, CylindricalSurface) and isinstance(b, CylindricalSurface):
         if (found := _parallel_cylinders(a, b, tol)) is not None:
+            return found
+        if (found := _equal_cylinders(a, b, tol)) is not None:
             return found
     return _coaxial(a, b, tol)
 
@@ -1162,14 +1206,21 @@ def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[Inte
     elif section:
         windows, full = curve.windows(box_a[1] if a is curve.cone else box_b[1]), False
     else:
-        cuts = sorted(set(_pole_parameters(curve, a, tol) + _pole_parameters(curve, b, tol)))
+        cuts = _pole_parameters(curve, a, tol) + _pole_parameters(curve, b, tol)
+        cuts += [float(curve.closest_parameters(P)) % TWO_PI for P in cand.singular]
+        cuts = sorted(set(cuts))
         if cuts:
             ends = cuts + [cuts[0] + TWO_PI]
             windows, full = list(zip(ends[:-1], ends[1:])), False
         else:
             windows, full = [(0.0, TWO_PI)], True
     out = []
+    oriented = curve
     for window in windows:
+        curve = oriented
+        if cand.singular and not cand.tangent and _against(curve, 0.5 * (window[0] + window[1]), a, b):
+            # n_a × n_b changes sign at the singular points: this piece runs the other way (t -> -t).
+            curve, window = _reversed(curve), (-window[1], -window[0])
         coords = [_coords(s, curve, window, full, tol) for s in surfaces]
         pairs = [(c, box[i]) for cs, box in zip(coords, boxes) for i, c in enumerate(cs)]
         if isinstance(curve, Line):

@@ -128,6 +128,49 @@ def test_steinmetz_branches_meet_at_the_singular_points():
     assert sorted(planes) == [-1.0, -1.0, 1.0, 1.0]
 
 
+@pytest.mark.parametrize("angle", [PI / 2, PI / 3])
+@pytest.mark.parametrize("seam", [0.0, PI / 2])
+def test_equal_crossing_cylinders_are_two_exact_ellipses_cut_at_the_singular_points(angle, seam):
+    # Equal radii, axes meeting at the origin at any angle: (p·Z_a)² = (p·Z_b)², so the intersection is the
+    # sections of either cylinder by the bisecting planes p·(Z_a ∓ Z_b) = 0, two ellipses crossing at
+    # ±R Z_a × Z_b / |Z_a × Z_b|.  intersect_surfaces gives them exactly (no marching), cut at those points
+    # (where n_a × n_b flips) into arcs each running along n_a × n_b.
+    from coons.kernel.analytic import Ellipse
+    from coons.kernel.intersect import _normals, intersect_surfaces
+
+    R = 1.5
+    Zb = np.array([math.sin(angle), 0.0, math.cos(angle)])
+    a = CylindricalSurface([0, 0, 0], [0, 0, 1], [math.cos(seam), math.sin(seam), 0], R)
+    b = CylindricalSurface([0, 0, 0], Zb, [0, 1, 0], R)
+    box = ((seam, seam + 2 * PI), (-6, 6))
+    r = intersect_surfaces(a, b, box, ((0, 2 * PI), (-6, 6)))
+    _check_branches(r, a, b, box, ((0, 2 * PI), (-6, 6)))
+    assert all(isinstance(c.curve, Ellipse) for c in r.curves)
+    singular = np.array([[0.0, R, 0.0], [0.0, -R, 0.0]])
+    ends = np.concatenate([c.curve.evaluate([c.t0, c.t1]) for c in r.curves])
+    touching = np.linalg.norm(ends[:, None] - singular[None], axis=2).min(axis=1) <= TOL.linear
+    # Four arcs between the singular points; a box seam through an arc cuts it in two.
+    assert int(touching.sum()) == 8 and len(r.curves) == 4 + int((~touching).sum()) // 2
+    for c in r.curves:
+        t = np.linspace(c.t0, c.t1, 9)[1:-1]
+        D = c.curve.derivatives(t, 1)
+        P, T = D[:, 0], D[:, 1]
+        # Each arc lies in one bisecting plane and runs along n_a × n_b.
+        off = np.abs(np.stack([P @ (np.array([0, 0, 1]) - Zb), P @ (np.array([0, 0, 1]) + Zb)])).min(axis=0)
+        assert off.max() <= 1e-9
+        assert np.all(np.einsum("ij,ij->i", np.cross(_normals(a, P), _normals(b, P)), T) > 0)
+    length = sum(float(np.sum(np.linalg.norm(np.diff(c.curve.evaluate(np.linspace(c.t0, c.t1, 2001)), axis=0), axis=1)))
+                 for c in r.curves)
+    # The two ellipses: semi-axes R and R / cos(θ/2), R / sin(θ/2) (θ the angle of the axes).
+    from scipy.special import ellipe
+
+    def perimeter(major):
+        return 4 * major * ellipe(1 - (R / major) ** 2)
+
+    expected = perimeter(R / math.cos(angle / 2)) + perimeter(R / math.sin(angle / 2))
+    np.testing.assert_allclose(length, expected, rtol=1e-5)
+
+
 def test_steinmetz_with_a_seam_away_from_the_singular_points():
     other = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 1.0)
     box_a, box_b = ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2))

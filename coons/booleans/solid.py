@@ -192,6 +192,11 @@ Status and limitations
   lemniscate with its two lobes meeting there) it is not a manifold and raises at ``"sew"``
   with the point and the number of fans, as the polyhedral Booleans do (OCCT returns the
   pinched solid).
+* Singular intersection curves other than the equal cylinders' ellipses are marched and raise
+  a ``BooleanError`` (at ``"split"`` or ``"intersect"``) in configurations found failing:
+  cylinders of different radii touching at a point (the thin one internally tangent to the
+  thick one, a double point of their quartic), and equal cylinders whose axes pass within about
+  ``1e-4`` of each other but farther than ``tol.linear`` (two near-touching branches).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

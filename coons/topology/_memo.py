@@ -21,7 +21,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-__all__ = ["IdentityMemo", "clear_all", "is_value", "read_only"]
+__all__ = ["IdentityMemo", "clear_all", "is_value", "pool_positions", "read_only"]
 
 _VALUE_TYPES: dict[type, bool] = {}
 #: Every memo made, so that :func:`clear_all` (benchmarks, tests comparing warm and cold runs)
@@ -127,8 +127,8 @@ class IdentityMemo:
 _MISSING = object()
 
 
-#: B-rep -> ``{pool name: (sorted ids, their positions)}`` of the value objects of its geometry
-#: pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`).
+#: B-rep -> ``{pool name: (ids in pool order, sorted ids of the value objects, their positions)}`` of
+#: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`).
 _POOL_IDS = IdentityMemo()
 #: B-rep -> ``{(pool name, id(donor)): (weak reference to the donor, positions)}``: what
 #: :func:`pool_positions` found, shared by the checker and the mass tables of one B-rep.

@@ -562,8 +562,8 @@ def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: 
     """The coedges (p-curve ``pi``, curve ``ci``, surface ``si``, edge ``e``) measured before:
     their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``.
 
-    First those measured in the last B-rep checked (:data:`_MEASURED`, a Boolean's operand for
-    its result), found for all coedges at once by their objects' positions in that B-rep's pools
+    First those measured in the donor B-rep (:func:`_donor`: a Boolean's operand for its
+    result), found for all coedges at once by their objects' positions in that B-rep's pools
     (:func:`~coons.topology._memo.pool_positions`, values only) and their edge range; then the
     others in :data:`_SAME_PARAMETER`, coedge by coedge.  Both hold the same measurements (of the
     same five immutable values).
@@ -680,11 +680,11 @@ def _lookup(keys: np.ndarray, r0: np.ndarray, r1: np.ndarray, key: np.ndarray, r
 
 def _edge_ends(b: BRep, edges: np.ndarray) -> np.ndarray:
     """The edges' curves (their chords where they have none) at the ends of their ranges, ``(k, 2, 3)``:
-    those of edges with the same curve and range in the B-rep measured last (:data:`_MEASURED`)
-    gathered in one pass, the others evaluated (:func:`_edge_samples`).  The curve's end points are
+    those of edges with the same curve and range in the donor B-rep (:func:`_donor`, measured with
+    at least two samples) gathered in one pass, the others evaluated (:func:`_edge_samples`).  The curve's end points are
     a function of the curve and the range alone."""
     donor, rec = _donor(b)
-    if rec is None or not rec.edge_key.size:
+    if rec is None or rec.samples < 2 or not rec.edge_key.size:  # (one sample is the start point only)
         return _edge_samples(b, 2, edges)[1]
     ci = b.edge_curve[edges]
     key = np.append(pool_positions(b, donor, "curves"), -1)[ci]

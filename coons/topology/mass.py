@@ -8,8 +8,8 @@ control nets).  Everything is computed from the B-rep's own geometry: nothing is
 tessellated, and no quantity depends on a deflection.  Results are cached per B-rep (B-reps
 are immutable); the coefficient rows of each surface and p-curve are remembered per object
 (they depend on it alone), so B-reps sharing geometry (a Boolean's result and its operands)
-build their tables without reading every object again; the rows shared with the B-rep tabled
-last are taken from its tables in one gather (``_DONOR``, :func:`~coons.topology._memo.pool_positions`).  The module does not compute properties of open shells or
+build their tables without reading every object again; the rows shared with the last sewn B-rep
+tabled (else the last tabled) are taken from its tables in one gather (``_DONOR``, :func:`~coons.topology._memo.pool_positions`).  The module does not compute properties of open shells or
 lower-dimensional sets (curve lengths, wire centroids), does not weight by density, and does
 not repair orientation (an inside-out B-rep has negative volume).  Faces must lie on planes
 (implicit or :class:`PlanarSurface`), the analytic surfaces of :mod:`coons.kernel.analytic`

@@ -895,8 +895,13 @@ def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monk
     monkeypatch.setattr(check_module, "_cached_samples", spy)
     check_module._SAME_PARAMETER.clear()  # only the carried rows remain
     edges = np.flatnonzero(two.brep.edge_curve >= 0)
+    evaluated = []
+    real_samples = check_module._edge_samples
+    monkeypatch.setattr(check_module, "_edge_samples",
+                        lambda b, n, e: (evaluated.append(e.size), real_samples(b, n, e))[1])
     ends = check_module._edge_ends(two.brep, edges)  # the curve ends, most carried
-    np.testing.assert_array_equal(ends, check_module._edge_samples(two.brep, 2, edges)[1])
+    assert 0 < sum(evaluated) < edges.size  # the new hole's edges are evaluated, the others carried
+    np.testing.assert_array_equal(ends, real_samples(two.brep, 2, edges)[1])
     warm = _check_geometry(two.brep, T, 9, out := [])
     n, hits = found[-1]
     assert 0 < hits < n  # the new hole's coedges are measured
@@ -905,6 +910,46 @@ def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monk
     assert found[-1][1] == 0
     assert out == out_cold == []
     for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
+
+
+def test_a_check_with_one_sample_does_not_poison_the_next_check():
+    # One sample is the curve's start only: the ends recorded by such a check must not stand for the
+    # curve ends of the next B-rep checked (a Boolean's result sharing its edges).
+    from coons.topology import _memo
+
+    _memo.clear_all()
+    one = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
+    two = one - Cylinder(1.0, 10.0).translate((-4.0, 0.0, -3.0))
+    assert check(one).ok
+    check(one, samples=1)
+    warm = check(two)
+    _memo.clear_all()
+    cold = check(two)
+    assert cold.ok and warm.ok, [p.message for p in warm.problems]
+
+
+def test_mass_tables_gathered_from_the_operand_equal_cold_ones():
+    from coons.topology import _memo, mass
+
+    _memo.clear_all()
+    one = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
+    two = one - Cylinder(1.0, 10.0).translate((-4.0, 0.0, -3.0))
+    _memo.clear_all()  # (the Boolean tabled its result while checking it)
+    mass._CACHE.clear()
+    mass._DONOR[:] = [None, None]
+    mass._tables(one.brep)
+    assert mass._DONOR[1]() is one.brep  # the last tabled: the donor of the next
+    shared = [int((mass.pool_positions(two.brep, one.brep, name) >= 0).sum()) for name in ("surfaces", "pcurves")]
+    assert min(shared) > 0
+    warm = mass._tables(two.brep)
+    _memo.clear_all()
+    mass._CACHE.clear()
+    mass._DONOR[:] = [None, None]
+    cold = mass._tables(two.brep)
+    assert warm is not cold
+    for name in ("surface_code", "surface_rows", "flat_nurbs", "has_planes", "curved_edge", "implicit_curved",
+                 "pcurve_shape", "pcurve_coef"):
         np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
 
 

@@ -876,20 +876,20 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
-    from coons.kernel.analytic import ConicalSurface, CylindricalSurface
-
-    todo: dict[int, tuple[list[EdgeSpec], object]] = {}
+    # A loop is its surface and every use (what _cached_loop checks), not its first use alone.
+    todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
     parts_of = []
     for spec in specs:
         S = spec.surface
         parts = [_cached_loop(loop, S, t) for loop in spec.loops]
         for loop, ld in zip(spec.loops, parts):
             if ld is None:
-                todo.setdefault(id(loop[0]), (loop, S))
+                todo.setdefault((id(S),) + tuple(map(id, loop)), (loop, S))
         parts_of.append(parts)
     if todo:
-        made = {id(loop[0]): ld for (loop, _), ld in zip(todo.values(), _new_loop_data(list(todo.values()), t))}
-        parts_of = [[made[id(loop[0])] if ld is None else ld for loop, ld in zip(spec.loops, parts)]
+        made = dict(zip(todo, _new_loop_data(list(todo.values()), t)))
+        parts_of = [[made[(id(spec.surface),) + tuple(map(id, loop))] if ld is None else ld
+                     for loop, ld in zip(spec.loops, parts)]
                     for spec, parts in zip(specs, parts_of)]
     lds = [ld for parts in parts_of for ld in parts]
     first = np.cumsum([0] + [len(parts) for parts in parts_of[:-1]])
@@ -919,8 +919,8 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
         if no_box[k]:
             continue
         S = spec.surface
-        if isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface)):
-            continue  # (no interior extremes: the test's own first case, without the call)
+        if _no_interior_extremes(S):
+            continue  # (without the call)
         P = _interior_extremes(S, (P_lo[k][0], P_hi[k][0]), (P_lo[k][1], P_hi[k][1]))
         if P is None:
             no_box_k.append(k)
@@ -956,6 +956,14 @@ _NAN_BOX = np.full((2, 3), np.nan)
 _ANGLE_SLACK = 1e-12
 
 
+def _no_interior_extremes(S) -> bool:
+    """Whether no coordinate of ``S`` has a critical point inside a face (planes, cylinders, cones: a
+    coordinate is affine along a ruling, see :func:`_new_face_data`)."""
+    from coons.kernel.analytic import ConicalSurface, CylindricalSurface
+
+    return isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface))
+
+
 def _interior_extremes(S, ub: tuple[float, float], vb: tuple[float, float]) -> np.ndarray | None:
     """Points ``(k, 3)`` of ``S`` whose box, joined with the box of the face's boundary, contains
     every point of ``S`` over a face whose parameter region lies in ``ub × vb``; None for a
@@ -972,10 +980,10 @@ def _interior_extremes(S, ub: tuple[float, float], vb: tuple[float, float]) -> n
     the control points of the spans meeting ``ub × vb`` (the local convex hull property of
     NURBS surfaces, whose weights are positive; The NURBS Book §4.4).
     """
-    from coons.kernel.analytic import ConicalSurface, CylindricalSurface, SphericalSurface, ToroidalSurface
+    from coons.kernel.analytic import SphericalSurface, ToroidalSurface
     from coons.kernel.surface import NurbsSurface
 
-    if isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface)):
+    if _no_interior_extremes(S):
         return np.zeros((0, 3))
     if isinstance(S, NurbsSurface):
         nu, nv = S.shape
@@ -1630,40 +1638,14 @@ def _straight_data(X: _Operand, f: int, t: Tolerance) -> tuple | None:
     """
     d = X._data[f]
     if d.straight is None:
-        from coons.kernel.analytic import CylindricalSurface
-
-        d.straight = False
-        spec = X.specs[f]
-        S = spec.surface
-        if isinstance(S, PlanarSurface):
-            speed = (1.0, 1.0)  # the plane's frame is orthonormal
-        elif isinstance(S, CylindricalSurface):
-            speed = (float(S.radius), 1.0)
-        else:
-            return None
-        for loop in spec.loops:
-            for e in loop:
-                if not isinstance(e.pcurve, Line2D) or (e.tol or 0.0) > t.linear:
-                    return None
-        sp = np.array(speed)
-        seg = d.seg
-        A = seg[:, 0] * sp
-        E = seg[:, 1] * sp - A
-        largest = float(np.max(np.abs(A)))
-        L = np.hypot(E[:, 0], E[:, 1])
-        side = L > 0.0  # a closed loop repeats each vertex as a zero-length segment: it is a vertex
-        A, E, L = A[side], E[side], L[side]
-        if L.size == 0:
-            return None
-        V = np.concatenate([A, A + E])
-        d.straight = tuple(_frozen(x) for x in (sp, A, E, L, L * L, V)) + (
-            largest, list(zip(A.tolist(), E.tolist(), L.tolist(), (L * L).tolist())), 1.0 + float(np.max(np.abs(V))))
+        _prefill_straight(X, [f], t)
     return d.straight or None
 
 
 def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
     """:func:`_straight_data` of the faces ``faces`` of X not computed yet, in one array pass over
-    their segments (the walls of a hundred holes), with its expressions face by face."""
+    their segments (the walls of a hundred holes): the sides of each face are rows of the
+    stacked arrays (read-only views), reduced per face."""
     from coons.kernel.analytic import CylindricalSurface
 
     todo, speeds = [], []
@@ -1685,8 +1667,8 @@ def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
             continue
         todo.append(f)
         speeds.append(speed)
-    if len(todo) < 2:
-        return  # (one face: _straight_data itself)
+    if not todo:
+        return
     counts = [X._data[f].seg.shape[0] for f in todo]
     first = np.cumsum([0] + counts[:-1])
     seg = np.concatenate([X._data[f].seg for f in todo])
@@ -3075,17 +3057,15 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         r = np.asarray(rows)
         lo, hi = Y.seg_lo[j], Y.seg_hi[j]
         q, mr = uv_y[r][:, None, :], m[r][:, None, :]
-        boxes = _loop_boxes(Y._data[j])
-        if boxes is not None:
-            # Only the segments of loops whose box comes near a point (a plate's face of many holes).
-            first, llo, lhi = boxes
-            hit = np.any(np.all((q >= llo[None] - mr) & (q <= lhi[None] + mr), axis=2), axis=0)
-            loops = np.flatnonzero(hit)
-            if loops.size == 0:
-                continue
-            ends = np.append(first, lo.shape[0])
-            seg = np.concatenate([np.arange(ends[k], ends[k + 1]) for k in loops.tolist()])
-            lo, hi = lo[seg], hi[seg]
+        # Only the segments of loops whose box comes near a point (a plate's face of many holes).
+        first, llo, lhi = _loop_boxes(Y._data[j])
+        hit = np.any(np.all((q >= llo[None] - mr) & (q <= lhi[None] + mr), axis=2), axis=0)
+        loops = np.flatnonzero(hit)
+        if loops.size == 0:
+            continue
+        ends = np.append(first, lo.shape[0])
+        seg = np.concatenate([np.arange(ends[k], ends[k + 1]) for k in loops.tolist()])
+        lo, hi = lo[seg], hi[seg]
         near = np.any(np.all((q >= lo[None] - mr) & (q <= hi[None] + mr), axis=2), axis=1)
         ok[r[near]] = False
     return ok, cos
@@ -3922,7 +3902,8 @@ def _prefill_uv_extents(faces: list[FaceSpec]) -> None:
     uses = [e for f in todo for loop in f.loops for e in loop]
     lo = np.empty((len(uses), 2))
     hi = np.empty((len(uses), 2))
-    kinds = [type(e.pcurve) for e in uses]
+    kinds = [Line2D if isinstance(e.pcurve, Line2D) else Trig2D if isinstance(e.pcurve, Trig2D) else None
+             for e in uses]  # (as _uses_uv tells them apart)
     for kind, k in ((Line2D, 2), (Trig2D, 5)):
         rows = [i for i, c in enumerate(kinds) if c is kind]
         if rows:
@@ -3931,7 +3912,7 @@ def _prefill_uv_extents(faces: list[FaceSpec]) -> None:
             U = curve_derivatives([uses[i].pcurve for i in rows], T, 0, 2)[:, :, 0]
             lo[rows], hi[rows] = U.min(axis=1), U.max(axis=1)
     for i, c in enumerate(kinds):
-        if c is not Line2D and c is not Trig2D:
+        if c is None:
             U = _edge_uv(uses[i], None, 5)
             lo[i], hi[i] = U.min(axis=0), U.max(axis=0)
     first = np.cumsum([0] + [sum(len(loop) for loop in f.loops) for f in todo[:-1]])

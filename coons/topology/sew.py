@@ -36,8 +36,8 @@ meet, which edges are shared — is recovered from geometry:
 :func:`face_specs` is the inverse: the face specifications of an existing B-rep (used by the
 round-trip tests and by anything that re-sews modified faces).  It checks each edge once and
 makes the specs with the private ``EdgeSpec._trusted`` / ``FaceSpec._trusted`` constructors
-(no per-use re-validation); so do the Booleans for the pieces of a face split from validated
-parts.  Those constructors take only fields that validation would leave unchanged.
+(no per-use re-validation); so does the Booleans' chord split (``solid._split_chords``) for the
+pieces of a face cut by straight chords, built from validated parts.  Those constructors take only fields that validation would leave unchanged.
 
 The module does not split or trim faces, does not close gaps larger than the tolerance, does
 not reorient inconsistently oriented faces and does not merge coincident faces: any such input

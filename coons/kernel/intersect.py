@@ -489,6 +489,11 @@ def _parallel_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Toler
     return _Exact(tuple(_Candidate(Line(a.origin + x * e + sgn * y * f, Z), uniform=True) for sgn in (1.0, -1.0)))
 
 
+#: Largest radius difference plus axis distance, in ``tol.linear``, that :func:`_equal_cylinders` takes as
+#: equal cylinders with meeting axes (a quarter: the fitted p-curves on ``b`` get half of ``tol.linear``).
+_EQUAL_CYLINDERS_GAP = 0.25
+
+
 def _equal_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Tolerance) -> _Exact | None:
     """Two cylinders of equal radius whose axes cross: two ellipses, crossing at two singular points.
 
@@ -496,20 +501,20 @@ def _equal_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Toleranc
     gives ``(p·Z_a)² = (p·Z_b)²``: the intersection is the union of the plane sections of cylinder
     ``a`` by the bisecting planes ``p·(Z_a ∓ Z_b) = 0`` (ellipses, exact), which cross at the two
     points ``±R (Z_a × Z_b)/|Z_a × Z_b|`` where the surfaces touch (one of the degenerate pairs of
-    Miller & Goldman whose intersection is two conics).  None when the radii differ by more than
-    ``tol.linear``, the axes are parallel or do not meet within ``tol.linear`` (the general method).
+    Miller & Goldman whose intersection is two conics).  None (the general method) when the axes are
+    parallel, or when the radii's difference plus the axes' distance exceeds
+    :data:`_EQUAL_CYLINDERS_GAP` ``tol.linear``: the ellipses lie on ``a`` and within that gap of ``b``,
+    and ``b``'s p-curves are fitted to half of ``tol.linear``.
     """
     Za, Zb, R = a.axis, b.axis, a.radius
-    if abs(a.radius - b.radius) > tol.linear:
-        return None
     k = np.cross(Za, Zb)
     sk = float(np.linalg.norm(k))
     if sk <= tol.angular:
         return None
     k = k / sk
     w = b.origin - a.origin
-    if abs(float(w @ k)) > tol.linear:
-        return None  # skew axes
+    if abs(a.radius - b.radius) + abs(float(w @ k)) > _EQUAL_CYLINDERS_GAP * tol.linear:
+        return None  # different radii or skew axes
     # Where the axes meet: a.origin + s Za = b.origin + r Zb (in the plane of both axes).
     c = float(Za @ Zb)
     s_ = (float(w @ Za) - c * float(w @ Zb)) / (1.0 - c * c)
@@ -713,8 +718,8 @@ def _sample_parameters(curve) -> np.ndarray:
 
 def _oriented(cand: _Candidate, a, b, tol: Tolerance) -> Any:
     """The candidate's curve, reversed if needed so that it runs along ``n_a × n_b`` (transversal branches)."""
-    if cand.tangent:
-        return cand.curve
+    if cand.tangent or cand.singular:
+        return cand.curve  # (a curve with singular points is oriented window by window in _branches)
     if cand.uniform:
         along = _uniform_side(cand.curve, a, b, tol)
         if along is not None:

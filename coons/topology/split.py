@@ -206,8 +206,10 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
     weakref.WeakKeyDictionary()
 
 
-#: Per-face cache and the skip of exact crossings in :func:`_in_space` on (tests switch them off to
-#: compare with the general path).
+#: The fast paths on: the per-face cache, the skip of exact crossings in :func:`_in_space`, the
+#: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
+#: proof (:func:`_end_contact_only`) and the span-polynomial evaluation (:func:`_pc_derivatives`);
+#: tests switch them off to compare with the general path.
 _FAST = True
 
 
@@ -680,8 +682,10 @@ def _convex_ends(sides: tuple[np.ndarray, np.ndarray], pc: Any, lo: float, hi: f
     ``t`` on (heads) or up to ``t`` (tails) and ``g_side`` increasing before (decreasing after); None where
     the control points do not prove that shape (see :func:`_convex_clip`).
 
-    The non-deep control points of one side must not be non-deep for another (no corner): the curve
-    then keeps the clearance from every other side wherever it comes near one.
+    No control point may be non-deep for two sides.  That alone does not keep the curve off a
+    corner (one side's head and another's tail may share a knot span): :func:`_convex_clip` tests
+    the other sides' clearance at each crossing it finds, and :func:`_convex_contacts` reads each
+    side's monotone head or tail on its own.
     """
     if type(pc) is not NurbsCurve or pc.dimension != 2 or pc.is_rational:
         return None

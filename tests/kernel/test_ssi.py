@@ -171,6 +171,30 @@ def test_equal_crossing_cylinders_are_two_exact_ellipses_cut_at_the_singular_poi
     np.testing.assert_allclose(length, expected, rtol=1e-5)
 
 
+@pytest.mark.parametrize("gap", [0.0, 0.1, 0.9])
+def test_nearly_equal_cylinders_with_axes_meeting_off_their_origins(gap):
+    # The axes meet at (1, 2, 3), away from both origins; radii differing by a fraction of tol.linear: exact
+    # ellipses up to a quarter of it (ending at the singular points or a seam), the marching beyond (whose
+    # p-curve fits raised while the exact path took up to a whole tol.linear); all on both cylinders.
+    from coons.kernel.analytic import Ellipse
+    from coons.kernel.intersect import intersect_surfaces
+
+    C = np.array([1.0, 2.0, 3.0])
+    Za, Zb = np.array([0.0, 0.0, 1.0]), np.array([0.6, 0.0, 0.8])
+    a = CylindricalSurface(C - 4 * Za, Za, [1, 0, 0], 1.5)
+    b = CylindricalSurface(C + 2 * Zb, Zb, [0, 1, 0], 1.5 + gap * TOL.linear)
+    boxes = ((0, 2 * PI), (-3, 11)), ((0, 2 * PI), (-8, 6))
+    r = intersect_surfaces(a, b, *boxes)
+    _check_branches(r, a, b, *boxes)
+    exact = gap < 0.25
+    assert r.curves and all(isinstance(c.curve, Ellipse) for c in r.curves) == exact
+    if exact:  # (beyond, the singular points split into two near-touching loops)
+        ends = np.concatenate([c.curve.evaluate([c.t0, c.t1]) for c in r.curves])
+        singular = C + np.array([[0.0, 1.5, 0.0], [0.0, -1.5, 0.0]])
+        touching = np.linalg.norm(ends[:, None] - singular[None], axis=2).min(axis=1) <= 10 * TOL.linear
+        assert int(touching.sum()) == 8  # four arcs between the singular points (seams cut some of them)
+
+
 def test_steinmetz_with_a_seam_away_from_the_singular_points():
     other = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], 1.0)
     box_a, box_b = ((0, 2 * PI), (-2, 2)), ((0, 2 * PI), (-2, 2))

@@ -675,6 +675,22 @@ def _innermost_crossing(items: list[tuple[int, float]], pc: Any, sides: tuple[np
     return best, which
 
 
+def _acting(pc: NurbsCurve, lo: float, hi: float) -> tuple[int, np.ndarray]:
+    """``(i0, P)``: the index of the first control point of ``pc`` whose B-spline acts on ``[lo, hi]`` and
+    those control points ``(m, dim)`` (the spline's coefficients there; The NURBS Book §2.2)."""
+    U, p, P = pc.knots, pc.degree, pc.control_points
+    i0 = max(int(np.searchsorted(U, lo, "right")) - 1 - p, 0)
+    i1 = min(int(np.searchsorted(U, hi, "left")) - 1, P.shape[0] - 1)
+    return i0, P[i0:i1 + 1]
+
+
+def _rising(g: np.ndarray, J: int, p: int) -> bool:
+    """Whether the spline coefficients ``g`` increase strictly up to ``p`` past index ``J``: the spline of
+    degree ``p`` then increases on every knot span touching ``g[:J]`` (its derivative's coefficients are the
+    differences, The NURBS Book eq. 3.4)."""
+    return bool(np.all(np.diff(g[:min(J + p, g.size - 1) + 1]) > 0.0))
+
+
 def _convex_ends(sides: tuple[np.ndarray, np.ndarray], pc: Any, lo: float, hi: float, plane: _Plane
                  ) -> tuple[list[tuple[int, float]], list[tuple[int, float]]] | None:
     """The sides a polynomial 2-D NURBS ``pc([lo, hi])`` comes near at its head and at its tail, on a convex face
@@ -690,13 +706,11 @@ def _convex_ends(sides: tuple[np.ndarray, np.ndarray], pc: Any, lo: float, hi: f
     if type(pc) is not NurbsCurve or pc.dimension != 2 or pc.is_rational:
         return None
     O, N = sides
-    U, p, P = pc.knots, pc.degree, pc.control_points
-    n = P.shape[0]
-    i0 = max(int(np.searchsorted(U, lo, "right")) - 1 - p, 0)
-    i1 = min(int(np.searchsorted(U, hi, "left")) - 1, n - 1)
-    if i1 - i0 < 1:
+    U, p = pc.knots, pc.degree
+    i0, P = _acting(pc, lo, hi)
+    if P.shape[0] < 2:
         return None
-    G = np.einsum("kj,mkj->mk", N, P[i0:i1 + 1, None, :] - O[None])  # (m, k) coefficients of g_k
+    G = np.einsum("kj,mkj->mk", N, P[:, None, :] - O[None])  # (m, k) coefficients of g_k
     clear = _CONVEX_CLEARANCE * plane.eps
     deep = G > clear
     if np.any(np.count_nonzero(~deep, axis=1) > 1):
@@ -712,11 +726,11 @@ def _convex_ends(sides: tuple[np.ndarray, np.ndarray], pc: Any, lo: float, hi: f
             return None  # no knot span with deep control points only
         g = G[:, k]
         if J > 0:
-            if not np.all(np.diff(g[:min(J + p, M - 1) + 1]) > 0):
+            if not _rising(g, J, p):
                 return None
             heads.append((k, min(float(U[i0 + J + p]), hi)))
         if K < M - 1:
-            if not np.all(np.diff(g[max(K - p, 0):]) < 0):
+            if not _rising(g[::-1], M - 1 - K, p):
                 return None
             tails.append((k, max(float(U[i0 + K + 1]), lo)))
     return heads, tails
@@ -954,17 +968,13 @@ def _end_contact_only(c: _Piece, o: _Piece, plane: _Plane) -> bool:
     clear = _CONVEX_CLEARANCE * eps  # > eps / 2 >= |h|: deep control points are off the band
     for pc, r, e, sign, E, speed, nn in ((c.pc, rc, ic, sign_c, Ec, lc, n), (o.pc, ro, io, sign_o, Eo, lo_, -n)):
         lo, hi = min(r), max(r)
-        U, p, P = pc.knots, pc.degree, pc.control_points
-        i0 = max(int(np.searchsorted(U, lo, "right")) - 1 - p, 0)
-        i1 = min(int(np.searchsorted(U, hi, "left")) - 1, P.shape[0] - 1)
-        G = (P[i0:i1 + 1] - M) @ nn  # coefficients of g (oriented to grow into this piece) acting on [lo, hi]
+        G = (_acting(pc, lo, hi)[1] - M) @ nn  # coefficients of g (oriented to grow into this piece) on [lo, hi]
         if sign < 0.0:
             G = G[::-1]  # from the shared end on
         # Past the last control point within the clearance g stays above it (convex hull); up to p past it the
         # coefficients must increase strictly, so that g increases on every span touching the head.
         shallow = np.flatnonzero(G <= clear)
-        J = int(shallow[-1]) + 1 if shallow.size else 0
-        if not np.all(np.diff(G[:min(J + p, G.size - 1) + 1]) > 0.0):
+        if not _rising(G, int(shallow[-1]) + 1 if shallow.size else 0, pc.degree):
             return False
         if h < 0.0:
             # g <= -h only up to about eps of arc from the end: the band holds no point farther off.

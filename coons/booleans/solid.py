@@ -195,8 +195,9 @@ Status and limitations
 * Singular intersection curves other than the equal cylinders' ellipses are marched and raise
   a ``BooleanError`` (at ``"split"`` or ``"intersect"``) in configurations found failing:
   cylinders of different radii touching at a point (the thin one internally tangent to the
-  thick one, a double point of their quartic), and equal cylinders whose axes pass within about
-  ``1e-4`` of each other but farther than ``tol.linear`` (two near-touching branches).
+  thick one, a double point of their quartic), and nearly equal cylinders (radii and axes off by
+  more than a quarter of ``tol.linear``, ``kernel.intersect._EQUAL_CYLINDERS_GAP``, so marched)
+  whose axes pass about ``1e-4`` apart (two near-touching branches).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
@@ -650,7 +651,7 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     if got is not None and got[0] is S:
         return got[1]
     Ue = _frozen(_edge_uv(e, S, _LOOP_SAMPLES))
-    _USE_SAMPLES[e] = (S, Ue)
+    _USE_SAMPLES[e] = (S, Ue, None)  # (the pad on demand, :func:`_use_pad`)
     return Ue
 
 
@@ -689,14 +690,15 @@ def _use_pad(e: EdgeSpec, S) -> float:
     if got is None or got[0] is not S:
         _use_samples(e, S)
         got = _USE_SAMPLES[e]
-    if len(got) == 2:
+    if got[2] is None:
         Ue = got[1]
         pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
         got = _USE_SAMPLES[e] = (S, Ue, pad)
     return got[2]
 
 
-#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface[, their pad (:func:`_use_pad`)]).
+#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface, their pad (:func:`_use_pad`) or None
+#: until asked for).
 _USE_SAMPLES: "weakref.WeakKeyDictionary[EdgeSpec, tuple]" = weakref.WeakKeyDictionary()
 
 
@@ -914,7 +916,6 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     U = np.array([(ub[0], vb[0], ub[1], vb[1]) for ub, vb in uv_box]).reshape(-1, 4)
     P_lo = np.minimum(U[:, :2], G).tolist()
     P_hi = np.maximum(U[:, 2:], Gx).tolist()
-    no_box_k = []
     for k, spec in enumerate(specs):
         if no_box[k]:
             continue
@@ -923,12 +924,10 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
             continue  # (without the call)
         P = _interior_extremes(S, (P_lo[k][0], P_hi[k][0]), (P_lo[k][1], P_hi[k][1]))
         if P is None:
-            no_box_k.append(k)
+            no_box[k] = True
         elif P.shape[0]:
             lo[k], hi[k] = np.minimum(lo[k], P.min(axis=0)), np.maximum(hi[k], P.max(axis=0))
     boxes = _frozen(np.stack([lo - pad[:, None], hi + pad[:, None]], axis=1))
-    for k in no_box_k:
-        no_box[k] = True
     out = []
     for k, (spec, parts) in enumerate(zip(specs, parts_of)):
         d = _FaceData()
@@ -2099,7 +2098,6 @@ def _end_sines(curve, P: np.ndarray, T: np.ndarray, lo_t: float, hi_t: float, re
 def _edge_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     """Proven boxes ``(2, 3)`` around the uses' curves over their ranges (lines, conics and NURBS,
     together by :func:`~coons.kernel.curve_intersect.curve_boxes`), None for other curve types."""
-    from coons.kernel.analytic import Circle, Ellipse, Line
     from coons.kernel.curve import NurbsCurve
     from coons.kernel.curve_intersect import curve_boxes
 

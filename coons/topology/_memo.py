@@ -44,8 +44,7 @@ def read_only(a: np.ndarray) -> np.ndarray:
 def is_value(obj: Any) -> bool:
     """Whether ``obj`` is an immutable value: an instance of a frozen dataclass (every curve, p-curve,
     surface and face spec of coons), so that what is computed from it alone may be remembered."""
-    got = _VALUE_TYPES.get(type(obj))
-    return _value_type(type(obj)) if got is None else got
+    return _value_type(type(obj))
 
 
 def _value_type(kind: type) -> bool:

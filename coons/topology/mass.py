@@ -1587,11 +1587,10 @@ def _hull(obj) -> tuple[np.ndarray, np.ndarray] | None:
     """A box ``(lo, hi)`` containing the whole curve or surface ``obj`` (NURBS: its control points, by the
     convex hull property with positive weights; spheres and tori: closed form), None for other types."""
     if isinstance(obj, (NurbsCurve, NurbsSurface)):
-        P = np.asarray(obj.control_points, dtype=np.float64)
-        if P.shape[-1] != 3:
+        if obj.dimension != 3:
             return None
-        P = P.reshape(-1, 3)
-        return P.min(axis=0), P.max(axis=0)
+        lo, hi = obj.bounding_box()  # (the control points' box)
+        return lo, hi
     if isinstance(obj, SphericalSurface):
         r = float(obj.radius)
     elif isinstance(obj, ToroidalSurface):

@@ -170,6 +170,12 @@ class _FaceData:
         self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
         self.convex: dict[float, tuple | None] = {}  # per eps: :func:`_convex_sides` of the boundary pieces
 
+    def sides(self, plane: _Plane, pieces: list["_Piece"]) -> tuple[np.ndarray, np.ndarray] | None:
+        """:func:`_convex_sides` of the boundary ``pieces`` (those of :meth:`pieces`), once per ``eps``."""
+        if plane.eps not in self.convex:
+            self.convex[plane.eps] = _convex_sides(pieces, plane)
+        return self.convex[plane.eps]
+
     def plane(self, cuts: Sequence[EdgeSpec]) -> _Plane:
         t = self.t
         tol3 = max([self.tol3] + [e.tol for e in cuts if e.tol is not None])
@@ -500,9 +506,7 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     pieces, region = data.pieces(plane)
     lo, hi = min(t0, t1), max(t0, t1)
     if _FAST:
-        if plane.eps not in data.convex:
-            data.convex[plane.eps] = _convex_sides(pieces, plane)
-        sides = data.convex[plane.eps]
+        sides = data.sides(plane, pieces)
         if sides is not None:
             fast = _convex_clip(sides, pieces, plane, pc, lo, hi, curve)
             if fast is not None:
@@ -779,9 +783,20 @@ def _convex_contacts(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece],
 def _side_root(pc: Any, n: np.ndarray, o: np.ndarray, a: float, b: float, plane: _Plane) -> float | None:
     """The zero of ``g(t) = n · (pc(t) - o)`` in ``[a, b]`` where ``g`` is increasing or decreasing with
     opposite signs at the ends: Newton kept in the bracket, bisection where a step leaves it
-    (None if the signs at the ends do not differ)."""
-    D = _derivs(pc, np.array([a, b]), 0)[:, 0]
-    ga, gb = float(n @ (D[0] - o)), float(n @ (D[1] - o))
+    (None if the signs at the ends do not differ).  One parameter at a time in Python floats
+    (:func:`~coons.kernel.curve_intersect._point1` of the span polynomials, where numpy's per-call
+    cost would dominate), else :func:`~coons.kernel.curve_intersect._derivs`."""
+    from coons.kernel.curve_intersect import _point1, _scalar_form
+
+    form = _scalar_form(pc)
+    nx, ny, ox, oy = float(n[0]), float(n[1]), float(o[0]), float(o[1])
+
+    def g_at(x: float, order: int) -> tuple[float, float]:
+        D = _point1(form, x, order) if form is not None else _derivs(pc, np.array([x]), order)[0].tolist()
+        g = nx * (D[0][0] - ox) + ny * (D[0][1] - oy)
+        return g, (nx * D[1][0] + ny * D[1][1] if order else 0.0)
+
+    ga, gb = g_at(a, 0)[0], g_at(b, 0)[0]
     if ga == 0.0:
         return a
     if gb == 0.0:
@@ -790,8 +805,7 @@ def _side_root(pc: Any, n: np.ndarray, o: np.ndarray, a: float, b: float, plane:
         return None
     x = a + (b - a) * ga / (ga - gb)  # the secant's root
     for _ in range(60):
-        D = _derivs(pc, np.array([x]), 1)[0]
-        g, g1 = float(n @ (D[0] - o)), float(n @ D[1])
+        g, g1 = g_at(x, 1)
         if g == 0.0:
             return x
         if (g < 0) == (ga < 0):
@@ -861,9 +875,7 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
         pieces.append(_Piece(_pcurve(plane, c, f"cuts[{i}]"), c.t0, c.t1, "cut", -1, c, [], []))
     sides = None
     if _FAST:
-        if plane.eps not in data.convex:
-            data.convex[plane.eps] = _convex_sides(pieces[:nb], plane)
-        sides = data.convex[plane.eps]
+        sides = data.sides(plane, pieces[:nb])
     _intersect_pieces(pieces, nb, plane, sides)
     _snap_cut_ends(pieces, nb, plane)
     sub = _sub_pieces(pieces, plane)

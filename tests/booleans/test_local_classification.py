@@ -113,11 +113,12 @@ def test_local_tests_on_a_face_of_many_loops_look_only_at_nearby_loops(monkeypat
     calls = []
     real = S._local_tests
     monkeypatch.setattr(S, "_local_tests", lambda cand, Y, t: calls.append((cand, Y, t)) or real(cand, Y, t))
-    # (a hole next to one of the others: the clearance test near their loops matters)
-    S.difference(plate, Cylinder(2, 20).translate((5.0, 0.0, 0.0)), method="brep")
+    # (a hole 0.1 from the one at (0, -10): the clearance test near their loops rejects candidates)
+    S.difference(plate, Cylinder(2, 20).translate((0.0, -5.9, 0.0)), method="brep")
     busy = [c for c in calls if any(len(c[1].specs[k[4]].loops) > S._LOOPS_BOXED for k in c[0])]
     assert busy
     boxed = S._LOOPS_BOXED
+    rejected = 0
     for cand, Y, t in calls:
         fast = real(cand, Y, t)
         monkeypatch.setattr(S, "_LOOPS_BOXED", 1 << 60)
@@ -125,3 +126,5 @@ def test_local_tests_on_a_face_of_many_loops_look_only_at_nearby_loops(monkeypat
         monkeypatch.setattr(S, "_LOOPS_BOXED", boxed)
         np.testing.assert_array_equal(fast[0], every[0])
         np.testing.assert_array_equal(fast[1], every[1])
+        rejected += int((~every[0]).sum())
+    assert rejected > 0  # the case the loop boxes must not lose is reached

@@ -1008,6 +1008,5 @@ def test_bounding_box_skips_only_searches_that_cannot_widen_it(make, monkeypatch
     monkeypatch.setattr(mass, "_hull", lambda obj: None)
     np.testing.assert_array_equal(pruned, mass._bounding_box(b))
     full = len(searches) - skipping
-    assert skipping <= full
     if any(isinstance(c, NurbsCurve) for c in b.curves):
         assert skipping < full

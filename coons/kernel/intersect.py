@@ -126,6 +126,18 @@ _SEARCH_SAMPLES = 512
 #: Steps of the bracketed root solver (_illinois): bisection alone would reach the spacing of doubles
 #: within 2^-64 of a bracket of at most 2π.
 _ROOT_STEPS = 64
+#: Surfaces of revolution whose longitude is the azimuth about the axis (closed-form crossings, _conic_crossings).
+_AZIMUTHAL = (CylindricalSurface, SphericalSurface, ToroidalSurface)
+#: Relative distance (to the size of the curve and its offset from the axis) below which a conic is
+#: taken to reach the axis of a surface of revolution, where its longitude is ill-conditioned: the
+#: closed-form crossings leave such roots to the sampled search.
+_AXIS_CLEARANCE = 1e-6
+#: Closed-form crossings ``cos(t - φ) = x`` with ``1 - |x|`` within this are left to the sampled search:
+#: a near-tangency, whose two roots (``2 sqrt(2 * 1e-3)`` ≈ 0.09 apart, seven grid cells) the search
+#: separates too, as it did before the closed form.
+_GRAZE = 1e-3
+#: Samples of the axis clearance's lower bound (_axis_clear).
+_CLEAR_SAMPLES = 64
 #: Largest number of interpolated samples for a NURBS p-curve before giving up.
 _MAX_FIT_SAMPLES = 4097
 #: At most this many samples are added to one interval of a p-curve fit per round.
@@ -957,6 +969,7 @@ class _Coord:
     def __init__(self, surface, curve, index: int, window: tuple[float, float], full: bool, tol: Tolerance,
                  samples: np.ndarray | None = None):
         self.surface, self.curve, self.index, self.window, self.full = surface, curve, index, window, full
+        self.tol = tol
         self.periodic = bool(surface.periodic_u if index == 0 else surface.periodic_v)
         is_line = isinstance(curve, Line)
         w0, w1 = window
@@ -1055,7 +1068,12 @@ class _Coord:
             k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
             out = (base[:, None] + TWO_PI * np.arange(k0, k1 + 1)[None, :]).ravel()
             return np.unique(out[(out > t0) & (out < t1)])
-        # No closed form: bracket sign changes on a grid, then solve all brackets at once.
+        found = _conic_crossings(self, bound, t0, t1)
+        return self._searched_crossings(bound, t0, t1) if found is None else found
+
+    def _searched_crossings(self, bound: float, t0: float, t1: float) -> np.ndarray:
+        """:meth:`crossings` of a coordinate without a closed form: bracket sign changes on a grid of
+        :data:`_SEARCH_SAMPLES`, then solve all brackets at once (:func:`_illinois`)."""
         grid = np.linspace(t0, t1, _SEARCH_SAMPLES + 1)
         f = self(grid)
         targets = self._targets(bound, float(f.min()), float(f.max()))
@@ -1069,6 +1087,97 @@ class _Coord:
     def _targets(self, bound: float, f0: float, f1: float) -> np.ndarray:
         """``bound + 2πk`` within ``[f0, f1]`` (only ``bound`` if not periodic), :func:`_target_values`."""
         return np.array(_target_values(self.periodic, bound, f0, f1), dtype=np.float64)
+
+
+def _conic_crossings(c: _Coord, bound: float, t0: float, t1: float) -> np.ndarray | None:
+    """``c.crossings(bound, t0, t1)`` of a conic's non-exact coordinate on a surface of revolution in closed
+    form, or None where it has none (then the sampled search decides).
+
+    With ``P(t) = C + a cos t X_c + b sin t Y_c`` and the surface's frame ``X, Y, Z`` at ``O``:
+
+    * The longitude of a cylinder, sphere or torus is the azimuth of ``P - O`` about ``Z`` (a cone's
+      is not: a point nearer the other nappe gets the azimuth + π).  It is ``u0`` (mod 2π) where
+      ``P`` lies in the meridian half-plane: ``(P - O)·n = 0`` with ``n = -sin u0 X + cos u0 Y``,
+      i.e. ``A cos t + B sin t = -k`` with ``A = a X_c·n``, ``B = b Y_c·n``, ``k = (C - O)·n``, so
+      ``t = φ ± arccos(-k / r)``, ``φ = atan2(B, A)``, ``r = hypot(A, B)``; the roots on the other
+      half-plane, ``(P - O)·e < 0`` with ``e = cos u0 X + sin u0 Y``, are dropped.
+    * A sphere's latitude reaches ``±π/2`` only on the axis: no crossing where the curve keeps
+      clear of it (``_axis_clear``); a bound beyond ``±π/2`` is never reached.
+
+    None where the answer is ill-conditioned, for the sampled search to decide as before: a
+    near-tangency (``|k| / r`` within :data:`_GRAZE` of 1: two close roots the grid may not
+    separate), a root within :data:`_AXIS_CLEARANCE` of the axis (a circle through a pole: the
+    longitude jumps there), a meridian plane containing the curve (``r`` at round-off), any other
+    bound of a latitude, and a root whose coordinate value does not come back to ``bound``
+    (mod 2π) within ``tol.solver``.  The roots are ordered as the sampled search orders them:
+    by the whole turn of their (unwrapped) value, then by ``t``.
+    """
+    surface, curve = c.surface, c.curve
+    if c.exact or not isinstance(curve, (Circle, Ellipse)) or not isinstance(surface, _AZIMUTHAL):
+        return None
+    O = surface._origin
+    X, Y, Z = surface._frame
+    ra, rb = curve._radii()
+    Xc, Yc, _ = curve._frame
+    C = curve._origin - O
+    scale = math.sqrt(float(C @ C)) + ra
+    if c.index == 1:
+        if type(surface) is not SphericalSurface:
+            return None
+        if abs(bound) > 0.5 * math.pi:
+            return np.zeros(0)
+        if abs(bound) == 0.5 * math.pi and _axis_clear(C, ra * Xc, rb * Yc, Z, scale):
+            return np.zeros(0)
+        return None
+    cu, su = math.cos(bound), math.sin(bound)
+    n, e = cu * Y - su * X, cu * X + su * Y
+    k, A, B = float(C @ n), ra * float(Xc @ n), rb * float(Yc @ n)
+    r = math.hypot(A, B)
+    if r <= _AXIS_CLEARANCE * scale:
+        return None
+    x = -k / r
+    if abs(x) >= 1.0:
+        return np.zeros(0) if abs(x) >= 1.0 + _GRAZE else None
+    if 1.0 - abs(x) <= _GRAZE:
+        return None
+    phi, h = math.atan2(B, A), math.acos(x)
+    lo, hi = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
+    t = np.array([phi + s * h + TWO_PI * j for j in range(lo, hi + 1) for s in (-1.0, 1.0)])
+    t = t[(t > t0) & (t < t1)]
+    if t.size == 0:
+        return t
+    P = _curve_points(curve, t) - O
+    side = P @ e
+    if np.any(np.abs(side) <= _AXIS_CLEARANCE * scale):
+        return None
+    t = t[side > 0.0]
+    if t.size == 0:
+        return t
+    # The coordinate's own values at the roots: the whole turn of each (the order of the sampled
+    # search), and a check that the closed form found what the search would.
+    f = c(t)
+    turn = np.round((f - bound) / TWO_PI)
+    if not c.periodic or np.any(np.abs(f - bound - TWO_PI * turn) > c.tol.solver * max(1.0, abs(bound), *np.abs(f))):
+        return None
+    return t[np.lexsort((t, turn))]
+
+
+def _axis_clear(C: np.ndarray, a: np.ndarray, b: np.ndarray, Z: np.ndarray, scale: float) -> bool:
+    """Whether ``P(t) = C + a cos t + b sin t`` (relative to a point of the axis ``Z``) keeps a distance above
+    ``_AXIS_CLEARANCE * scale`` from the axis: the squared distance ``q(t) = |P⊥|²`` is the trigonometric
+    polynomial ``k0 + k1 cos t + k2 sin t + k3 cos 2t + k4 sin 2t`` (``P⊥`` the part normal to ``Z``); its
+    minimum is at least its minimum on :data:`_CLEAR_SAMPLES` samples less the bound ``|q'| ≤ |k1| + |k2| +
+    2 |k3| + 2 |k4|`` times half their spacing."""
+    C, a, b = C - (C @ Z) * Z, a - (a @ Z) * Z, b - (b @ Z) * Z
+    aa, bb = float(a @ a), float(b @ b)
+    k = np.array([float(C @ C) + 0.5 * (aa + bb), 2.0 * float(C @ a), 2.0 * float(C @ b), 0.5 * (aa - bb),
+                  float(a @ b)])
+    t = np.arange(_CLEAR_SAMPLES) * (TWO_PI / _CLEAR_SAMPLES)
+    q = k[0] + k[1] * np.cos(t) + k[2] * np.sin(t) + k[3] * np.cos(2.0 * t) + k[4] * np.sin(2.0 * t)
+    slope = abs(k[1]) + abs(k[2]) + 2.0 * (abs(k[3]) + abs(k[4]))
+    low = float(q.min()) - slope * math.pi / _CLEAR_SAMPLES
+    # The products above round at ~eps * scale²: far below the clearance asked.
+    return low > (_AXIS_CLEARANCE * scale) ** 2
 
 
 def _illinois(fn, lo: np.ndarray, hi: np.ndarray, glo: np.ndarray, ghi: np.ndarray) -> np.ndarray:

@@ -1063,6 +1063,46 @@ def test_illinois_brackets_roots_to_the_spacing_of_doubles():
     np.testing.assert_allclose(root, expected, rtol=0, atol=4 * np.finfo(float).eps)
 
 
+@settings(max_examples=150, deadline=None)
+@given(kind=st.sampled_from(["cylinder", "sphere", "torus"]), q=st.tuples(*[st.floats(-1.0, 1.0)] * 4),
+       qc=st.tuples(*[st.floats(-1.0, 1.0)] * 4), centre=st.tuples(*[st.floats(-3.0, 3.0)] * 3),
+       radii=st.tuples(st.floats(0.2, 4.0), st.floats(0.2, 1.0)), ellipse=st.booleans(), bound=st.floats(-7.0, 7.0),
+       window=st.one_of(st.none(), st.tuples(st.floats(-4.0, 4.0), st.floats(0.1, 6.0))))
+def test_closed_form_crossings_are_the_searched_crossings(kind, q, qc, centre, radii, ellipse, bound, window):
+    """A conic's longitude on a cylinder, sphere or torus crosses a bound where the conic meets the meridian
+    half-plane (``_conic_crossings``, a closed form in place of the sampled search): the same roots as the
+    search to 1e-9, each a point whose azimuth is the bound to round-off, on the half-plane's side; and
+    a sphere's latitude never reaches ``±π/2`` off the axis."""
+    import coons.kernel.intersect as I
+
+    assume(np.linalg.norm(q) > 0.1 and np.linalg.norm(qc) > 0.1)
+    R, Rc = _rotation(q), _rotation(qc)
+    surface = {"cylinder": CylindricalSurface([0.1, -0.2, 0.3], R @ Z, R @ X, 2.0),
+               "sphere": SphericalSurface([0.1, -0.2, 0.3], R @ Z, R @ X, 2.0),
+               "torus": ToroidalSurface([0.1, -0.2, 0.3], R @ Z, R @ X, 3.0, 1.0)}[kind]
+    a, f = radii
+    curve = Ellipse(centre, Rc @ Z, Rc @ X, a, a * f) if ellipse and f < 0.95 else Circle(centre, Rc @ Z, Rc @ X, a)
+    full = window is None
+    w = (0.0, TWO_PI) if full else (window[0], window[0] + window[1])
+    for index, bounds in ((0, [bound]), (1, [-0.5 * math.pi, 0.5 * math.pi, 1.6])):
+        c = I._Coord(surface, curve, index, w, full, DEFAULT_TOLERANCE)
+        if c.exact:
+            continue
+        for b in bounds:
+            found = I._conic_crossings(c, b, *w)
+            if found is None:
+                continue
+            searched = c._searched_crossings(b, *w)
+            assert found.shape == searched.shape
+            np.testing.assert_allclose(found, searched, rtol=0, atol=1e-9)
+            if index == 1:
+                continue
+            L = (curve.evaluate(found) - surface._origin) @ surface._frame.T
+            angle = np.arctan2(L[:, 1], L[:, 0]) - b
+            np.testing.assert_allclose(np.sin(angle), 0.0, atol=1e-12)
+            assert np.all(np.cos(angle) > 0.0)
+
+
 _AXES = st.sampled_from([(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, 1, 0), (0.3, 0.2, 1.0), (-1.0, 2.0, 0.5)])
 
 

@@ -989,12 +989,13 @@ class _Coord:
         if self.exact and full and abs(coef[1] - round(coef[1])) <= small:
             coef[1] = round(coef[1])  # a closed curve winds a whole number of times
         self.coef = np.concatenate([coef, np.zeros(4 - len(coef))])
-        if not self.exact:
+        self.turns = 0
+        if not self.exact and self.periodic:
+            # The reference that unwraps a periodic coordinate in __call__ (a non-periodic one needs none).
             n = _SEARCH_SAMPLES
             self.grid = np.linspace(w0, w1, n + 1)
-            ref = self._raw(self.grid)
-            self.ref = np.unwrap(ref, period=TWO_PI) if self.periodic else ref
-            self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if (self.periodic and full) else 0
+            self.ref = np.unwrap(self._raw(self.grid), period=TWO_PI)
+            self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if full else 0
 
     @classmethod
     def exact_form(cls, surface, curve, index: int, window: tuple[float, float], full: bool,
@@ -1008,14 +1009,18 @@ class _Coord:
         return self
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
+        return self.surface.closest_parameters(self.curve.evaluate(self._inset(t)))[..., self.index]
+
+    def _inset(self, t: np.ndarray) -> np.ndarray:
+        """The parameters where :meth:`_raw` projects the curve: ``t`` itself, but on a periodic coordinate whose
+        window is cut at sphere poles, where the longitude is undefined, clipped a relative sqrt(eps) inside
+        the window (the limit to ~1e-8; the 3-D point does not depend on it there, and the local coordinates
+        near the pole keep ~8 significant digits)."""
         if self.periodic and not self.full:
-            # The ends of a window cut at sphere poles, where the longitude is undefined: take it
-            # a relative sqrt(eps) inside (the limit to ~1e-8; the 3-D point does not depend on it
-            # there, and the local coordinates near the pole keep ~8 significant digits).
             w0, w1 = self.window
             inset = _POLE_INSET * (w1 - w0)
-            t = np.clip(t, w0 + inset, w1 - inset)
-        return self.surface.closest_parameters(self.curve.evaluate(t))[..., self.index]
+            return np.clip(t, w0 + inset, w1 - inset)
+        return t
 
     @property
     def affine(self) -> bool:
@@ -1030,7 +1035,10 @@ class _Coord:
         if self.exact:
             o, d, al, be = self.coef
             return o + d * t + al * np.cos(t) + be * np.sin(t)
-        raw = self._raw(t)
+        return self._unwrapped(t, self._raw(t))
+
+    def _unwrapped(self, t: np.ndarray, raw: np.ndarray) -> np.ndarray:
+        """A numeric coordinate's value at ``t`` from its :meth:`_raw` projection ``raw`` there."""
         if not self.periodic:
             return raw
         w0 = self.window[0]
@@ -1249,8 +1257,22 @@ def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: 
             return Line2D([ou + du, ov + dv], [su, sv]), 0.0
         if su == 0.0 and sv == 0.0 and au * bv - av * bu != 0.0:
             return Trig2D([ou + du, ov + dv], [au, av], [bu, bv]), 0.0
-    return _fitted_pcurve(lambda t: np.stack([cu(t) + du, cv(t) + dv], axis=-1), s0, s1, surface, curve, tol,
+    return _fitted_pcurve(lambda t: _pair_values(cu, cv, t) + np.array([du, dv]), s0, s1, surface, curve, tol,
                           pointwise=True)
+
+
+def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
+    """``np.stack([cu(t), cv(t)], axis=-1)`` ``(n, 2)`` of the two coordinates of one p-curve, value for value; where
+    both are numeric and project the curve at the same parameters, from one projection (the fits' rounds
+    evaluate both at every new sample)."""
+    t = np.asarray(t, dtype=np.float64)
+    if not (cu.exact or cv.exact) and (cu.index, cv.index) == (0, 1) and cu.surface is cv.surface \
+            and cu.curve is cv.curve:
+        tu, tv = cu._inset(t), cv._inset(t)
+        if tu is tv or np.array_equal(tu, tv):
+            raw = cu.surface.closest_parameters(cu.curve.evaluate(tu))
+            return np.stack([cu._unwrapped(t, raw[..., 0]), cv._unwrapped(t, raw[..., 1])], axis=-1)
+    return np.stack([cu(t), cv(t)], axis=-1)
 
 
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,

@@ -791,18 +791,31 @@ class _Paths:
 
     def evaluate(self, pid: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``uv`` and ``duv/dt`` of paths ``pid`` ``(n,)`` at ``t`` ``(n,)``, each ``(n, 2)``."""
+        on_curve = self.shape.take(pid) == _P_CURVE if self.curves else None
+        if on_curve is None or not on_curve.any():
+            return self._table(pid, t)
+        # The table's rows only where they are used (the adaptive block's paths are mostly curves).
+        uv, duv = np.empty((pid.size, 2)), np.empty((pid.size, 2))
+        rows = (~on_curve).nonzero()[0]
+        if rows.size:
+            uv[rows], duv[rows] = self._table(pid.take(rows), t.take(rows))
+        # The rows of each curve path in their order, from one stable sort (a mask per path cost a pass
+        # over all rows each).
+        rows = on_curve.nonzero()[0]
+        rows = rows.take(np.argsort(pid.take(rows), kind="stable"))
+        ids = pid.take(rows)
+        for r in np.split(rows, (ids[1:] != ids[:-1]).nonzero()[0] + 1):
+            curve, d0, d1 = self.curves[int(pid[r[0]])]
+            D = curve.derivatives(np.clip(t.take(r), d0, d1), 1)
+            uv[r], duv[r] = D[:, 0], D[:, 1]
+        return uv, duv
+
+    def _table(self, pid: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`evaluate` of table paths (straight and trigonometric) ``pid`` ``(n,)`` at ``t`` ``(n,)``."""
         C = self.coef.take(pid, axis=0)
         c, s = np.cos(t)[:, None], np.sin(t)[:, None]
         uv = C[:, 0:2] + t[:, None] * C[:, 2:4] + c * C[:, 4:6] + s * C[:, 6:8]
         duv = C[:, 2:4] + c * C[:, 6:8] - s * C[:, 4:6]
-        if self.curves:
-            on_curve = self.shape.take(pid) == _P_CURVE
-            if on_curve.any():
-                for p in np.unique(pid[on_curve]):
-                    m = pid == p
-                    curve, d0, d1 = self.curves[int(p)]
-                    D = curve.derivatives(np.clip(t[m], d0, d1), 1)
-                    uv[m], duv[m] = D[:, 0], D[:, 1]
         return uv, duv
 
     def breaks(self, p: int) -> np.ndarray:

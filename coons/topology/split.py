@@ -1076,9 +1076,13 @@ def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _foot(pc: Any, a: float, b: float, q: np.ndarray, samples: dict | None = None) -> tuple[float, float]:
     """The parameter in ``[min(a, b), max(a, b)]`` of the point of ``pc`` nearest ``q`` (2,), and the distance.
 
-    Dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few steps, kept in the range).
-    ``samples`` keeps the dense samples per curve and range for the next end near the same piece."""
+    On a :class:`Line2D` in closed form; otherwise dense samples, then Newton on ``(pc(s) - q) · pc'(s) = 0`` (a few
+    steps, kept in the range).  ``samples`` keeps the dense samples per curve and range for the next end near the same piece."""
     lo, hi = min(a, b), max(a, b)
+    if type(pc) is Line2D:  # the projection on the line, clamped to the range (what Newton converges to)
+        o, d = pc.origin, pc.direction
+        x = min(max(float((q - o) @ d) / float(d @ d), lo), hi)
+        return x, float(np.linalg.norm(_uv(pc, x) - q))
     key = (id(pc), lo, hi)
     if samples is not None and key in samples:
         s, S = samples[key]

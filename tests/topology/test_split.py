@@ -1027,3 +1027,28 @@ def test_end_contact_only_proves_a_shared_end_and_declines_a_second_meeting():
     assert not _end_contact_only(piece(arch), piece(across), plane)
     assert len(intersect_curves(arch, (0, 1), across, (0, 1)).points) == 2
     assert not _end_contact_only(piece(arch), piece(narrow), plane)
+
+
+@settings(max_examples=60, deadline=None)
+@given(o=st.tuples(st.floats(-5, 5), st.floats(-5, 5)), d=st.tuples(st.floats(-3, 3), st.floats(-3, 3)),
+       q=st.tuples(st.floats(-8, 8), st.floats(-8, 8)), rng=st.tuples(st.floats(-2, 2), st.floats(-2, 2)))
+def test_foot_on_a_line_is_the_clamped_projection(o, d, q, rng):
+    """``_foot`` on a :class:`Line2D` (closed form) gives the point the sampled Newton search finds on the same
+    segment as a degree-1 NURBS: the nearest point of the segment, parameter and distance to round-off."""
+    from coons.topology.split import _foot
+
+    o, d, q = np.array(o), np.array(d), np.array(q)
+    a, b = rng
+    if np.hypot(*d) < 1e-3 or abs(b - a) < 1e-3:
+        return
+    line = Line2D(o, d)
+    lo, hi = min(a, b), max(a, b)
+    nurbs = NurbsCurve(np.array([o + lo * d, o + hi * d]), np.array([lo, lo, hi, hi]), 1)
+    x, dist = _foot(line, a, b, q)
+    y, dist_n = _foot(nurbs, a, b, q)
+    assert lo <= x <= hi
+    scale = 1.0 + float(np.abs(o).max() + np.abs(d).max() * 2 + np.abs(q).max())
+    assert abs(dist - dist_n) <= 1e-12 * scale
+    assert abs(dist - float(np.min(np.linalg.norm(line.evaluate(np.linspace(lo, hi, 2001)) - q, axis=1)))) <= \
+        (hi - lo) * float(np.hypot(*d)) / 2000 + 1e-12 * scale
+    assert abs(x - y) <= 1e-12 * scale ** 2 / float(d @ d)  # one minimiser: the distance is strictly convex

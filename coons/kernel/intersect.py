@@ -29,7 +29,10 @@ shifted by whole periods into the box.  A box spanning a whole period or more of
 coordinate has a seam at its lower bound: a branch is cut where it crosses the seam (the
 p-curve must not leave the box), so a closed curve is one closed branch only where it crosses
 no seam except at its start; e.g. a circle around a cylinder with box ``u ∈ [0, 2π]`` is one
-closed branch from ``u = 0`` to ``u = 2π``.
+closed branch from ``u = 0`` to ``u = 2π``.  Where a p-curve coordinate crosses a box bound is
+found in closed form for exact coordinates and for a conic's longitude on a cylinder, sphere or
+torus (where it meets the meridian half-plane, ``_conic_crossings``); other coordinates are
+searched on a grid and the brackets solved by the Illinois method (``_illinois``).
 
 *P-curves.*  A coordinate of a p-curve is exactly ``o + d t + α cos t + β sin t`` in closed form
 for a line or conic in a plane and a circle coaxial with a surface of revolution (``_closed_coords``);
@@ -1123,6 +1126,8 @@ def _conic_crossings(c: _Coord, bound: float, t0: float, t1: float) -> np.ndarra
     surface, curve = c.surface, c.curve
     if c.exact or not isinstance(curve, (Circle, Ellipse)) or not isinstance(surface, _AZIMUTHAL):
         return None
+    if c.index == 0 and not c.periodic:  # (the longitude of these surfaces always is)
+        return None
     O = surface._origin
     X, Y, Z = surface._frame
     ra, rb = curve._radii()
@@ -1165,7 +1170,7 @@ def _conic_crossings(c: _Coord, bound: float, t0: float, t1: float) -> np.ndarra
     # search), and a check that the closed form found what the search would.
     f = c(t)
     turn = np.round((f - bound) / TWO_PI)
-    if not c.periodic or np.any(np.abs(f - bound - TWO_PI * turn) > c.tol.solver * max(1.0, abs(bound), *np.abs(f))):
+    if np.any(np.abs(f - bound - TWO_PI * turn) > c.tol.solver * max(1.0, abs(bound), *np.abs(f))):
         return None
     return t[np.lexsort((t, turn))]
 

@@ -108,7 +108,6 @@ from coons.kernel.analytic import (
 from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.fitting import _averaging
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 
@@ -1280,6 +1279,15 @@ def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
     return np.stack([cu(t), cv(t)], axis=-1)
 
 
+def _cubic_averaging(t: np.ndarray) -> np.ndarray:
+    """``fitting._averaging(t, 3)`` (The NURBS Book eq. 9.8, degree 3) for ``t`` of at least five values, value
+    for value: the window means are ``((a + b) + c) / 3`` as ``mean`` sums three values, without its
+    sliding-window and reduction set-up (per fit round it cost as much as the arithmetic)."""
+    n = t.shape[0]
+    inner = (t[1:n - 3] + t[2:n - 2] + t[3:n - 1]) / 3.0
+    return np.concatenate([np.full(4, t[0]), inner, np.full(4, t[-1])])
+
+
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,
                    max_split: int = _MAX_FIT_SPLIT):
     """``(p-curve, deviation)``: cubic interpolation of the exact parameters ``f(t)`` (The NURBS Book A9.1 with
@@ -1311,7 +1319,7 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     bound = 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
     while len(t) <= _MAX_FIT_SAMPLES:
         # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), scipy's banded collocation solve.
-        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
+        spline = make_interp_spline(t, Q, k=3, t=_cubic_averaging(t))
         tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         uv = spline(tm)
         gap = _surface_points(surface, uv[:, 0], uv[:, 1]) - _curve_points(curve, tm)

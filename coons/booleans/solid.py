@@ -144,8 +144,9 @@ Status and limitations
 * Depends on ``coons.kernel.intersect`` (exact analytic pairs), ``coons.kernel.ssi`` (marching,
   through the dispatcher), ``coons.kernel.onsurface`` and ``coons.topology.split``.
 * Tested (``tests/booleans/test_solid_booleans.py``) against closed forms to ``1e-7`` relative
-  (most agree to ``1e-15``; marched curves — crossing cylinders of different radii, offset
-  spheres — to ``1e-8``; equal crossing cylinders, the Steinmetz solids, are exact ellipses) and against OCCT; OCCT itself is off by ``1e-5`` on crossing cylinders
+  (most agree to ``1e-15``; fitted curves — crossing cylinders of different radii, in closed form
+  where every ruling of one crosses the other (a pipe right through another, ``_crossing_cylinders``
+  in ``kernel.intersect``) and marched otherwise, offset spheres — to ``1e-8``; equal crossing cylinders, the Steinmetz solids, are exact ellipses) and against OCCT; OCCT itself is off by ``1e-5`` on crossing cylinders
   and offset spheres and wrong on a few (a lens of spheres along x, torus ∪ cylinder).
 * Classification is local at transversal cuts and propagated to faces far from the other
   solid; only the remaining pieces (tangent contact, coincident faces, uncut faces near the

@@ -10,12 +10,15 @@ planes perpendicular to that axis and spheres (symmetric about any line through 
 centre) included, by intersecting their meridians in a half-plane (circles at the heights
 where the meridians meet: plane–sphere, sphere–sphere, plane–torus perpendicular to its axis,
 sphere–cylinder/cone/torus centred on the axis, coaxial cylinders, cones and tori); a plane
-containing a torus' axis (two meridian circles); cylinders with parallel axes; and cylinders
+containing a torus' axis (two meridian circles); cylinders with parallel axes; cylinders
 of equal radius whose axes meet (two ellipses in the bisecting planes, crossing at two singular
-points where each is cut, ``_equal_cylinders``).  Every other pair (crossing cylinders of
-different radii or skew axes, oblique plane–torus, non-coaxial quadrics, NURBS surfaces) goes
-to the general marching method of :mod:`coons.kernel.ssi`.  This module deliberately
-does not march, does not resolve overlaps of coincident surfaces (it reports
+points where each is cut, ``_equal_cylinders``); and crossing cylinders (any radii, axes meeting
+or skew) where every ruling of one crosses the other clearly (``_crossing_cylinders``: two
+disjoint closed loops, each a graph ``s(θ)`` over the thinner one's angle, in closed form; the
+curve and its p-curves are cubic splines fitted to them).  Every other pair (crossing cylinders
+where one only partly pierces the other or nearly touches it, oblique plane–torus, non-coaxial
+quadrics, NURBS surfaces) goes to the general marching method of :mod:`coons.kernel.ssi`.
+This module deliberately does not march, does not resolve overlaps of coincident surfaces (it reports
 ``coincident=True``; the caller handles the overlap), and does not trim to faces: it clips
 to the parameter boxes it is given.
 
@@ -43,7 +46,9 @@ when both are trigonometric a :class:`~coons.kernel.pcurve.Trig2D`.  Otherwise (
 a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a cubic 2-D
 :class:`~coons.kernel.curve.NurbsCurve` interpolating the exact parameters (The NURBS Book
 A9.1) on the branch's own parameter, refined until its image is within ``tol.linear / 2`` of
-the curve; the plane's p-curve of a rational conic arc is exact (same weights).
+the curve; the plane's p-curve of a rational conic arc is exact (same weights).  The loops of
+crossing cylinders have no conic form: their 3-D curve and both p-curves are one cubic spline fitted
+to the exact points and parameters at the same samples (``_loop_piece``), on the parameter ``±θ``.
 
 *Direction.*  A transversal branch runs along ``n_a × n_b``, the cross product of the
 surfaces' normals ``Su × Sv`` normalised (``a`` first).  Where ``n_a × n_b`` vanishes along a whole
@@ -261,7 +266,8 @@ class SurfaceIntersection:
 # ---------------------------------------------------------------------------- exact cases
 @dataclass(frozen=True)
 class _Candidate:
-    """An unclipped exact branch: the whole line, circle or ellipse (``tangent``: the surfaces touch along it).
+    """An unclipped exact branch: the whole line, circle, ellipse, conic section of a cone or loop of crossing
+    cylinders (``tangent``: the surfaces touch along it).
 
     ``uniform``: the pair looks the same from every point of the curve (a rotation about the common
     axis carries coaxial surfaces and their circle into themselves; a translation along a line
@@ -544,6 +550,323 @@ def _equal_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Toleranc
     return _Exact(tuple(out))
 
 
+#: Least half-chord, as a fraction of the other cylinder's radius ``R``, that every ruling of one cylinder must
+#: cut from the other (seen along its axis) for :func:`_crossing_cylinders` to take the pair in closed form;
+#: to report no intersection every ruling must miss it with ``ρ² - R²`` at least the same squared (``ρ`` the
+#: ruling's distance from the axis).  The loops' curvature grows as the half-chord shrinks (at zero they
+#: touch: a tangency, or one loop turning back); closer pairs are marched as before.
+_LOOP_CHORD = 0.1
+#: Least sine of the angle between the axes for :func:`_crossing_cylinders` (about 3°): as the axes turn
+#: parallel the loops stretch along them as ``1 / sin`` and their fits need ever more samples; such pairs
+#: are marched as before.
+_LOOP_MIN_SINE = 0.05
+#: Samples of the discriminant over a turn in :func:`_cylinder_loops` (its minimum and maximum are then
+#: bounded by the sample extremes widened by the interpolation error bound of its second derivative).
+_LOOP_DISC_SAMPLES = 64
+
+
+class _CylinderLoop:
+    """One closed loop of two cylinders with non-parallel axes, a graph over the angle of cylinder ``g``.
+
+    On ``g``, ``P(θ, s) = O_g + R_g (cos θ X_g + sin θ Y_g) + s Z_g`` lies on cylinder ``h`` (radius
+    ``R_h``, axis ``Z_h`` through ``O_h``) iff ``|z|² s² + 2 B s + C = 0`` with ``q(θ)`` the part of
+    ``P(θ, 0) - O_h`` across ``Z_h``, ``z`` that of ``Z_g``, ``B = q·z`` and ``C = |q|² - R_h²``.  Where the
+    discriminant ``D(θ) = B² - |z|² C`` stays positive the roots ``s(θ) = (-B + r √D) / |z|²`` (``r = ±1``,
+    one loop each) are smooth and ``2π``-periodic: the loop is ``P(θ, s(θ))``, in closed form with its
+    derivative.  The parameter is ``t = σ θ`` (``σ = ±1``: :meth:`reversed` flips it).
+    """
+
+    __slots__ = ("g", "h", "root", "sense", "_c", "_x", "_y", "_z", "_zz", "_rh2")
+
+    def __init__(self, g: CylindricalSurface, h: CylindricalSurface, root: float, sense: float = 1.0) -> None:
+        self.g, self.h, self.root, self.sense = g, h, float(root), float(sense)
+        Zh = h._frame[2]
+
+        def across(v: np.ndarray) -> np.ndarray:
+            return v - (v @ Zh) * Zh
+
+        X, Y, Z = g._frame
+        self._c = across(g._origin - h._origin)
+        self._x, self._y, self._z = across(g.radius * X), across(g.radius * Y), across(Z)
+        self._zz = float(self._z @ self._z)
+        self._rh2 = h.radius * h.radius
+
+    def reversed(self) -> "_CylinderLoop":
+        """The same loop run the other way (``t -> -t``)."""
+        return _CylinderLoop(self.g, self.h, self.root, -self.sense)
+
+    def graph(self, t, slopes: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+        """``(θ, s, ds/dθ, D)`` at parameters ``t`` (each of ``t``'s shape); ``ds/dθ`` None unless ``slopes``."""
+        theta = self.sense * np.asarray(t, dtype=np.float64)
+        c, s = np.cos(theta), np.sin(theta)
+        q = self._c + c[..., None] * self._x + s[..., None] * self._y
+        dq = s[..., None] * -self._x + c[..., None] * self._y
+        B, dB = q @ self._z, dq @ self._z
+        C, dC = np.add.reduce(q * q, axis=-1) - self._rh2, 2.0 * np.add.reduce(q * dq, axis=-1)
+        D = B * B - self._zz * C
+        root = np.sqrt(np.maximum(D, 0.0))
+        sv = (-B + self.root * root) / self._zz
+        if not slopes:
+            return theta, sv, None, D
+        dsv = (-dB + self.root * (B * dB - 0.5 * self._zz * dC) / root) / self._zz
+        return theta, sv, dsv, D
+
+    def evaluate(self, t) -> np.ndarray:
+        """The loop's points ``t.shape + (3,)``."""
+        theta, sv, _, _ = self.graph(t, slopes=False)
+        return _surface_points(self.g, theta, sv)
+
+    def derivatives(self, t, order: int = 1) -> np.ndarray:
+        """Points and first derivatives ``t.shape + (2, 3)`` (``order`` 1 only)."""
+        if order != 1:
+            raise InvalidInputError(f"_CylinderLoop.derivatives: order 1 only, got {order}")
+        theta, sv, dsv, _ = self.graph(t)
+        X, Y, Z = self.g._frame
+        P = _surface_points(self.g, theta, sv)
+        dP = self.sense * (self.g.radius * (np.cos(theta)[..., None] * Y - np.sin(theta)[..., None] * X)
+                           + dsv[..., None] * Z)
+        return np.stack([P, dP], axis=-2)
+
+
+def _crossing_cylinders(a: CylindricalSurface, b: CylindricalSurface, tol: Tolerance) -> _Exact | None:
+    """Cylinders with non-parallel axes where every ruling of one crosses the other clearly: two closed loops.
+
+    Tries each cylinder as the graph cylinder of :class:`_CylinderLoop`: its discriminant bounded
+    above ``0`` on the whole turn gives the two loops (one cylinder passes right through the other), bounded
+    below ``0`` gives nothing (no ruling meets the other cylinder); None (the general method) when neither
+    role decides (the discriminant changes sign: one loop turning back in ``θ``; or comes within the margin
+    of :data:`_LOOP_CHORD`: near tangency).
+    """
+    for g, h in ((b, a), (a, b)):
+        found = _cylinder_loops(g, h, tol)
+        if found is not None:
+            return found
+    return None
+
+
+def _cylinder_loops(g: CylindricalSurface, h: CylindricalSurface, tol: Tolerance) -> _Exact | None:
+    """The two loops of ``g`` through ``h`` (:class:`_CylinderLoop`), nothing, or None (see :func:`_crossing_cylinders`).
+
+    ``D(θ) / |z|²`` is the squared half-chord ``R_h² - ρ²`` that the ruling at ``θ`` (at distance ``ρ`` from
+    ``h``'s axis in projection along it) cuts from ``h``.  It is a trigonometric polynomial of degree 2 in
+    ``θ``: its extremes lie within ``M h² / 8`` of the extremes of samples spaced ``h`` apart, with ``M`` the
+    sum of its harmonics' amplitudes times their squared orders, which bounds ``|D''|``.
+    """
+    loop = _CylinderLoop(g, h, 1.0)
+    zz = loop._zz
+    if zz < _LOOP_MIN_SINE * _LOOP_MIN_SINE:
+        return None  # (nearly) parallel axes: _parallel_cylinders, _coaxial or marching
+    margin = _LOOP_CHORD * h.radius
+    if margin <= 1e2 * tol.linear:  # (a hair-thin cylinder: the margin must clear the tolerance widely)
+        return None
+    theta = np.arange(_LOOP_DISC_SAMPLES) * (TWO_PI / _LOOP_DISC_SAMPLES)
+    D = loop.graph(theta, slopes=False)[3] / zz
+    # The harmonics of D / |z|² from the samples (exact for a trigonometric polynomial of degree 2).
+    spectrum = np.abs(np.fft.rfft(D)) * (2.0 / _LOOP_DISC_SAMPLES)
+    bound = (spectrum[1] + 4.0 * spectrum[2]) * (TWO_PI / _LOOP_DISC_SAMPLES) ** 2 / 8.0
+    lo, hi = float(D.min()) - bound, float(D.max()) + bound
+    if lo >= margin * margin:
+        return _Exact((_Candidate(loop), _Candidate(_CylinderLoop(g, h, -1.0))))
+    if hi <= -margin * margin:
+        return _Exact()
+    return None
+
+
+def _loop_coordinates(loop: _CylinderLoop, t: np.ndarray, g_first: bool,
+                      slopes: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(P (k, 3), coordinates (4, k), their derivatives (4, k) or None)`` of the loop at parameters ``t`` ``(k,)``:
+    ``(u_a, v_a, u_b, v_b)``, where the graph cylinder's are ``(θ, s(θ))`` and the other's angle is in
+    ``[-π, π]``, unwrapped by the caller; the derivatives (by ``t``) only when ``slopes``."""
+    theta, sv, dsv, _ = loop.graph(t, slopes)
+    c, s = np.cos(theta), np.sin(theta)
+    X, Y, Z = loop.g._frame
+    P = (loop.g.radius * (c[:, None] * X + s[:, None] * Y) + sv[:, None] * Z) + loop.g._origin
+    L = (P - loop.h._origin) @ loop.h._frame.T
+    on_h, on_g = (np.arctan2(L[:, 1], L[:, 0]), L[:, 2]), (theta, sv)
+    G = np.stack(on_g + on_h if g_first else on_h + on_g)
+    if not slopes:
+        return P, G, None
+    dP = loop.sense * (loop.g.radius * (c[:, None] * Y - s[:, None] * X) + dsv[:, None] * Z)
+    dL = dP @ loop.h._frame.T
+    d_h = ((L[:, 0] * dL[:, 1] - L[:, 1] * dL[:, 0]) / (L[:, 0] ** 2 + L[:, 1] ** 2), dL[:, 2])
+    d_g = (np.full(theta.shape, loop.sense), loop.sense * dsv)
+    return P, G, np.stack(d_g + d_h if g_first else d_h + d_g)
+
+
+def _loop_roots(loop: _CylinderLoop, g_first: bool, rows: np.ndarray, targets: np.ndarray, ref: np.ndarray,
+                lo: np.ndarray, hi: np.ndarray, glo: np.ndarray, ghi: np.ndarray) -> np.ndarray:
+    """Where coordinate ``rows[i]`` of the loop equals ``targets[i]`` in the bracket ``[lo[i], hi[i]]`` (values ``glo``,
+    ``ghi`` of opposite signs, nonzero), all at once: Newton's method on the closed-form coordinates and their
+    derivatives, kept in the shrinking brackets (a step leaving its bracket is replaced by the midpoint).
+
+    A root is done when its value is exactly zero, its step or its bracket is within four ulps of
+    ``max(1, |t|)`` (the parameter's round-off), or after :data:`_ROOT_STEPS` steps.  The angle of the
+    cylinder that is not the graph is unwrapped against ``ref``, its value at the bracket's grid point.
+    """
+    lo, hi, glo = lo.copy(), hi.copy(), glo.copy()
+    x = lo - glo * (hi - lo) / (ghi - glo)  # the secant start
+    x = np.where((x > lo) & (x < hi), x, 0.5 * (lo + hi))
+    out = x.copy()
+    h_row = 2 if g_first else 0
+    act = np.arange(x.size)
+    for _ in range(_ROOT_STEPS):
+        if act.size == 0:
+            break
+        xa, r = x[act], rows[act]
+        _, G, dG = _loop_coordinates(loop, xa, g_first, slopes=True)
+        k = np.arange(act.size)
+        v, dv = G[r, k], dG[r, k]
+        v = np.where(r == h_row, v + TWO_PI * np.round((ref[act] - v) / TWO_PI), v)
+        g = v - targets[act]
+        out[act] = xa
+        left = np.signbit(g) != np.signbit(glo[act])  # the root lies in [lo, x]
+        hi[act] = np.where(left, xa, hi[act])
+        lo[act] = np.where(left, lo[act], xa)
+        glo[act] = np.where(left, glo[act], g)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nx = xa - g / dv
+        nx = np.where(np.isfinite(nx) & (nx > lo[act]) & (nx < hi[act]), nx, 0.5 * (lo[act] + hi[act]))
+        ulps = 4.0 * _EPS * np.maximum(1.0, np.abs(xa))
+        done = (g == 0.0) | (np.abs(nx - xa) <= ulps) | (hi[act] - lo[act] <= ulps)
+        x[act] = nx
+        act = act[~done]
+    return out
+
+
+def _loop_branches(loop: _CylinderLoop, a, b, box_a, box_b, tol: Tolerance) -> list[IntersectionCurve]:
+    """The pieces of a loop of two cylinders (:class:`_CylinderLoop`) inside both boxes, running along ``n_a × n_b``.
+
+    The same clipping as :func:`_branches` on the closed-form coordinates: a turn starting where the graph
+    cylinder's angle is at its box's lower bound; breakpoints where a coordinate crosses a box bound (a seam
+    for a box of a whole period or more), bracketed on a grid of :data:`_SEARCH_SAMPLES` intervals (each
+    coordinate changes monotonically between a few extrema per turn) and solved together by
+    :func:`_loop_roots`; runs of in-box intervals (:func:`_runs`), each fitted by :func:`_loop_piece`.  The
+    other cylinder's angle stays within an arc shorter than π along a loop (the loop lies on one side
+    of the plane through that cylinder's axis across the graph cylinder's axis), so it is unwrapped
+    against one reference value.
+    """
+    g_first = loop.g is a
+    boxes = (box_a, box_b)
+    bounds = [box_a[0], box_a[1], box_b[0], box_b[1]]
+    periodic = [True, False, True, False]
+    slack = tol.solver * max(1.0, *(abs(x) for box in boxes for r in box for x in r if math.isfinite(x)))
+    # Direction: (n_a × n_b)·T keeps its sign along the loop (the surfaces cross at every point of it).
+    D = loop.derivatives(_TURN_SAMPLES, 1)
+    side = np.einsum("ij,ij->i", _cross(_normals(a, D[:, 0]), _normals(b, D[:, 0])), D[:, 1])
+    if side[int(np.argmax(np.abs(side)))] < 0.0:
+        loop = loop.reversed()
+    lo_g = (box_a if g_first else box_b)[0][0]
+    lo_g = lo_g if math.isfinite(lo_g) else 0.0
+    w0 = lo_g if loop.sense > 0.0 else -(lo_g + TWO_PI)
+    w1 = w0 + TWO_PI
+    grid = np.linspace(w0, w1, _SEARCH_SAMPLES + 1)
+    _, F, _ = _loop_coordinates(loop, grid, g_first)
+    h_row = 2 if g_first else 0
+    F[h_row] = np.unwrap(F[h_row], period=TWO_PI)
+    # Brackets (coordinate, target, grid interval) of every bound crossing, then all roots at once.
+    rows, targets, cells, seam_rows = [], [], [], []
+    exact, exact_seams = [], []  # crossings at grid points (the window's ends among them)
+    seam_at_start = False
+    for k, ((lo, hi), per) in enumerate(zip(bounds, periodic)):
+        seam = per and hi - lo >= TWO_PI and math.isfinite(lo)
+        if seam:
+            seam_at_start |= bool(_inside(F[k, :1], lo, lo, True, slack)[0])
+        for bound in (lo,) if seam else (lo, hi):
+            if not math.isfinite(bound):
+                continue
+            for target in _target_values(per, bound, float(F[k].min()), float(F[k].max())):
+                g = F[k] - target
+                (exact_seams if seam else exact).append(grid[g == 0.0])
+                # (a bracket with a zero end would make regula falsi crawl towards it)
+                j = np.flatnonzero((np.signbit(g[:-1]) != np.signbit(g[1:])) & (g[:-1] != 0.0) & (g[1:] != 0.0))
+                rows += [k] * j.size
+                targets += [target] * j.size
+                cells.append(j)
+                seam_rows += [seam] * j.size
+    roots, seam_roots = np.concatenate([np.zeros(0)] + exact), np.concatenate([np.zeros(0)] + exact_seams)
+    if rows:
+        rows_, targets_, j = np.array(rows), np.array(targets), np.concatenate(cells)
+        ref = F[rows_, j]
+
+        found = _loop_roots(loop, g_first, rows_, targets_, ref, grid[j], grid[j + 1], F[rows_, j] - targets_,
+                            F[rows_, j + 1] - targets_)
+        is_seam = np.array(seam_rows)
+        roots, seam_roots = np.concatenate([roots, found[~is_seam]]), np.concatenate([seam_roots, found[is_seam]])
+    br = np.unique(np.concatenate([[w0, w1], roots, seam_roots]))
+    br = br[np.concatenate([[True], np.diff(br) > slack])]
+    br[-1] = w1
+    hard = np.min(np.abs(seam_roots[:, None] - br[None, :]), axis=0, initial=np.inf) <= slack
+    _, M, _ = _loop_coordinates(loop, 0.5 * (br[:-1] + br[1:]), g_first)
+    ok = np.ones(M.shape[1], dtype=bool)
+    for k, ((lo, hi), per) in enumerate(zip(bounds, periodic)):
+        ok &= _inside(M[k], lo, hi, per, slack)
+    out = []
+    for s0, s1 in _runs(br, ok, hard, not seam_at_start):
+        if s1 - s0 > slack:
+            out.append(_loop_piece(loop, s0, s1, a, b, boxes, g_first, slack, s1 - s0 >= TWO_PI - slack, tol))
+    return out
+
+
+def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first: bool, slack: float, closed: bool,
+                tol: Tolerance) -> IntersectionCurve:
+    """The piece ``[s0, s1]`` of a loop of two cylinders: its 3-D curve and both p-curves fitted together.
+
+    One cubic spline interpolates the exact points and both surfaces' parameters (shifted into the boxes
+    as :func:`_shift` does) at the same samples (The NURBS Book A9.1, averaged knots eq. 9.8, as
+    :func:`_fitted_pcurve`), refined the same way until, at the quarter points of every interval, the
+    curve and the images of both p-curves are within ``tol.linear / 2`` of the exact point (evaluations
+    only: no projection).  The graph cylinder's angle is affine in the parameter, which a cubic
+    reproduces.  The samples of one fit serve all three curves, so they share their knots.
+    """
+    tm = 0.5 * (s0 + s1)
+    _, mid, _ = _loop_coordinates(loop, np.array([tm]), g_first)
+    mid = mid[:, 0]
+    h_row = 2 if g_first else 0
+    shift = np.zeros(4)
+    for k in (0, 2):
+        lo = boxes[k // 2][0][0]
+        if math.isfinite(lo):
+            shift[k] = TWO_PI * math.ceil((lo - slack - mid[k]) / TWO_PI)
+    ref = mid[h_row]
+
+    def f(t: np.ndarray) -> np.ndarray:
+        P, G, _ = _loop_coordinates(loop, t, g_first)
+        G[h_row] = ref + np.remainder(G[h_row] - ref + math.pi, TWO_PI) - math.pi
+        return np.concatenate([P, (G + shift[:, None]).T], axis=1)
+
+    t = np.linspace(s0, s1, 17)
+    Q = f(t)
+    quarters = np.array([0.25, 0.5, 0.75])
+    bound = 0.5 * tol.linear
+    worst = math.inf
+    while len(t) <= _MAX_FIT_SAMPLES:
+        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
+        tq = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
+        F, E = spline(tq), loop.evaluate(tq)
+        C = F[:, :3]
+        Pa = _surface_points(a, F[:, 3], F[:, 4])
+        Pb = _surface_points(b, F[:, 5], F[:, 6])
+        off = np.stack([np.add.reduce(d * d, axis=-1) for d in (C - E, Pa - E, Pb - E)])
+        e = np.sqrt(np.max(off.max(axis=0).reshape(-1, 3), axis=1))
+        bad = np.flatnonzero(e > bound)
+        if bad.size == 0:
+            gaps = np.concatenate([Pa - C, Pb - C, Pa - Pb])
+            fit_dev = math.sqrt(float(np.max(np.add.reduce(gaps * gaps, axis=-1))))
+            knots, ctrl = spline.t, spline.c
+            pcurves = [NurbsCurve(ctrl[:, 3:5], knots, 3), NurbsCurve(ctrl[:, 5:7], knots, 3)]
+            return _finished(NurbsCurve(ctrl[:, :3], knots, 3), s0, s1, pcurves, fit_dev, a, b, closed, False)
+        worst = float(e.max())
+        count = np.clip(np.ceil((e[bad] / bound) ** 0.25) - 1.0, 1, _MAX_FIT_SPLIT).astype(np.int64)
+        owner, j = interval_cuts(bad, count)
+        new = t[owner] + j * (t[owner + 1] - t[owner])
+        order = np.argsort(np.concatenate([t, new]), kind="stable")
+        t, Q = np.concatenate([t, new])[order], np.concatenate([Q, f(new)])[order]
+    raise ConvergenceError(
+        f"cylinder loop fit: deviation {worst:.3g} above {bound:.3g} with {_MAX_FIT_SAMPLES} samples",
+        residuals=np.array([worst]),
+    )
+
+
 # Meridians in the half-plane (ρ >= 0, z) about a common axis: ("line", point, direction) and
 # ("circle", centre, radius), all 2-D.
 def _axis_of(s) -> tuple[np.ndarray, np.ndarray] | None:
@@ -699,6 +1022,8 @@ def _exact(a, b, tol: Tolerance) -> _Exact | None:
         if (found := _parallel_cylinders(a, b, tol)) is not None:
             return found
         if (found := _equal_cylinders(a, b, tol)) is not None:
+            return found
+        if (found := _crossing_cylinders(a, b, tol)) is not None:
             return found
     return _coaxial(a, b, tol)
 
@@ -1345,6 +1670,8 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
 
 def _branches(cand: _Candidate, a, b, box_a, box_b, tol: Tolerance) -> list[IntersectionCurve]:
     """Clip one exact curve to both boxes and return its in-box pieces with their p-curves."""
+    if isinstance(cand.curve, _CylinderLoop):
+        return _loop_branches(cand.curve, a, b, box_a, box_b, tol)
     section = isinstance(cand.curve, _ConeSection)
     curve = cand.curve if section else _oriented(cand, a, b, tol)
     surfaces, boxes = (a, b), (box_a, box_b)
@@ -1910,9 +2237,10 @@ def _contact_points(points, a, b, box_a, box_b, tol: Tolerance):
 def intersect_surfaces(a, b, box_a=None, box_b=None, tol: Tolerance | None = None) -> SurfaceIntersection:
     """The intersection curves and isolated contact points of surfaces ``a`` and ``b`` within two parameter boxes.
 
-    Analytic pairs whose intersection is a set of conics are solved in closed form
-    (see the module docstring for the list and the conventions on boxes, p-curves and
-    direction); every other pair goes to :func:`coons.kernel.ssi.march_intersection`.
+    Analytic pairs whose intersection is a set of conics, and crossing cylinders whose intersection
+    is two separate loops, are solved in closed form (see the module docstring for the list and the
+    conventions on boxes, p-curves and direction); every other pair goes to
+    :func:`coons.kernel.ssi.march_intersection`.
 
     Parameters
     ----------

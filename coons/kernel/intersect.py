@@ -840,7 +840,7 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
     bound = 0.5 * tol.linear
     worst = math.inf
     while len(t) <= _MAX_FIT_SAMPLES:
-        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
+        spline = make_interp_spline(t, Q, k=3, t=_cubic_averaging(t))
         tq = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         F, E = spline(tq), loop.evaluate(tq)
         C = F[:, :3]

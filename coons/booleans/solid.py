@@ -473,8 +473,13 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     orig = {id(spec): (1, A.lo[f], A.hi[f]) for f, spec in enumerate(A.specs)}
     orig.update({id(spec): (2, B.lo[f], B.hi[f]) for f, spec in enumerate(B.specs)})
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
-    # edges): their operand.
-    orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
+    # edges): their operand.  Only uses of faces that are not passed through whole are looked up,
+    # and those come from split faces (a piece keeps uses of its own face only): A's split faces,
+    # then all of B's (B's entry wins for a use in both, as in a map over all uses; B is the tool,
+    # and A, a part cut many times, has thousands of uses on faces no cut touched).
+    split_a = {f for f, spec in pieces_a if spec is not A.specs[f]}
+    orig_edges = {id(e): 1 for f in split_a for loop in A.specs[f].loops for e in loop}
+    orig_edges.update({id(e): 2 for spec in B.specs for loop in spec.loops for e in loop})
     # (the uses' end and mid points: per face spec, sew.use_points, read by the three passes and sewing)
     faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
     faces = _merge(faces, t)

@@ -1225,3 +1225,36 @@ def test_collector_paused_during_the_pipeline_and_restored(monkeypatch):
         assert not gc.isenabled()
     finally:
         gc.enable()
+
+
+def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
+    """_boolean maps to their operand only the uses of A's split faces and of B; every use the
+    T-junction pass looks up (those of faces not passed through whole) gets the operand a map
+    over all uses of A then B gives, and the restricted map is smaller on a cut plate."""
+    seen = []
+    real = S._split_edges_at_vertices
+
+    def spy(faces, t, orig=None, orig_edges=None):
+        seen.append((list(faces), dict(orig), dict(orig_edges)))
+        return real(faces, t, orig, orig_edges)
+
+    made = []
+    real_operand = S._Operand
+
+    def operand(solid, name, t):
+        made.append(real_operand(solid, name, t))
+        return made[-1]
+
+    monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
+    monkeypatch.setattr(S, "_Operand", operand)
+    r = Box(40, 40, 6)
+    for i, j in ((0, 0), (1, 0), (0, 1), (-1, -1)):
+        r = _ok(S.boolean(r, Cylinder(1.0, 20).translate((5.0 * i, 5.0 * j, 0)), "difference", method="brep"))
+    r = _ok(S.boolean(r, Box(10, 10, 10).translate((20, 0, 0)), "union", method="brep"))  # A's side faces split
+    assert len(seen) == 5 and len(made) == 10
+    for (faces, orig, got), A, B in zip(seen, made[0::2], made[1::2]):
+        full = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
+        looked = [id(e) for f in faces if id(f) not in orig for loop in f.loops for e in loop]
+        assert looked
+        assert [got.get(k, 0) for k in looked] == [full.get(k, 0) for k in looked]
+        assert len(got) < len(full)

@@ -1258,3 +1258,38 @@ def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
         assert looked
         assert [got.get(k, 0) for k in looked] == [full.get(k, 0) for k in looked]
         assert len(got) < len(full)
+
+
+def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeypatch):
+    """A plate's top and bottom gaining a hole every cut: their face data is the kept data of the
+    face they extend plus the new loop's (_extended_face_data), equal to the data computed cold."""
+    from coons.topology._memo import IdentityMemo
+
+    t = S.resolve(None)
+    got = []
+    real = S._extended_face_data
+
+    def spy(spec, tol):
+        d = real(spec, tol)
+        if d is not None:
+            got.append((spec, d))
+        return d
+
+    monkeypatch.setattr(S, "_extended_face_data", spy)
+    r = Box(60, 60, 4)
+    holes = [(i, j) for i in range(5) for j in range(4)]
+    for i, j in holes:
+        r = _ok(S.boolean(r, Cylinder(1.0, 20).translate((10.0 * i - 20, 10.0 * j - 15, 0)), "difference",
+                          method="brep"))
+    _vol(r, 60 * 60 * 4 - len(holes) * PI * 4, rtol=1e-12)
+    assert len({len(spec.loops) for spec, _ in got}) >= 3  # taken cut after cut
+    monkeypatch.setattr(S, "_FACE_PREFIX", IdentityMemo())
+    for spec, d in got:
+        del S._FACE_DATA[spec]
+        cold = S._new_face_data([spec], t)[0]
+        assert d.uv_box == cold.uv_box
+        for name in ("seg", "seg_lo", "seg_hi", "box"):
+            np.testing.assert_array_equal(getattr(d, name), getattr(cold, name), err_msg=name)
+        assert len(d.rings) == len(cold.rings) == len(spec.loops)
+        for a, b in zip(d.rings, cold.rings):
+            np.testing.assert_array_equal(a, b)

@@ -165,7 +165,8 @@ Status and limitations
   (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
   that spec's parameter box, space box, rings and segments (``_FACE_DATA``, assembled from
   per-loop data ``_LOOP_DATA``: a plate face gaining a hole reads its other loops' rings,
-  segments and boxes from there); loop samples and
+  segments and boxes from there, and from 16 loops on the per-face reductions of the face it
+  extends, ``_FACE_PREFIX``); loop samples and
   space boxes are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a
   split face keep (a split face's new space box joins its kept edges' boxes); a pair of face
   specs found unmergeable is not tried again (``_MERGE_FAILED``), nor a face spec found not to
@@ -474,8 +475,13 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     orig = {id(spec): (1, A.lo[f], A.hi[f]) for f, spec in enumerate(A.specs)}
     orig.update({id(spec): (2, B.lo[f], B.hi[f]) for f, spec in enumerate(B.specs)})
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
-    # edges): their operand.
-    orig_edges = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
+    # edges): their operand.  Only uses of faces that are not passed through whole are looked up,
+    # and those come from split faces (a piece keeps uses of its own face only): A's split faces,
+    # then all of B's (B's entry wins for a use in both, as in a map over all uses; B is the tool,
+    # and A, a part cut many times, has thousands of uses on faces no cut touched).
+    split_a = {f for f, spec in pieces_a if spec is not A.specs[f]}
+    orig_edges = {id(e): 1 for f in split_a for loop in A.specs[f].loops for e in loop}
+    orig_edges.update({id(e): 2 for spec in B.specs for loop in spec.loops for e in loop})
     # (the uses' end and mid points: per face spec, sew.use_points, read by the three passes and sewing)
     faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
     faces = _merge(faces, t)
@@ -860,6 +866,83 @@ def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     return _new_face_data([spec], t)[0]
 
 
+#: Loops from which a face's data is kept for a face that extends it by new loops, on a surface
+#: without interior extremes (:func:`_extended_face_data`).
+_PREFIX_LOOPS = 16
+#: First use of a face's outer loop -> ``(the outer loop's other uses, the other loops, t, the
+#: loops' :class:`_LoopData`, the per-face reductions of :func:`_new_face_data`: rmin, rmax,
+#: seg_min, seg_max (2,), box lo, hi (3,), largest tolerance, a box missing)`` of the last face
+#: with many loops computed on it: a plate's top gaining a hole every cut keeps its outer loop
+#: and its other loops.  The value never holds the key (the outer loop is stored without it).
+_FACE_PREFIX = IdentityMemo()
+
+
+def _extended_face_data(spec: FaceSpec, t: Tolerance) -> _FaceData | None:
+    """The :class:`_FaceData` of ``spec`` from the kept data of a face whose loops are, use for
+    use, the first loops of ``spec`` (:data:`_FACE_PREFIX`), and its new loops alone; None when
+    there is no such face.
+
+    Only on surfaces without interior extremes (planes, cylinders, cones: the space box is the
+    union of the edge boxes).  Every per-face value of :func:`_new_face_data` is a minimum, a
+    maximum or a concatenation over the loops in order, then one expression per face: combining
+    the kept reductions with the new loops' gives the very same floats.
+    """
+    S = spec.surface
+    loops = spec.loops
+    got = _FACE_PREFIX.get(loops[0][0]) if loops and loops[0] else None
+    if got is None:
+        return None
+    rest0, tail, t_old, parts, raw = got
+    n = len(tail) + 1
+    if (t_old != t or n >= len(loops) or parts[0].surface is not S or len(loops[0]) != len(rest0) + 1
+            or not all(map(operator.is_, rest0, loops[0][1:]))
+            or not all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(tail, loops[1:n]))):
+        return None
+    new = [(loop, _cached_loop(loop, S, t)) for loop in loops[n:]]
+    todo = [(loop, S) for loop, ld in new if ld is None]
+    made = iter(_new_loop_data(todo, t) if todo else [])
+    new_parts = [next(made) if ld is None else ld for loop, ld in new]
+    R, Rx, G, Gx, lo, hi, tol, no_box = raw
+    R = np.minimum.reduce([R] + [ld.rmin for ld in new_parts])
+    Rx = np.maximum.reduce([Rx] + [ld.rmax for ld in new_parts])
+    G = np.minimum.reduce([G] + [ld.seg_min for ld in new_parts])
+    Gx = np.maximum.reduce([Gx] + [ld.seg_max for ld in new_parts])
+    no_box = no_box or any(ld.box is None for ld in new_parts)
+    lo = np.minimum.reduce([lo] + [_NAN_BOX[0] if ld.box is None else ld.box[0] for ld in new_parts])
+    hi = np.maximum.reduce([hi] + [_NAN_BOX[1] if ld.box is None else ld.box[1] for ld in new_parts])
+    tol = max([tol] + [ld.tol for ld in new_parts])
+    return _face_data_from(spec, t, parts + new_parts, (R, Rx, G, Gx, lo, hi, tol, no_box))
+
+
+def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> _FaceData:
+    """:class:`_FaceData` of ``spec`` on a surface without interior extremes from its loops' data
+    and the per-face reductions ``raw`` (:data:`_FACE_PREFIX`), as :func:`_new_face_data` makes it
+    (the same expressions on one face's rows); cached, and kept for faces extending it."""
+    R, Rx, G, Gx, lo, hi, tol, no_box = raw
+    pad = tol + t.linear
+    mu = _BOX_MARGIN * (Rx - R) + t.linear
+    b0, b1, r0, r1 = (R - mu).tolist(), (Rx + mu).tolist(), R.tolist(), Rx.tolist()
+    d = _FaceData()
+    d.t, d.edge_boxes, d.slope, d.straight, d.loop_boxes = t, None, None, None, None
+    d.loops = parts
+    d.rings = [ld.ring for ld in parts]
+    d.uv_box = _within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1]))
+    d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
+    d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
+    d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
+    d.box = None if no_box else _frozen(np.stack([lo - pad, hi + pad]))
+    _FACE_DATA[spec] = d
+    _keep_prefix(spec, t, parts, raw)
+    return d
+
+
+def _keep_prefix(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> None:
+    """Keep a face's loop data and reductions for the faces that extend it (:data:`_FACE_PREFIX`)."""
+    loops = spec.loops
+    if len(loops) >= _PREFIX_LOOPS and loops[0] and is_value(loops[0][0]):
+        _FACE_PREFIX.set(loops[0][0], (tuple(loops[0][1:]), tuple(loops[1:]), t, list(parts), raw))
+
+
 def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     """The :class:`_FaceData` of completed specs (each with a loop), computed together and cached.
 
@@ -879,6 +962,17 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
+    # A face extending a kept one by new loops (a plate's top gaining a hole) from the kept data.
+    extended: dict[int, _FaceData] = {}
+    for k, spec in enumerate(specs):
+        if len(spec.loops) > _PREFIX_LOOPS and _no_interior_extremes(spec.surface):
+            d = _extended_face_data(spec, t)
+            if d is not None:
+                extended[k] = d
+    if extended:
+        rest = [spec for k, spec in enumerate(specs) if k not in extended]
+        done = iter(_new_face_data(rest, t) if rest else [])
+        return [extended[k] if k in extended else next(done) for k in range(len(specs))]
     # A loop is its surface and every use (what _cached_loop checks), not its first use alone.
     todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
     parts_of = []
@@ -906,7 +1000,11 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     B = np.stack([_NAN_BOX if ld.box is None else ld.box for ld in lds])
     lo = np.minimum.reduceat(B[:, 0], first, axis=0)
     hi = np.maximum.reduceat(B[:, 1], first, axis=0)
-    pad = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first) + t.linear
+    tol_max = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first)
+    pad = tol_max + t.linear
+    # Faces whose reductions are kept for faces extending them: no interior extremes to add.
+    keep = [len(spec.loops) >= _PREFIX_LOOPS and _no_interior_extremes(spec.surface) for spec in specs]
+    raw_lo, raw_hi = lo.copy(), hi.copy()
     mu = _BOX_MARGIN * (Rx - R) + t.linear
     box_lo, box_hi = (R - mu).tolist(), (Rx + mu).tolist()
     uv_box = []
@@ -945,6 +1043,9 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
         d.box = None if no_box[k] else boxes[k]
         _FACE_DATA[spec] = d
         out.append(d)
+        if len(parts) >= _PREFIX_LOOPS and keep[k]:
+            _keep_prefix(spec, t, parts, (R[k].copy(), Rx[k].copy(), G[k].copy(), Gx[k].copy(), raw_lo[k],
+                                          raw_hi[k], float(tol_max[k]), no_box[k]))
     return out
 
 

@@ -32,6 +32,7 @@ returns an immutable ``BRep`` or raises :class:`~coons.errors.TopologyError`.
 
 from __future__ import annotations
 
+from itertools import chain
 from typing import Any, Sequence
 
 import numpy as np
@@ -691,6 +692,7 @@ class BRepBuilder:
             if nf and ce.size else np.empty(0, np.int64)
         a, b = cf[0::2], cf[1::2]
         n_comp, labels = components(nf, a, b)
+        shell0 = len(self.ssolid)
         for k in range(n_comp):
             solid = len(self.souter)
             shell = len(self.ssolid)
@@ -698,8 +700,9 @@ class BRepBuilder:
             self.salive.append(True)
             self.souter.append(shell)
             self.solive.append(True)
-            for fi in np.flatnonzero(labels == k):
-                self.fshell[face_ids[int(fi)]] = shell
+        fshell = self.fshell
+        for f, shell in zip(face_ids, (shell0 + np.asarray(labels, dtype=np.int64)).tolist()):
+            fshell[f] = shell  # component k is shell shell0 + k
 
     def _assembled_face(self, fi: int, face_surfaces, face_senses) -> int:
         """A new face for input face ``fi`` of :meth:`assemble`, with its pooled surface and its sense."""
@@ -770,11 +773,12 @@ class BRepBuilder:
         """
         ne = edges.shape[0]
         nv_new = len(self.vpoint) - v_off
-        lens = [len(loop) for loops in face_loops for loop in loops]
+        lens = list(map(len, chain.from_iterable(face_loops)))
         if ne == 0 or not lens or min(lens) == 0 or edges.min() < 0 or edges.max() >= nv_new:
             return None
-        refs = np.fromiter((int(r) for loops in face_loops for loop in loops for r in loop), dtype=np.int64,
-                           count=sum(lens))
+        if any(x is not None and len(x) < len(face_loops) for x in (face_surfaces, face_senses)):
+            return None  # (the per-coedge path fails on the missing entry)
+        refs = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.int64, count=sum(lens))
         if (refs == 0).any() or (np.abs(refs) > ne).any():
             return None
         e = np.abs(refs) - 1
@@ -794,7 +798,14 @@ class BRepBuilder:
         c = 2 * (e + e_off) + side
         # Faces in input order (their geometry goes through the pools), then their loops, face by
         # face: the rows _new_loop would add, with their first coedges.
-        face_ids = [self._assembled_face(fi, face_surfaces, face_senses) for fi in range(len(face_loops))]
+        nf = len(face_loops)
+        f0 = len(self.fsurface)
+        face_ids = list(range(f0, f0 + nf))  # what _assembled_face adds face by face, in bulk
+        self.fsurface.extend([-1] * nf if face_surfaces is None else self._pool_many("surfaces", face_surfaces[:nf]))
+        self.fsense.extend([True] * nf if face_senses is None else [bool(x) for x in face_senses[:nf]])
+        self.fshell.extend([-1] * nf)
+        self.fouter.extend([-1] * nf)
+        self.falive.extend([True] * nf)
         n_loops = [len(loops) for loops in face_loops]
         l0 = len(self.lface)
         lid = np.arange(l0, l0 + lens_a.size, dtype=np.int64)

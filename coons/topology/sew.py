@@ -996,12 +996,14 @@ def _assemble(
                                 np.maximum(uses.t0[primary], uses.t1[primary])], axis=1), thr)
     # The primary use's p-curve, then the other's, edge by edge (the pool order of one call each).
     # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
+    # (uses.curve_id holds id(use.curve) of live uses: equal ids are the same object)
+    pcs: list[Any] = [None] * (2 * E)
+    pcs[0::2] = [a.pcurve for a in sp]
+    pcs[1::2] = [o.pcurve for o in so]
     thr_l = thr.tolist()
-    pcs: list[Any] = []
-    for e, (a, o) in enumerate(zip(sp, so)):
-        pcs.append(a.pcurve)
-        pcs.append(o.pcurve if o.curve is a.curve else
-                   _pcurve_in(a, o, thr_l[e], f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})"))
+    for e in np.flatnonzero(uses.curve_id[primary] != uses.curve_id[other]).tolist():
+        pcs[2 * e + 1] = _pcurve_in(sp[e], so[e], thr_l[e],
+                                    f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})")
     side_p = np.where(fwd, 0, 1)
     b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None

@@ -1225,3 +1225,71 @@ def test_collector_paused_during_the_pipeline_and_restored(monkeypatch):
         assert not gc.isenabled()
     finally:
         gc.enable()
+
+
+def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
+    """_boolean maps to their operand only the uses of A's split faces and of B; every use the
+    T-junction pass looks up (those of faces not passed through whole) gets the operand a map
+    over all uses of A then B gives, and the restricted map is smaller on a cut plate."""
+    seen = []
+    real = S._split_edges_at_vertices
+
+    def spy(faces, t, orig=None, orig_edges=None):
+        seen.append((list(faces), dict(orig), dict(orig_edges)))
+        return real(faces, t, orig, orig_edges)
+
+    made = []
+    real_operand = S._Operand
+
+    def operand(solid, name, t):
+        made.append(real_operand(solid, name, t))
+        return made[-1]
+
+    monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
+    monkeypatch.setattr(S, "_Operand", operand)
+    r = Box(40, 40, 6)
+    for i, j in ((0, 0), (1, 0), (0, 1), (-1, -1)):
+        r = _ok(S.boolean(r, Cylinder(1.0, 20).translate((5.0 * i, 5.0 * j, 0)), "difference", method="brep"))
+    r = _ok(S.boolean(r, Box(10, 10, 10).translate((20, 0, 0)), "union", method="brep"))  # A's side faces split
+    assert len(seen) == 5 and len(made) == 10
+    for (faces, orig, got), A, B in zip(seen, made[0::2], made[1::2]):
+        full = {id(e): g for g, X in ((1, A), (2, B)) for spec in X.specs for loop in spec.loops for e in loop}
+        looked = [id(e) for f in faces if id(f) not in orig for loop in f.loops for e in loop]
+        assert looked
+        assert [got.get(k, 0) for k in looked] == [full.get(k, 0) for k in looked]
+        assert len(got) < len(full)
+
+
+def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeypatch):
+    """A plate's top and bottom gaining a hole every cut: their face data is the kept data of the
+    face they extend plus the new loop's (_extended_face_data), equal to the data computed cold."""
+    from coons.topology._memo import IdentityMemo
+
+    t = S.resolve(None)
+    got = []
+    real = S._extended_face_data
+
+    def spy(spec, tol):
+        d = real(spec, tol)
+        if d is not None:
+            got.append((spec, d))
+        return d
+
+    monkeypatch.setattr(S, "_extended_face_data", spy)
+    r = Box(60, 60, 4)
+    holes = [(i, j) for i in range(5) for j in range(4)]
+    for i, j in holes:
+        r = _ok(S.boolean(r, Cylinder(1.0, 20).translate((10.0 * i - 20, 10.0 * j - 15, 0)), "difference",
+                          method="brep"))
+    _vol(r, 60 * 60 * 4 - len(holes) * PI * 4, rtol=1e-12)
+    assert len({len(spec.loops) for spec, _ in got}) >= 3  # taken cut after cut
+    monkeypatch.setattr(S, "_FACE_PREFIX", IdentityMemo())
+    for spec, d in got:
+        del S._FACE_DATA[spec]
+        cold = S._new_face_data([spec], t)[0]
+        assert d.uv_box == cold.uv_box
+        for name in ("seg", "seg_lo", "seg_hi", "box"):
+            np.testing.assert_array_equal(getattr(d, name), getattr(cold, name), err_msg=name)
+        assert len(d.rings) == len(cold.rings) == len(spec.loops)
+        for a, b in zip(d.rings, cold.rings):
+            np.testing.assert_array_equal(a, b)

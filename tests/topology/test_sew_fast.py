@@ -331,3 +331,41 @@ def test_face_specs_still_rejects_a_degenerate_edge_range():
     bad = dataclasses.replace(b, edge_range=r)
     with pytest.raises(InvalidInputError, match="finite, different parameters"):
         sew.face_specs(bad)
+
+
+def _brep_tables(b) -> dict:
+    """Every table of a B-rep, and its pools as object identities (pool order included)."""
+    out = {k: np.asarray(v) for k, v in vars(b).items() if isinstance(v, np.ndarray)}
+    for pool in ("surfaces", "curves", "pcurves"):
+        out[pool] = np.array([id(x) for x in getattr(b, pool)], dtype=np.int64)
+    return out
+
+
+def test_bulk_assembly_equals_the_per_coedge_path(monkeypatch):
+    # Sewing assembles its faces, loops and coedges in array passes (BRepBuilder._assemble_loops_bulk,
+    # the faces in bulk too); the per-coedge assembly must build the very same B-rep.
+    from coons.topology import builder
+
+    holes = [Profile.circle(0.5, center=(-4.0 + 1.5 * i, 0.0)).outer for i in range(6)]
+    solid = extrude(Profile(Profile.rectangle(12.0, 4.0).outer, holes), 2.0)
+    specs = sew.face_specs(solid.brep)
+    taken = []
+    bulk = builder.BRepBuilder._assemble_loops_bulk
+
+    def spy(self, *args):
+        taken.append(bulk(self, *args))
+        return taken[-1]
+
+    monkeypatch.setattr(builder.BRepBuilder, "_assemble_loops_bulk", spy)
+    fast = _brep_tables(sew.sew_faces(specs).brep)
+    assert len(taken) == 1 and taken[0] == list(range(len(specs)))  # the bulk path, every face
+
+    class PerCoedge(builder.BRepBuilder):
+        def _assemble_loops_bulk(self, *args):
+            return None
+
+    monkeypatch.setattr(sew, "BRepBuilder", PerCoedge)
+    slow = _brep_tables(sew.sew_faces(specs).brep)
+    assert fast.keys() == slow.keys()
+    for k in fast:
+        np.testing.assert_array_equal(fast[k], slow[k], err_msg=k)

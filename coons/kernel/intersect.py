@@ -699,7 +699,7 @@ def _loop_roots(loop: _CylinderLoop, g_first: bool, rows: np.ndarray, targets: n
     ``ghi`` of opposite signs, nonzero), all at once: Newton's method on the closed-form coordinates and their
     derivatives, kept in the shrinking brackets (a step leaving its bracket is replaced by the midpoint).
 
-    A root is done when its value is exactly zero, its step or its bracket is within four ulps of
+    A root is done when its value is exactly zero, its Newton step or its bracket is within four ulps of
     ``max(1, |t|)`` (the parameter's round-off), or after :data:`_ROOT_STEPS` steps.  The angle of the
     cylinder that is not the graph is unwrapped against ``ref``, its value at the bracket's grid point.
     """
@@ -724,11 +724,13 @@ def _loop_roots(loop: _CylinderLoop, g_first: bool, rows: np.ndarray, targets: n
         lo[act] = np.where(left, lo[act], xa)
         glo[act] = np.where(left, glo[act], g)
         with np.errstate(divide="ignore", invalid="ignore"):
-            nx = xa - g / dv
-        nx = np.where(np.isfinite(nx) & (nx > lo[act]) & (nx < hi[act]), nx, 0.5 * (lo[act] + hi[act]))
+            step = g / dv
+        nx = xa - step
         ulps = 4.0 * _EPS * np.maximum(1.0, np.abs(xa))
-        done = (g == 0.0) | (np.abs(nx - xa) <= ulps) | (hi[act] - lo[act] <= ulps)
-        x[act] = nx
+        # A Newton step within the parameter's round-off ends the search even where it leaves the bracket
+        # (the value's sign is noise there; bisecting would crawl to the bracket's width).
+        done = (g == 0.0) | (np.abs(step) <= ulps) | (hi[act] - lo[act] <= ulps)
+        x[act] = np.where(np.isfinite(nx) & (nx > lo[act]) & (nx < hi[act]), nx, 0.5 * (lo[act] + hi[act]))
         act = act[~done]
     return out
 

@@ -22,10 +22,9 @@ from coons.errors import BooleanError
 from coons.topology.primitives import Box, Cylinder, Sphere, Torus
 from coons.topology.sew import face_specs
 from coons.tolerance import resolve
+from tests.booleans.algebra import RTOL_ALGEBRA, assert_valid_and_algebraic
 from tests.booleans.occt_cases import draw_pair
 
-#: Relative tolerance of the algebra identities (coons alone).
-RTOL_ALGEBRA = 1e-9
 #: Relative agreement of volumes with OCCT (OCCT's own precision on B-spline-trimmed faces).
 RTOL_OCCT = 1e-6
 #: Seed of the hunt that found the pairs.
@@ -60,12 +59,7 @@ def _results(name: str) -> dict:
 def test_hunted_pair_is_valid_and_obeys_the_algebra(name):
     a, b = _operands(name)
     r = _results(name)
-    for op, res in r.items():
-        rep = res.check()
-        assert rep.ok, f"{name} {op}: {rep.summary()}"
-    u, i, d = (r[op].volume for op in ("union", "intersection", "difference"))
-    assert abs(u + i - a.volume - b.volume) <= RTOL_ALGEBRA * (a.volume + b.volume)
-    assert abs(d - a.volume + i) <= RTOL_ALGEBRA * a.volume
+    assert_valid_and_algebraic(name, a, b, r)
 
 
 @pytest.mark.occt

@@ -10,8 +10,10 @@ Evaluation and derivatives follow numpy broadcasting: ``evaluate(u)`` returns
 ``np.shape(u) + (d,)``.  Rational curves are evaluated in homogeneous coordinates and
 divided at the end (The NURBS Book A4.1, A4.2), polynomial ones directly, in chunks of
 points so temporaries stay small; batches of :data:`coons.kernel._accel.THRESHOLD`
-points or more go to the optional numba kernels of :mod:`coons.kernel._accel`, which
-do the same operations.
+points or more go to the optional numba kernels of :mod:`coons.kernel._accel`, and
+points of batches up to :data:`_SCALAR_POINTS` are evaluated one by one on Python
+floats (numpy's per-operation cost dominates there); both do the same operations, so
+give the same bits.
 
 This module holds the value and its evaluation; knot insertion, refinement, removal,
 degree elevation and splitting live in :mod:`coons.kernel.refine`, differential
@@ -254,7 +256,10 @@ class NurbsCurve:
         """
         m = u.shape[0]
         if order == 0 and 0 < m <= _SCALAR_POINTS:
-            return self._points_scalar(u)
+            try:
+                return self._points_scalar(u)
+            except ZeroDivisionError:
+                pass  # (a degenerate knot window: numpy's inf or nan, as before)
         rational = self.is_rational
         if m >= _accel.THRESHOLD and _accel.AVAILABLE:
             net = self.homogeneous if rational else self.control_points

@@ -10,8 +10,10 @@ Evaluation and derivatives follow numpy broadcasting: ``evaluate(u)`` returns
 ``np.shape(u) + (d,)``.  Rational curves are evaluated in homogeneous coordinates and
 divided at the end (The NURBS Book A4.1, A4.2), polynomial ones directly, in chunks of
 points so temporaries stay small; batches of :data:`coons.kernel._accel.THRESHOLD`
-points or more go to the optional numba kernels of :mod:`coons.kernel._accel`, which
-do the same operations.
+points or more go to the optional numba kernels of :mod:`coons.kernel._accel`, and
+points of batches up to :data:`_SCALAR_POINTS` are evaluated one by one on Python
+floats (numpy's per-operation cost dominates there); both do the same operations, so
+give the same bits.
 
 This module holds the value and its evaluation; knot insertion, refinement, removal,
 degree elevation and splitting live in :mod:`coons.kernel.refine`, differential
@@ -21,6 +23,7 @@ geometry in :mod:`coons.kernel.differential`, closest points in
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -41,6 +44,10 @@ __all__ = ["NurbsCurve"]
 #: Points per batch of the numpy path: its temporaries are 1-D arrays of this length
 #: (128 KB), which stay in cache and are recycled by the allocator (measured, as in surface.py).
 _CHUNK = 16384
+#: Up to this many points, :meth:`NurbsCurve.evaluate` runs on Python floats (:meth:`NurbsCurve._points_scalar`):
+#: the numpy path costs some 40 array operations on one-element arrays whatever the batch (the Booleans evaluate
+#: branch curves at one or two parameters at a time), the float path about a microsecond per basis product.
+_SCALAR_POINTS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,14 +204,62 @@ class NurbsCurve:
                     out[s : s + _CHUNK, k, c] = A[k][c]
         return out
 
+    @cached_property
+    def _scalar_net(self) -> tuple[list[float], int, list[list[float]]]:
+        """``(knots, last span, net rows)`` as Python floats for :meth:`_points_scalar`."""
+        net = self.homogeneous if self.is_rational else self.control_points
+        return self.knots.tolist(), _b.last_span(self.knots, self.degree), net.tolist()
+
+    def _points_scalar(self, u: np.ndarray) -> np.ndarray:
+        """Points ``(m, 1, d)`` at flat ``u`` inside the domain, one parameter at a time on Python floats.
+
+        The same floating-point operations in the same order as the numpy path (:func:`~coons.kernel.basis.find_spans`'
+        binary search, :func:`~coons.kernel.basis.basis_rows`' recursion, :meth:`_contract_chunk`'s sums, one
+        reciprocal of the weight), each correctly rounded in both, so the same bits; a test compares them.
+        """
+        U, last, net = self._scalar_net
+        p, d, rational = self.degree, self.dimension, self.is_rational
+        out = []
+        for x in u.tolist():
+            span = max(min(bisect_right(U, x) - 1, last), p)
+            left = [0.0] + [x - U[span + 1 - j] for j in range(1, p + 1)]
+            right = [0.0] + [U[span + j] - x for j in range(1, p + 1)]
+            N = [1.0]
+            for j in range(1, p + 1):
+                saved = None
+                nxt = []
+                for r in range(j):
+                    temp = N[r] / (right[r + 1] + left[j - r])
+                    term = right[r + 1] * temp
+                    nxt.append(term if saved is None else saved + term)
+                    saved = left[j - r] * temp
+                nxt.append(saved)
+                N = nxt
+            base = span - p
+            acc = [N[0] * g for g in net[base]]
+            for j in range(1, p + 1):
+                Nj = N[j]
+                acc = [a + Nj * g for a, g in zip(acc, net[base + j])]
+            if rational:
+                r = 1.0 / acc[d]
+                acc = [acc[c] * r for c in range(d)]
+            out.append(acc)
+        return np.array(out, dtype=np.float64).reshape(u.shape[0], 1, d)
+
     def _derivatives_flat(self, u: np.ndarray, order: int) -> np.ndarray:
         """Cartesian derivatives ``(m, order + 1, d)`` at flat ``u`` inside the domain.
 
         Large batches go to the compiled kernel of :mod:`coons.kernel._accel` when it is
-        available; otherwise numpy, in chunks of :data:`_CHUNK` points, with the quotient
-        rule of The NURBS Book A4.2 for rational curves.
+        available; points of a small batch (:data:`_SCALAR_POINTS`) to :meth:`_points_scalar`;
+        otherwise numpy, in chunks of :data:`_CHUNK` points, with the quotient rule of The
+        NURBS Book A4.2 for rational curves.
         """
         m = u.shape[0]
+        if order == 0 and 0 < m <= _SCALAR_POINTS:
+            try:
+                return self._points_scalar(u)
+            except ZeroDivisionError:
+                pass  # (a degenerate knot window: numpy's inf or nan, as before)
         rational = self.is_rational
         if m >= _accel.THRESHOLD and _accel.AVAILABLE:
             net = self.homogeneous if rational else self.control_points

@@ -167,3 +167,23 @@ def test_unclamped_periodic_curve_is_closed_and_smooth(radius, seed):
     a, b = c.domain
     Da, Db = c.derivatives(a, p - 1), c.derivatives(b, p - 1)
     np.testing.assert_allclose(Da, Db, rtol=0, atol=1e-10 * radius * 10**p)
+
+
+@given(curves())
+def test_small_batches_on_python_floats_give_the_numpy_bits(c):
+    """``evaluate`` of a few points runs on Python floats (``_points_scalar``): the same operations as the
+    numpy path, so the same bits, at knots, at the domain's ends and inside."""
+    import coons.kernel.curve as curve_module
+
+    lo, hi = c.domain
+    U = c.knots
+    u = np.concatenate([[lo, hi], U[(U >= lo) & (U <= hi)], params_in(c.domain, np.random.default_rng(3), 6)])
+    fast = np.array([c.evaluate(np.array([x])) for x in u])
+    old = curve_module._SCALAR_POINTS
+    curve_module._SCALAR_POINTS = 0
+    try:
+        slow = np.array([c.evaluate(np.array([x])) for x in u])
+    finally:
+        curve_module._SCALAR_POINTS = old
+    assert np.array_equal(fast, slow)
+    assert np.array_equal(c.evaluate(u[:curve_module._SCALAR_POINTS]), slow[:curve_module._SCALAR_POINTS, 0])

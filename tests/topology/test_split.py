@@ -1052,3 +1052,25 @@ def test_foot_on_a_line_is_the_clamped_projection(o, d, q, rng):
     assert abs(dist - float(np.min(np.linalg.norm(line.evaluate(np.linspace(lo, hi, 2001)) - q, axis=1)))) <= \
         (hi - lo) * float(np.hypot(*d)) / 2000 + 1e-12 * scale
     assert abs(x - y) <= 1e-12 * scale ** 2 / float(d @ d)  # one minimiser: the distance is strictly convex
+
+
+@pytest.mark.parametrize("slant", [(0.0, 0.3, 0.1), (0.2, -0.4, 0.05)])
+def test_cut_box_from_its_control_points_contains_the_cut(slant):
+    """A polynomial cut is boxed by its control points acting on its range (convex hull): the box holds
+    dense samples of the cut (to their rounding) over sub-ranges that start and end inside knot spans."""
+    from coons.kernel.curve_intersect import _derivs
+    from coons.tolerance import DEFAULT_TOLERANCE
+    from coons.topology import split
+
+    face, branches = _slant_branches(*slant)
+    for c in branches:
+        data = split._face_data(face, DEFAULT_TOLERANCE)
+        plane = data.plane([])
+        pc = split._pcurve(plane, EdgeSpec(c.curve, c.t0, c.t1, c.pcurve_a, c.tol), "cut")
+        assert type(pc) is NurbsCurve and not pc.is_rational
+        lo, hi = min(c.t0, c.t1), max(c.t0, c.t1)
+        for a, b in ((lo, hi), (lo + 0.13 * (hi - lo), lo + 0.71 * (hi - lo)), (hi, lo)):
+            box = split._box(split._Piece(pc, a, b, "cut", -1, None, [], []), plane)
+            X = _derivs(pc, np.linspace(min(a, b), max(a, b), 2001), 0)[:, 0]
+            slack = 1e-13 * (1.0 + np.abs(X).max())  # the samples' own rounding
+            assert np.all(X >= box[0] - slack) and np.all(X <= box[1] + slack)

@@ -49,7 +49,8 @@ accurate computation of polyhedral mass properties", 1996):
    of every face is gathered in one pass.  ``Line2D`` and ``Trig2D`` p-curves (and the
    projections of lines, circles and ellipses onto planes, which are exact) are rows of one
    coefficient table, ``uv(t) = c0 + t l + cos t a + sin t b``, stacked from the B-rep's
-   p-curves once and evaluated as arrays; ``NurbsCurve`` p-curves are evaluated per curve.
+   p-curves once and evaluated as arrays; polynomial ``NurbsCurve`` p-curves of one degree are
+   evaluated as one batch (:mod:`coons.topology._stacked`), rational ones per curve.
    Paths along which ``v`` is constant contribute nothing to ``∮ F dv`` and are skipped.
 4. *Closed-form inner integrals on analytic surfaces*, all faces of a class at once (frames,
    origins and meridian coefficients stacked per face, integrands written in each face's own
@@ -153,6 +154,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
+from coons.topology._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
@@ -804,10 +806,13 @@ class _Paths:
         rows = on_curve.nonzero()[0]
         rows = rows.take(np.argsort(pid.take(rows), kind="stable"))
         ids = pid.take(rows)
-        for r in np.split(rows, (ids[1:] != ids[:-1]).nonzero()[0] + 1):
-            curve, d0, d1 = self.curves[int(pid[r[0]])]
-            D = curve.derivatives(np.clip(t.take(r), d0, d1), 1)
-            uv[r], duv[r] = D[:, 0], D[:, 1]
+        # One batch for the polynomial NURBS p-curves (the fitted ones) of one degree.
+        groups = np.split(rows, (ids[1:] != ids[:-1]).nonzero()[0] + 1)
+        entries = [self.curves[int(pid[r[0]])] for r in groups]
+        D = derivatives_many([c for c, _, _ in entries],
+                             [np.clip(t.take(r), d0, d1) for r, (_, d0, d1) in zip(groups, entries)], 1)
+        for r, Dr in zip(groups, D):
+            uv[r], duv[r] = Dr[0], Dr[1]
         return uv, duv
 
     def _table(self, pid: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1106,8 +1106,12 @@ def _revolved_F(R: np.ndarray, Rc: np.ndarray, u: np.ndarray, v: np.ndarray, nco
 def _analytic_F(G: np.ndarray, Gc: np.ndarray, code: np.ndarray, f: np.ndarray, u: np.ndarray, v: np.ndarray,
                 ncols: int) -> np.ndarray:
     """``F(u, v)`` ``(n, ncols)`` for nodes on faces ``f`` ``(n,)`` that are planes or surfaces of revolution."""
-    out = np.empty((u.size, ncols))
     plane = code.take(f) == 0
+    if u.size and (plane.all() or not plane.any()):
+        # Faces of one kind (the curved paths of most Booleans lie on revolved faces): no gathers.
+        R = G.take(f, axis=1)
+        return _plane_F(R, u, v, ncols) if plane[0] else _revolved_F(R, Gc.take(f, axis=1), u, v, ncols)
+    out = np.empty((u.size, ncols))
     for sel, is_plane in ((plane.nonzero()[0], True), ((~plane).nonzero()[0], False)):
         if sel.size:
             fs = f[sel]
@@ -1449,8 +1453,9 @@ def _adaptive(item, lo, hi, owner, n_owners: int, fn: Callable, ncols: int, rtol
 
 # ---------------------------------------------------------------------------- helpers
 def _interior_knots(knots: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    k = np.unique(knots)
-    return k[(k > lo) & (k < hi)]
+    # Knot vectors are sorted: the distinct values without np.unique's sort (called per path).
+    k = knots[(knots > lo) & (knots < hi)]
+    return k[np.concatenate([[True], k[1:] != k[:-1]])] if k.size else k
 
 
 def _crossings(paths: _Paths, p: int, values: np.ndarray, comp: int, n: int) -> list[float]:

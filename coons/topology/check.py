@@ -55,6 +55,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
+from coons.topology._stacked import derivatives_many
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]
@@ -348,9 +349,10 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
     if rows.size and np.isfinite(T[rows]).all():
         P[rows] = evaluate_curves([b.curves[int(ci)] for ci in curve[rows].tolist()], T[rows])
         curved = curved[~batched]
-    for ci in np.unique(curve[curved]):
-        rows = curved[curve[curved] == ci]
-        P[rows] = b.curves[int(ci)].evaluate(T[rows])
+    ids = np.unique(curve[curved])
+    groups = [curved[curve[curved] == ci] for ci in ids]
+    for rows, D in zip(groups, derivatives_many([b.curves[int(ci)] for ci in ids], [T[r].ravel() for r in groups], 0)):
+        P[rows] = D[0].reshape(rows.size, samples, 3)
     return T, P
 
 
@@ -397,8 +399,9 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.nda
         B = np.array([pcurves[i].b for i in which[rows]])
         tt = T[rows][..., None]
         out[rows] = C[:, None, :] + np.cos(tt) * A[:, None, :] + np.sin(tt) * B[:, None, :]
-    for r in np.flatnonzero(k == 2):
-        out[r] = pcurves[int(which[r])].evaluate(T[r])
+    rows = np.flatnonzero(k == 2)
+    for r, D in zip(rows, derivatives_many([pcurves[int(i)] for i in which[rows]], [T[r] for r in rows], 0)):
+        out[r] = D[0]
     return out, k == 0
 
 

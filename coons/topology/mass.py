@@ -49,7 +49,8 @@ accurate computation of polyhedral mass properties", 1996):
    of every face is gathered in one pass.  ``Line2D`` and ``Trig2D`` p-curves (and the
    projections of lines, circles and ellipses onto planes, which are exact) are rows of one
    coefficient table, ``uv(t) = c0 + t l + cos t a + sin t b``, stacked from the B-rep's
-   p-curves once and evaluated as arrays; ``NurbsCurve`` p-curves are evaluated per curve.
+   p-curves once and evaluated as arrays; polynomial ``NurbsCurve`` p-curves of one degree are
+   evaluated as one batch (:mod:`coons.topology._stacked`), rational ones per curve.
    Paths along which ``v`` is constant contribute nothing to ``∮ F dv`` and are skipped.
 4. *Closed-form inner integrals on analytic surfaces*, all faces of a class at once (frames,
    origins and meridian coefficients stacked per face, integrands written in each face's own
@@ -153,6 +154,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
+from coons.topology._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [
@@ -804,10 +806,13 @@ class _Paths:
         rows = on_curve.nonzero()[0]
         rows = rows.take(np.argsort(pid.take(rows), kind="stable"))
         ids = pid.take(rows)
-        for r in np.split(rows, (ids[1:] != ids[:-1]).nonzero()[0] + 1):
-            curve, d0, d1 = self.curves[int(pid[r[0]])]
-            D = curve.derivatives(np.clip(t.take(r), d0, d1), 1)
-            uv[r], duv[r] = D[:, 0], D[:, 1]
+        # One batch for the polynomial NURBS p-curves (the fitted ones) of one degree.
+        groups = np.split(rows, (ids[1:] != ids[:-1]).nonzero()[0] + 1)
+        entries = [self.curves[int(pid[r[0]])] for r in groups]
+        D = derivatives_many([c for c, _, _ in entries],
+                             [np.clip(t.take(r), d0, d1) for r, (_, d0, d1) in zip(groups, entries)], 1)
+        for r, Dr in zip(groups, D):
+            uv[r], duv[r] = Dr[0], Dr[1]
         return uv, duv
 
     def _table(self, pid: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -1101,8 +1106,12 @@ def _revolved_F(R: np.ndarray, Rc: np.ndarray, u: np.ndarray, v: np.ndarray, nco
 def _analytic_F(G: np.ndarray, Gc: np.ndarray, code: np.ndarray, f: np.ndarray, u: np.ndarray, v: np.ndarray,
                 ncols: int) -> np.ndarray:
     """``F(u, v)`` ``(n, ncols)`` for nodes on faces ``f`` ``(n,)`` that are planes or surfaces of revolution."""
-    out = np.empty((u.size, ncols))
     plane = code.take(f) == 0
+    if u.size and (plane.all() or not plane.any()):
+        # Faces of one kind (the curved paths of most Booleans lie on revolved faces): no gathers.
+        R = G.take(f, axis=1)
+        return _plane_F(R, u, v, ncols) if plane[0] else _revolved_F(R, Gc.take(f, axis=1), u, v, ncols)
+    out = np.empty((u.size, ncols))
     for sel, is_plane in ((plane.nonzero()[0], True), ((~plane).nonzero()[0], False)):
         if sel.size:
             fs = f[sel]
@@ -1444,8 +1453,9 @@ def _adaptive(item, lo, hi, owner, n_owners: int, fn: Callable, ncols: int, rtol
 
 # ---------------------------------------------------------------------------- helpers
 def _interior_knots(knots: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    k = np.unique(knots)
-    return k[(k > lo) & (k < hi)]
+    # Knot vectors are sorted: the distinct values without np.unique's sort (called per path).
+    k = knots[(knots > lo) & (knots < hi)]
+    return k[np.concatenate([[True], k[1:] != k[:-1]])] if k.size else k
 
 
 def _crossings(paths: _Paths, p: int, values: np.ndarray, comp: int, n: int) -> list[float]:

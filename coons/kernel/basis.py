@@ -254,8 +254,18 @@ def basis_rows(knots: np.ndarray, degree: int, spans: np.ndarray, u: np.ndarray)
     K = _knot_window(knots, p, spans)
     left = [u - K[p - j] for j in range(p + 1)]  # left[j] = u - U[span + 1 - j] (left[0] unused)
     right = [K[p - 1 + j] - u for j in range(p + 1)]  # right[j] = U[span + j] - u (right[0] unused)
-    N = [np.ones(u.shape[0])]
-    for j in range(1, p + 1):
+    return triangle(left, right, p, np.ones(u.shape[0]))
+
+
+def triangle(left: list, right: list, degree: int, one):
+    """The triangle of The NURBS Book A2.2 from ``left[j] = u - U[span + 1 - j]`` and ``right[j] = U[span + j] - u``
+    (``j = 0..p``; index 0 unused): the ``p + 1`` non-zero basis functions, starting from ``one``.
+
+    Works on arrays (:func:`basis_rows`) and on Python floats (``NurbsCurve._points_scalar``) with the same
+    operations in the same order, so both give the same bits.
+    """
+    N = [one]
+    for j in range(1, degree + 1):
         saved = None
         nxt = []
         for r in range(j):

@@ -224,17 +224,7 @@ class NurbsCurve:
             span = max(min(bisect_right(U, x) - 1, last), p)
             left = [0.0] + [x - U[span + 1 - j] for j in range(1, p + 1)]
             right = [0.0] + [U[span + j] - x for j in range(1, p + 1)]
-            N = [1.0]
-            for j in range(1, p + 1):
-                saved = None
-                nxt = []
-                for r in range(j):
-                    temp = N[r] / (right[r + 1] + left[j - r])
-                    term = right[r + 1] * temp
-                    nxt.append(term if saved is None else saved + term)
-                    saved = left[j - r] * temp
-                nxt.append(saved)
-                N = nxt
+            N = _b.triangle(left, right, p, 1.0)
             base = span - p
             acc = [N[0] * g for g in net[base]]
             for j in range(1, p + 1):

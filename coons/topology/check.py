@@ -55,7 +55,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
-from coons.topology._stacked import derivatives_many
+from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
 __all__ = ["CheckReport", "Problem", "check"]

@@ -50,7 +50,7 @@ accurate computation of polyhedral mass properties", 1996):
    projections of lines, circles and ellipses onto planes, which are exact) are rows of one
    coefficient table, ``uv(t) = c0 + t l + cos t a + sin t b``, stacked from the B-rep's
    p-curves once and evaluated as arrays; polynomial ``NurbsCurve`` p-curves of one degree are
-   evaluated as one batch (:mod:`coons.topology._stacked`), rational ones per curve.
+   evaluated as one batch (:mod:`coons.kernel._stacked`), rational ones per curve.
    Paths along which ``v`` is constant contribute nothing to ``∮ F dv`` and are skipped.
 4. *Closed-form inner integrals on analytic surfaces*, all faces of a class at once (frames,
    origins and meridian coefficients stacked per face, integrands written in each face's own
@@ -154,7 +154,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
-from coons.topology._stacked import derivatives_many
+from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
 __all__ = [

@@ -1,4 +1,4 @@
-"""Batched evaluation of polynomial NURBS curves (coons.topology._stacked) against NurbsCurve itself."""
+"""Batched evaluation of polynomial NURBS curves (coons.kernel._stacked) against NurbsCurve itself."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ import pytest
 from coons.errors import InvalidInputError
 from coons.kernel.analytic import Line
 from coons.kernel.curve import NurbsCurve
-from coons.topology._stacked import derivatives_many, stacked_derivatives
+from coons.kernel._stacked import derivatives_many, stacked_derivatives
 
 
 def _curve(rng, n, p, d, lo=0.0, hi=1.0, weights=False, repeat=False):

@@ -165,8 +165,8 @@ Status and limitations
   (same surface, curve and p-curve objects, ranges and tolerances: ``sewn_unchanged``) with
   that spec's parameter box, space box, rings and segments (``_FACE_DATA``, assembled from
   per-loop data ``_LOOP_DATA``: a plate face gaining a hole reads its other loops' rings,
-  segments and boxes from there, and from 16 loops on the per-face reductions of the face it
-  extends, ``_FACE_PREFIX``); loop samples and
+  segments and boxes from there, and a face of more than 16 loops the per-face reductions of
+  the face of 16 loops or more that it extends, ``_FACE_PREFIX``); loop samples and
   space boxes are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a
   split face keep (a split face's new space box joins its kept edges' boxes); a pair of face
   specs found unmergeable is not tried again (``_MERGE_FAILED``), nor a face spec found not to
@@ -943,8 +943,9 @@ def _keep_prefix(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> None:
         _FACE_PREFIX.set(loops[0][0], (tuple(loops[0][1:]), tuple(loops[1:]), t, list(parts), raw))
 
 
-def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
-    """The :class:`_FaceData` of completed specs (each with a loop), computed together and cached.
+def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> list[_FaceData]:
+    """The :class:`_FaceData` of completed specs (each with a loop), computed together and cached
+    (``extend``: first try :func:`_extended_face_data` on faces of many loops).
 
     The loops missing from the loop cache are computed in one :func:`_new_loop_data` pass; the
     parameter boxes and the space boxes of all faces are reductions over the stacked loop data
@@ -964,14 +965,14 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     """
     # A face extending a kept one by new loops (a plate's top gaining a hole) from the kept data.
     extended: dict[int, _FaceData] = {}
-    for k, spec in enumerate(specs):
+    for k, spec in enumerate(specs if extend else ()):
         if len(spec.loops) > _PREFIX_LOOPS and _no_interior_extremes(spec.surface):
             d = _extended_face_data(spec, t)
             if d is not None:
                 extended[k] = d
     if extended:
         rest = [spec for k, spec in enumerate(specs) if k not in extended]
-        done = iter(_new_face_data(rest, t) if rest else [])
+        done = iter(_new_face_data(rest, t, extend=False) if rest else [])
         return [extended[k] if k in extended else next(done) for k in range(len(specs))]
     # A loop is its surface and every use (what _cached_loop checks), not its first use alone.
     todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
@@ -1003,8 +1004,8 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     tol_max = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first)
     pad = tol_max + t.linear
     # Faces whose reductions are kept for faces extending them: no interior extremes to add.
+    # (their rows of lo, hi are final here: only faces with interior extremes change theirs below)
     keep = [len(spec.loops) >= _PREFIX_LOOPS and _no_interior_extremes(spec.surface) for spec in specs]
-    raw_lo, raw_hi = lo.copy(), hi.copy()
     mu = _BOX_MARGIN * (Rx - R) + t.linear
     box_lo, box_hi = (R - mu).tolist(), (Rx + mu).tolist()
     uv_box = []
@@ -1043,9 +1044,9 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
         d.box = None if no_box[k] else boxes[k]
         _FACE_DATA[spec] = d
         out.append(d)
-        if len(parts) >= _PREFIX_LOOPS and keep[k]:
-            _keep_prefix(spec, t, parts, (R[k].copy(), Rx[k].copy(), G[k].copy(), Gx[k].copy(), raw_lo[k],
-                                          raw_hi[k], float(tol_max[k]), no_box[k]))
+        if keep[k]:
+            _keep_prefix(spec, t, parts, (R[k].copy(), Rx[k].copy(), G[k].copy(), Gx[k].copy(), lo[k].copy(),
+                                          hi[k].copy(), float(tol_max[k]), no_box[k]))
     return out
 
 

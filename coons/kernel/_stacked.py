@@ -42,11 +42,7 @@ def stacked_derivatives(curves: list, params: list, order: int) -> np.ndarray:
     k_off = np.repeat(np.cumsum([0] + [c.knots.size for c in curves[:-1]]), sizes)
     n_off = np.repeat(np.cumsum([0] + [c.control_points.shape[0] for c in curves[:-1]]), sizes)
     u = np.concatenate(params)
-    # Binary search per curve (what basis.find_spans does for small batches, and its bucket table
-    # gives the same spans for large ones), kept inside [p, last non-empty span].
-    local = np.concatenate([np.minimum(np.searchsorted(c.knots, x, side="right") - 1, _b.last_span(c.knots, p))
-                            for c, x in zip(curves, params)])
-    local = np.maximum(local, p)
+    local = np.concatenate([_b.find_spans(c.knots, p, x) for c, x in zip(curves, params)])
     if order == 0:
         N = [_b.basis_rows(knots, p, local + k_off, u)]
     else:

@@ -48,6 +48,8 @@ _CHUNK = 16384
 #: the numpy path costs some 40 array operations on one-element arrays whatever the batch (the Booleans evaluate
 #: branch curves at one or two parameters at a time), the float path about a microsecond per basis product.
 _SCALAR_POINTS = 4
+#: ... for curves of at most this many control points (the float path converts the whole net once).
+_SCALAR_NET = 4096
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,11 +247,11 @@ class NurbsCurve:
         NURBS Book A4.2 for rational curves.
         """
         m = u.shape[0]
-        if order == 0 and 0 < m <= _SCALAR_POINTS:
+        if order == 0 and 0 < m <= _SCALAR_POINTS and self.control_points.shape[0] <= _SCALAR_NET:
             try:
                 return self._points_scalar(u)
             except ZeroDivisionError:
-                pass  # (a degenerate knot window: numpy's inf or nan, as before)
+                pass  # (defensive: the spans chosen are non-empty; numpy would give inf or nan)
         rational = self.is_rational
         if m >= _accel.THRESHOLD and _accel.AVAILABLE:
             net = self.homogeneous if rational else self.control_points

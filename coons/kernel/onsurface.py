@@ -715,6 +715,7 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
 
     Lines and circles in space and straight and trigonometric p-curves (``Line2D``, ``Trig2D``)
     are evaluated in one expression per type with the formulas of their own ``derivatives``;
+    polynomial NURBS curves of one degree together (:func:`coons.kernel._stacked.derivatives_many`);
     any other curve is called once.  ``d`` is ``dimension``, or the first curve's.
 
     Raises
@@ -774,11 +775,15 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
             X[rows, :, 0] += O[:, None, :]
         else:  # (Trig2D.evaluate's order of sums: the same points bit for bit)
             X[rows, :, 0] = O[:, None, :] + c * A + sn * B
-    for i in groups.get(0, ()):
-        D = np.asarray(curves[i].derivatives(T[i], order), dtype=np.float64)
-        if D.shape[-1] != dimension:
-            raise InvalidInputError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
-        X[i] = D.reshape(X[i].shape)
+    rest = groups.get(0)
+    if rest:
+        # (polynomial NURBS of one degree as one batch, the same bits as their own derivatives)
+        from coons.kernel._stacked import derivatives_many
+
+        for i, D in zip(rest, derivatives_many([curves[i] for i in rest], [T[i] for i in rest], order)):
+            if D.shape[-1] != dimension:
+                raise InvalidInputError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
+            X[i] = np.moveaxis(D, 0, 1).reshape(X[i].shape)
     return X
 
 

@@ -329,8 +329,8 @@ def _box(p: "_Piece", plane: _Plane) -> np.ndarray:
     A polynomial NURBS piece (a cut) is boxed by its control points acting on its range (convex hull
     property, The NURBS Book §3.2): every use of the box is a conservative prefilter (box meets, then
     the exact test), and for the fitted p-curves of intersection branches, whose control polygons hug
-    the curve, this box is about as tight as :func:`~coons.kernel.curve_intersect.curve_box`'s Bézier
-    pieces at a small part of their cost (the pieces of a cut's range are otherwise never needed)."""
+    the curve, this box is at most a little looser than :func:`~coons.kernel.curve_intersect.curve_box`'s
+    Bézier pieces, at a small part of their cost."""
     if p.box is None:
         pc = p.pc
         if _FAST and type(pc) is NurbsCurve and not pc.is_rational:

@@ -762,36 +762,59 @@ def _loop_branches(loop: _CylinderLoop, a, b, box_a, box_b, tol: Tolerance) -> l
     w0 = lo_g if loop.sense > 0.0 else -(lo_g + TWO_PI)
     w1 = w0 + TWO_PI
     grid = np.linspace(w0, w1, _SEARCH_SAMPLES + 1)
-    _, F, _ = _loop_coordinates(loop, grid, g_first)
+    _, F, dF = _loop_coordinates(loop, grid, g_first, slopes=True)
     h_row = 2 if g_first else 0
     F[h_row] = np.unwrap(F[h_row], period=TWO_PI)
-    # Brackets (coordinate, target, grid interval) of every bound crossing, then all roots at once.
-    rows, targets, cells, seam_rows = [], [], [], []
+    # Brackets [lo, hi] with values of opposite signs (coordinate, target, reference value) of every
+    # bound crossing, then all roots at once.
+    br_rows, br_targets, br_refs, br_lo, br_hi, br_glo, br_ghi, seam_rows = [], [], [], [], [], [], [], []
     exact, exact_seams = [], []  # crossings at grid points (the window's ends among them)
     seam_at_start = False
     for k, ((lo, hi), per) in enumerate(zip(bounds, periodic)):
         seam = per and hi - lo >= TWO_PI and math.isfinite(lo)
         if seam:
             seam_at_start |= bool(_inside(F[k, :1], lo, lo, True, slack)[0])
-        for bound in (lo,) if seam else (lo, hi):
-            if not math.isfinite(bound):
-                continue
-            for target in _target_values(per, bound, float(F[k].min()), float(F[k].max())):
-                g = F[k] - target
-                (exact_seams if seam else exact).append(grid[g == 0.0])
-                # (a bracket with a zero end would make regula falsi crawl towards it)
-                j = np.flatnonzero((np.signbit(g[:-1]) != np.signbit(g[1:])) & (g[:-1] != 0.0) & (g[1:] != 0.0))
-                rows += [k] * j.size
-                targets += [target] * j.size
-                cells.append(j)
-                seam_rows += [seam] * j.size
+        # (widened by how far the coordinate can move past its grid values inside a cell: _loop_turns)
+        reach = 2.0 * float(grid[1] - grid[0]) * float(np.max(np.abs(dF[k])))
+        f_lo, f_hi = float(F[k].min()) - reach, float(F[k].max()) + reach
+        wanted = [t for bound in ((lo,) if seam else (lo, hi)) if math.isfinite(bound)
+                  for t in _target_values(per, bound, f_lo, f_hi)]
+        if wanted:
+            turns = _loop_turns(loop, g_first, k, grid, F[k], dF[k], np.array(wanted))
+        for target in wanted:
+            g = F[k] - target
+            (exact_seams if seam else exact).append(grid[g == 0.0])
+            # (a bracket with a zero end would make regula falsi crawl towards it)
+            j = np.flatnonzero((np.signbit(g[:-1]) != np.signbit(g[1:])) & (g[:-1] != 0.0) & (g[1:] != 0.0))
+            lo_t, hi_t, glo, ghi = [grid[j]], [grid[j + 1]], [g[j]], [g[j + 1]]
+            refs = [F[k, j]]
+            # A turn of the coordinate inside a cell whose ends are on one side of the target may
+            # still reach past it: such a cell is two brackets, either side of the turn.
+            c, ts, Fs = turns
+            if c.size:
+                gs, g0, g1 = Fs - target, g[c], g[c + 1]
+                past = ((np.signbit(gs) != np.signbit(g0)) & (np.signbit(g0) == np.signbit(g1))
+                        & (gs != 0.0) & (g0 != 0.0) & (g1 != 0.0))
+                c, ts, gs, g0, g1 = c[past], ts[past], gs[past], g0[past], g1[past]
+                lo_t += [grid[c], ts]
+                hi_t += [ts, grid[c + 1]]
+                glo += [g0, gs]
+                ghi += [gs, g1]
+                refs += [F[k, c], F[k, c]]
+            n = sum(x.size for x in lo_t)
+            br_lo += lo_t
+            br_hi += hi_t
+            br_glo += glo
+            br_ghi += ghi
+            br_refs += refs
+            br_rows += [k] * n
+            br_targets += [target] * n
+            seam_rows += [seam] * n
     roots, seam_roots = np.concatenate([np.zeros(0)] + exact), np.concatenate([np.zeros(0)] + exact_seams)
-    if rows:
-        rows_, targets_, j = np.array(rows), np.array(targets), np.concatenate(cells)
-        ref = F[rows_, j]
-
-        found = _loop_roots(loop, g_first, rows_, targets_, ref, grid[j], grid[j + 1], F[rows_, j] - targets_,
-                            F[rows_, j + 1] - targets_)
+    if br_rows:
+        rows_, targets_ = np.array(br_rows), np.array(br_targets)
+        found = _loop_roots(loop, g_first, rows_, targets_, np.concatenate(br_refs), np.concatenate(br_lo),
+                            np.concatenate(br_hi), np.concatenate(br_glo), np.concatenate(br_ghi))
         is_seam = np.array(seam_rows)
         roots, seam_roots = np.concatenate([roots, found[~is_seam]]), np.concatenate([seam_roots, found[is_seam]])
     br = np.unique(np.concatenate([[w0, w1], roots, seam_roots]))
@@ -807,6 +830,57 @@ def _loop_branches(loop: _CylinderLoop, a, b, box_a, box_b, tol: Tolerance) -> l
         if s1 - s0 > slack:
             out.append(_loop_piece(loop, s0, s1, a, b, boxes, g_first, slack, s1 - s0 >= TWO_PI - slack, tol))
     return out
+
+
+#: Bisection steps locating a turn of a loop coordinate inside a grid cell (:func:`_loop_turns`): a cell of
+#: ``2π / 512`` halved 44 times is below 1e-15.
+_TURN_STEPS = 44
+
+
+def _loop_turns(loop: _CylinderLoop, g_first: bool, k: int, grid: np.ndarray, f: np.ndarray,
+                df: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(cells, t*, f(t*))``: the grid cells where coordinate ``k`` of the loop (values ``f``, derivatives ``df`` on
+    ``grid``; the other cylinder's angle unwrapped) turns and might, between grid points, pass one of
+    ``targets`` that neither end reaches, with the turn ``t*`` (where the derivative changes sign, by
+    bisection on its sign) and the coordinate there.
+
+    A cell qualifies when the derivative changes sign across it and a target lies beyond both ends'
+    values, on the turn's side, by at most ``h (|f'_0| + |f'_1|)`` (the coordinate moves from an end by at
+    most about ``h max |f'|`` before it turns, ``f'`` being nearly linear across a cell); only those are
+    located: usually none, since a bound rarely lies that close to an extreme.  Turning exactly at a grid
+    point needs nothing (the grid value is the extreme).
+    """
+    d0, d1 = df[:-1], df[1:]
+    c = np.flatnonzero((np.signbit(d0) != np.signbit(d1)) & (d0 != 0.0) & (d1 != 0.0))
+    if c.size == 0:
+        return c, np.zeros(0), np.zeros(0)
+    h = grid[c + 1] - grid[c]
+    reach = h * (np.abs(d0[c]) + np.abs(d1[c]))
+    # A maximum (f' from + to -) can rise above both ends by at most the reach, a minimum fall below.
+    top = np.maximum(f[c], f[c + 1]) + reach
+    bottom = np.minimum(f[c], f[c + 1]) - reach
+    peak = ~np.signbit(d0[c])
+    high, low = np.maximum(f[c], f[c + 1]), np.minimum(f[c], f[c + 1])
+    T = targets[None, :]
+    near = np.where(peak, np.any((T > high[:, None]) & (T <= top[:, None]), axis=1),
+                    np.any((T < low[:, None]) & (T >= bottom[:, None]), axis=1))
+    c, peak = c[near], peak[near]
+    if c.size == 0:
+        return c, np.zeros(0), np.zeros(0)
+    lo, hi = grid[c].copy(), grid[c + 1].copy()
+    rows = np.full(c.size, k)
+    for _ in range(_TURN_STEPS):
+        mid = 0.5 * (lo + hi)
+        _, _, dG = _loop_coordinates(loop, mid, g_first, slopes=True)
+        rising = ~np.signbit(dG[rows, np.arange(c.size)])
+        left = rising == peak  # still rising to a peak (falling to a trough): the turn lies right of mid
+        lo, hi = np.where(left, mid, lo), np.where(left, hi, mid)
+    ts = 0.5 * (lo + hi)
+    _, G, _ = _loop_coordinates(loop, ts, g_first)
+    fs = G[k]
+    if k == (2 if g_first else 0):  # the other cylinder's angle: on the grid's unwrapped turn
+        fs = fs + TWO_PI * np.round((f[c] - fs) / TWO_PI)
+    return c, ts, fs
 
 
 def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first: bool, slack: float, closed: bool,
@@ -1447,7 +1521,8 @@ def _conic_crossings(c: _Coord, bound: float, t0: float, t1: float) -> np.ndarra
     longitude jumps there), a meridian plane containing the curve (``r`` at round-off), any other
     bound of a latitude, and a root whose coordinate value does not come back to ``bound``
     (mod 2π) within ``tol.solver``.  The roots are ordered as the sampled search orders them:
-    by the whole turn of their (unwrapped) value, then by ``t``.
+    by the whole turn of their (unwrapped) value, then by ``t``.  Unlike the search, a root exactly at
+    ``t0`` or ``t1`` is left out: the callers break the window at its ends anyway.
     """
     surface, curve = c.surface, c.curve
     if c.exact or not isinstance(curve, (Circle, Ellipse)) or not isinstance(surface, _AZIMUTHAL):
@@ -1570,7 +1645,8 @@ def _inside(values: np.ndarray, lo: float, hi: float, periodic: bool, slack: flo
 def _shift(coord: _Coord, t_mid: float, lo: float, hi: float, slack: float) -> float:
     """The multiple of 2π that moves a periodic coordinate's branch into ``[lo, hi]``.
 
-    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
+    Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`, and for the cylinder
+    loops by :func:`_loop_piece`: keep the three in step.
     """
     if not coord.periodic or not math.isfinite(lo):
         return 0.0

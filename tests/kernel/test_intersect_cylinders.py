@@ -285,3 +285,32 @@ def test_nearly_parallel_axes_fall_back_to_marching():
     angle = math.radians(2.0)
     thin = CylindricalSurface([0, 0, 0], [math.sin(angle), 0, math.cos(angle)], [0, 1, 0], 0.3)
     assert ix._crossing_cylinders(CYL_Z, thin, TOL) is None
+
+
+
+@pytest.mark.parametrize("delta", [1e-7, 1e-6, 1e-5, 1e-4])
+@pytest.mark.parametrize("seed", range(1, 7))  # (draws that are two loops)
+def test_a_box_bound_just_below_a_peak_between_grid_points_cuts_the_loop(seed, delta):
+    # The thin cylinder's axial coordinate peaks in the middle of a cell of the crossing search's grid, and
+    # the box stops delta below the peak: both ends of that cell are inside the box, yet the loop leaves it
+    # (the turn is located and the cell bracketed on both sides of it, _loop_turns).
+    rng = np.random.default_rng(seed)
+    Z = rng.normal(size=3)
+    Z /= np.linalg.norm(Z)
+    X = np.cross(Z, rng.normal(size=3))
+    X /= np.linalg.norm(X)
+    O, r = rng.normal(size=3) * 0.3, rng.uniform(0.2, 0.9)
+    loop = ix._crossing_cylinders(CYL_Z, CylindricalSurface(O, Z, X, r), TOL).candidates[0].curve
+    t = np.linspace(0.0, 2 * PI, 200001)
+    _, G, _ = ix._loop_coordinates(loop, t, False)
+    i = int(np.argmax(G[3]))
+    # Turn the thin cylinder's frame so that the peak's angle is half a grid cell.
+    phi = float(loop.graph(t[i:i + 1], slopes=False)[0][0]) - PI / ix._SEARCH_SAMPLES
+    g = CylindricalSurface(O, Z, math.cos(phi) * X + math.sin(phi) * np.cross(Z, X), r)
+    box_a, box_b = ((0.0, 2 * PI), (-10.0, 10.0)), ((0.0, 2 * PI), (-10.0, float(G[3, i]) - delta))
+    result = intersect_surfaces(CYL_Z, g, box_a, box_b, TOL)
+    assert result.curves
+    _check(result, CYL_Z, g, box_a, box_b)
+    for c in result.curves:  # (densely: the excursion is a few thousandths of a turn wide)
+        v = c.pcurve_b.evaluate(np.linspace(c.t0, c.t1, 40001))[:, 1]
+        assert v.max() <= box_b[1][1] + 1e-12

@@ -741,8 +741,9 @@ def _loop_branches(loop: _CylinderLoop, a, b, box_a, box_b, tol: Tolerance) -> l
     The same clipping as :func:`_branches` on the closed-form coordinates: a turn starting where the graph
     cylinder's angle is at its box's lower bound; breakpoints where a coordinate crosses a box bound (a seam
     for a box of a whole period or more), bracketed on a grid of :data:`_SEARCH_SAMPLES` intervals (each
-    coordinate changes monotonically between a few extrema per turn) and solved together by
-    :func:`_loop_roots`; runs of in-box intervals (:func:`_runs`), each fitted by :func:`_loop_piece`.  The
+    coordinate changes monotonically between a few extrema per turn; a turn inside a cell that can reach a
+    bound is located by :func:`_loop_turns` and the cell bracketed on both sides of it) and solved together
+    by :func:`_loop_roots`; runs of in-box intervals (:func:`_runs`), each fitted by :func:`_loop_piece`.  The
     other cylinder's angle stays within an arc shorter than π along a loop (the loop lies on one side
     of the plane through that cylinder's axis across the graph cylinder's axis), so it is unwrapped
     against one reference value.
@@ -848,7 +849,9 @@ def _loop_turns(loop: _CylinderLoop, g_first: bool, k: int, grid: np.ndarray, f:
     values, on the turn's side, by at most ``h (|f'_0| + |f'_1|)`` (the coordinate moves from an end by at
     most about ``h max |f'|`` before it turns, ``f'`` being nearly linear across a cell); only those are
     located: usually none, since a bound rarely lies that close to an extreme.  Turning exactly at a grid
-    point needs nothing (the grid value is the extreme).
+    point needs nothing (the grid value is the extreme).  Two turns inside one cell (the derivative of one
+    sign at both ends) are not seen: with 512 cells a turn that tight needs a loop near tangency, which
+    :func:`_cylinder_loops` leaves to marching.
     """
     d0, d1 = df[:-1], df[1:]
     c = np.flatnonzero((np.signbit(d0) != np.signbit(d1)) & (d0 != 0.0) & (d1 != 0.0))
@@ -857,22 +860,19 @@ def _loop_turns(loop: _CylinderLoop, g_first: bool, k: int, grid: np.ndarray, f:
     h = grid[c + 1] - grid[c]
     reach = h * (np.abs(d0[c]) + np.abs(d1[c]))
     # A maximum (f' from + to -) can rise above both ends by at most the reach, a minimum fall below.
-    top = np.maximum(f[c], f[c + 1]) + reach
-    bottom = np.minimum(f[c], f[c + 1]) - reach
-    peak = ~np.signbit(d0[c])
     high, low = np.maximum(f[c], f[c + 1]), np.minimum(f[c], f[c + 1])
+    peak = ~np.signbit(d0[c])
     T = targets[None, :]
-    near = np.where(peak, np.any((T > high[:, None]) & (T <= top[:, None]), axis=1),
-                    np.any((T < low[:, None]) & (T >= bottom[:, None]), axis=1))
+    near = np.where(peak, np.any((T > high[:, None]) & (T <= (high + reach)[:, None]), axis=1),
+                    np.any((T < low[:, None]) & (T >= (low - reach)[:, None]), axis=1))
     c, peak = c[near], peak[near]
     if c.size == 0:
         return c, np.zeros(0), np.zeros(0)
     lo, hi = grid[c].copy(), grid[c + 1].copy()
-    rows = np.full(c.size, k)
     for _ in range(_TURN_STEPS):
         mid = 0.5 * (lo + hi)
         _, _, dG = _loop_coordinates(loop, mid, g_first, slopes=True)
-        rising = ~np.signbit(dG[rows, np.arange(c.size)])
+        rising = ~np.signbit(dG[k])
         left = rising == peak  # still rising to a peak (falling to a trough): the turn lies right of mid
         lo, hi = np.where(left, mid, lo), np.where(left, hi, mid)
     ts = 0.5 * (lo + hi)

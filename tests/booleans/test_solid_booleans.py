@@ -1286,7 +1286,7 @@ def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeyp
     # Cold: no kept data and no extension (the cold pass keeps data again, which must not be read).
     monkeypatch.setattr(S, "_FACE_PREFIX", IdentityMemo())
     monkeypatch.setattr(S, "_extended_face_data", lambda spec, tol: None)
-    for spec, d in list(got):
+    for spec, d in got:
         del S._FACE_DATA[spec]
         cold = S._new_face_data([spec], t)[0]
         assert d.uv_box == cold.uv_box

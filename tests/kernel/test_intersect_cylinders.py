@@ -288,12 +288,15 @@ def test_nearly_parallel_axes_fall_back_to_marching():
 
 
 
-@pytest.mark.parametrize("delta", [1e-7, 1e-6, 1e-5, 1e-4])
+
+@pytest.mark.parametrize("delta", [3e-8, 1e-7, 1e-6, 1e-5])
 @pytest.mark.parametrize("seed", range(1, 7))  # (draws that are two loops)
-def test_a_box_bound_just_below_a_peak_between_grid_points_cuts_the_loop(seed, delta):
-    # The thin cylinder's axial coordinate peaks in the middle of a cell of the crossing search's grid, and
-    # the box stops delta below the peak: both ends of that cell are inside the box, yet the loop leaves it
-    # (the turn is located and the cell bracketed on both sides of it, _loop_turns).
+@pytest.mark.parametrize("row, peak", [(3, True), (3, False), (0, True), (0, False)])
+def test_a_box_bound_just_inside_a_turn_between_grid_points_cuts_the_loop(row, peak, seed, delta):
+    # A coordinate of the loop turns (row 3: the thin cylinder's axial coordinate; row 0: the thick one's
+    # angle) in the middle of a cell of the crossing search's grid, and the box stops delta short of the
+    # turn: both ends of that cell are inside the box, yet the loop leaves it (the turn is located and the
+    # cell bracketed on both sides of it, _loop_turns).
     rng = np.random.default_rng(seed)
     Z = rng.normal(size=3)
     Z /= np.linalg.norm(Z)
@@ -303,14 +306,21 @@ def test_a_box_bound_just_below_a_peak_between_grid_points_cuts_the_loop(seed, d
     loop = ix._crossing_cylinders(CYL_Z, CylindricalSurface(O, Z, X, r), TOL).candidates[0].curve
     t = np.linspace(0.0, 2 * PI, 200001)
     _, G, _ = ix._loop_coordinates(loop, t, False)
-    i = int(np.argmax(G[3]))
-    # Turn the thin cylinder's frame so that the peak's angle is half a grid cell.
+    f = np.unwrap(G[row]) if row == 0 else G[row]
+    i = int(np.argmax(f) if peak else np.argmin(f))
+    # Turn the thin cylinder's frame so that the turn's angle is half a grid cell.
     phi = float(loop.graph(t[i:i + 1], slopes=False)[0][0]) - PI / ix._SEARCH_SAMPLES
     g = CylindricalSurface(O, Z, math.cos(phi) * X + math.sin(phi) * np.cross(Z, X), r)
-    box_a, box_b = ((0.0, 2 * PI), (-10.0, 10.0)), ((0.0, 2 * PI), (-10.0, float(G[3, i]) - delta))
+    bound = float(f[i]) - delta if peak else float(f[i]) + delta
+    span = (float(f.min()) - 0.5, bound) if peak else (bound, float(f.max()) + 0.5)
+    box_a, box_b = ((0.0, 2 * PI), (-10.0, 10.0)), ((0.0, 2 * PI), (-10.0, 10.0))
+    if row == 3:
+        box_b = (box_b[0], span)
+    else:
+        box_a = (span, box_a[1])
     result = intersect_surfaces(CYL_Z, g, box_a, box_b, TOL)
     assert result.curves
     _check(result, CYL_Z, g, box_a, box_b)
     for c in result.curves:  # (densely: the excursion is a few thousandths of a turn wide)
-        v = c.pcurve_b.evaluate(np.linspace(c.t0, c.t1, 40001))[:, 1]
-        assert v.max() <= box_b[1][1] + 1e-12
+        pc = (c.pcurve_b if row == 3 else c.pcurve_a).evaluate(np.linspace(c.t0, c.t1, 40001))[:, 1 if row == 3 else 0]
+        assert pc.max() <= span[1] + 1e-12 and pc.min() >= span[0] - 1e-12

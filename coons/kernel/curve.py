@@ -248,10 +248,7 @@ class NurbsCurve:
         """
         m = u.shape[0]
         if order == 0 and 0 < m <= _SCALAR_POINTS and self.control_points.shape[0] <= _SCALAR_NET:
-            try:
-                return self._points_scalar(u)
-            except ZeroDivisionError:
-                pass  # (defensive: the spans chosen are non-empty; numpy would give inf or nan)
+            return self._points_scalar(u)  # (the spans chosen are non-empty: no zero divisor)
         rational = self.is_rational
         if m >= _accel.THRESHOLD and _accel.AVAILABLE:
             net = self.homogeneous if rational else self.control_points

@@ -245,9 +245,25 @@ def averaged_knots(params, degree: int) -> np.ndarray:
 
 
 def _averaging(u: np.ndarray, p: int) -> np.ndarray:
-    """Eq. 9.8 on non-decreasing ``u`` (an end parameter may repeat, once per end derivative)."""
-    windows = np.lib.stride_tricks.sliding_window_view(u[1:-1], p) if u.shape[0] > p + 1 else np.empty((0, p))
-    return np.concatenate([np.full(p + 1, u[0]), windows.mean(axis=1), np.full(p + 1, u[-1])])
+    """Eq. 9.8 on non-decreasing ``u`` (an end parameter may repeat, once per end derivative).
+
+    Below eight terms the window sums are added left to right, which is the order of numpy's
+    reduction there (``sliding_window_view(...).mean(axis=1)``, used from eight on): the same
+    values, without the view's and the mean's set-up, which cost as much as the arithmetic on
+    the few hundred parameters of a p-curve fit round.
+    """
+    n = u.shape[0]
+    if n <= p + 1:
+        inner = np.empty(0)
+    elif p < 8:
+        k = n - p - 1
+        inner = u[1:1 + k].copy()
+        for j in range(2, p + 1):
+            inner += u[j:j + k]
+        inner /= p
+    else:
+        inner = np.lib.stride_tricks.sliding_window_view(u[1:-1], p).mean(axis=1)
+    return np.concatenate([np.full(p + 1, u[0]), inner, np.full(p + 1, u[-1])])
 
 
 def approximation_knots(params, n_control_points: int, degree: int, *, placement: str = "averaged") -> np.ndarray:

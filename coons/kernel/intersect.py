@@ -113,6 +113,7 @@ from coons.kernel.analytic import (
 from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
 from coons.kernel.curve import NurbsCurve
+from coons.kernel.fitting import _averaging
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 
@@ -560,6 +561,9 @@ _LOOP_CHORD = 0.1
 #: parallel the loops stretch along them as ``1 / sin`` and their fits need ever more samples; such pairs
 #: are marched as before.
 _LOOP_MIN_SINE = 0.05
+#: Least half-chord margin (``_LOOP_CHORD`` times the radius), in ``tol.linear``, for :func:`_cylinder_loops`: the
+#: margin must clear the tolerance widely.
+_LOOP_MARGIN_TOLS = 1e2
 #: Samples of the discriminant over a turn in :func:`_cylinder_loops` (its minimum and maximum are then
 #: bounded by the sample extremes widened by the interpolation error bound of its second derivative).
 _LOOP_DISC_SAMPLES = 64
@@ -657,7 +661,7 @@ def _cylinder_loops(g: CylindricalSurface, h: CylindricalSurface, tol: Tolerance
     if zz < _LOOP_MIN_SINE * _LOOP_MIN_SINE:
         return None  # (nearly) parallel axes: _parallel_cylinders, _coaxial or marching
     margin = _LOOP_CHORD * h.radius
-    if margin <= 1e2 * tol.linear:  # (a hair-thin cylinder: the margin must clear the tolerance widely)
+    if margin <= _LOOP_MARGIN_TOLS * tol.linear:  # (a hair-thin cylinder)
         return None
     theta = np.arange(_LOOP_DISC_SAMPLES) * (TWO_PI / _LOOP_DISC_SAMPLES)
     D = loop.graph(theta, slopes=False)[3] / zz
@@ -916,7 +920,7 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
     bound = 0.5 * tol.linear
     worst = math.inf
     while len(t) <= _MAX_FIT_SAMPLES:
-        spline = make_interp_spline(t, Q, k=3, t=_cubic_averaging(t))
+        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
         tq = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         F, E = spline(tq), loop.evaluate(tq)
         C = F[:, :3]
@@ -1527,8 +1531,6 @@ def _conic_crossings(c: _Coord, bound: float, t0: float, t1: float) -> np.ndarra
     surface, curve = c.surface, c.curve
     if c.exact or not isinstance(curve, (Circle, Ellipse)) or not isinstance(surface, _AZIMUTHAL):
         return None
-    if c.index == 0 and not c.periodic:  # (the longitude of these surfaces always is)
-        return None
     O = surface._origin
     X, Y, Z = surface._frame
     ra, rb = curve._radii()
@@ -1682,15 +1684,6 @@ def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
     return np.stack([cu(t), cv(t)], axis=-1)
 
 
-def _cubic_averaging(t: np.ndarray) -> np.ndarray:
-    """``fitting._averaging(t, 3)`` (The NURBS Book eq. 9.8, degree 3) for ``t`` of at least five values, value
-    for value: the window means are ``((a + b) + c) / 3`` as ``mean`` sums three values, without its
-    sliding-window and reduction set-up (per fit round it cost as much as the arithmetic)."""
-    n = t.shape[0]
-    inner = (t[1:n - 3] + t[2:n - 2] + t[3:n - 1]) / 3.0
-    return np.concatenate([np.full(4, t[0]), inner, np.full(4, t[-1])])
-
-
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,
                    max_split: int = _MAX_FIT_SPLIT):
     """``(p-curve, deviation)``: cubic interpolation of the exact parameters ``f(t)`` (The NURBS Book A9.1 with
@@ -1722,7 +1715,7 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     bound = 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
     while len(t) <= _MAX_FIT_SAMPLES:
         # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), scipy's banded collocation solve.
-        spline = make_interp_spline(t, Q, k=3, t=_cubic_averaging(t))
+        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
         tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         uv = spline(tm)
         gap = _surface_points(surface, uv[:, 0], uv[:, 1]) - _curve_points(curve, tm)

@@ -118,12 +118,18 @@ class BRepBuilder:
         return len(self.lface) - 1
 
     def _new_face(self, shell: int) -> int:
-        self.fsurface.append(-1)
-        self.fsense.append(True)
-        self.fshell.append(shell)
-        self.fouter.append(-1)
-        self.falive.append(True)
-        return len(self.fsurface) - 1
+        return self._new_faces(1, shell)[0]
+
+    def _new_faces(self, n: int, shell: int = -1, surfaces: list[int] | None = None,
+                   senses: list[bool] | None = None) -> list[int]:
+        """``n`` new face rows (pooled surface indices and senses, or none and forward), their indices."""
+        f0 = len(self.fsurface)
+        self.fsurface.extend([-1] * n if surfaces is None else surfaces)
+        self.fsense.extend([True] * n if senses is None else senses)
+        self.fshell.extend([shell] * n)
+        self.fouter.extend([-1] * n)
+        self.falive.extend([True] * n)
+        return list(range(f0, f0 + n))
 
     def _link(self, a: int, b: int) -> None:
         self.nxt[a] = b
@@ -799,13 +805,9 @@ class BRepBuilder:
         # Faces in input order (their geometry goes through the pools), then their loops, face by
         # face: the rows _new_loop would add, with their first coedges.
         nf = len(face_loops)
-        f0 = len(self.fsurface)
-        face_ids = list(range(f0, f0 + nf))  # what _assembled_face adds face by face, in bulk
-        self.fsurface.extend([-1] * nf if face_surfaces is None else self._pool_many("surfaces", face_surfaces[:nf]))
-        self.fsense.extend([True] * nf if face_senses is None else [bool(x) for x in face_senses[:nf]])
-        self.fshell.extend([-1] * nf)
-        self.fouter.extend([-1] * nf)
-        self.falive.extend([True] * nf)
+        face_ids = self._new_faces(  # what _assembled_face adds face by face, in bulk
+            nf, surfaces=None if face_surfaces is None else self._pool_many("surfaces", face_surfaces[:nf]),
+            senses=None if face_senses is None else [bool(x) for x in face_senses[:nf]])
         n_loops = [len(loops) for loops in face_loops]
         l0 = len(self.lface)
         lid = np.arange(l0, l0 + lens_a.size, dtype=np.int64)

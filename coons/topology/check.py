@@ -349,8 +349,10 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
     if rows.size and np.isfinite(T[rows]).all():
         P[rows] = evaluate_curves([b.curves[int(ci)] for ci in curve[rows].tolist()], T[rows])
         curved = curved[~batched]
-    ids = np.unique(curve[curved])
-    groups = [curved[curve[curved] == ci] for ci in ids]
+    # (one stable sort groups the rows by curve, as mass._Paths.evaluate: not a mask per curve)
+    curved = curved[np.argsort(curve[curved], kind="stable")]
+    ids, starts = np.unique(curve[curved], return_index=True)
+    groups = np.split(curved, starts[1:]) if curved.size else []
     for rows, D in zip(groups, derivatives_many([b.curves[int(ci)] for ci in ids], [T[r].ravel() for r in groups], 0)):
         P[rows] = D[0].reshape(rows.size, samples, 3)
     return T, P
@@ -644,7 +646,8 @@ def _remember_measured(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, 
     _MEASURED.set(b, rec)
     if kept is not None:
         _MEASURED.set(sewn, kept)
-    _LAST_MEASURED[:] = [_LAST_MEASURED[0] if kept is not None else ref if b in _SEWN_FROM else None, ref]
+    first = ref if b in _SEWN_FROM else (_LAST_MEASURED[0] if kept is not None else None)
+    _LAST_MEASURED[:] = [first, ref]
 
 
 def _donor(b: BRep) -> tuple[BRep | None, "_Measured | None"]:

@@ -82,7 +82,8 @@ import numpy as np
 from coons.errors import InvalidInputError
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.curve_intersect import _derivs, curve_box, intersect_curves, refine_intersections
+from coons.kernel.curve_intersect import (_derivs, _point1, _scalar_form, curve_box, intersect_curves,
+                                         refine_intersections)
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology.sew import EdgeSpec, FaceSpec
@@ -797,8 +798,6 @@ def _side_root(pc: Any, n: np.ndarray, o: np.ndarray, a: float, b: float, plane:
     (None if the signs at the ends do not differ).  One parameter at a time in Python floats
     (:func:`~coons.kernel.curve_intersect._point1` of the span polynomials, where numpy's per-call
     cost would dominate), else :func:`~coons.kernel.curve_intersect._derivs`."""
-    from coons.kernel.curve_intersect import _point1, _scalar_form
-
     form = _scalar_form(pc)
     nx, ny, ox, oy = float(n[0]), float(n[1]), float(o[0]), float(o[1])
 

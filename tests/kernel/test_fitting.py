@@ -498,3 +498,14 @@ def test_surface_least_squares_errors():
         approximate_surface(G, 7, 4, 3, 2)
     with pytest.raises(InvalidInputError, match=r"n_v must be an integer"):
         approximate_surface(G, 5, 4.5, 3, 2)
+
+
+@given(t=st.lists(st.floats(-1e3, 1e3), min_size=2, max_size=60), p=st.integers(1, 9))
+def test_averaged_knots_are_the_window_means(t, p):
+    """Eq. 9.8's window sums (added in order below eight terms) equal numpy's sliding-window means value for value."""
+    from coons.kernel.fitting import _averaging
+
+    u = np.sort(np.array(t))
+    windows = np.lib.stride_tricks.sliding_window_view(u[1:-1], p) if u.size > p + 1 else np.empty((0, p))
+    expected = np.concatenate([np.full(p + 1, u[0]), windows.mean(axis=1), np.full(p + 1, u[-1])])
+    assert np.array_equal(_averaging(u, p), expected)

@@ -1110,17 +1110,6 @@ def test_closed_form_crossings_are_the_searched_crossings(kind, q, qc, centre, r
             assert np.all(np.cos(angle) > 0.0)
 
 
-@settings(max_examples=60)
-@given(t=st.lists(st.floats(-1e3, 1e3), min_size=5, max_size=60))
-def test_cubic_averaging_is_the_fittings(t):
-    """The p-curve fits' knots (``_cubic_averaging``) are ``fitting._averaging(t, 3)`` value for value."""
-    from coons.kernel.fitting import _averaging
-    from coons.kernel.intersect import _cubic_averaging
-
-    t = np.sort(np.array(t))
-    assert np.array_equal(_cubic_averaging(t), _averaging(t, 3))
-
-
 _AXES = st.sampled_from([(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, 1, 0), (0.3, 0.2, 1.0), (-1.0, 2.0, 0.5)])
 
 

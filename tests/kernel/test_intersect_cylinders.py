@@ -147,6 +147,10 @@ def test_random_crossing_cylinders_agree_with_marching(case):
     s = intersect_surfaces(b, a, box_b, box_a)
     _check(s, b, a, box_b, box_a)
     assert len(s.curves) == len(r.curves)
+    if r.curves:
+        assert _hausdorff(r, s) <= 2 * ON
+    assert sum(c.curve.length(c.t0, c.t1) for c in s.curves) == pytest.approx(
+        sum(c.curve.length(c.t0, c.t1) for c in r.curves), rel=1e-7, abs=1e-9)
 
 
 def test_thin_cylinder_through_a_thick_one_gives_two_closed_loops():
@@ -204,9 +208,11 @@ def test_half_cylinder_faces_of_a_t_junction():
 @pytest.mark.parametrize("ratio", [0.995, 0.999, 1.0 - 1e-9])
 def test_near_tangency_falls_back_to_marching(ratio):
     # Axes crossing at right angles, radii almost equal: the loops come together (their discriminant's
-    # minimum nears 0), so the pair is left to marching as before.
+    # minimum nears 0), so _crossing_cylinders declines; the last pair is within _equal_cylinders' gap
+    # (two ellipses), the others are marched as before.
     near = CylindricalSurface([0, 0, 0], [1, 0, 0], [0, 1, 0], ratio)
     assert ix._crossing_cylinders(CYL_Z, near, TOL) is None
+    assert (ix._equal_cylinders(CYL_Z, near, TOL) is not None) == (ratio > 1.0 - 1e-8)
 
 
 @pytest.mark.parametrize("offset", [0.5, 0.9, 1.2])

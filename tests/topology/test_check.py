@@ -942,7 +942,27 @@ def test_mass_tables_gathered_from_the_operand_equal_cold_ones():
     assert mass._DONOR[1]() is one.brep  # the last tabled: the donor of the next
     shared = [int((mass.pool_positions(two.brep, one.brep, name) >= 0).sum()) for name in ("surfaces", "pcurves")]
     assert min(shared) > 0
-    warm = mass._tables(two.brep)
+    # Only the gather from one's tables can supply the shared rows now (the per-object memos are empty).
+    mass._SURFACE_ROWS.clear()
+    mass._PCURVE_ROWS.clear()
+    made = {"surfaces": 0, "pcurves": 0}
+    real_s, real_p = mass._surface_row, mass._pcurve_row
+
+    def surface_row(obj):
+        made["surfaces"] += 1
+        return real_s(obj)
+
+    def pcurve_row(obj):
+        made["pcurves"] += 1
+        return real_p(obj)
+
+    mass._surface_row, mass._pcurve_row = surface_row, pcurve_row
+    try:
+        warm = mass._tables(two.brep)
+    finally:
+        mass._surface_row, mass._pcurve_row = real_s, real_p
+    for name, k in zip(("surfaces", "pcurves"), shared):
+        assert made[name] <= len(getattr(two.brep, name)) - k, name
     _memo.clear_all()
     mass._CACHE.clear()
     mass._DONOR[:] = [None, None]

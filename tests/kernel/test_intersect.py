@@ -409,6 +409,34 @@ def test_sphere_sphere_circle_tangent_coincident_none():
     assert not run(s1, SphericalSurface([0, 0, 0], X, Y, 0.5)).curves
 
 
+@pytest.mark.parametrize("offset", [(4.0, 2.0, 0.5), (1.0, -3.0, 2.5), (0.5, 0.5, -4.5)])
+def test_sphere_sphere_fitted_pcurves_are_quintic_within_half_the_tolerance(offset):
+    """Oblique circles on spheres get p-curves of degree ``_FIT_DEGREE`` (5) in (longitude, latitude), each image
+    within ``tol.linear / 2`` of the exact circle on a dense sampling (the fit checks quarter points only), and
+    about half the knot spans a cubic fit needs."""
+    import coons.kernel.intersect as I
+
+    s1 = SphericalSurface([0, 0, 0], Z, X, 5.0)
+    s2 = SphericalSurface(offset, Z, X, 5.0)
+    r = run(s1, s2, ((-math.pi, math.pi), (-math.pi / 2, math.pi / 2)), ((0.0, 2 * math.pi), (-math.pi / 2, math.pi / 2)))
+    fitted = [(s, pc, c) for c in r.curves for s, pc in ((s1, c.pcurve_a), (s2, c.pcurve_b)) if isinstance(pc, NurbsCurve)]
+    assert fitted
+    spans5 = 0
+    for s, pc, c in fitted:
+        assert pc.degree == I._FIT_DEGREE == 5
+        t = np.linspace(c.t0, c.t1, 4001)
+        gap = np.linalg.norm(s.evaluate(*pc.evaluate(t).T) - c.curve.evaluate(t), axis=-1)
+        assert gap.max() <= 0.5 * DEFAULT_TOLERANCE.linear, gap.max()
+        spans5 += np.unique(pc.knots).size - 1
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "_FIT_DEGREE", 3)
+        cubic = intersect_surfaces(s1, s2, ((-math.pi, math.pi), (-math.pi / 2, math.pi / 2)),
+                                   ((0.0, 2 * math.pi), (-math.pi / 2, math.pi / 2)))
+    spans3 = sum(np.unique(pc.knots).size - 1 for c in cubic.curves for pc in (c.pcurve_a, c.pcurve_b)
+                 if isinstance(pc, NurbsCurve))
+    assert spans5 < 0.7 * spans3, (spans5, spans3)
+
+
 def test_coaxial_pairs_circles_at_meridian_crossings():
     sph = SphericalSurface([0, 0, 0.3], Z, X, 1.5)
     cyl = CylindricalSurface([0, 0, -1], -Z, X, 1.0)

@@ -254,13 +254,14 @@ class _PowerForm:
         coefficients of the k-th x-derivative, k <= 2, of the curve itself), None for a rational curve.
 
         A non-rational NURBS may have all weights equal to some ``w != 1``: the homogeneous
-        coefficients are then ``w`` times the curve's, so they are divided by that constant weight."""
+        coefficients are then ``w`` times the curve's, so they are divided by that constant weight.
+        ``coef`` turns a span into lists when it is first read (:class:`_SpanLists`)."""
         if self.rational:
             return None
         if self._scalar is None:
             S = self._stack(2)[:, :3]
             w = float(S[0, 0, 0, -1])  # (the weight channel: the constant w, its derivatives 0)
-            self._scalar = ("poly", self.breaks.tolist(), (S[..., :-1] / w).tolist())
+            self._scalar = ("poly", self.breaks.tolist(), _SpanLists(S[..., :-1] / w))
         return self._scalar
 
     def bezier(self, lo: float, hi: float):
@@ -337,6 +338,25 @@ class _PowerForm:
                 v -= self._binom[k][i] * w[:, i] * out[:, k - i]
             out[:, k] = v / w[:, 0]
         return out
+
+
+class _SpanLists:
+    """``coef[span]`` as ``coef[span].tolist()``, converted on first use and kept.
+
+    The Newton iterations on Python floats (:func:`_point1`) read the few spans around their roots of a
+    p-curve of up to a hundred spans: converting every span up front cost more than the iterations."""
+
+    __slots__ = ("_array", "_rows")
+
+    def __init__(self, array: np.ndarray) -> None:
+        self._array = array
+        self._rows: dict[int, list] = {}
+
+    def __getitem__(self, i: int) -> list:
+        row = self._rows.get(i)
+        if row is None:
+            row = self._rows[i] = self._array[i].tolist()
+        return row
 
 
 _FORMS: "weakref.WeakKeyDictionary[NurbsCurve, _PowerForm | None]" = weakref.WeakKeyDictionary()

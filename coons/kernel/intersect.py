@@ -47,7 +47,7 @@ a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a q
 :class:`~coons.kernel.curve.NurbsCurve` interpolating the exact parameters (The NURBS Book
 A9.1) on the branch's own parameter, refined until its image is within ``tol.linear / 2`` of
 the curve; the plane's p-curve of a rational conic arc is exact (same weights).  The loops of
-crossing cylinders have no conic form: their 3-D curve and both p-curves are one cubic spline fitted
+crossing cylinders have no conic form: their 3-D curve and both p-curves are one quintic spline fitted
 to the exact points and parameters at the same samples (``_loop_piece``), on the parameter ``±θ``.
 
 *Direction.*  A transversal branch runs along ``n_a × n_b``, the cross product of the
@@ -150,11 +150,19 @@ _CLEAR_SAMPLES = 64
 _MAX_FIT_SAMPLES = 4097
 #: At most this many samples are added to one interval of a p-curve fit per round.
 _MAX_FIT_SPLIT = 8
-#: Degree of the fitted p-curves (:func:`_fitted_pcurve`).  The interpolation error falls with the sixth
-#: power of the spacing at degree 5 (the fourth at 3): a circle on a sphere in (longitude, latitude)
-#: needs about half the knot spans (49 where a cubic had 115), and every later step — clips, splits,
-#: the checker's sampling, the shell volumes — works span by span; the fit itself also takes fewer rounds.
+#: Degree of the fitted p-curves (:func:`_fitted_pcurve`) and of the loops of crossing cylinders
+#: (:func:`_loop_piece`).  The interpolation error falls with the sixth power of the spacing at degree 5
+#: (the fourth at 3): a circle on a sphere in (longitude, latitude) takes about half the knot spans (49
+#: where a cubic had 115), a loop piece of the crossing cylinders 20 where it had 51, and every later
+#: step — clips, splits, the checker's sampling, the shell volumes — works span by span.
 _FIT_DEGREE = 5
+#: Samples of a fit's first round (:func:`_fit_start`), graded towards the ends by :data:`_FIT_GRADE`:
+#: ``x - g sin(2πx) / 2π`` on uniform ``x`` spaces them ``1 - g`` of the uniform spacing at the ends and
+#: ``1 + g`` in the middle.  An interpolating spline errs most in its end intervals (their knots have no
+#: neighbour beyond), so uniform samples that met the bound inside still failed at the ends and cost
+#: another round.  Only the start: the refinement guarantees the bound.
+_FIT_START = 21
+_FIT_GRADE = 0.5
 #: Relative inset from a sphere pole where a p-curve's longitude is taken (sqrt of double eps).
 _POLE_INSET = 1.5e-8
 #: Offset (1/π, irrational) of sample positions within their spacing, so that samples miss the
@@ -896,12 +904,13 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
                 tol: Tolerance) -> IntersectionCurve:
     """The piece ``[s0, s1]`` of a loop of two cylinders: its 3-D curve and both p-curves fitted together.
 
-    One cubic spline interpolates the exact points and both surfaces' parameters (shifted into the boxes
-    as :func:`_shift` does) at the same samples (The NURBS Book A9.1, averaged knots eq. 9.8, as
-    :func:`_fitted_pcurve`), refined the same way until, at the quarter points of every interval, the
-    curve and the images of both p-curves are within ``tol.linear / 2`` of the exact point (evaluations
-    only: no projection).  The graph cylinder's angle is affine in the parameter, which a cubic
-    reproduces.  The samples of one fit serve all three curves, so they share their knots.
+    One spline of degree :data:`_FIT_DEGREE` interpolates the exact points and both surfaces' parameters
+    (shifted into the boxes as :func:`_shift` does) at the same samples (The NURBS Book A9.1, averaged
+    knots eq. 9.8, as :func:`_fitted_pcurve`, from the same first samples, :func:`_fit_start`),
+    refined the same way until, at the quarter points of every interval, the curve and the images of both
+    p-curves are within ``tol.linear / 2`` of the exact point (evaluations only: no projection).  The graph
+    cylinder's angle is affine in the parameter, which the spline reproduces.  The samples of one fit serve
+    all three curves, so they share their knots.
     """
     tm = 0.5 * (s0 + s1)
     _, mid, _ = _loop_coordinates(loop, np.array([tm]), g_first)
@@ -919,13 +928,13 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
         G[h_row] = ref + np.remainder(G[h_row] - ref + math.pi, TWO_PI) - math.pi
         return np.concatenate([P, (G + shift[:, None]).T], axis=1)
 
-    t = np.linspace(s0, s1, 17)
+    t = _fit_start(s0, s1)
     Q = f(t)
     quarters = np.array([0.25, 0.5, 0.75])
     bound = 0.5 * tol.linear
     worst = math.inf
     while len(t) <= _MAX_FIT_SAMPLES:
-        spline = make_interp_spline(t, Q, k=3, t=_averaging(t, 3))
+        spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=_averaging(t, _FIT_DEGREE))
         tq = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
         F, E = spline(tq), loop.evaluate(tq)
         C = F[:, :3]
@@ -938,10 +947,12 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
             gaps = np.concatenate([Pa - C, Pb - C, Pa - Pb])
             fit_dev = math.sqrt(float(np.max(np.add.reduce(gaps * gaps, axis=-1))))
             knots, ctrl = spline.t, spline.c
-            pcurves = [NurbsCurve(ctrl[:, 3:5], knots, 3), NurbsCurve(ctrl[:, 5:7], knots, 3)]
-            return _finished(NurbsCurve(ctrl[:, :3], knots, 3), s0, s1, pcurves, fit_dev, a, b, closed, False)
+            p = _FIT_DEGREE
+            pcurves = [NurbsCurve(ctrl[:, 3:5], knots, p), NurbsCurve(ctrl[:, 5:7], knots, p)]
+            return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False)
         worst = float(e.max())
-        count = np.clip(np.ceil((e[bad] / bound) ** 0.25) - 1.0, 1, _MAX_FIT_SPLIT).astype(np.int64)
+        count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1,
+                        _MAX_FIT_SPLIT).astype(np.int64)
         owner, j = interval_cuts(bad, count)
         new = t[owner] + j * (t[owner + 1] - t[owner])
         order = np.argsort(np.concatenate([t, new]), kind="stable")
@@ -1689,11 +1700,21 @@ def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
     return np.stack([cu(t), cv(t)], axis=-1)
 
 
+def _fit_start(s0: float, s1: float) -> np.ndarray:
+    """The first round's samples ``(_FIT_START,)`` of a fit over ``[s0, s1]``, graded towards the ends
+    (:data:`_FIT_GRADE`), ``s0`` and ``s1`` exactly."""
+    x = np.linspace(0.0, 1.0, _FIT_START)
+    t = s0 + (s1 - s0) * (x - _FIT_GRADE * np.sin(TWO_PI * x) / TWO_PI)
+    t[-1] = s1  # (sin 2π is not 0 in floating point)
+    return t
+
+
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,
                    max_split: int = _MAX_FIT_SPLIT):
     """``(p-curve, deviation)``: interpolation of the exact parameters ``f(t)`` by a spline of degree
     :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by scipy's
-    banded collocation of ``make_interp_spline``), refined adaptively: every interval whose image on
+    banded collocation of ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
+    adaptively: every interval whose image on
     ``surface`` misses ``curve`` by ``e`` more than ``b = tol.linear / 2`` at its quarter points is cut into
     ``ceil((e / b)^(1/(p+1)))`` equal parts (at least two, at most ``max_split + 1``) by new samples, until
     none misses: the error of the interpolant falls with the ``p + 1``-th power of the spacing, so one round
@@ -1714,7 +1735,7 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     ConvergenceError
         Still off after growing to :data:`_MAX_FIT_SAMPLES` samples.
     """
-    t = np.linspace(s0, s1, 17)
+    t = _fit_start(s0, s1)
     Q = f(t)
     worst = math.inf
     quarters = np.array([0.25, 0.5, 0.75])

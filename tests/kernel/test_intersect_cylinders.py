@@ -38,8 +38,9 @@ def _check(result, a, b, box_a, box_b):
     """Points on both surfaces, p-curves agreeing with the curve and in the boxes, direction n_a × n_b, ends on
     box bounds (or closed)."""
     for c in result.curves:
-        assert isinstance(c.curve, NurbsCurve) and c.curve.degree == 3
+        assert isinstance(c.curve, NurbsCurve) and c.curve.degree == ix._FIT_DEGREE == 5
         assert isinstance(c.pcurve_a, NurbsCurve) and isinstance(c.pcurve_b, NurbsCurve)
+        assert c.pcurve_a.degree == c.pcurve_b.degree == ix._FIT_DEGREE
         assert 0.0 <= c.tol <= TOL.linear
         t = np.linspace(c.t0, c.t1, 401)
         D = c.curve.derivatives(t, 1)

@@ -94,7 +94,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
@@ -163,6 +163,8 @@ _FIT_DEGREE = 5
 #: another round.  Only the start: the refinement guarantees the bound.
 _FIT_START = 21
 _FIT_GRADE = 0.5
+#: :func:`_finished` measures fitted branches on the fits' scipy splines (tests switch it off to compare).
+_SPLINE_CHECK = True
 #: Relative inset from a sphere pole where a p-curve's longitude is taken (sqrt of double eps).
 _POLE_INSET = 1.5e-8
 #: Offset (1/π, irrational) of sample positions within their spacing, so that samples miss the
@@ -949,7 +951,13 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
             knots, ctrl = spline.t, spline.c
             p = _FIT_DEGREE
             pcurves = [NurbsCurve(ctrl[:, 3:5], knots, p), NurbsCurve(ctrl[:, 5:7], knots, p)]
-            return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False)
+
+            def values(tt: np.ndarray, spline=spline) -> tuple:
+                G = spline(tt)
+                return G[:, :3], G[:, 3:5], G[:, 5:7]
+
+            return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False,
+                             values)
         worst = float(e.max())
         count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1,
                         _MAX_FIT_SPLIT).astype(np.int64)
@@ -1673,9 +1681,10 @@ def _shift(coord: _Coord, t_mid: float, lo: float, hi: float, slack: float) -> f
 
 
 def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: float, surface, curve,
-                   tol: Tolerance):
+                   tol: Tolerance, splines: list | None = None):
     """``(p-curve, deviation)`` over ``[s0, s1]`` with periodic shifts ``du, dv``: Line2D or Trig2D (deviation 0:
-    measured later with the branch), or a fitted 2-D NURBS and its measured deviation."""
+    measured later with the branch), or a fitted 2-D NURBS and its measured deviation (its scipy spline
+    appended to ``splines`` when given)."""
     if cu.exact and cv.exact:  # (the coefficients as Python floats: the same values, cheaper to pack)
         (ou, su, au, bu), (ov, sv, av, bv) = cu.coef.tolist(), cv.coef.tolist()
         if au == 0.0 and bu == 0.0 and av == 0.0 and bv == 0.0:
@@ -1683,7 +1692,7 @@ def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: 
         if su == 0.0 and sv == 0.0 and au * bv - av * bu != 0.0:
             return Trig2D([ou + du, ov + dv], [au, av], [bu, bv]), 0.0
     return _fitted_pcurve(lambda t: _pair_values(cu, cv, t) + np.array([du, dv]), s0, s1, surface, curve, tol,
-                          pointwise=True)
+                          pointwise=True, splines=splines)
 
 
 def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
@@ -1710,7 +1719,7 @@ def _fit_start(s0: float, s1: float) -> np.ndarray:
 
 
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,
-                   max_split: int = _MAX_FIT_SPLIT):
+                   max_split: int = _MAX_FIT_SPLIT, splines: list | None = None):
     """``(p-curve, deviation)``: interpolation of the exact parameters ``f(t)`` by a spline of degree
     :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by scipy's
     banded collocation of ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
@@ -1725,6 +1734,8 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
     samples of a fit, the checks and the per-call costs of ``interpolate_curve`` and
     ``NurbsCurve.evaluate`` were most of the time.
+
+    ``splines``: when given, the accepted scipy spline is appended to it (:func:`_finished` evaluates it).
 
     ``pointwise``: ``f``'s value at a parameter does not depend on the other parameters passed
     with it (a :class:`_Coord` pair), so each round evaluates only the new samples; otherwise
@@ -1750,6 +1761,8 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
         worst = float(e.max())
         bad = np.flatnonzero(e > bound)
         if bad.size == 0:
+            if splines is not None:
+                splines.append(spline)
             return NurbsCurve(spline.c, spline.t, _FIT_DEGREE), worst
         count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1, max_split).astype(np.int64)
         owner, j = interval_cuts(bad, count)
@@ -1966,13 +1979,22 @@ def _against(curve, t: float, a, b) -> bool:
 def _piece(curve, coords, s0, s1, a, b, boxes, slack, closed: bool, tangent: bool, tol: Tolerance):
     """The branch ``curve([s0, s1])`` with its p-curves shifted into the boxes."""
     tm = 0.5 * (s0 + s1)
-    pcurves = []
+    pcurves, splines = [], []
     for s, box, (cu, cv) in zip((a, b), boxes, coords):
         du = _shift(cu, tm, *box[0], slack)
         dv = _shift(cv, tm, *box[1], slack)
-        pcurves.append(_public_pcurve(cu, cv, s0, s1, du, dv, s, curve, tol))
+        fits: list = []
+        pcurves.append(_public_pcurve(cu, cv, s0, s1, du, dv, s, curve, tol, fits))
+        splines.append(fits[0] if fits else None)
     fit_dev = max(dev for _, dev in pcurves)
-    return _finished(curve, s0, s1, [pc for pc, _ in pcurves], fit_dev, a, b, closed, tangent)
+    pcs = [pc for pc, _ in pcurves]
+    values = None
+    if any(sp is not None for sp in splines) and math.isfinite(s0) and math.isfinite(s1):
+        def values(t: np.ndarray) -> tuple:
+            trig = (np.cos(t), np.sin(t))
+            uv = [_pcurve_points(pc, t, trig) if sp is None else sp(t) for pc, sp in zip(pcs, splines)]
+            return _curve_points(curve, t, trig), uv[0], uv[1]
+    return _finished(curve, s0, s1, pcs, fit_dev, a, b, closed, tangent, values)
 
 
 def _conic_piece(section: _ConeSection, s0: float, s1: float, a, b, boxes, tol: Tolerance) -> IntersectionCurve:
@@ -2045,14 +2067,23 @@ def _runs(br: np.ndarray, ok: np.ndarray, hard: np.ndarray, wrap: bool) -> list[
     return [tuple(r) for r in runs]
 
 
-def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool) -> IntersectionCurve:
+def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool,
+              values: Callable | None = None) -> IntersectionCurve:
     """The branch with its measured deviation (the fits' own, and on samples between their nodes).
+
+    ``values``: ``t -> (curve points, p-curve a's, p-curve b's)`` at finite ``t`` from the scipy splines the
+    fits made (:func:`_piece`, :func:`_loop_piece`): one compiled evaluation where ``NurbsCurve.evaluate`` of
+    a degree-5 fit costs a basis evaluation per curve; the same points to round-off.
 
     Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
     """
     # An irrational offset keeps the samples off the interpolation nodes of fitted p-curves.
     t = s0 + (s1 - s0) * _CHECK_FRACTIONS
-    if math.isfinite(s0) and math.isfinite(s1):  # (else evaluate raises its own error)
+    if values is not None and _SPLINE_CHECK:
+        P, uv_a, uv_b = values(t)
+        Pa = _surface_points(a, uv_a[:, 0], uv_a[:, 1])
+        Pb = _surface_points(b, uv_b[:, 0], uv_b[:, 1])
+    elif math.isfinite(s0) and math.isfinite(s1):  # (else evaluate raises its own error)
         trig = (np.cos(t), np.sin(t))
         P = _curve_points(curve, t, trig)
         Pa = _surface_points(a, *_pcurve_points(pcurves[0], t, trig).T)

@@ -1205,3 +1205,21 @@ def test_batched_plane_cylinder_circles_take_the_plate_pairs():
         assert [g.t0, g.t1] == pytest.approx([r.t0, r.t1], abs=1e-13)
         np.testing.assert_allclose(g.curve.evaluate(np.linspace(g.t0, g.t1, 5)), r.curve.evaluate(np.linspace(r.t0, r.t1, 5)),
                                    rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("offset", [(4.0, 2.0, 0.5), (1.0, -3.0, 2.5)])
+def test_sphere_fit_deviation_measured_on_the_splines_matches_the_curves(offset, monkeypatch):
+    """Fitted p-curves of oblique circles on spheres are measured on their scipy splines (``_SPLINE_CHECK``): the
+    same deviation, to round-off, as on the NURBS p-curves."""
+    import coons.kernel.intersect as I
+
+    s1 = SphericalSurface([0, 0, 0], Z, X, 5.0)
+    s2 = SphericalSurface(offset, Z, X, 5.0)
+    boxes = (((-math.pi, math.pi), (-math.pi / 2, math.pi / 2)), ((0.0, 2 * math.pi), (-math.pi / 2, math.pi / 2)))
+    fast = run(s1, s2, *boxes)
+    monkeypatch.setattr(I, "_SPLINE_CHECK", False)
+    slow = run(s1, s2, *boxes)
+    assert len(fast.curves) == len(slow.curves) and any(isinstance(c.pcurve_a, NurbsCurve) for c in fast.curves)
+    for f, s in zip(fast.curves, slow.curves):
+        assert (f.t0, f.t1) == (s.t0, s.t1)
+        assert f.tol == pytest.approx(s.tol, rel=1e-9, abs=1e-15)

@@ -331,3 +331,27 @@ def test_a_box_bound_just_inside_a_turn_between_grid_points_cuts_the_loop(row, p
     for c in result.curves:  # (densely: the excursion is a few thousandths of a turn wide)
         pc = (c.pcurve_b if row == 3 else c.pcurve_a).evaluate(np.linspace(c.t0, c.t1, 40001))[:, 1 if row == 3 else 0]
         assert pc.max() <= span[1] + 1e-12 and pc.min() >= span[0] - 1e-12
+
+
+@pytest.mark.parametrize("case", range(14))
+def test_fit_deviation_measured_on_the_splines_matches_the_curves(case, monkeypatch):
+    """``_finished`` measures a fitted loop piece on the fit's scipy spline (``_SPLINE_CHECK``): the same branches
+    and the same deviation, to round-off, as measured on the NURBS curves themselves."""
+    a, b, box_a, box_b = _seeded_cases()[case]
+    calls = []
+    finished = ix._finished
+
+    def spy(*args, **kwargs):
+        calls.append(len(args) > 9 and args[9] is not None)
+        return finished(*args, **kwargs)
+
+    monkeypatch.setattr(ix, "_finished", spy)
+    fast = intersect_surfaces(a, b, box_a, box_b)
+    assert calls and all(calls)  # every loop piece took the spline path
+    monkeypatch.setattr(ix, "_SPLINE_CHECK", False)
+    slow = intersect_surfaces(a, b, box_a, box_b)
+    assert len(fast.curves) == len(slow.curves)
+    for f, s in zip(fast.curves, slow.curves):
+        assert (f.t0, f.t1, f.closed) == (s.t0, s.t1, s.closed)
+        np.testing.assert_array_equal(f.curve.control_points, s.curve.control_points)
+        assert f.tol == pytest.approx(s.tol, rel=1e-9, abs=1e-15)

@@ -1295,3 +1295,31 @@ def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeyp
         assert len(d.rings) == len(cold.rings) == len(spec.loops)
         for a, b in zip(d.rings, cold.rings):
             np.testing.assert_array_equal(a, b)
+
+
+def test_clear_samples_of_fitted_pcurves_by_scipy_agree_with_evaluate(monkeypatch):
+    """``_clip``'s quick-test samples of polynomial NURBS p-curves (scipy's B-spline, ``_SCIPY_SAMPLES``) are the
+    curves' own points to round-off, and every clip of curved Booleans answers as with ``NurbsCurve.evaluate``."""
+    from coons.kernel.curve import NurbsCurve
+
+    calls = []
+    clip = S._clip
+
+    def spy(X, f, pcurve, t0, t1, t, curve):
+        calls.append((X, f, pcurve, t0, t1, t, curve))
+        return clip(X, f, pcurve, t0, t1, t, curve)
+
+    monkeypatch.setattr(S, "_clip", spy)
+    Sphere(5.0) + Sphere(5.0).translate((4.0, 2.0, 0.5))
+    Cylinder(2.0, 20.0) + Cylinder(1.5, 20.0, direction=(1, 0, 0)).translate((0, 0, 1))
+    Cylinder(2.0, 20.0) - Sphere(2.5).translate((1.0, 0.5, 10.0))
+    monkeypatch.setattr(S, "_clip", clip)
+    fitted = [c for c in calls if type(c[2]) is NurbsCurve and not c[2].is_rational]
+    assert len(fitted) >= 10
+    for X, f, pc, t0, t1, t, curve in fitted:
+        np.testing.assert_allclose(S._clear_samples(pc, t0, t1), pc.evaluate(np.linspace(t0, t1, S._CLEAR_SAMPLES)),
+                                   rtol=0, atol=1e-12 * (1.0 + np.abs(pc.control_points).max()))
+        fast = clip(X, f, pc, t0, t1, t, curve)
+        with monkeypatch.context() as m:
+            m.setattr(S, "_SCIPY_SAMPLES", False)
+            assert clip(X, f, pc, t0, t1, t, curve) == fast

@@ -15,7 +15,7 @@ of equal radius whose axes meet (two ellipses in the bisecting planes, crossing 
 points where each is cut, ``_equal_cylinders``); and crossing cylinders (any radii, axes meeting
 or skew) where every ruling of one crosses the other clearly (``_crossing_cylinders``: two
 disjoint closed loops, each a graph ``s(θ)`` over the thinner one's angle, in closed form; the
-curve and its p-curves are cubic splines fitted to them).  Every other pair (crossing cylinders
+curve and its p-curves are quintic splines fitted to them).  Every other pair (crossing cylinders
 where one only partly pierces the other or nearly touches it, oblique plane–torus, non-coaxial
 quadrics, NURBS surfaces) goes to the general marching method of :mod:`coons.kernel.ssi`.
 This module deliberately does not march, does not resolve overlaps of coincident surfaces (it reports

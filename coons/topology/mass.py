@@ -206,7 +206,7 @@ _WK = np.concatenate([_WGK[:-1], _WGK[::-1]])
 _WG = np.concatenate([_WG7[:-1], _WG7[::-1]])
 _WKG = np.stack([_WK, _WG], axis=1)  # (15, 2)
 #: Initial Gauss–Kronrod pieces per knot span (or per angular piece) before any bisection: one (a
-#: K15 rule is exact for polynomials of degree 22; a fitted p-curve brings a hundred spans, and the
+#: K15 rule is exact for polynomials of degree 22; a fitted p-curve brings tens of spans, and the
 #: adaptive rounds halve whatever misses its share of the target).  Two doubled the shell-volume
 #: time of curved Boolean results (crossing cylinders 21 -> 11 ms) for the same values to 1e-15.
 _INITIAL_PIECES = 1

@@ -233,7 +233,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
-from coons.topology.disjoint import disjoint_union, padded_box
+from coons.topology.disjoint import meeting_pair, padded_boxes, stacked
 from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, remember_sewn, sew_faces,
                                sewn_from, sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
@@ -370,7 +370,9 @@ def _disjoint_groups(solids, t: Tolerance) -> list[list[Solid]]:
     if not solids:
         return [[Solid.empty()]]
     # Boxes closer than the tolerances could let sewing merge vertices of two solids (padded_box).
-    box = np.stack([padded_box(s, t) for s in solids])
+    box = padded_boxes(solids, t)
+    if meeting_pair(box) is None:
+        return [solids]  # (what the greedy pass below gives when no two boxes meet: a drilling grid)
     lo, hi = box[:, 0], box[:, 1]
     group = np.empty(len(solids), dtype=np.int64)
     groups: list[list[Solid]] = []
@@ -400,7 +402,8 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     """
     if len(group) == 1:
         return group[0]
-    out = disjoint_union(group, t)
+    # (disjoint_union without its test: the group's padded boxes, the ones it tests, are apart)
+    out = Solid(stacked([s.brep for s in group]))
     if all(is_polyhedral(s) for s in group):
         return out
     specs: list[FaceSpec] = []
@@ -3864,7 +3867,9 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
         _prefill_uv_extents([faces[f] for f in np.unique(face_of[pairs]).tolist()
                              if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
-        for (p, q), (fp, fq), (up, uq) in zip(pairs.tolist(), face_of[pairs].tolist(), W[pairs, :2].tolist()):
+        fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
+        wraps = _wrapping_pairs(faces, fpq, upq)
+        for (p, q), (fp, fq), (up, uq), wrap in zip(pairs.tolist(), fpq, upq, wraps):
             A, B = faces[fp], faces[fq]
             up, uq = tuple(up), tuple(uq)
             key = (id(A), up, id(B), uq)
@@ -3882,7 +3887,7 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
                 continue
-            merged = _merged_pair(A, B, up, uq, t)
+            merged = None if wrap else _merged_pair(A, B, up, uq, t)
             if merged is None:
                 _merge_failed(A, B, memo)
                 continue
@@ -3942,6 +3947,56 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
         return None
     return _fuse(A, B, up, uq, t)
+
+
+def _wrapping_pairs(faces: list[FaceSpec], fpq: list[list[int]], upq: list[list[list[int]]]) -> list[bool]:
+    """Per candidate pair of :func:`_merge_faces` (faces ``fpq[i]``, uses ``upq[i]``): whether
+    :func:`_merged_pair` returns None at its full-period test (:func:`_wraps`), decided for all
+    pairs at once (a plate drilled in one call brings two hundred pairs of half cylinders).
+
+    Only pairs that reach that test on the fast path are decided: one surface object, one sense,
+    straight p-curves on the shared use (sampled by their ends), a periodic surface and both
+    faces' :func:`_uv_extent`; False for every other pair (which :func:`_merged_pair` then
+    tests).  The expressions are those of :func:`_merged_pair`, :func:`_whole_periods` and
+    :func:`_wraps` element by element (``Line2D.evaluate``, the mean of two rows, ``round``,
+    ``max``/``min``), so the same floats and the same decisions.
+    """
+    out = [False] * len(fpq)
+    rows, ends, origin, direction, period, ext = [], [], [], [], [], []
+    for i, ((fp, fq), (up, uq)) in enumerate(zip(fpq, upq)):
+        A, B = faces[fp], faces[fq]
+        S = A.surface
+        if S is not B.surface or A.sense != B.sense:
+            continue
+        per = (getattr(S, "period_u", None) or 0.0, getattr(S, "period_v", None) or 0.0)
+        if not (per[0] or per[1]):
+            continue
+        ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+        if type(ea.pcurve) is not Line2D or type(eb.pcurve) is not Line2D:
+            continue
+        xa, xb = _uv_extent(A), _uv_extent(B)
+        if not xa or not xb:
+            continue
+        rows.append(i)
+        ends.append(((ea.t0, ea.t1), (eb.t0, eb.t1)))
+        origin.append((ea.pcurve.origin, eb.pcurve.origin))
+        direction.append((ea.pcurve.direction, eb.pcurve.direction))
+        period.append(per)
+        ext.append(xa + xb)
+    if not rows:
+        return out
+    T = np.array(ends)  # (m, 2 uses, 2 ends)
+    U = np.array(origin)[:, :, None, :] + T[..., None] * np.array(direction)[:, :, None, :]  # (m, 2, 2, 2)
+    offset = np.mean(U[:, 0] - U[:, 1, ::-1], axis=1)  # (_merged_pair: B's use reversed)
+    P = np.array(period)
+    periodic = P > 0.0
+    shift = np.where(periodic, P * np.round(offset / np.where(periodic, P, 1.0)), 0.0)
+    X = np.array(ext)  # (m, 4, 2): A's lo, hi, B's lo, hi
+    span = np.maximum(X[:, 1], X[:, 3] + shift) - np.minimum(X[:, 0], X[:, 2] + shift)
+    wraps = np.any(periodic & (span >= P - 1e-9 * P), axis=1).tolist()
+    for i, w in zip(rows, wraps):
+        out[i] = w
+    return out
 
 
 def _wraps(A: FaceSpec, B: FaceSpec, shift: np.ndarray | None = None) -> bool:

@@ -900,11 +900,40 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     calls = []
     real = S._merged_pair
     monkeypatch.setattr(S, "_merged_pair", lambda *a: calls.append(a[:2]) or real(*a))
+    # The pairs the batched full-period test decides are remembered as well: the second merge
+    # tries nothing, with the batch or pair by pair.
+    first = S._merge_faces(list(halves), t)
+    assert first == list(halves) and any(S._MERGE_FAILED.get(f) for f in halves)
+    assert S._merge_faces(list(halves), t) == first and not calls
+    S._MERGE_FAILED.clear()
+    monkeypatch.setattr(S, "_wrapping_pairs", lambda faces, fpq, upq: [False] * len(fpq))
     first = S._merge_faces(list(halves), t)
     n = len(calls)
     assert n > 0 and first == list(halves)
     again = S._merge_faces(list(halves), t)
     assert again == first and len(calls) == n  # nothing tried again
+
+
+def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
+    """The merge's batched full-period test rejects exactly pairs that _merged_pair rejects, and
+    takes the half cylinders of a plate drilled in one call (at off-grid places and depths)."""
+    t = S.resolve(None)
+    seen = []
+    real = S._wrapping_pairs
+
+    def spy(faces, fpq, upq):
+        out = real(faces, fpq, upq)
+        seen.extend((faces[fp], faces[fq], tuple(up), tuple(uq), w) for (fp, fq), (up, uq), w in zip(fpq, upq, out))
+        return out
+
+    monkeypatch.setattr(S, "_wrapping_pairs", spy)
+    tools = [Cylinder(1.5 + 0.2 * i, 20).translate((-8.7 + 8.1 * i, -7.3 + 7.9 * j, -1.3 * j)) for i in range(3)
+             for j in range(3)]
+    r = _ok(S.difference(Box(30, 30, 10), *tools))
+    assert _types(r) == {"plane": 6, "cylinder": 18}
+    decided = [(A, B, up, uq) for A, B, up, uq, w in seen if w]
+    assert len(decided) == 18  # two seams per hole
+    assert all(S._merged_pair(A, B, up, uq, t) is None for A, B, up, uq in decided)
 
 
 def test_fuse_edges_keeps_untouched_faces():

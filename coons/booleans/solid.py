@@ -2474,16 +2474,19 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     area = area * (1.0 if spec.sense else -1.0)
     if np.any(area == 0.0):
         return None
-    out_loops = [list(loop) for loop in spec.loops]
+    # The pieces by the trusted constructors: the uses are the face's own and its (validated)
+    # cuts, some reversed, in non-empty loops on the face's (validated) surface and sense.
+    trusted = EdgeSpec._trusted
+    out_loops = list(spec.loops)
     islands = []
     for a, s, ar in zip(c0.tolist(), size.tolist(), area.tolist()):
-        uses = [cuts[k] if fd else EdgeSpec(cuts[k].curve, cuts[k].t1, cuts[k].t0, cuts[k].pcurve, cuts[k].tol)
+        uses = [cuts[k] if fd else trusted(cuts[k].curve, cuts[k].t1, cuts[k].t0, cuts[k].pcurve, cuts[k].tol)
                 for k, fd in zip(order[a:a + s], fwd_l[a:a + s])]
         if ar < 0:
-            uses = [EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
-        islands.append(FaceSpec(spec.surface, spec.sense, [uses]))
-        out_loops.append([EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)])
-    return [FaceSpec(spec.surface, spec.sense, out_loops)] + islands
+            uses = [trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
+        islands.append(FaceSpec._trusted(spec.surface, spec.sense, (tuple(uses),)))
+        out_loops.append(tuple(trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)))
+    return [FaceSpec._trusted(spec.surface, spec.sense, tuple(out_loops))] + islands
 
 
 def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:

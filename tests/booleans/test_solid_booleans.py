@@ -151,6 +151,34 @@ def test_sphere_at_a_box_corner():
     _vol(_ok(S.difference(box, ball)), 1000 - 1 / 8 * 4 / 3 * PI * 64)
 
 
+def test_island_pieces_equal_validated_specs():
+    """_split_islands builds its pieces by the trusted constructors: each equals, field by field,
+    the spec the validating constructors make of the same fields."""
+    t = S.resolve(None)
+    plate = Box(40, 40, 6)
+    tools = [Cylinder(1.5 + 0.1 * i, 20).translate((8.0 * i, 8.1 * j, 0)) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    A, B = S._Operand(plate, "A", t), S._Operand(S._gathered(tools, t), "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, _ = S._intersect(A, B, I, J, t)
+    made = 0
+    for f, cs in cuts_a.items():
+        pieces = S._split_islands(A, f, cs, t)
+        if pieces is None:
+            continue
+        made += 1
+        assert len(pieces) == 1 + 9
+        for p in pieces:
+            q = S.FaceSpec(p.surface, p.sense, p.loops)
+            assert q.surface is p.surface and q.sense is p.sense and type(p.loops) is tuple
+            for lp, lq in zip(p.loops, q.loops, strict=True):
+                assert type(lp) is tuple
+                for e, g in zip(lp, lq, strict=True):
+                    v = S.EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, e.tol)
+                    assert e is g and vars(e) == vars(v)
+                    assert type(e.t0) is float and type(e.t1) is float
+    assert made == 2  # the plate's top and bottom
+
+
 def test_cone_minus_box_keeps_a_frustum():
     cone = Cone(3, 0, 6, align=("center", "center", "min"))
     r = _ok(S.difference(cone, Box(20, 20, 6, align=("center", "center", "min")).translate((0, 0, 3))))

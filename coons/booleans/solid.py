@@ -818,19 +818,8 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     rmax = np.maximum.reduceat(R, start, axis=0)
     seg_min = np.minimum.reduceat(seg_lo, start, axis=0)
     seg_max = np.maximum.reduceat(seg_hi, start, axis=0)
-    boxes = _use_boxes(uses)
-    none = np.array([box is None for box in boxes], dtype=bool)
-    if none.any():
-        lo = np.full((len(uses), 3), -np.inf)
-        hi = np.full((len(uses), 3), np.inf)
-        have = np.flatnonzero(~none)
-        if have.size:
-            B = np.stack([boxes[k] for k in have.tolist()])
-            lo[have], hi[have] = B[:, 0], B[:, 1]
-    else:
-        B = np.stack(boxes)
-        lo, hi = B[:, 0].copy(), B[:, 1].copy()
-    lo, hi = _frozen(lo), _frozen(hi)
+    B, none = _use_box_array(uses)
+    lo, hi = _frozen(B[:, 0].copy()), _frozen(B[:, 1].copy())
     box_lo = np.minimum.reduceat(lo, use_start, axis=0)
     box_hi = np.maximum.reduceat(hi, use_start, axis=0)
     no_box = np.logical_or.reduceat(none, use_start)
@@ -2204,18 +2193,28 @@ def _end_sines(curve, P: np.ndarray, T: np.ndarray, lo_t: float, hi_t: float, re
 def _edge_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     """Proven boxes ``(2, 3)`` around the uses' curves over their ranges (lines, conics and NURBS,
     together by :func:`~coons.kernel.curve_intersect.curve_boxes`), None for other curve types."""
+    boxes, boxed = _edge_box_array(edges)
+    return [box if ok else None for box, ok in zip(boxes, boxed.tolist())]
+
+
+def _edge_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_edge_boxes` as one read-only ``(k, 2, 3)`` array (rows of uses without a box: ``nan``)
+    and ``(k,)`` bool where there is a box."""
     from coons.kernel.curve import NurbsCurve
     from coons.kernel.curve_intersect import curve_boxes
 
-    out: list[np.ndarray | None] = [None] * len(edges)
-    boxed = [k for k, e in enumerate(edges) if isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve))]
-    if boxed:
-        uses = [edges[k] for k in boxed]
-        boxes = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
-        boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
-        for k, box in zip(boxed, boxes):
-            out[k] = box
-    return out
+    boxed = np.array([isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)) for e in edges], dtype=bool)
+    if not edges:
+        return np.empty((0, 2, 3)), boxed
+    if boxed.all():
+        boxes = curve_boxes([e.curve for e in edges], [e.t0 for e in edges], [e.t1 for e in edges])
+    else:
+        boxes = np.full((len(edges), 2, 3), np.nan)
+        uses = [e for e, ok in zip(edges, boxed.tolist()) if ok]
+        if uses:
+            boxes[boxed] = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
+    boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
+    return boxes, boxed
 
 
 def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance) -> None:
@@ -3787,6 +3786,36 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
             h = h[ok]
         out.append(cand[h])
     return out
+
+
+def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_use_boxes` stacked: ``(k, 2, 3)`` boxes (rows ``-inf, inf`` where there is none) and
+    ``(k,)`` bool where there is none.  The uses not cached yet are boxed together and their rows
+    filled from that batch in one assignment (an operand of a hundred tools brings a thousand new
+    uses: stacking their row views again cost more than boxing them)."""
+    n = len(edges)
+    out = np.empty((n, 2, 3))
+    none = np.zeros(n, dtype=bool)
+    got = _USE_BOXES.get_many(edges)
+    cached = [k for k, b in enumerate(got) if b is not None]
+    if cached:
+        rows = [k for k in cached if got[k] is not _NO_BOX]
+        if rows:
+            out[rows] = np.stack([got[k] for k in rows])
+        none[[k for k in cached if got[k] is _NO_BOX]] = True
+    if len(cached) < n:
+        todo = [k for k, b in enumerate(got) if b is None]
+        boxes, boxed = _edge_box_array([edges[k] for k in todo])
+        out[todo] = boxes
+        for k, box, ok in zip(todo, boxes, boxed.tolist()):
+            _USE_BOXES.set(edges[k], box if ok else _NO_BOX)
+        none[todo] = ~boxed
+    out[none] = _NO_BOX_ROW
+    return out, none
+
+
+#: The row :func:`_use_box_array` gives a use without a box.
+_NO_BOX_ROW = np.array([[-np.inf] * 3, [np.inf] * 3])
 
 
 def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:

@@ -964,6 +964,38 @@ def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
     assert all(S._merged_pair(A, B, up, uq, t) is None for A, B, up, uq in decided)
 
 
+def test_use_box_array_is_the_stacked_use_boxes():
+    """_use_box_array, half of the uses cached before and one without a box, gives _use_boxes' rows
+    (-inf, inf where there is none) and fills the cache with them."""
+    from dataclasses import dataclass
+
+    from coons.kernel.analytic import Circle, Line
+
+    @dataclass(frozen=True)
+    class Spiral:  # a curve type without a proven box
+        def evaluate(self, t):
+            t = np.asarray(t, dtype=np.float64)
+            return np.stack([np.cos(t), np.sin(t), t], axis=-1)
+
+    line = Line(np.zeros(3), np.array([1.0, 2.0, 0.0]))
+    circle = Circle(np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0)
+    uses = [S.EdgeSpec(line, 0.0, 1.5), S.EdgeSpec(circle, 2.0, 0.5), S.EdgeSpec(Spiral(), 0.0, 1.0),
+            S.EdgeSpec(circle, 0.1, 4.0), S.EdgeSpec(line, -1.0, 0.5), S.EdgeSpec(Spiral(), 1.0, 2.0)]
+    S._USE_BOXES.clear()
+    S._use_boxes(uses[::2])
+    B, none = S._use_box_array(uses)
+    assert none.tolist() == [False, False, True, False, False, True]
+    S._USE_BOXES.clear()
+    ref = S._use_boxes(uses)
+    for k, box in enumerate(ref):
+        np.testing.assert_array_equal(B[k], [[-np.inf] * 3, [np.inf] * 3] if box is None else box)
+    S._USE_BOXES.clear()
+    B2, none2 = S._use_box_array(uses)  # nothing cached
+    np.testing.assert_array_equal(B2, B)
+    assert none2.tolist() == none.tolist()
+    assert [b is None for b in S._use_boxes(uses)] == none.tolist()  # (from the cache it filled)
+
+
 def test_fuse_edges_keeps_untouched_faces():
     t = S.resolve(None)
     specs = S._Operand(Box(1, 2, 3), "A", t).specs

@@ -687,10 +687,16 @@ def _prefill_samples(specs: list[FaceSpec]) -> None:
     for group, n in ((lines, 2), (trigs, _LOOP_SAMPLES)):  # (a straight p-curve: its two ends)
         if group:
             T = np.linspace([e.t0 for e, _ in group], [e.t1 for e, _ in group], n, axis=-1)
-            U = curve_derivatives([e.pcurve for e, _ in group], T, 0, 2)[:, :, 0]
-            pad = np.zeros(len(group)) if group is lines else np.linalg.norm(np.diff(U, axis=1), axis=2).max(axis=1)
-            for (e, S), Ue, p in zip(group, U, pad.tolist()):
-                _USE_SAMPLES[e] = (S, _frozen(Ue), p)
+            # (read-only once: its rows, each use's samples, are read-only views)
+            U = _frozen(curve_derivatives([e.pcurve for e, _ in group], T, 0, 2)[:, :, 0])
+            if group is lines:
+                pad = [0.0] * len(group)
+            else:
+                # np.linalg.norm's sum of squares over the last axis, written out (a short axis reduces slowly)
+                D = np.diff(U, axis=1)
+                pad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1]).max(axis=1).tolist()
+            for (e, S), Ue, p in zip(group, U, pad):
+                _USE_SAMPLES[e] = (S, Ue, p)
 
 
 def _use_pad(e: EdgeSpec, S) -> float:
@@ -798,7 +804,17 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     views of the pass's arrays; the values are those of one loop at a time.
     """
     uses = [e for loop, _ in items for e in loop]
-    samples = [_use_samples(e, S) for loop, S in items for e in loop]
+    # The samples and pads of the uses (one look-up each where both are cached, as _prefill_samples leaves them).
+    samples, pads = [], []
+    for loop, S in items:
+        for e in loop:
+            got = _USE_SAMPLES.get(e)
+            if got is None or got[0] is not S or got[2] is None:
+                samples.append(_use_samples(e, S))
+                pads.append(_use_pad(e, S))
+            else:
+                samples.append(got[1])
+                pads.append(got[2])
     n_uses = np.array([len(loop) for loop, _ in items], dtype=np.int64)
     use_start = np.concatenate([[0], np.cumsum(n_uses)[:-1]])
     cnt = np.array([U.shape[0] for U in samples], dtype=np.int64)
@@ -810,7 +826,7 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     seg = _frozen(np.stack([R, R[nxt]], axis=1))
     # A sampled curved edge stays within about one chord of its samples; a straight
     # p-curve (Line2D, sampled by its two ends) is its segment.
-    pad = np.repeat([_use_pad(e, S) for loop, S in items for e in loop], cnt)[:, None]
+    pad = np.repeat(pads, cnt)[:, None]
     # (np.minimum of the two ends, not seg.min(axis=1): numpy reduces a short axis slowly)
     seg_lo = _frozen(np.minimum(R, R[nxt]) - pad)
     seg_hi = _frozen(np.maximum(R, R[nxt]) + pad)

@@ -1188,8 +1188,12 @@ def test_prefilled_samples_are_the_single_ones():
     for e, surface in uses:
         if type(e.pcurve).__name__ in ("Line2D", "Trig2D"):
             got = S._USE_SAMPLES[e]
-            assert got[0] is surface
-            np.testing.assert_array_equal(got[1], S._edge_uv(e, surface, S._LOOP_SAMPLES))
+            assert got[0] is surface and not got[1].flags.writeable
+            Ue = S._edge_uv(e, surface, S._LOOP_SAMPLES)
+            np.testing.assert_array_equal(got[1], Ue)
+            # the pad _use_pad computes for one use alone
+            pad = 0.0 if type(e.pcurve).__name__ == "Line2D" else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
+            assert got[2] == pad
 
 
 # ---------------------------------------------------------------------- direct chord split

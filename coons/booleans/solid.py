@@ -133,6 +133,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    recomputed on the first's surface by ``pcurve_on`` and shifted by whole periods to join it)
    with the same outward normal become one face (the shared edge disappears), unless the union
    would span a full period of a periodic parameter (coons has no seams, ``docs/brep.md``).
+   That full-period test is decided for all candidate pairs on one periodic surface at once
+   (``_wrapping_pairs``: the two half walls of every drilled hole), the same expressions as
+   the pair-by-pair test, which runs for the other pairs.
 9. ``_fuse_edges``: at a vertex where exactly two edges meet and continue one curve (the same
    curve object over adjacent ranges, or collinear lines), the two edges become one.
 10. ``_sew`` (stage ``"sew"``): :func:`~coons.topology.sew.sew_faces`, which runs the checker.
@@ -205,10 +208,13 @@ Status and limitations
 * Disjoint operands need no special case: every face is one piece classified against the other.
 * n-ary calls: ``difference(a, t0, t1, ...)`` and ``union(s0, s1, ...)`` first gather operands
   whose bounding boxes are pairwise apart into one solid (their B-reps side by side,
-  :func:`~coons.topology.disjoint.disjoint_union`: no sewing, no Boolean among them, and their
-  face specs handed on through ``sew.sewn_from``) and run one pipeline pass per such group (a plate
-  minus 100 separate cylinders is one pass); otherwise and for ``intersection`` they fold
-  left: ``(a ∪ b) ∪ c``.
+  :func:`~coons.topology.disjoint.stacked`, as :func:`~coons.topology.disjoint.disjoint_union`
+  makes them: no sewing, no Boolean among them, and their face specs handed on through
+  ``sew.sewn_from``) and run one pipeline pass per such group (a plate minus 100 separate
+  cylinders is one pass; the tools' padded boxes are one array pass,
+  :func:`~coons.topology.disjoint.padded_boxes`, and when no two meet they are one group
+  without the greedy grouping); otherwise and for ``intersection`` they fold left:
+  ``(a ∪ b) ∪ c``.
 """
 
 from __future__ import annotations

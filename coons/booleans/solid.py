@@ -133,6 +133,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    recomputed on the first's surface by ``pcurve_on`` and shifted by whole periods to join it)
    with the same outward normal become one face (the shared edge disappears), unless the union
    would span a full period of a periodic parameter (coons has no seams, ``docs/brep.md``).
+   That full-period test is decided for all candidate pairs on one periodic surface at once
+   (``_wrapping_pairs``: the two half walls of every drilled hole), the same expressions as
+   the pair-by-pair test, which runs for the other pairs.
 9. ``_fuse_edges``: at a vertex where exactly two edges meet and continue one curve (the same
    curve object over adjacent ranges, or collinear lines), the two edges become one.
 10. ``_sew`` (stage ``"sew"``): :func:`~coons.topology.sew.sew_faces`, which runs the checker.
@@ -205,10 +208,13 @@ Status and limitations
 * Disjoint operands need no special case: every face is one piece classified against the other.
 * n-ary calls: ``difference(a, t0, t1, ...)`` and ``union(s0, s1, ...)`` first gather operands
   whose bounding boxes are pairwise apart into one solid (their B-reps side by side,
-  :func:`~coons.topology.disjoint.disjoint_union`: no sewing, no Boolean among them, and their
-  face specs handed on through ``sew.sewn_from``) and run one pipeline pass per such group (a plate
-  minus 100 separate cylinders is one pass); otherwise and for ``intersection`` they fold
-  left: ``(a ∪ b) ∪ c``.
+  :func:`~coons.topology.disjoint.stacked`, as :func:`~coons.topology.disjoint.disjoint_union`
+  makes them: no sewing, no Boolean among them, and their face specs handed on through
+  ``sew.sewn_from``) and run one pipeline pass per such group (a plate minus 100 separate
+  cylinders is one pass; the tools' padded boxes are one array pass,
+  :func:`~coons.topology.disjoint.padded_boxes`, and when no two meet they are one group
+  without the greedy grouping); otherwise and for ``intersection`` they fold left:
+  ``(a ∪ b) ∪ c``.
 """
 
 from __future__ import annotations
@@ -233,7 +239,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
-from coons.topology.disjoint import disjoint_union, padded_box
+from coons.topology.disjoint import meeting_pair, padded_boxes, stacked
 from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, remember_sewn, sew_faces,
                                sewn_from, sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
@@ -370,7 +376,9 @@ def _disjoint_groups(solids, t: Tolerance) -> list[list[Solid]]:
     if not solids:
         return [[Solid.empty()]]
     # Boxes closer than the tolerances could let sewing merge vertices of two solids (padded_box).
-    box = np.stack([padded_box(s, t) for s in solids])
+    box = padded_boxes(solids, t)
+    if meeting_pair(box) is None:
+        return [solids]  # (what the greedy pass below gives when no two boxes meet: a drilling grid)
     lo, hi = box[:, 0], box[:, 1]
     group = np.empty(len(solids), dtype=np.int64)
     groups: list[list[Solid]] = []
@@ -400,7 +408,8 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     """
     if len(group) == 1:
         return group[0]
-    out = disjoint_union(group, t)
+    # (disjoint_union without its test: the group's padded boxes, the ones it tests, are apart)
+    out = Solid(stacked([s.brep for s in group]))
     if all(is_polyhedral(s) for s in group):
         return out
     specs: list[FaceSpec] = []
@@ -684,10 +693,16 @@ def _prefill_samples(specs: list[FaceSpec]) -> None:
     for group, n in ((lines, 2), (trigs, _LOOP_SAMPLES)):  # (a straight p-curve: its two ends)
         if group:
             T = np.linspace([e.t0 for e, _ in group], [e.t1 for e, _ in group], n, axis=-1)
-            U = curve_derivatives([e.pcurve for e, _ in group], T, 0, 2)[:, :, 0]
-            pad = np.zeros(len(group)) if group is lines else np.linalg.norm(np.diff(U, axis=1), axis=2).max(axis=1)
-            for (e, S), Ue, p in zip(group, U, pad.tolist()):
-                _USE_SAMPLES[e] = (S, _frozen(Ue), p)
+            # (read-only once: its rows, each use's samples, are read-only views)
+            U = _frozen(curve_derivatives([e.pcurve for e, _ in group], T, 0, 2)[:, :, 0])
+            if group is lines:
+                pad = [0.0] * len(group)
+            else:
+                # np.linalg.norm's sum of squares over the last axis, written out (a short axis reduces slowly)
+                D = np.diff(U, axis=1)
+                pad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1]).max(axis=1).tolist()
+            for (e, S), Ue, p in zip(group, U, pad):
+                _USE_SAMPLES[e] = (S, Ue, p)
 
 
 def _use_pad(e: EdgeSpec, S) -> float:
@@ -795,7 +810,17 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     views of the pass's arrays; the values are those of one loop at a time.
     """
     uses = [e for loop, _ in items for e in loop]
-    samples = [_use_samples(e, S) for loop, S in items for e in loop]
+    # The samples and pads of the uses (one look-up each where both are cached, as _prefill_samples leaves them).
+    samples, pads = [], []
+    for loop, S in items:
+        for e in loop:
+            got = _USE_SAMPLES.get(e)
+            if got is None or got[0] is not S or got[2] is None:
+                samples.append(_use_samples(e, S))
+                pads.append(_use_pad(e, S))
+            else:
+                samples.append(got[1])
+                pads.append(got[2])
     n_uses = np.array([len(loop) for loop, _ in items], dtype=np.int64)
     use_start = np.concatenate([[0], np.cumsum(n_uses)[:-1]])
     cnt = np.array([U.shape[0] for U in samples], dtype=np.int64)
@@ -807,7 +832,7 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     seg = _frozen(np.stack([R, R[nxt]], axis=1))
     # A sampled curved edge stays within about one chord of its samples; a straight
     # p-curve (Line2D, sampled by its two ends) is its segment.
-    pad = np.repeat([_use_pad(e, S) for loop, S in items for e in loop], cnt)[:, None]
+    pad = np.repeat(pads, cnt)[:, None]
     # (np.minimum of the two ends, not seg.min(axis=1): numpy reduces a short axis slowly)
     seg_lo = _frozen(np.minimum(R, R[nxt]) - pad)
     seg_hi = _frozen(np.maximum(R, R[nxt]) + pad)
@@ -815,19 +840,8 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     rmax = np.maximum.reduceat(R, start, axis=0)
     seg_min = np.minimum.reduceat(seg_lo, start, axis=0)
     seg_max = np.maximum.reduceat(seg_hi, start, axis=0)
-    boxes = _use_boxes(uses)
-    none = np.array([box is None for box in boxes], dtype=bool)
-    if none.any():
-        lo = np.full((len(uses), 3), -np.inf)
-        hi = np.full((len(uses), 3), np.inf)
-        have = np.flatnonzero(~none)
-        if have.size:
-            B = np.stack([boxes[k] for k in have.tolist()])
-            lo[have], hi[have] = B[:, 0], B[:, 1]
-    else:
-        B = np.stack(boxes)
-        lo, hi = B[:, 0].copy(), B[:, 1].copy()
-    lo, hi = _frozen(lo), _frozen(hi)
+    B, none = _use_box_array(uses)
+    lo, hi = _frozen(B[:, 0].copy()), _frozen(B[:, 1].copy())
     box_lo = np.minimum.reduceat(lo, use_start, axis=0)
     box_hi = np.maximum.reduceat(hi, use_start, axis=0)
     no_box = np.logical_or.reduceat(none, use_start)
@@ -2225,18 +2239,28 @@ def _end_sines(curve, P: np.ndarray, T: np.ndarray, lo_t: float, hi_t: float, re
 def _edge_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     """Proven boxes ``(2, 3)`` around the uses' curves over their ranges (lines, conics and NURBS,
     together by :func:`~coons.kernel.curve_intersect.curve_boxes`), None for other curve types."""
+    boxes, boxed = _edge_box_array(edges)
+    return [box if ok else None for box, ok in zip(boxes, boxed.tolist())]
+
+
+def _edge_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_edge_boxes` as one read-only ``(k, 2, 3)`` array (rows of uses without a box: ``nan``)
+    and ``(k,)`` bool where there is a box."""
     from coons.kernel.curve import NurbsCurve
     from coons.kernel.curve_intersect import curve_boxes
 
-    out: list[np.ndarray | None] = [None] * len(edges)
-    boxed = [k for k, e in enumerate(edges) if isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve))]
-    if boxed:
-        uses = [edges[k] for k in boxed]
-        boxes = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
-        boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
-        for k, box in zip(boxed, boxes):
-            out[k] = box
-    return out
+    boxed = np.array([isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)) for e in edges], dtype=bool)
+    if not edges:
+        return np.empty((0, 2, 3)), boxed
+    if boxed.all():
+        boxes = curve_boxes([e.curve for e in edges], [e.t0 for e in edges], [e.t1 for e in edges])
+    else:
+        boxes = np.full((len(edges), 2, 3), np.nan)
+        uses = [e for e, ok in zip(edges, boxed.tolist()) if ok]
+        if uses:
+            boxes[boxed] = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
+    boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
+    return boxes, boxed
 
 
 def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance) -> None:
@@ -2420,9 +2444,11 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     Q = _cut_samples(cuts)  # (n, _CLEAR_SAMPLES, 2)
     if Q is None or not np.all(np.isfinite(Q)):
         return None
-    step = np.max(np.linalg.norm(np.diff(Q, axis=1), axis=2), axis=1)
+    D = np.diff(Q, axis=1)
+    step = np.max(np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1]), axis=1)  # (np.linalg.norm's sum, written out)
     margin = step + 1e-9 * (1.0 + np.max(np.abs(Q), axis=(1, 2)))
-    lo, hi = Q.min(axis=1) - margin[:, None], Q.max(axis=1) + margin[:, None]
+    Q_lo, Q_hi = _middle_extremes(Q)
+    lo, hi = Q_lo - margin[:, None], Q_hi + margin[:, None]
     if _boxes_meet_2d(lo, hi, X.seg_lo[f], X.seg_hi[f]):
         return None  # near the face's boundary: split_face decides
     # Join the cuts end to end: every end cluster must hold exactly two ends (end 2 k + which).
@@ -2471,7 +2497,8 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     nxt = np.arange(n) + 1
     nxt[c0 + size - 1] = c0
     gaps = np.linalg.norm(Qo[:, -1] - Qo[nxt, 0], axis=-1)
-    span = np.max(np.maximum.reduceat(Qo.max(axis=1), c0, axis=0) - np.minimum.reduceat(Qo.min(axis=1), c0, axis=0),
+    Qo_lo, Qo_hi = _middle_extremes(Qo)
+    span = np.max(np.maximum.reduceat(Qo_hi, c0, axis=0) - np.minimum.reduceat(Qo_lo, c0, axis=0),
                   axis=1)
     # parameter round-off of joined ends, far below a sample step
     if np.any(np.maximum.reduceat(gaps, c0) > 1e-6 * (1.0 + span)):
@@ -2479,8 +2506,9 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     rings = Qo[:, 1:]  # each first sample is (within the gap) the previous use's last
     # Separate cycles: their rings' boxes pairwise apart.
     if c0.size > 1:
-        clo = np.minimum.reduceat(rings.min(axis=1), c0, axis=0)
-        chi = np.maximum.reduceat(rings.max(axis=1), c0, axis=0)
+        r_lo, r_hi = _middle_extremes(rings)
+        clo = np.minimum.reduceat(r_lo, c0, axis=0)
+        chi = np.maximum.reduceat(r_hi, c0, axis=0)
         if _boxes_meet_2d(clo, chi, clo, chi, skip_self=True):
             return None
     # Simple cycles, none around an existing loop of the face, each inside the face, not flat.
@@ -2495,16 +2523,29 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     area = area * (1.0 if spec.sense else -1.0)
     if np.any(area == 0.0):
         return None
-    out_loops = [list(loop) for loop in spec.loops]
+    # The pieces by the trusted constructors: the uses are the face's own and its (validated)
+    # cuts, some reversed, in non-empty loops on the face's (validated) surface and sense.
+    trusted = EdgeSpec._trusted
+    out_loops = list(spec.loops)
     islands = []
     for a, s, ar in zip(c0.tolist(), size.tolist(), area.tolist()):
-        uses = [cuts[k] if fd else EdgeSpec(cuts[k].curve, cuts[k].t1, cuts[k].t0, cuts[k].pcurve, cuts[k].tol)
+        uses = [cuts[k] if fd else trusted(cuts[k].curve, cuts[k].t1, cuts[k].t0, cuts[k].pcurve, cuts[k].tol)
                 for k, fd in zip(order[a:a + s], fwd_l[a:a + s])]
         if ar < 0:
-            uses = [EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
-        islands.append(FaceSpec(spec.surface, spec.sense, [uses]))
-        out_loops.append([EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)])
-    return [FaceSpec(spec.surface, spec.sense, out_loops)] + islands
+            uses = [trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
+        islands.append(FaceSpec._trusted(spec.surface, spec.sense, (tuple(uses),)))
+        out_loops.append(tuple(trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)))
+    return [FaceSpec._trusted(spec.surface, spec.sense, tuple(out_loops))] + islands
+
+
+def _middle_extremes(Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Q.min(axis=1), Q.max(axis=1)`` of ``Q (n, s, d)``, coordinate by coordinate (the same values:
+    numpy reduces the middle axis of a short last axis row by row, about ten times slower)."""
+    lo = np.empty((Q.shape[0], Q.shape[2]))
+    hi = np.empty((Q.shape[0], Q.shape[2]))
+    for k in range(Q.shape[2]):
+        lo[:, k], hi[:, k] = Q[:, :, k].min(axis=1), Q[:, :, k].max(axis=1)
+    return lo, hi
 
 
 def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:
@@ -2576,7 +2617,10 @@ def _ring_box_pairs(lo: np.ndarray, hi: np.ndarray, ring: np.ndarray) -> tuple[n
     b = a + 1 + (np.arange(a.size) - np.repeat(np.cumsum(count) - count, count))
     I, J = order[a], order[b]
     I, J = np.minimum(I, J), np.maximum(I, J)
-    meet = (ring[I] == ring[J]) & np.all((lo[I] <= hi[J]) & (lo[J] <= hi[I]), axis=1)
+    # (per coordinate, not np.all over the short last axis: numpy reduces it row by row)
+    (lo_x, lo_y), (hi_x, hi_y) = lo.T, hi.T
+    meet = ((ring[I] == ring[J]) & (lo_x[I] <= hi_x[J]) & (lo_x[J] <= hi_x[I])
+            & (lo_y[I] <= hi_y[J]) & (lo_y[J] <= hi_y[I]))
     return I[meet], J[meet]
 
 
@@ -3807,6 +3851,36 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     return out
 
 
+def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_use_boxes` stacked: ``(k, 2, 3)`` boxes (rows ``-inf, inf`` where there is none) and
+    ``(k,)`` bool where there is none.  The uses not cached yet are boxed together and their rows
+    filled from that batch in one assignment (an operand of a hundred tools brings a thousand new
+    uses: stacking their row views again cost more than boxing them)."""
+    n = len(edges)
+    out = np.empty((n, 2, 3))
+    none = np.zeros(n, dtype=bool)
+    got = _USE_BOXES.get_many(edges)
+    cached = [k for k, b in enumerate(got) if b is not None]
+    if cached:
+        rows = [k for k in cached if got[k] is not _NO_BOX]
+        if rows:
+            out[rows] = np.stack([got[k] for k in rows])
+        none[[k for k in cached if got[k] is _NO_BOX]] = True
+    if len(cached) < n:
+        todo = [k for k, b in enumerate(got) if b is None]
+        boxes, boxed = _edge_box_array([edges[k] for k in todo])
+        out[todo] = boxes
+        for k, box, ok in zip(todo, boxes, boxed.tolist()):
+            _USE_BOXES.set(edges[k], box if ok else _NO_BOX)
+        none[todo] = ~boxed
+    out[none] = _NO_BOX_ROW
+    return out, none
+
+
+#: The row :func:`_use_box_array` gives a use without a box.
+_NO_BOX_ROW = np.array([[-np.inf] * 3, [np.inf] * 3])
+
+
 def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
     """:func:`_edge_boxes` of each use, cached per use (an EdgeSpec is immutable; one memo look-up
     for all, the missing ones boxed together by :func:`_edge_boxes`).  The uses of the faces a
@@ -3888,7 +3962,9 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
         _prefill_uv_extents([faces[f] for f in np.unique(face_of[pairs]).tolist()
                              if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
-        for (p, q), (fp, fq), (up, uq) in zip(pairs.tolist(), face_of[pairs].tolist(), W[pairs, :2].tolist()):
+        fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
+        wraps = _wrapping_pairs(faces, fpq, upq)
+        for (p, q), (fp, fq), (up, uq), wrap in zip(pairs.tolist(), fpq, upq, wraps):
             A, B = faces[fp], faces[fq]
             up, uq = tuple(up), tuple(uq)
             key = (id(A), up, id(B), uq)
@@ -3906,7 +3982,7 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
                 continue
-            merged = _merged_pair(A, B, up, uq, t)
+            merged = None if wrap else _merged_pair(A, B, up, uq, t)
             if merged is None:
                 _merge_failed(A, B, memo)
                 continue
@@ -3966,6 +4042,56 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
         return None
     return _fuse(A, B, up, uq, t)
+
+
+def _wrapping_pairs(faces: list[FaceSpec], fpq: list[list[int]], upq: list[list[list[int]]]) -> list[bool]:
+    """Per candidate pair of :func:`_merge_faces` (faces ``fpq[i]``, uses ``upq[i]``): whether
+    :func:`_merged_pair` returns None at its full-period test (:func:`_wraps`), decided for all
+    pairs at once (a plate drilled in one call brings two hundred pairs of half cylinders).
+
+    Only pairs that reach that test on the fast path are decided: one surface object, one sense,
+    straight p-curves on the shared use (sampled by their ends), a periodic surface and both
+    faces' :func:`_uv_extent`; False for every other pair (which :func:`_merged_pair` then
+    tests).  The expressions are those of :func:`_merged_pair`, :func:`_whole_periods` and
+    :func:`_wraps` element by element (``Line2D.evaluate``, the mean of two rows, ``round``,
+    ``max``/``min``), so the same floats and the same decisions.
+    """
+    out = [False] * len(fpq)
+    rows, ends, origin, direction, period, ext = [], [], [], [], [], []
+    for i, ((fp, fq), (up, uq)) in enumerate(zip(fpq, upq)):
+        A, B = faces[fp], faces[fq]
+        S = A.surface
+        if S is not B.surface or A.sense != B.sense:
+            continue
+        per = (getattr(S, "period_u", None) or 0.0, getattr(S, "period_v", None) or 0.0)
+        if not (per[0] or per[1]):
+            continue
+        ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+        if type(ea.pcurve) is not Line2D or type(eb.pcurve) is not Line2D:
+            continue
+        xa, xb = _uv_extent(A), _uv_extent(B)
+        if not xa or not xb:
+            continue
+        rows.append(i)
+        ends.append(((ea.t0, ea.t1), (eb.t0, eb.t1)))
+        origin.append((ea.pcurve.origin, eb.pcurve.origin))
+        direction.append((ea.pcurve.direction, eb.pcurve.direction))
+        period.append(per)
+        ext.append(xa + xb)
+    if not rows:
+        return out
+    T = np.array(ends)  # (m, 2 uses, 2 ends)
+    U = np.array(origin)[:, :, None, :] + T[..., None] * np.array(direction)[:, :, None, :]  # (m, 2, 2, 2)
+    offset = np.mean(U[:, 0] - U[:, 1, ::-1], axis=1)  # (_merged_pair: B's use reversed)
+    P = np.array(period)
+    periodic = P > 0.0
+    shift = np.where(periodic, P * np.round(offset / np.where(periodic, P, 1.0)), 0.0)
+    X = np.array(ext)  # (m, 4, 2): A's lo, hi, B's lo, hi
+    span = np.maximum(X[:, 1], X[:, 3] + shift) - np.minimum(X[:, 0], X[:, 2] + shift)
+    wraps = np.any(periodic & (span >= P - 1e-9 * P), axis=1).tolist()
+    for i, w in zip(rows, wraps):
+        out[i] = w
+    return out
 
 
 def _wraps(A: FaceSpec, B: FaceSpec, shift: np.ndarray | None = None) -> bool:
@@ -4035,7 +4161,7 @@ def _prefill_uv_extents(faces: list[FaceSpec]) -> None:
             ends = np.array([(uses[i].t0, uses[i].t1) for i in rows])
             T = ends if k == 2 else np.linspace(ends[:, 0], ends[:, 1], k, axis=1)
             U = curve_derivatives([uses[i].pcurve for i in rows], T, 0, 2)[:, :, 0]
-            lo[rows], hi[rows] = U.min(axis=1), U.max(axis=1)
+            lo[rows], hi[rows] = _middle_extremes(U)
     for i, c in enumerate(kinds):
         if c is None:
             U = _edge_uv(uses[i], None, 5)

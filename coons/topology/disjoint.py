@@ -23,7 +23,7 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology.brep import BRep
 from coons.topology.shape import Solid
 
-__all__ = ["disjoint_union"]
+__all__ = ["disjoint_union", "meeting_pair", "padded_box", "padded_boxes", "stacked"]
 
 
 def disjoint_union(solids: Sequence[Solid], tol: Tolerance | None = None) -> Solid:
@@ -71,8 +71,8 @@ def disjoint_union(solids: Sequence[Solid], tol: Tolerance | None = None) -> Sol
         return Solid.empty()
     if len(keep) == 1:
         return solids[keep[0]]
-    boxes = np.stack([padded_box(solids[i], t) for i in keep])
-    meet = _meeting_pair(boxes)
+    boxes = padded_boxes([solids[i] for i in keep], t)
+    meet = meeting_pair(boxes)
     if meet is not None:
         i, j = keep[meet[0]], keep[meet[1]]
         raise InvalidInputError(
@@ -90,7 +90,62 @@ def padded_box(s: Solid, t: Tolerance) -> np.ndarray:
     return np.asarray(s.bounding_box(), dtype=np.float64) + np.array([[-pad], [pad]])
 
 
-def _meeting_pair(boxes: np.ndarray) -> tuple[int, int] | None:
+def padded_boxes(solids: Sequence[Solid], t: Tolerance) -> np.ndarray:
+    """:func:`padded_box` of each of the non-empty ``solids``, ``(n, 2, 3)``, the same floats.
+
+    A solid whose curves are all lines and circles and whose surfaces are all planes, cylinders
+    and cones (a drilling tool) is bounded with the others of its kind in one array pass: its
+    exact box is that of its vertices and of its circles' extreme points (the candidates
+    :func:`~coons.topology.mass.bounding_box` takes for it: a line's extremes are its ends, such
+    surfaces have no interior extremes), reduced per solid by exact minima and maxima.  Other
+    solids are bounded one by one.  A hundred tools cost one pass instead of a hundred.
+    """
+    from coons.kernel.analytic import Circle, ConicalSurface, CylindricalSurface, Line, PlanarSurface
+    from coons.topology.mass import circle_extremes
+
+    flat = (PlanarSurface, CylindricalSurface, ConicalSurface)
+    out = np.empty((len(solids), 2, 3))
+    batch: list[int] = []
+    for k, s in enumerate(solids):
+        b = s.brep
+        if (b.n_vertices and all(type(c) is Circle or type(c) is Line for c in b.curves)
+                and all(isinstance(S, flat) for S in b.surfaces)):
+            batch.append(k)
+        else:
+            out[k] = padded_box(s, t)
+    if not batch:
+        return out
+    breps = [solids[k].brep for k in batch]
+    n = len(breps)
+    V = np.concatenate([b.vertex_point for b in breps])
+    first_v = np.cumsum([0] + [b.n_vertices for b in breps[:-1]])
+    lo, hi = np.minimum.reduceat(V, first_v, axis=0), np.maximum.reduceat(V, first_v, axis=0)
+    # The circle arcs of all solids: their curves, rows of the stacked edge ranges and solids.
+    first_e = np.cumsum([0] + [b.n_edges for b in breps[:-1]]).tolist()
+    arcs, rows, owner = [], [], []
+    for i, b in enumerate(breps):
+        for e, c in enumerate(b.edge_curve.tolist()):
+            if c >= 0 and type(b.curves[c]) is Circle:
+                arcs.append(b.curves[c])
+                rows.append(first_e[i] + e)
+                owner.append(i)
+    if arcs:
+        P, k = circle_extremes(arcs, np.concatenate([b.edge_range for b in breps])[rows])
+        of = np.array(owner, dtype=np.int64)[k]
+        np.minimum.at(lo, of, P)
+        np.maximum.at(hi, of, P)
+    # The pad of padded_box: the largest of t.linear and the edge and vertex tolerances (all >= 0).
+    pad = np.zeros(n)
+    for name, count in (("edge_tol", "n_edges"), ("vertex_tol", "n_vertices")):
+        np.maximum.at(pad, np.repeat(np.arange(n), [getattr(b, count) for b in breps]),
+                      np.concatenate([getattr(b, name) for b in breps]))
+    pad = np.maximum(pad, t.linear)[:, None]
+    out[batch, 0] = lo + -pad
+    out[batch, 1] = hi + pad
+    return out
+
+
+def meeting_pair(boxes: np.ndarray) -> tuple[int, int] | None:
     """The first pair ``(i, j)``, ``i < j``, of boxes ``(n, 2, 3)`` that meet (closed boxes), or None.
 
     Sort and sweep along x: only boxes whose x ranges overlap are compared on all axes, so a

@@ -1718,6 +1718,12 @@ def _circle_extreme_points(curves: list, ranges: np.ndarray) -> np.ndarray:
     Element by element the same expressions as :func:`_curve_extreme_points` and
     ``Circle.evaluate``, so the same points (in another order).
     """
+    return circle_extremes(curves, ranges)[0]
+
+
+def circle_extremes(curves: list, ranges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_circle_extreme_points` and the arc of each point: ``(points (m, 3), arcs (m,) int64)``,
+    ``arcs`` ascending (for per-B-rep reductions over the arcs of many B-reps, ``disjoint.padded_boxes``)."""
     R = np.array([c.radius for c in curves], dtype=np.float64)[:, None]
     F = np.array([c.frame for c in curves])  # (k, 3, 3)
     O = np.array([c.center for c in curves])
@@ -1730,7 +1736,7 @@ def _circle_extreme_points(curves: list, ranges: np.ndarray) -> np.ndarray:
     inside = (cand >= t0[:, :, None]) & (cand <= t1[:, :, None])
     k = np.nonzero(inside)[0]
     t = cand[inside]
-    return ((R[k, 0] * np.cos(t))[:, None] * X[k] + (R[k, 0] * np.sin(t))[:, None] * Y[k]) + O[k]
+    return ((R[k, 0] * np.cos(t))[:, None] * X[k] + (R[k, 0] * np.sin(t))[:, None] * Y[k]) + O[k], k
 
 
 def _span_samples(lo: float, hi: float, knots, generic: int) -> np.ndarray:

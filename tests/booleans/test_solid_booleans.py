@@ -151,6 +151,34 @@ def test_sphere_at_a_box_corner():
     _vol(_ok(S.difference(box, ball)), 1000 - 1 / 8 * 4 / 3 * PI * 64)
 
 
+def test_island_pieces_equal_validated_specs():
+    """_split_islands builds its pieces by the trusted constructors: each equals, field by field,
+    the spec the validating constructors make of the same fields."""
+    t = S.resolve(None)
+    plate = Box(40, 40, 6)
+    tools = [Cylinder(1.5 + 0.1 * i, 20).translate((8.0 * i, 8.1 * j, 0)) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    A, B = S._Operand(plate, "A", t), S._Operand(S._gathered(tools, t), "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, _ = S._intersect(A, B, I, J, t)
+    made = 0
+    for f, cs in cuts_a.items():
+        pieces = S._split_islands(A, f, cs, t)
+        if pieces is None:
+            continue
+        made += 1
+        assert len(pieces) == 1 + 9
+        for p in pieces:
+            q = S.FaceSpec(p.surface, p.sense, p.loops)
+            assert q.surface is p.surface and q.sense is p.sense and type(p.loops) is tuple
+            for lp, lq in zip(p.loops, q.loops, strict=True):
+                assert type(lp) is tuple
+                for e, g in zip(lp, lq, strict=True):
+                    v = S.EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, e.tol)
+                    assert e is g and vars(e) == vars(v)
+                    assert type(e.t0) is float and type(e.t1) is float
+    assert made == 2  # the plate's top and bottom
+
+
 def test_cone_minus_box_keeps_a_frustum():
     cone = Cone(3, 0, 6, align=("center", "center", "min"))
     r = _ok(S.difference(cone, Box(20, 20, 6, align=("center", "center", "min")).translate((0, 0, 3))))
@@ -900,11 +928,72 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     calls = []
     real = S._merged_pair
     monkeypatch.setattr(S, "_merged_pair", lambda *a: calls.append(a[:2]) or real(*a))
+    # The pairs the batched full-period test decides are remembered as well: the second merge
+    # tries nothing, with the batch or pair by pair.
+    first = S._merge_faces(list(halves), t)
+    assert first == list(halves) and any(S._MERGE_FAILED.get(f) for f in halves)
+    assert S._merge_faces(list(halves), t) == first and not calls
+    S._MERGE_FAILED.clear()
+    monkeypatch.setattr(S, "_wrapping_pairs", lambda faces, fpq, upq: [False] * len(fpq))
     first = S._merge_faces(list(halves), t)
     n = len(calls)
     assert n > 0 and first == list(halves)
     again = S._merge_faces(list(halves), t)
     assert again == first and len(calls) == n  # nothing tried again
+
+
+def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
+    """The merge's batched full-period test rejects exactly pairs that _merged_pair rejects, and
+    takes the half cylinders of a plate drilled in one call (at off-grid places and depths)."""
+    t = S.resolve(None)
+    seen = []
+    real = S._wrapping_pairs
+
+    def spy(faces, fpq, upq):
+        out = real(faces, fpq, upq)
+        seen.extend((faces[fp], faces[fq], tuple(up), tuple(uq), w) for (fp, fq), (up, uq), w in zip(fpq, upq, out))
+        return out
+
+    monkeypatch.setattr(S, "_wrapping_pairs", spy)
+    tools = [Cylinder(1.5 + 0.2 * i, 20).translate((-8.7 + 8.1 * i, -7.3 + 7.9 * j, -1.3 * j)) for i in range(3)
+             for j in range(3)]
+    r = _ok(S.difference(Box(30, 30, 10), *tools))
+    assert _types(r) == {"plane": 6, "cylinder": 18}
+    decided = [(A, B, up, uq) for A, B, up, uq, w in seen if w]
+    assert len(decided) == 18  # two seams per hole
+    assert all(S._merged_pair(A, B, up, uq, t) is None for A, B, up, uq in decided)
+
+
+def test_use_box_array_is_the_stacked_use_boxes():
+    """_use_box_array, half of the uses cached before and one without a box, gives _use_boxes' rows
+    (-inf, inf where there is none) and fills the cache with them."""
+    from dataclasses import dataclass
+
+    from coons.kernel.analytic import Circle, Line
+
+    @dataclass(frozen=True)
+    class Spiral:  # a curve type without a proven box
+        def evaluate(self, t):
+            t = np.asarray(t, dtype=np.float64)
+            return np.stack([np.cos(t), np.sin(t), t], axis=-1)
+
+    line = Line(np.zeros(3), np.array([1.0, 2.0, 0.0]))
+    circle = Circle(np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0)
+    uses = [S.EdgeSpec(line, 0.0, 1.5), S.EdgeSpec(circle, 2.0, 0.5), S.EdgeSpec(Spiral(), 0.0, 1.0),
+            S.EdgeSpec(circle, 0.1, 4.0), S.EdgeSpec(line, -1.0, 0.5), S.EdgeSpec(Spiral(), 1.0, 2.0)]
+    S._USE_BOXES.clear()
+    S._use_boxes(uses[::2])
+    B, none = S._use_box_array(uses)
+    assert none.tolist() == [False, False, True, False, False, True]
+    S._USE_BOXES.clear()
+    ref = S._use_boxes(uses)
+    for k, box in enumerate(ref):
+        np.testing.assert_array_equal(B[k], [[-np.inf] * 3, [np.inf] * 3] if box is None else box)
+    S._USE_BOXES.clear()
+    B2, none2 = S._use_box_array(uses)  # nothing cached
+    np.testing.assert_array_equal(B2, B)
+    assert none2.tolist() == none.tolist()
+    assert [b is None for b in S._use_boxes(uses)] == none.tolist()  # (from the cache it filled)
 
 
 def test_fuse_edges_keeps_untouched_faces():
@@ -1099,8 +1188,12 @@ def test_prefilled_samples_are_the_single_ones():
     for e, surface in uses:
         if type(e.pcurve).__name__ in ("Line2D", "Trig2D"):
             got = S._USE_SAMPLES[e]
-            assert got[0] is surface
-            np.testing.assert_array_equal(got[1], S._edge_uv(e, surface, S._LOOP_SAMPLES))
+            assert got[0] is surface and not got[1].flags.writeable
+            Ue = S._edge_uv(e, surface, S._LOOP_SAMPLES)
+            np.testing.assert_array_equal(got[1], Ue)
+            # the pad _use_pad computes for one use alone
+            pad = 0.0 if type(e.pcurve).__name__ == "Line2D" else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
+            assert got[2] == pad
 
 
 # ---------------------------------------------------------------------- direct chord split

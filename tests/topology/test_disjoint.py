@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from coons.errors import InvalidInputError
 from coons.topology.check import check
-from coons.topology.disjoint import _meeting_pair, disjoint_union, stacked
+from coons.topology.disjoint import disjoint_union, meeting_pair, padded_box, padded_boxes, stacked
 from coons.topology.primitives import Box, Cone, Cylinder, Sphere, Torus
 from coons.topology.sew import face_specs, sew_faces
 from coons.topology.shape import Solid
@@ -101,7 +101,21 @@ def test_meeting_pair_is_the_first_of_all_pairs(spec):
     n = len(spec)
     every = [(i, j) for i in range(n) for j in range(i + 1, n)
              if np.all((boxes[i, 0] <= boxes[j, 1]) & (boxes[j, 0] <= boxes[i, 1]))]
-    assert _meeting_pair(boxes) == (every[0] if every else None)
+    assert meeting_pair(boxes) == (every[0] if every else None)
+
+
+def test_padded_boxes_are_padded_box_one_by_one():
+    """The batch of line-and-circle solids (tools, tilted and cut ones among them) and the
+    one-by-one path for the others give padded_box's very floats."""
+    from coons.tolerance import resolve
+
+    t = resolve(None)
+    tools = [Cylinder(1.0 + 0.1 * k, 3.0 + k).translate((5.0 * k, 0.3 * k, -0.7 * k)) for k in range(6)]
+    tilted = Pos(1, 2, 3) * Rot(10, 20, 30) * Cylinder(1, 2)
+    notched = Box(4, 4, 4) - Cylinder(1, 10).translate((2, 0, 0))  # arcs that are not half circles
+    solids = parts() + tools + [tilted, Cone(1, 0.5, 2).translate((0, 40, 0)), notched]
+    got = padded_boxes(solids, t)
+    np.testing.assert_array_equal(got, np.stack([padded_box(s, t) for s in solids]))
 
 
 def test_grid_of_cylinders():

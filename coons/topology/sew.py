@@ -27,11 +27,13 @@ meet, which edges are shared — is recovered from geometry:
    re-expressed in that parameter when its curve is a different object, through the affine
    parameter map fixed by the shared end points (verified on samples): ``Line2D``, ``Trig2D``
    (map slope ±1) and 2-D ``NurbsCurve`` p-curves are supported.
-5. **Assembly** with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
+5. **Assembly**: one shell (the common case) straight from the arrays of steps 1–4
+   (:func:`~coons.topology.builder.assembled_brep`, the B-rep the builder would make, without
+   its per-entity lists); several with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
    (a shell enclosing negative volume becomes a void of the smallest positive shell around
    it, by the winding number of one of its vertices: with respect to cones over the faces'
    chords when the vertex lies outside every face box, else to the tessellation, see
-   :func:`_nest_voids`), then ``build()``, which runs :func:`~coons.topology.check.check`.
+   :func:`_nest_voids`), then ``build()``; both end in :func:`~coons.topology.check.check`.
 
 :func:`face_specs` is the inverse: the face specifications of an existing B-rep (used by the
 round-trip tests and by anything that re-sews modified faces).  It checks each edge once and
@@ -62,7 +64,7 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
 from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
 from coons.topology.brep import BRep
-from coons.topology.builder import BRepBuilder
+from coons.topology.builder import BRepBuilder, assembled_brep
 from coons.topology.check import _SEWN_FROM
 from coons.topology.shape import Solid
 
@@ -959,8 +961,9 @@ def _assemble(
     pairs: np.ndarray,
     t: Tolerance,
 ) -> Solid:
-    """Build the B-rep through ``BRepBuilder.assemble`` and attach the geometry; also which faces
-    are unchanged (:func:`_unchanged_faces`)."""
+    """Build the B-rep and attach the geometry (:func:`~coons.topology.builder.assembled_brep` for
+    one shell, else ``BRepBuilder.assemble`` and void nesting); also which faces are unchanged
+    (:func:`_unchanged_faces`)."""
     k = len(uses)
     E = pairs.shape[0]
     primary, other = pairs[:, 0], pairs[:, 1]
@@ -974,26 +977,14 @@ def _assemble(
     is_left = np.zeros(k, dtype=bool)
     is_left[left] = True
     ref = np.where(is_left, edge_of + 1, -(edge_of + 1))
-    face_loops: list[list[list[int]]] = []
-    refs = ref.tolist()
-    i = 0
-    for f in faces:
-        loops = []
-        for loop in f.loops:
-            loops.append(refs[i : i + len(loop)])
-            i += len(loop)
-        face_loops.append(loops)
-    b = BRepBuilder(t)
-    b.assemble(vpoint, np.stack([edge_start, edge_end], axis=1), face_loops,
-               face_surfaces=[f.surface for f in faces], face_senses=[f.sense for f in faces])
-    b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
+    edges = np.stack([edge_start, edge_end], axis=1)
     spec = uses.spec
     sp = [spec[p] for p in primary.tolist()]
     so = [spec[o] for o in other.tolist()]
     thr = np.maximum(uses.tol[primary], uses.tol[other])
-    b.set_edge_curves(np.arange(E), [e.curve for e in sp],
-                      np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
-                                np.maximum(uses.t0[primary], uses.t1[primary])], axis=1), thr)
+    curves = [e.curve for e in sp]
+    ranges = np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
+                       np.maximum(uses.t0[primary], uses.t1[primary])], axis=1)
     # The primary use's p-curve, then the other's, edge by edge (the pool order of one call each).
     # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
     # (uses.curve_id holds id(use.curve) of live uses: equal ids are the same object)
@@ -1005,12 +996,35 @@ def _assemble(
         pcs[2 * e + 1] = _pcurve_in(sp[e], so[e], thr_l[e],
                                     f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})")
     side_p = np.where(fwd, 0, 1)
-    b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
-    pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
+    pc_coedges = np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel()
     # Which faces equal their spec, recorded before the check: it skips the checks of those whose
     # spec passed before (check._TRIMS_PASSED), and the next Boolean on the result reads its
     # unchanged faces from the record (sewn_unchanged_faces).
     unchanged = _unchanged_faces(faces, uses, primary, other, thr)
+    surfaces = [f.surface for f in faces]
+    senses = [f.sense for f in faces]
+    # One shell (the common case) in array passes; several (which may nest) through the builder.
+    first_use = uses.pos == 0
+    brep = assembled_brep(vpoint, vtol, edges, ref, uses.loop_len[first_use],
+                          np.bincount(uses.face[first_use], minlength=len(faces)), surfaces, senses, curves,
+                          ranges, thr, pc_coedges, pcs, t, sewn_from=(tuple(faces), unchanged))
+    if brep is not None:
+        return Solid(brep)
+    refs = ref.tolist()
+    face_loops: list[list[list[int]]] = []
+    i = 0
+    for f in faces:
+        loops = []
+        for loop in f.loops:
+            loops.append(refs[i : i + len(loop)])
+            i += len(loop)
+        face_loops.append(loops)
+    b = BRepBuilder(t)
+    b.assemble(vpoint, edges, face_loops, face_surfaces=surfaces, face_senses=senses)
+    b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
+    b.set_edge_curves(np.arange(E), curves, ranges, thr)
+    b.set_pcurves(pc_coedges, pcs)
+    pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre, sewn_from=(tuple(faces), unchanged)))
 
 

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import operator
 import weakref
+from itertools import chain
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,7 +55,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
+from coons.topology._memo import IdentityMemo, is_value, pool_positions, pool_values, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -137,7 +138,7 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         if not problems:
             _check_orientation(b, t, problems)
         if not problems and known is not None:
-            _remember_trims(known, passed, t, samples, table.gapped)
+            _remember_trims(b, known, passed, t, samples, table.gapped)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
               "shells": b.n_shells, "solids": b.n_solids}
     return CheckReport(tuple(problems), counts)
@@ -764,13 +765,17 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
             if type(spec.surface) not in (PlanarSurface, CylindricalSurface):
                 continue
             best = 0
-            for ref in _PASSED_ON.get(spec.surface, ()):
-                old = ref()
-                if (old is None or old.sense != spec.sense or not best < len(old.loops) < len(spec.loops)
-                        or key not in (_TRIMS_PASSED.get(old) or ())):
-                    continue
-                if all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(old.loops, spec.loops)):
-                    best = len(old.loops)
+            olds = [old for old in (ref() for ref in _PASSED_ON.get(spec.surface, ()))
+                    if old is not None and old.sense == spec.sense and 0 < len(old.loops) < len(spec.loops)
+                    and key in (_TRIMS_PASSED.get(old) or ())]
+            # The longest prefix wins: try the specs from the most loops down, stop at the first match.
+            for old in sorted(olds, key=lambda x: -len(x.loops)):
+                n = len(old.loops)
+                if (list(map(len, old.loops)) == list(map(len, spec.loops[:n]))
+                        and all(map(operator.is_, chain.from_iterable(old.loops),
+                                    chain.from_iterable(spec.loops[:n])))):
+                    best = n
+                    break
             if best:
                 # The B-rep keeps the spec's loop order (its coedge counts agree loop by loop).
                 if sizes is None:
@@ -782,15 +787,20 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     return passed, extends
 
 
-def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
+def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
                     gapped: frozenset = frozenset()) -> None:
-    """Record that the unchanged faces' specs passed the checks (the check found nothing), except
-    the faces whose loop closure was judged against a vertex (``gapped``)."""
+    """Record that the unchanged faces' specs of ``b`` passed the checks (the check found nothing),
+    except the faces whose loop closure was judged against a vertex (``gapped``), and those whose
+    spec, surface, curves or p-curves are not all values (what the record depends on could change
+    under it).  An unchanged face's uses hold the very curves and p-curves of its coedges in
+    ``b``: their being values is read from the pools (:func:`_value_faces`)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
-    for f in np.flatnonzero(unchanged & ~passed).tolist():
+    todo = np.flatnonzero(unchanged & ~passed).tolist()
+    values = _value_faces(b) if todo else None
+    for f in todo:
         spec = specs[f]
-        if f not in gapped and _all_values(spec):
+        if f not in gapped and values[f] and is_value(spec) and is_value(spec.surface):
             _TRIMS_PASSED.setdefault(spec, set).add(key)
             if (len(spec.loops) >= _PREFIX_LOOPS and type(spec.surface) in (PlanarSurface, CylindricalSurface)
                     and is_value(spec.surface)):
@@ -798,11 +808,15 @@ def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Toler
                 _PASSED_ON.set(spec.surface, refs + [weakref.ref(spec)])
 
 
-def _all_values(spec) -> bool:
-    """The spec, its surface and every use's curve and p-curve are immutable values (what the
-    recorded checks depend on cannot change under the record)."""
-    return is_value(spec) and is_value(spec.surface) and all(
-        is_value(e.curve) and is_value(e.pcurve) for loop in spec.loops for e in loop)
+def _value_faces(b: BRep) -> np.ndarray:
+    """``(F,)`` bool: every coedge of the face has a curve and a p-curve, both values
+    (:func:`~coons.topology._memo.pool_values`)."""
+    cv = np.append(pool_values(b, "curves"), False)  # (index -1, none, reads False)
+    pv = np.append(pool_values(b, "pcurves"), False)
+    ok = np.repeat(cv[b.edge_curve], 2) & pv[b.edge_pcurve.ravel()]
+    out = np.ones(b.n_faces, dtype=bool)
+    out[b.coedge_face[~ok]] = False
+    return out
 
 
 def _trims_key(t: Tolerance, samples: int) -> tuple:
@@ -873,6 +887,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         old_loop = np.zeros(b.n_loops, dtype=bool)
         for f, n in extends.items():
             old_loop[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+        parts = [_near_new_loops(b, p, old_loop) for p in parts]
     hits = _crossings(parts, None if old_loop is None else old_loop[b.coedge_loop])
     # Chords of curved edges cut corners by their sagitta: loops closer than that (an ellipse hole
     # grazing a circular rim) cross as polylines but not as curves.  Faces with crossings are
@@ -889,6 +904,46 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         out.append(Problem("self-intersecting-trim", "face", f,
                            f"edge {ci >> 1} of loop {int(b.coedge_loop[ci])} crosses edge {cj >> 1} of loop "
                            f"{int(b.coedge_loop[cj])} near {np.round(x, 9).tolist()} in the face's parameter plane"))
+
+
+def _near_new_loops(b: BRep, part: tuple[np.ndarray, ...], old_loop: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The segments ``part`` (of :func:`_face_segments`' form) without the loops of ``old_loop``
+    (``(L,)`` bool, loops tested against each other before) whose box, widened by the crossing
+    threshold ``eps``, misses the box of their face's other segments.
+
+    Two old segments are never tested, and an old segment crosses another properly only where
+    the two meet, inside both boxes: a loop whose widened box misses its face's new segments has
+    no pair left to test (a plate's top gaining a hole keeps its rim and the holes next to the
+    new one).  Loops are dropped whole, so the rings (``next``) stay closed, renumbered.
+    """
+    A, B, face, nxt, coedge, eps = part
+    loop = b.coedge_loop[coedge]
+    old = old_loop[loop]
+    if not old.any():
+        return part
+    lo = np.minimum(A, B) - eps[:, None]
+    hi = np.maximum(A, B) + eps[:, None]
+    # Boxes per run of one loop (the rings come loop by loop), then per loop and per face.
+    starts = np.flatnonzero(np.concatenate([[True], loop[1:] != loop[:-1]]))
+    rlo, rhi = np.minimum.reduceat(lo, starts, axis=0), np.maximum.reduceat(hi, starts, axis=0)
+    rl = loop[starts]
+    llo = np.full((b.n_loops, 2), np.inf)
+    lhi = np.full((b.n_loops, 2), -np.inf)
+    np.minimum.at(llo, rl, rlo)  # (a loop in several runs: the union of their boxes)
+    np.maximum.at(lhi, rl, rhi)
+    lf = b.loop_face
+    new = ~old_loop[rl]
+    flo = np.full((b.n_faces, 2), np.inf)
+    fhi = np.full((b.n_faces, 2), -np.inf)
+    np.minimum.at(flo, lf[rl[new]], rlo[new])
+    np.maximum.at(fhi, lf[rl[new]], rhi[new])
+    near = ~old_loop | ((llo <= fhi[lf]).all(axis=1) & (flo[lf] <= lhi).all(axis=1))
+    keep = np.flatnonzero(near[loop])
+    if keep.size == A.shape[0]:
+        return part
+    at = np.full(A.shape[0], -1, dtype=np.int64)
+    at[keep] = np.arange(keep.size)
+    return A[keep], B[keep], face[keep], at[nxt[keep]], coedge[keep], eps[keep]
 
 
 def _loop_ranks(b: BRep) -> np.ndarray:

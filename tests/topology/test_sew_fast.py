@@ -416,3 +416,45 @@ def test_several_shells_are_assembled_by_the_builder(monkeypatch):
     b = sew.sew_faces(specs).brep
     assert answers == [None] and b.n_shells == 2 and b.n_solids == 2
     assert sew.sew_faces(sew.face_specs(coons.Box(1, 2, 3))).brep.n_shells == 1 and answers[-1] is not None
+
+
+def _uses_columns(u) -> dict:
+    cols = {c: np.asarray(x) for c, x in zip(sew._COLUMNS, u.columns)}
+    cols["spec"] = np.array([id(e) for e in u.spec], dtype=np.int64)
+    cols["values"] = np.asarray(u.values)
+    for name in ("face", "loop", "pos", "loop_len", "t0", "t1", "tol", "start", "end", "mid", "next"):
+        cols[name] = np.asarray(getattr(u, name))
+    return cols
+
+
+def test_uses_gathered_from_the_last_sewing_equal_the_per_face_tables(monkeypatch):
+    # The faces of the last sewing take their use rows from its columns in one take
+    # (_gathered_uses); the arrays equal those built from the per-face tables, and only the
+    # faces it did not have, or whose curves are not values, go through _face_uses.
+    t = resolve(None)
+    box = sew.face_specs(Box(1, 2, 3).brep)
+    odd = sew.FaceSpec(box[0].surface, box[0].sense,
+                       [[sew.EdgeSpec(_Wrapped(e.curve), e.t0, e.t1, e.pcurve, e.tol) for e in box[0].loops[0]]])
+    first = [odd] + box[1:]
+    kept = sew.sew_faces(first)  # the last sewing (kept alive: its record lives with it)
+    others = sew.face_specs(Cylinder(1.0, 2.0).translate((5.0, 0.0, 0.0)).brep)
+    faces = [others[0], first[3], odd, first[1]] + others[1:] + [first[5], first[2]]
+    asked = []
+    real = sew._face_uses
+
+    def spy(fs, values=None):
+        asked.append([id(f) for f in fs])
+        return real(fs, values)
+
+    monkeypatch.setattr(sew, "_face_uses", spy)
+    fast = _uses_columns(sew._Uses(faces, t))
+    assert sorted(asked[-1]) == sorted(id(f) for f in [odd] + others)  # the rest from the record
+    monkeypatch.setattr(sew, "_LAST_SEWN", [None])  # no record: every face from its table
+    slow = _uses_columns(sew._Uses(faces, t))
+    assert len(asked[-1]) == len(faces)
+    assert fast.keys() == slow.keys()
+    for k in fast:
+        assert fast[k].dtype == slow[k].dtype, k
+        np.testing.assert_array_equal(fast[k], slow[k], err_msg=k)
+    assert not fast["values"][2] and fast["values"][[0, 1, 3]].all()
+    assert kept.brep.n_faces == 6

@@ -25,13 +25,15 @@ surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-re
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
 sewing, or for a B-rep assembled without sewing by :func:`~coons.topology.sew.remember_sewn`, which
 finds the unchanged faces by walking the B-rep) skips them for a face whose spec passed them in
-an earlier clean check (``_TRIMS_PASSED``), as a plate's untouched faces do from cut to cut, and
+an earlier clean check (``_TRIMS_PASSED``; the specs the last clean check of a sewn B-rep recorded
+are found by id in one array pass, ``_PASSED_FACES``), as a plate's untouched faces do from cut to cut, and
 with them the same-parameter comparisons of its
 coedges (the deviation measured then, against the same edge tolerance: an unchanged face's uses
 keep theirs; faces whose loop closure was judged against a vertex are never recorded); the
 ends of every edge are still compared with its vertices.  A face on a plane or cylinder whose loops extend,
 use for use, those of a spec that passed tests only the pairs of segments involving its new loops
-(a plate's top gaining a hole; ``_PASSED_ON``).  Every other check, topological and geometric
+(a plate's top gaining a hole; ``_PASSED_ON``), and of its old loops only those whose box meets
+the new ones' (``_near_new_loops``).  Every other check, topological and geometric
 (vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
@@ -138,7 +140,8 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         if not problems:
             _check_orientation(b, t, problems)
         if not problems and known is not None:
-            _remember_trims(b, known, passed, t, samples, table.gapped)
+            _remember_passed(b, known, passed | _remember_trims(b, known, passed, t, samples, table.gapped),
+                             t, samples)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
               "shells": b.n_shells, "solids": b.n_solids}
     return CheckReport(tuple(problems), counts)
@@ -754,8 +757,18 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     scale, and so the crossing threshold, does not depend on where the loops lie)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
-    got = _TRIMS_PASSED.get_many(specs)
-    passed = unchanged & np.fromiter((g is not None and key in g for g in got), dtype=bool, count=len(specs))
+    passed = np.zeros(len(specs), dtype=bool)
+    rest = np.flatnonzero(unchanged)
+    donor = _LAST_PASSED[0]() if _LAST_PASSED[0] is not None else None
+    rec = _PASSED_FACES.get(donor) if donor is not None and donor is not b else None
+    if rec is not None and rec.key == key and rest.size and rec.ids.size:
+        # The specs the last clean check recorded: found by id in one pass (it holds them).
+        ids = np.fromiter(map(id, specs), dtype=np.int64, count=len(specs))
+        j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
+        passed = unchanged & (rec.ids[j] == ids) & rec.passed[rec.order[j]]
+        rest = np.flatnonzero(unchanged & ~passed)
+    got = _TRIMS_PASSED.get_many([specs[i] for i in rest.tolist()])
+    passed[rest] = np.fromiter((g is not None and key in g for g in got), dtype=bool, count=rest.size)
     extends: dict[int, int] = {}
     if len(_PASSED_ON):
         n_loops = np.diff(b.face_loop_ptr)
@@ -787,25 +800,59 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     return passed, extends
 
 
+class _Passed:
+    """The faces of one clean check recorded in :data:`_TRIMS_PASSED` (:func:`_remember_passed`):
+    ``specs`` (held, so that their ids stay theirs), ``ids (F,)`` int64 sorted and ``order (F,)``
+    the faces in that order, ``passed (F,)`` bool, and the :func:`_trims_key` ``key``."""
+
+    __slots__ = ("specs", "ids", "order", "passed", "key")
+
+
+#: The last sewn B-rep whose check found nothing -> its :class:`_Passed` (one entry), and a weak
+#: reference to that B-rep: the next check (a Boolean's result on its operand's faces) finds
+#: which of its specs passed in one array pass, not one look-up per face (:func:`_trims_passed`).
+_PASSED_FACES = IdentityMemo()
+_LAST_PASSED: list = [None]
+
+
+def _remember_passed(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance,
+                     samples: int) -> None:
+    """Keep which faces of ``b`` (its specs ``known[0]``) are recorded as passed, for the next check."""
+    rec = _Passed()
+    rec.specs = tuple(known[0])
+    ids = np.fromiter(map(id, rec.specs), dtype=np.int64, count=len(rec.specs))
+    rec.order = np.argsort(ids, kind="stable")
+    rec.ids = ids[rec.order]
+    rec.passed = passed.copy()
+    rec.key = _trims_key(t, samples)
+    _PASSED_FACES.clear()
+    _PASSED_FACES.set(b, rec)
+    _LAST_PASSED[0] = weakref.ref(b)
+
+
 def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
-                    gapped: frozenset = frozenset()) -> None:
+                    gapped: frozenset = frozenset()) -> np.ndarray:
     """Record that the unchanged faces' specs of ``b`` passed the checks (the check found nothing),
     except the faces whose loop closure was judged against a vertex (``gapped``), and those whose
     spec, surface, curves or p-curves are not all values (what the record depends on could change
-    under it).  An unchanged face's uses hold the very curves and p-curves of its coedges in
-    ``b``: their being values is read from the pools (:func:`_value_faces`)."""
+    under it); ``(F,)`` bool, the faces recorded.  An unchanged face's uses hold the very curves
+    and p-curves of its coedges in ``b``: their being values is read from the pools
+    (:func:`_value_faces`)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
     todo = np.flatnonzero(unchanged & ~passed).tolist()
     values = _value_faces(b) if todo else None
+    recorded = np.zeros(len(specs), dtype=bool)
     for f in todo:
         spec = specs[f]
         if f not in gapped and values[f] and is_value(spec) and is_value(spec.surface):
             _TRIMS_PASSED.setdefault(spec, set).add(key)
+            recorded[f] = True
             if (len(spec.loops) >= _PREFIX_LOOPS and type(spec.surface) in (PlanarSurface, CylindricalSurface)
                     and is_value(spec.surface)):
                 refs = [r for r in _PASSED_ON.get(spec.surface, ()) if r() is not None][-(_PREFIX_KEPT - 1):]
                 _PASSED_ON.set(spec.surface, refs + [weakref.ref(spec)])
+    return recorded
 
 
 def _value_faces(b: BRep) -> np.ndarray:

@@ -920,6 +920,47 @@ def test_a_face_gaining_loops_has_only_its_new_loops_tested(monkeypatch):
     assert math.isclose(plate.volume, 60 * 50 * 4 - len(holes) * math.pi * 4, rel_tol=1e-12)
 
 
+def test_faces_passed_found_through_the_last_clean_check_equal_the_per_spec_look_up(monkeypatch):
+    """_trims_passed finds the specs the last clean check recorded in one array pass
+    (_PASSED_FACES); the faces passed and extended are those of looking every spec up."""
+    from coons.topology.primitives import Cylinder as Cyl
+
+    real = check_module._trims_passed
+    memo = check_module._TRIMS_PASSED
+    real_get_many = memo.get_many
+    compared, looked_up = [], []
+
+    def get_many(objs):
+        objs = list(objs)
+        looked_up.append(len(objs))
+        return real_get_many(objs)
+
+    def spy(b, known, t, samples):
+        looked_up.clear()
+        passed, extends = real(b, known, t, samples)
+        fast = looked_up[0]
+        last = check_module._LAST_PASSED[0]
+        check_module._LAST_PASSED[0] = None
+        try:
+            again, extends_again = real(b, known, t, samples)
+        finally:
+            check_module._LAST_PASSED[0] = last
+        np.testing.assert_array_equal(passed, again)
+        assert extends == extends_again
+        compared.append((int(passed.sum()), fast, looked_up[1]))
+        return passed, extends
+
+    monkeypatch.setattr(check_module, "_trims_passed", spy)
+    monkeypatch.setattr(memo, "get_many", get_many)
+    plate = Box(60, 50, 4)
+    for k in range(20):
+        plate = plate - Cyl(1.0, 10.0).translate((-25.0 + 10 * (k % 6), -20.0 + 10 * (k // 6), 0.0))
+    assert len(compared) >= 20
+    n_passed, fast, slow = compared[-1]
+    assert n_passed > 10 and fast < slow / 4  # most faces passed before, found without a look-up each
+    assert check(plate).ok
+
+
 def test_coedges_of_faces_that_passed_before_are_not_measured_again(monkeypatch):
     """The same-parameter comparisons of a face that passed as the same spec are not repeated
     (only its edges' ends are compared with the vertices again); a new face's coedges are."""

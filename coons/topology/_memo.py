@@ -11,7 +11,7 @@ depend on what is remembered, only the time does; :func:`clear_all` forgets ever
 
 :func:`pool_positions` carries tables between B-reps as arrays instead: the positions of one
 B-rep's geometry objects in another's pools (a Boolean's result in its operand's), by which rows
-built per object are gathered in one take.
+built per object are gathered in one take; :func:`pool_values` says which pool objects are values.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-__all__ = ["IdentityMemo", "clear_all", "is_value", "pool_positions", "read_only"]
+__all__ = ["IdentityMemo", "clear_all", "is_value", "pool_positions", "pool_values", "read_only"]
 
 _VALUE_TYPES: dict[type, bool] = {}
 #: Every memo made, so that :func:`clear_all` (benchmarks, tests comparing warm and cold runs)
@@ -151,6 +151,14 @@ def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         o = keep[np.argsort(ids[keep], kind="stable")]
         hit = got[name] = (read_only(ids), read_only(ids[o]), read_only(o))
     return hit
+
+
+def pool_values(b: Any, name: str) -> np.ndarray:
+    """``(n,)`` bool: which objects of the pool ``name`` of B-rep ``b`` are values (:func:`is_value`)."""
+    _, _, order = _pool_ids(b, name)
+    out = np.zeros(len(getattr(b, name)), dtype=bool)
+    out[order] = True
+    return out
 
 
 def pool_positions(b: Any, donor: Any, name: str) -> np.ndarray:

@@ -28,6 +28,9 @@ from face loops at once — the structure a sequence of Euler operators would pr
 Euler–Poincaré verified rather than assumed; it serves meshes, importers and the
 Boolean's sewing.  :meth:`build` compacts killed entities, checks every invariant and
 returns an immutable ``BRep`` or raises :class:`~coons.errors.TopologyError`.
+:func:`assembled_brep` is the sequence ``assemble``, ``set_*``, ``build`` on a fresh builder
+for one shell given as arrays, with the same tables and pools (the sewing of a large result in
+array passes); it declines (None) whatever that sequence would not take in bulk.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
 from coons.topology.brep import BRep
 
-__all__ = ["BRepBuilder"]
+__all__ = ["BRepBuilder", "assembled_brep"]
 
 
 class BRepBuilder:
@@ -583,6 +586,11 @@ class BRepBuilder:
     def _pool_many(self, kind: str, objs: Sequence[Any]) -> list[int]:
         """:meth:`_pool` of each object in turn (the same pool order)."""
         index, pool, out = self._pool_index[kind], getattr(self, kind), []
+        if not index:  # an empty pool (a fresh builder's): the first-seen order in array passes
+            new, idx = _pooled(objs)
+            pool.extend(new)
+            index.update(zip(map(id, new), range(len(new))))
+            return idx.tolist()
         for obj in objs:
             if obj is None:
                 out.append(-1)
@@ -961,20 +969,156 @@ class BRepBuilder:
             curves=tuple(self.curves),
             pcurves=tuple(self.pcurves),
         )
-        if caches_from is not None:
-            from coons.topology.mass import share_mass_caches
-            from coons.topology.tessellate import share_tessellations
+        return _finished(brep, self.tol, check, caches_from, sewn_from)
 
-            share_mass_caches(caches_from, brep)
-            share_tessellations(caches_from, brep)
-        if sewn_from is not None:
-            from coons.topology.check import _SEWN_FROM
 
-            _SEWN_FROM[brep] = sewn_from
-        if check:
-            from coons.topology.check import check as _check
+def _finished(brep: BRep, tol: Tolerance, check: bool, caches_from: BRep | None, sewn_from: tuple | None) -> BRep:
+    """The end of :meth:`BRepBuilder.build` (and of :func:`assembled_brep`): caches shared from
+    ``caches_from``, the sewing record, the check."""
+    if caches_from is not None:
+        from coons.topology.mass import share_mass_caches
+        from coons.topology.tessellate import share_tessellations
 
-            report = _check(brep, tol=self.tol)
-            if not report.ok:
-                raise TopologyError("the built B-rep is invalid:\n" + report.summary())
-        return brep
+        share_mass_caches(caches_from, brep)
+        share_tessellations(caches_from, brep)
+    if sewn_from is not None:
+        from coons.topology.check import _SEWN_FROM
+
+        _SEWN_FROM[brep] = sewn_from
+    if check:
+        from coons.topology.check import check as _check
+
+        report = _check(brep, tol=tol)
+        if not report.ok:
+            raise TopologyError("the built B-rep is invalid:\n" + report.summary())
+    return brep
+
+
+def _pooled(objs: Sequence[Any]) -> tuple[list[Any], np.ndarray]:
+    """The pool an empty :meth:`BRepBuilder._pool_many` makes of ``objs``: the distinct objects (by
+    identity, None left out) in the order first seen, and ``(n,)`` int64 the index of each (-1 for None)."""
+    n = len(objs)
+    ids = np.fromiter(map(id, objs), dtype=np.int64, count=n)
+    some = ids != id(None)
+    uniq, first, inv = np.unique(ids[some], return_index=True, return_inverse=True)
+    rank = np.empty(uniq.size, dtype=np.int64)
+    by_first = np.argsort(first)
+    rank[by_first] = np.arange(uniq.size)
+    idx = np.full(n, -1, dtype=np.int64)
+    idx[some] = rank[inv.reshape(-1)]
+    at = np.flatnonzero(some)[first[by_first]]
+    return [objs[i] for i in at.tolist()], idx
+
+
+def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarray, refs: np.ndarray,
+                   loop_lens: np.ndarray, face_loop_counts: np.ndarray, face_surfaces: Sequence[Any],
+                   face_senses: Sequence[bool], edge_curves: Sequence[Any], edge_ranges: np.ndarray,
+                   edge_tols: np.ndarray, pcurve_coedges: np.ndarray, pcurves: Sequence[Any],
+                   tol: Tolerance, *, check: bool = True, sewn_from: tuple | None = None) -> BRep | None:
+    """The B-rep of one shell, built from arrays: what a fresh :class:`BRepBuilder` makes of
+
+    ``assemble(points, edges, face_loops, face_surfaces=..., face_senses=...)``,
+    ``set_vertex_tols(arange(V), vertex_tols)``, ``set_edge_curves(arange(E), edge_curves,
+    edge_ranges, edge_tols)``, ``set_pcurves(pcurve_coedges, pcurves)`` and ``build(check=...,
+    sewn_from=...)``, array for array and with the same pools, or None when that sequence would
+    not go the bulk way: input it rejects (it then names the fault), faces forming more than one
+    shell (which the sewing may nest), a lone-vertex loop.  Without the builder's per-entity lists
+    it costs array passes over the coedges (the sewing of a large result).
+
+    Parameters
+    ----------
+    points : (V, 3) float64, vertex_tols : (V,) float64
+    edges : (E, 2) int64, start and end vertex
+    refs : (K,) int64, the signed edge references of all loops in face and loop order
+        (``+(e + 1)`` forwards, ``-(e + 1)`` backwards), ``face_loops`` flattened
+    loop_lens : (L,) int64, the references per loop; face_loop_counts : (F,) int64, loops per face
+    face_surfaces, face_senses : per face
+    edge_curves : per edge; edge_ranges : (E, 2) float64; edge_tols : (E,) float64
+    pcurve_coedges : (m,) int64 and pcurves : (m,), the p-curve of each listed coedge (pool order)
+
+    Raises
+    ------
+    TopologyError
+        ``check`` found a problem (as :meth:`BRepBuilder.build`).
+    """
+    points = np.asarray(points, dtype=np.float64)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    refs = np.asarray(refs, dtype=np.int64)
+    lens = np.asarray(loop_lens, dtype=np.int64)
+    per_face = np.asarray(face_loop_counts, dtype=np.int64)
+    ranges = np.asarray(edge_ranges, dtype=np.float64).reshape(-1, 2)
+    nv, ne, nl, nf = points.shape[0], edges.shape[0], lens.size, per_face.size
+    # The checks that send the builder off the bulk path (BRepBuilder.assemble, _assemble_loops_bulk,
+    # set_edge_curves): then the builder runs and raises its own message.
+    if (points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all() or ne == 0 or nl == 0
+            or lens.min() <= 0 or per_face.min(initial=1) <= 0 or int(per_face.sum()) != nl
+            or int(lens.sum()) != refs.size or edges.min() < 0 or edges.max() >= nv
+            or len(face_surfaces) < nf or len(face_senses) < nf or not (ranges[:, 0] < ranges[:, 1]).all()):
+        return None
+    if (refs == 0).any() or (np.abs(refs) > ne).any():
+        return None
+    e = np.abs(refs) - 1
+    side = (refs < 0).astype(np.int64)
+    c = 2 * e + side
+    if not (np.bincount(c, minlength=2 * ne) == 1).all():
+        return None
+    first = np.cumsum(lens) - lens
+    idx = np.arange(refs.size)
+    loop_of = np.repeat(np.arange(nl), lens)
+    nxt = np.where(idx + 1 < first[loop_of] + lens[loop_of], idx + 1, first[loop_of])
+    origin = edges[e, side]
+    if not (edges[e, 1 - side] == origin[nxt]).all():
+        return None
+    loop_face = np.repeat(np.arange(nf, dtype=np.int64), per_face)
+    # Shells: components of the faces through their shared edges (coedges 2e and 2e + 1).
+    cface = np.empty(2 * ne, dtype=np.int64)
+    cface[c] = loop_face[loop_of]
+    n_comp, label = components(nf, cface[0::2], cface[1::2])
+    if n_comp != 1:
+        return None
+    link = np.empty(2 * ne, dtype=np.int64)
+    back = np.empty(2 * ne, dtype=np.int64)
+    cloop = np.empty(2 * ne, dtype=np.int64)
+    link[c] = c[nxt]
+    back[c[nxt]] = c
+    cloop[c] = loop_of
+    # Each vertex's coedge: the first coedge (in coedge order) leaving it (isolated vertices: -1).
+    vcoedge = np.full(nv, -1, dtype=np.int64)
+    verts, at = np.unique(edges.ravel(), return_index=True)
+    vcoedge[verts] = at
+    surfaces, fs = _pooled(face_surfaces[:nf])
+    curves, ci = _pooled(edge_curves)
+    pcurves_pool, pi = _pooled(pcurves)
+    epcurve = np.full(2 * ne, -1, dtype=np.int64)
+    epcurve[np.asarray(pcurve_coedges, dtype=np.int64)] = pi
+    face_loop_ptr = np.zeros(nf + 1, dtype=np.int64)
+    np.cumsum(per_face, out=face_loop_ptr[1:])
+    brep = BRep(
+        vertex_point=points,
+        vertex_tol=np.asarray(vertex_tols, dtype=np.float64),
+        vertex_coedge=vcoedge,
+        edge_vertex=edges,
+        edge_loop=cloop.reshape(-1, 2),
+        edge_wing=np.stack([back[0::2], link[0::2], back[1::2], link[1::2]], axis=1),
+        edge_curve=ci,
+        edge_range=ranges,
+        edge_pcurve=epcurve.reshape(-1, 2),
+        edge_tol=np.asarray(edge_tols, dtype=np.float64),
+        loop_face=loop_face,
+        loop_coedge=c[first],
+        loop_vertex=np.full(nl, -1, dtype=np.int64),
+        face_surface=fs,
+        face_sense=np.array([bool(x) for x in face_senses[:nf]], dtype=bool),
+        face_shell=np.zeros(nf, dtype=np.int64),
+        face_loop_ptr=face_loop_ptr,
+        face_loops=np.arange(nl, dtype=np.int64),
+        shell_solid=np.zeros(1, dtype=np.int64),
+        shell_face_ptr=np.array([0, nf], dtype=np.int64),
+        shell_faces=np.arange(nf, dtype=np.int64),
+        solid_shell_ptr=np.array([0, 1], dtype=np.int64),
+        solid_shells=np.zeros(1, dtype=np.int64),
+        surfaces=tuple(surfaces),
+        curves=tuple(curves),
+        pcurves=tuple(pcurves_pool),
+    )
+    return _finished(brep, tol, check, None, sewn_from)

@@ -25,13 +25,15 @@ surface, sense, p-curves and ranges, the tolerance and ``samples`` alone: a B-re
 specs (:func:`~coons.topology.sew.sewn_unchanged` faces, recorded in :data:`_SEWN_FROM` by the
 sewing, or for a B-rep assembled without sewing by :func:`~coons.topology.sew.remember_sewn`, which
 finds the unchanged faces by walking the B-rep) skips them for a face whose spec passed them in
-an earlier clean check (``_TRIMS_PASSED``), as a plate's untouched faces do from cut to cut, and
+an earlier clean check (``_TRIMS_PASSED``; the specs the last clean check of a sewn B-rep recorded
+are found by id in one array pass, ``_PASSED_FACES``), as a plate's untouched faces do from cut to cut, and
 with them the same-parameter comparisons of its
 coedges (the deviation measured then, against the same edge tolerance: an unchanged face's uses
 keep theirs; faces whose loop closure was judged against a vertex are never recorded); the
 ends of every edge are still compared with its vertices.  A face on a plane or cylinder whose loops extend,
 use for use, those of a spec that passed tests only the pairs of segments involving its new loops
-(a plate's top gaining a hole; ``_PASSED_ON``).  Every other check, topological and geometric
+(a plate's top gaining a hole; ``_PASSED_ON``), and of its old loops only those whose box meets
+the new ones' (``_near_new_loops``).  Every other check, topological and geometric
 (vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
@@ -44,6 +46,7 @@ from __future__ import annotations
 
 import operator
 import weakref
+from itertools import chain
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,7 +57,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
+from coons.topology._memo import IdentityMemo, is_value, pool_positions, pool_values, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -137,7 +140,8 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         if not problems:
             _check_orientation(b, t, problems)
         if not problems and known is not None:
-            _remember_trims(known, passed, t, samples, table.gapped)
+            _remember_passed(b, known, passed | _remember_trims(b, known, passed, t, samples, table.gapped),
+                             t, samples)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
               "shells": b.n_shells, "solids": b.n_solids}
     return CheckReport(tuple(problems), counts)
@@ -753,8 +757,18 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     scale, and so the crossing threshold, does not depend on where the loops lie)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
-    got = _TRIMS_PASSED.get_many(specs)
-    passed = unchanged & np.fromiter((g is not None and key in g for g in got), dtype=bool, count=len(specs))
+    passed = np.zeros(len(specs), dtype=bool)
+    rest = np.flatnonzero(unchanged)
+    donor = _LAST_PASSED[0]() if _LAST_PASSED[0] is not None else None
+    rec = _PASSED_FACES.get(donor) if donor is not None and donor is not b else None
+    if rec is not None and rec.key == key and rest.size and rec.ids.size:
+        # The specs the last clean check recorded: found by id in one pass (it holds them).
+        ids = np.fromiter(map(id, specs), dtype=np.int64, count=len(specs))
+        j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
+        passed = unchanged & (rec.ids[j] == ids) & rec.passed[rec.order[j]]
+        rest = np.flatnonzero(unchanged & ~passed)
+    got = _TRIMS_PASSED.get_many([specs[i] for i in rest.tolist()])
+    passed[rest] = np.fromiter((g is not None and key in g for g in got), dtype=bool, count=rest.size)
     extends: dict[int, int] = {}
     if len(_PASSED_ON):
         n_loops = np.diff(b.face_loop_ptr)
@@ -764,13 +778,17 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
             if type(spec.surface) not in (PlanarSurface, CylindricalSurface):
                 continue
             best = 0
-            for ref in _PASSED_ON.get(spec.surface, ()):
-                old = ref()
-                if (old is None or old.sense != spec.sense or not best < len(old.loops) < len(spec.loops)
-                        or key not in (_TRIMS_PASSED.get(old) or ())):
-                    continue
-                if all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(old.loops, spec.loops)):
-                    best = len(old.loops)
+            olds = [old for old in (ref() for ref in _PASSED_ON.get(spec.surface, ()))
+                    if old is not None and old.sense == spec.sense and 0 < len(old.loops) < len(spec.loops)
+                    and key in (_TRIMS_PASSED.get(old) or ())]
+            # The longest prefix wins: try the specs from the most loops down, stop at the first match.
+            for old in sorted(olds, key=lambda x: -len(x.loops)):
+                n = len(old.loops)
+                if (list(map(len, old.loops)) == list(map(len, spec.loops[:n]))
+                        and all(map(operator.is_, chain.from_iterable(old.loops),
+                                    chain.from_iterable(spec.loops[:n])))):
+                    best = n
+                    break
             if best:
                 # The B-rep keeps the spec's loop order (its coedge counts agree loop by loop).
                 if sizes is None:
@@ -782,27 +800,70 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     return passed, extends
 
 
-def _remember_trims(known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
-                    gapped: frozenset = frozenset()) -> None:
-    """Record that the unchanged faces' specs passed the checks (the check found nothing), except
-    the faces whose loop closure was judged against a vertex (``gapped``)."""
+class _Passed:
+    """The faces of one clean check recorded in :data:`_TRIMS_PASSED` (:func:`_remember_passed`):
+    ``specs`` (held, so that their ids stay theirs), ``ids (F,)`` int64 sorted and ``order (F,)``
+    the faces in that order, ``passed (F,)`` bool, and the :func:`_trims_key` ``key``."""
+
+    __slots__ = ("specs", "ids", "order", "passed", "key")
+
+
+#: The last sewn B-rep whose check found nothing -> its :class:`_Passed` (one entry), and a weak
+#: reference to that B-rep: the next check (a Boolean's result on its operand's faces) finds
+#: which of its specs passed in one array pass, not one look-up per face (:func:`_trims_passed`).
+_PASSED_FACES = IdentityMemo()
+_LAST_PASSED: list = [None]
+
+
+def _remember_passed(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance,
+                     samples: int) -> None:
+    """Keep which faces of ``b`` (its specs ``known[0]``) are recorded as passed, for the next check."""
+    rec = _Passed()
+    rec.specs = tuple(known[0])
+    ids = np.fromiter(map(id, rec.specs), dtype=np.int64, count=len(rec.specs))
+    rec.order = np.argsort(ids, kind="stable")
+    rec.ids = ids[rec.order]
+    rec.passed = passed.copy()
+    rec.key = _trims_key(t, samples)
+    _PASSED_FACES.clear()
+    _PASSED_FACES.set(b, rec)
+    _LAST_PASSED[0] = weakref.ref(b)
+
+
+def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
+                    gapped: frozenset = frozenset()) -> np.ndarray:
+    """Record that the unchanged faces' specs of ``b`` passed the checks (the check found nothing),
+    except the faces whose loop closure was judged against a vertex (``gapped``), and those whose
+    spec, surface, curves or p-curves are not all values (what the record depends on could change
+    under it); ``(F,)`` bool, the faces recorded.  An unchanged face's uses hold the very curves
+    and p-curves of its coedges in ``b``: their being values is read from the pools
+    (:func:`_value_faces`)."""
     specs, unchanged = known
     key = _trims_key(t, samples)
-    for f in np.flatnonzero(unchanged & ~passed).tolist():
+    todo = np.flatnonzero(unchanged & ~passed).tolist()
+    values = _value_faces(b) if todo else None
+    recorded = np.zeros(len(specs), dtype=bool)
+    for f in todo:
         spec = specs[f]
-        if f not in gapped and _all_values(spec):
+        if f not in gapped and values[f] and is_value(spec) and is_value(spec.surface):
             _TRIMS_PASSED.setdefault(spec, set).add(key)
+            recorded[f] = True
             if (len(spec.loops) >= _PREFIX_LOOPS and type(spec.surface) in (PlanarSurface, CylindricalSurface)
                     and is_value(spec.surface)):
                 refs = [r for r in _PASSED_ON.get(spec.surface, ()) if r() is not None][-(_PREFIX_KEPT - 1):]
                 _PASSED_ON.set(spec.surface, refs + [weakref.ref(spec)])
+    return recorded
 
 
-def _all_values(spec) -> bool:
-    """The spec, its surface and every use's curve and p-curve are immutable values (what the
-    recorded checks depend on cannot change under the record)."""
-    return is_value(spec) and is_value(spec.surface) and all(
-        is_value(e.curve) and is_value(e.pcurve) for loop in spec.loops for e in loop)
+def _value_faces(b: BRep) -> np.ndarray:
+    """``(F,)`` bool: every coedge of the face has a curve and a p-curve, both values
+    (:func:`~coons.topology._memo.pool_values`)."""
+    cv = np.append(pool_values(b, "curves"), False)  # (index -1, none, reads False)
+    pv = np.append(pool_values(b, "pcurves"), False)
+    ok = np.repeat(cv[b.edge_curve], 2) & pv[b.edge_pcurve.ravel()]
+    out = np.ones(b.n_faces, dtype=bool)
+    out[b.coedge_face[~ok]] = False
+    return out
 
 
 def _trims_key(t: Tolerance, samples: int) -> tuple:
@@ -873,6 +934,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         old_loop = np.zeros(b.n_loops, dtype=bool)
         for f, n in extends.items():
             old_loop[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+        parts = [_near_new_loops(b, p, old_loop) for p in parts]
     hits = _crossings(parts, None if old_loop is None else old_loop[b.coedge_loop])
     # Chords of curved edges cut corners by their sagitta: loops closer than that (an ellipse hole
     # grazing a circular rim) cross as polylines but not as curves.  Faces with crossings are
@@ -889,6 +951,46 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         out.append(Problem("self-intersecting-trim", "face", f,
                            f"edge {ci >> 1} of loop {int(b.coedge_loop[ci])} crosses edge {cj >> 1} of loop "
                            f"{int(b.coedge_loop[cj])} near {np.round(x, 9).tolist()} in the face's parameter plane"))
+
+
+def _near_new_loops(b: BRep, part: tuple[np.ndarray, ...], old_loop: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The segments ``part`` (of :func:`_face_segments`' form) without the loops of ``old_loop``
+    (``(L,)`` bool, loops tested against each other before) whose box, widened by the crossing
+    threshold ``eps``, misses the box of their face's other segments.
+
+    Two old segments are never tested, and an old segment crosses another properly only where
+    the two meet, inside both boxes: a loop whose widened box misses its face's new segments has
+    no pair left to test (a plate's top gaining a hole keeps its rim and the holes next to the
+    new one).  Loops are dropped whole, so the rings (``next``) stay closed, renumbered.
+    """
+    A, B, face, nxt, coedge, eps = part
+    loop = b.coedge_loop[coedge]
+    old = old_loop[loop]
+    if not old.any():
+        return part
+    lo = np.minimum(A, B) - eps[:, None]
+    hi = np.maximum(A, B) + eps[:, None]
+    # Boxes per run of one loop (the rings come loop by loop), then per loop and per face.
+    starts = np.flatnonzero(np.concatenate([[True], loop[1:] != loop[:-1]]))
+    rlo, rhi = np.minimum.reduceat(lo, starts, axis=0), np.maximum.reduceat(hi, starts, axis=0)
+    rl = loop[starts]
+    llo = np.full((b.n_loops, 2), np.inf)
+    lhi = np.full((b.n_loops, 2), -np.inf)
+    np.minimum.at(llo, rl, rlo)  # (a loop in several runs: the union of their boxes)
+    np.maximum.at(lhi, rl, rhi)
+    lf = b.loop_face
+    new = ~old_loop[rl]
+    flo = np.full((b.n_faces, 2), np.inf)
+    fhi = np.full((b.n_faces, 2), -np.inf)
+    np.minimum.at(flo, lf[rl[new]], rlo[new])
+    np.maximum.at(fhi, lf[rl[new]], rhi[new])
+    near = ~old_loop | ((llo <= fhi[lf]).all(axis=1) & (flo[lf] <= lhi).all(axis=1))
+    keep = np.flatnonzero(near[loop])
+    if keep.size == A.shape[0]:
+        return part
+    at = np.full(A.shape[0], -1, dtype=np.int64)
+    at[keep] = np.arange(keep.size)
+    return A[keep], B[keep], face[keep], at[nxt[keep]], coedge[keep], eps[keep]
 
 
 def _loop_ranks(b: BRep) -> np.ndarray:

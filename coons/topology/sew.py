@@ -8,9 +8,9 @@ meet, which edges are shared — is recovered from geometry:
 
 1. **Vertices**: the end points of all edge uses (evaluated once per face spec and per edge
    use and remembered with them, :func:`use_points`: the faces a Boolean passes through
-   unchanged, and the uses a changed face keeps, are not evaluated again) are clustered with a
-   k-d tree
-   (``scipy.spatial.cKDTree.query_pairs``) — two ends within ``max(tol.linear, edge tolerances)``
+   unchanged, and the uses a changed face keeps, are not evaluated again; the rows of the faces
+   the last sewing also had are taken from its arrays in one gather, :func:`_gathered_uses`)
+   are clustered with a k-d tree (``scipy.spatial.cKDTree.query_pairs``) — two ends within ``max(tol.linear, edge tolerances)``
    are one vertex; clusters are the connected components.  The vertex sits at the cluster mean
    and records the largest distance to it as its tolerance.
 2. **Loops** must close: each edge use ends at the vertex where the next one starts.
@@ -27,11 +27,13 @@ meet, which edges are shared — is recovered from geometry:
    re-expressed in that parameter when its curve is a different object, through the affine
    parameter map fixed by the shared end points (verified on samples): ``Line2D``, ``Trig2D``
    (map slope ±1) and 2-D ``NurbsCurve`` p-curves are supported.
-5. **Assembly** with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
+5. **Assembly**: one shell (the common case) straight from the arrays of steps 1–4
+   (:func:`~coons.topology.builder.assembled_brep`, the B-rep the builder would make, without
+   its per-entity lists); several with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
    (a shell enclosing negative volume becomes a void of the smallest positive shell around
    it, by the winding number of one of its vertices: with respect to cones over the faces'
    chords when the vertex lies outside every face box, else to the tessellation, see
-   :func:`_nest_voids`), then ``build()``, which runs :func:`~coons.topology.check.check`.
+   :func:`_nest_voids`), then ``build()``; both end in :func:`~coons.topology.check.check`.
 
 :func:`face_specs` is the inverse: the face specifications of an existing B-rep (used by the
 round-trip tests and by anything that re-sews modified faces).  It checks each edge once and
@@ -48,6 +50,7 @@ from __future__ import annotations
 
 import math
 import operator
+import weakref
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -62,7 +65,7 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
 from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
 from coons.topology.brep import BRep
-from coons.topology.builder import BRepBuilder
+from coons.topology.builder import BRepBuilder, assembled_brep
 from coons.topology.check import _SEWN_FROM
 from coons.topology.shape import Solid
 
@@ -268,34 +271,30 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     vertex, vpoint, vtol = _merge_vertices(uses, t)
     _check_loops_close(uses, vertex, vpoint)
     pairs = _match_edges(uses, vertex, vpoint, t)
-    return _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
+    solid = _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
+    _remember_uses(solid.brep, faces, uses)
+    return solid
 
 
 class _Uses:
     """Flat arrays over all edge uses (coedges) in face, loop, position order.
 
-    Gathered from the per-face tables of :func:`_face_uses` (cached per face spec): the faces a
-    Boolean result carries over unchanged from its operand are not evaluated again.
+    Gathered by :func:`_gathered_uses`: the rows of the faces the last sewing shared with this
+    one (a Boolean's result sewn from its operand's faces) in one take from that sewing's
+    arrays, the other faces' from the per-face tables of :func:`_face_uses` (cached per face
+    spec): the faces a Boolean result carries over unchanged from its operand are not
+    evaluated again.
     """
 
     def __init__(self, faces: list[FaceSpec], t: Tolerance) -> None:
-        tables = _face_uses(faces)
-        self.spec: list[EdgeSpec] = [e for f in faces for loop in f.loops for e in loop]
+        self.columns, self.spec, self.values = _gathered_uses(faces)
+        w, r, P, self.kind, self.frame, self.curve_id, self.own_tol, self.complete = self.columns
         k = len(self.spec)
-        counts = [x.where.shape[0] for x in tables]
-        w = np.concatenate([x.where for x in tables])
-        self.face = np.repeat(np.arange(len(faces), dtype=np.int64), counts)
+        self.face = np.repeat(np.arange(len(faces), dtype=np.int64), _face_counts(w))
         self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2]
-        r = np.concatenate([x.ranges for x in tables])
         self.t0, self.t1 = r[:, 0], r[:, 1]
         self.tol = np.maximum(r[:, 2], t.linear)
-        P = np.concatenate([x.points for x in tables])
         self.start, self.end, self.mid = P[:, 0], P[:, 1], P[:, 2]
-        self.kind = np.concatenate([x.kind for x in tables])
-        self.frame = np.concatenate([x.frame for x in tables])
-        self.curve_id = np.concatenate([x.curve_id for x in tables])
-        self.own_tol = np.concatenate([x.own_tol for x in tables])
-        self.complete = np.concatenate([x.complete for x in tables])
         # Index of the next use in the same loop.
         idx = np.arange(k)
         self.next = np.where(self.pos + 1 < self.loop_len, idx + 1, idx - self.pos)
@@ -305,6 +304,90 @@ class _Uses:
 
     def __len__(self) -> int:
         return len(self.spec)
+
+
+def _face_counts(where: np.ndarray) -> np.ndarray:
+    """Uses per face ``(F,)`` from the ``where`` column (loop, position, loop length) in face order:
+    a face starts at the first use of its loop 0."""
+    starts = np.flatnonzero((where[:, 0] == 0) & (where[:, 1] == 0))
+    return np.diff(np.append(starts, where.shape[0]))
+
+
+#: The columns of :class:`_FaceUses` gathered per use by :func:`_gathered_uses`, in this order.
+_COLUMNS = ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete")
+
+
+class _SewnUses:
+    """The use columns of one sewing, for the next (:func:`_gathered_uses`): ``faces`` (held, so that
+    their ids stay theirs), ``ids (F,)`` int64 their ids sorted and ``order (F,)`` the faces in that
+    order; ``first, count (F,)`` each face's rows; ``values (F,)`` bool: the face's curves are all
+    values (only those rows are taken again); ``columns`` (:data:`_COLUMNS`) and ``spec`` (the uses)."""
+
+    __slots__ = ("faces", "ids", "order", "first", "count", "values", "columns", "spec")
+
+
+#: Sewn B-rep -> its :class:`_SewnUses` (one entry: the last sewing's), and a weak reference to that B-rep.
+_SEWN_USES = IdentityMemo()
+_LAST_SEWN: list = [None]
+
+
+def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
+    """Keep the use columns of the sewing that made ``b`` for the next sewing (:func:`_gathered_uses`)."""
+    rec = _SewnUses()
+    rec.faces = tuple(faces)
+    ids = np.fromiter(map(id, faces), dtype=np.int64, count=len(faces))
+    rec.order = np.argsort(ids, kind="stable")
+    rec.ids = ids[rec.order]
+    rec.count = _face_counts(uses.columns[0])
+    rec.first = np.cumsum(rec.count) - rec.count
+    rec.values, rec.columns, rec.spec = uses.values, uses.columns, uses.spec
+    _SEWN_USES.clear()
+    _SEWN_USES.set(b, rec)
+    _LAST_SEWN[0] = weakref.ref(b)
+
+
+def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSpec], np.ndarray]:
+    """The :data:`_COLUMNS` over all uses of ``faces`` (face, loop, position order), the uses, and
+    ``(F,)`` bool: which faces' curves are all values.
+
+    The faces of the last sewing (:data:`_SEWN_USES`; the very spec objects, matched by id while
+    that sewing holds them) whose curves are values take their rows from its columns, all in one
+    take; the others come from :func:`_face_uses`.  Either way the rows are those
+    :func:`_face_uses` gives (its tables are functions of the face spec alone).
+    """
+    n = len(faces)
+    donor = _LAST_SEWN[0]() if _LAST_SEWN[0] is not None else None
+    rec = _SEWN_USES.get(donor) if donor is not None else None
+    hit = None
+    if rec is not None and n and rec.ids.size:
+        ids = np.fromiter(map(id, faces), dtype=np.int64, count=n)
+        j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
+        df = rec.order[j]
+        hit = (rec.ids[j] == ids) & rec.values[df]
+    if hit is None or not hit.any():
+        values = [False] * n
+        tables = _face_uses(faces, values)
+        columns = [np.concatenate([getattr(x, c) for x in tables]) for c in _COLUMNS]
+        return columns, [e for f in faces for loop in f.loops for e in loop], np.array(values, dtype=bool)
+    miss = np.flatnonzero(~hit)
+    mfaces = [faces[i] for i in miss.tolist()]
+    mvalues = [False] * len(mfaces)
+    tables = _face_uses(mfaces, mvalues) if mfaces else []
+    mcount = np.array([x.where.shape[0] for x in tables], dtype=np.int64)
+    count = np.empty(n, dtype=np.int64)
+    count[hit] = rec.count[df[hit]]
+    count[miss] = mcount
+    # Each row's source among [the last sewing's rows; the missing faces' rows, in turn].
+    src_first = np.empty(n, dtype=np.int64)
+    src_first[hit] = rec.first[df[hit]]
+    src_first[miss] = len(rec.spec) + np.cumsum(mcount) - mcount
+    src = np.repeat(src_first - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
+    columns = [np.concatenate([rc] + [getattr(x, c) for x in tables])[src] for rc, c in zip(rec.columns, _COLUMNS)]
+    pool = rec.spec + [e for f in mfaces for loop in f.loops for e in loop]
+    spec = list(map(pool.__getitem__, src.tolist()))
+    values = np.ones(n, dtype=bool)
+    values[miss] = mvalues
+    return columns, spec, values
 
 
 #: Curve kinds of :class:`_FaceUses` (others are 0).
@@ -334,11 +417,12 @@ class _FaceUses:
 _FACE_USES = IdentityMemo()
 
 
-def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
+def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> list[_FaceUses]:
     """The :class:`_FaceUses` of each face, assembled from per-loop tables (:data:`_LOOP_USES`);
     the loops not cached yet gathered together (:func:`_use_rows`).
 
-    A face or loop is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`).
+    A face or loop is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`);
+    ``values``, a list of ``len(faces)``, is set to which faces are.
 
     Raises
     ------
@@ -348,6 +432,8 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
     """
     out: list[_FaceUses | None] = _FACE_USES.get_many(faces)
     missing = [i for i, x in enumerate(out) if x is None]
+    if values is not None:
+        values[:] = [x is not None for x in out]
     if not missing:
         return out  # type: ignore[return-value]
     parts: list[list] = []
@@ -412,6 +498,8 @@ def _face_uses(faces: Sequence[FaceSpec]) -> list[_FaceUses]:
         out[fi] = x
         if all(c[5] for c in parts[p]):
             _FACE_USES.set(faces[fi], x)
+            if values is not None:
+                values[fi] = True
     return out  # type: ignore[return-value]
 
 
@@ -959,8 +1047,9 @@ def _assemble(
     pairs: np.ndarray,
     t: Tolerance,
 ) -> Solid:
-    """Build the B-rep through ``BRepBuilder.assemble`` and attach the geometry; also which faces
-    are unchanged (:func:`_unchanged_faces`)."""
+    """Build the B-rep and attach the geometry (:func:`~coons.topology.builder.assembled_brep` for
+    one shell, else ``BRepBuilder.assemble`` and void nesting); also which faces are unchanged
+    (:func:`_unchanged_faces`)."""
     k = len(uses)
     E = pairs.shape[0]
     primary, other = pairs[:, 0], pairs[:, 1]
@@ -974,26 +1063,14 @@ def _assemble(
     is_left = np.zeros(k, dtype=bool)
     is_left[left] = True
     ref = np.where(is_left, edge_of + 1, -(edge_of + 1))
-    face_loops: list[list[list[int]]] = []
-    refs = ref.tolist()
-    i = 0
-    for f in faces:
-        loops = []
-        for loop in f.loops:
-            loops.append(refs[i : i + len(loop)])
-            i += len(loop)
-        face_loops.append(loops)
-    b = BRepBuilder(t)
-    b.assemble(vpoint, np.stack([edge_start, edge_end], axis=1), face_loops,
-               face_surfaces=[f.surface for f in faces], face_senses=[f.sense for f in faces])
-    b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
+    edges = np.stack([edge_start, edge_end], axis=1)
     spec = uses.spec
     sp = [spec[p] for p in primary.tolist()]
     so = [spec[o] for o in other.tolist()]
     thr = np.maximum(uses.tol[primary], uses.tol[other])
-    b.set_edge_curves(np.arange(E), [e.curve for e in sp],
-                      np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
-                                np.maximum(uses.t0[primary], uses.t1[primary])], axis=1), thr)
+    curves = [e.curve for e in sp]
+    ranges = np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
+                       np.maximum(uses.t0[primary], uses.t1[primary])], axis=1)
     # The primary use's p-curve, then the other's, edge by edge (the pool order of one call each).
     # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
     # (uses.curve_id holds id(use.curve) of live uses: equal ids are the same object)
@@ -1005,12 +1082,35 @@ def _assemble(
         pcs[2 * e + 1] = _pcurve_in(sp[e], so[e], thr_l[e],
                                     f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})")
     side_p = np.where(fwd, 0, 1)
-    b.set_pcurves(np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel(), pcs)
-    pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
+    pc_coedges = np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel()
     # Which faces equal their spec, recorded before the check: it skips the checks of those whose
     # spec passed before (check._TRIMS_PASSED), and the next Boolean on the result reads its
     # unchanged faces from the record (sewn_unchanged_faces).
     unchanged = _unchanged_faces(faces, uses, primary, other, thr)
+    surfaces = [f.surface for f in faces]
+    senses = [f.sense for f in faces]
+    # One shell (the common case) in array passes; several (which may nest) through the builder.
+    first_use = uses.pos == 0
+    brep = assembled_brep(vpoint, vtol, edges, ref, uses.loop_len[first_use],
+                          np.bincount(uses.face[first_use], minlength=len(faces)), surfaces, senses, curves,
+                          ranges, thr, pc_coedges, pcs, t, sewn_from=(tuple(faces), unchanged))
+    if brep is not None:
+        return Solid(brep)
+    refs = ref.tolist()
+    face_loops: list[list[list[int]]] = []
+    i = 0
+    for f in faces:
+        loops = []
+        for loop in f.loops:
+            loops.append(refs[i : i + len(loop)])
+            i += len(loop)
+        face_loops.append(loops)
+    b = BRepBuilder(t)
+    b.assemble(vpoint, edges, face_loops, face_surfaces=surfaces, face_senses=senses)
+    b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
+    b.set_edge_curves(np.arange(E), curves, ranges, thr)
+    b.set_pcurves(pc_coedges, pcs)
+    pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre, sewn_from=(tuple(faces), unchanged)))
 
 

@@ -747,6 +747,30 @@ def test_plate_with_many_holes_checks_clean_and_finds_a_crossing_hole():
     assert "self-intersecting-trim" in codes(corrupted(b, move_hole))
 
 
+def test_value_faces_are_the_faces_whose_uses_are_all_values():
+    # _remember_trims records a face only when its curves and p-curves are values (what the record
+    # depends on cannot change); _value_faces reads that from the pools, per coedge.
+    from coons.topology.check import _value_faces
+
+    class Opaque:  # not a frozen dataclass: not a value
+        def evaluate(self, t):
+            return t
+
+    b = (Box(4, 4, 2) - Cylinder(1.0, 5.0)).brep
+    assert _value_faces(b).all()
+    k = int(b.edge_pcurve[0, 1])
+    pcurves = list(b.pcurves)
+    pcurves[k] = Opaque()
+    c = dataclasses.replace(b, pcurves=tuple(pcurves))
+    e, side = np.nonzero(c.edge_pcurve == k)
+    expect = np.ones(c.n_faces, dtype=bool)
+    expect[c.edge_face[e, side]] = False
+    np.testing.assert_array_equal(_value_faces(c), expect)
+    assert not expect.all()
+    no_curve = dataclasses.replace(b, edge_curve=np.where(np.arange(b.n_edges) == 0, -1, b.edge_curve))
+    assert not _value_faces(no_curve)[b.edge_face[0]].any()
+
+
 def test_trim_checks_of_faces_that_passed_before_are_not_repeated(monkeypatch):
     """A face sewn unchanged from a spec whose face passed the trim checks in an earlier clean
     check (same tolerance and samples) is not checked again; any other face is: a new spec, a
@@ -821,6 +845,43 @@ def test_segment_pairs_leave_out_exactly_the_pairs_of_old_loops(grid):
     assert len(full) > len(set(zip(i1.tolist(), j1.tolist())))  # some pairs were left out
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_old_loops_far_from_the_new_ones_are_dropped_without_losing_a_crossing(seed):
+    # _near_new_loops drops the old loops whose widened box misses the new segments of their
+    # face: the faces with a crossing between an old and a new loop (or two new ones) are the
+    # same as with every loop, and only loops that cannot meet a new one are dropped.
+    import types
+
+    from coons.topology.check import _crossings, _near_new_loops
+
+    rng = np.random.default_rng(seed)
+    centres = [(i + 0.2 * rng.random(), 0.8 * j + 0.2 * rng.random()) for i in range(5) for j in range(4)]
+    k = len(centres)
+    new_at = [tuple(rng.random(2) * (4.0, 2.4)) for _ in range(2)]  # may cross some old rings, or not
+    A, B, face, nxt = _rings_segments(centres + new_at)
+    face = np.repeat(np.arange(len(centres) + 2) % 2, 12)  # two faces, loops alternating between them
+    loop = np.repeat(np.arange(len(centres) + 2), 12)
+    b = types.SimpleNamespace(coedge_loop=loop, n_faces=2, n_loops=len(centres) + 2,
+                              loop_face=np.arange(len(centres) + 2) % 2)
+    coedge = np.arange(A.shape[0])
+    eps = np.full(A.shape[0], 1e-9)
+    part = (A, B, face, nxt, coedge, eps)
+    old_loop = np.arange(len(centres) + 2) < k
+    near = _near_new_loops(b, part, old_loop)
+    assert near[0].shape[0] < A.shape[0]  # far rings dropped
+    kept = np.unique(loop[near[4]])
+    assert set(range(k, k + 2)) <= set(kept.tolist())  # the new loops stay whole
+    np.testing.assert_array_equal(np.bincount(loop[near[4]])[kept], 12)  # loops dropped whole, rings closed
+    np.testing.assert_array_equal(loop[near[4]][near[3]], loop[near[4]])
+    full = _crossings([part], old_loop[loop])
+    assert set(_crossings([near], old_loop[loop]).keys()) == set(full.keys())
+    lo, hi = np.minimum(A, B), np.maximum(A, B)
+    for lp in set(range(k)) - set(kept.tolist()):  # a dropped loop's box misses its face's new loops
+        mine, theirs = loop == lp, (loop >= k) & (face == face[loop == lp][0])
+        apart = (lo[mine].min(axis=0) > hi[theirs].max(axis=0)) | (hi[mine].max(axis=0) < lo[theirs].min(axis=0))
+        assert apart.any()
+
+
 def test_a_face_gaining_loops_has_only_its_new_loops_tested(monkeypatch):
     """Sequential cuts into a plate: once its top and bottom faces passed with 16 or more loops, a
     cut tests only the pairs involving the new hole (the rest were tested in the spec it extends),
@@ -828,10 +889,12 @@ def test_a_face_gaining_loops_has_only_its_new_loops_tested(monkeypatch):
     from coons.topology.primitives import Cylinder as Cyl
 
     calls = []
+    segments, tested = [], []
     real = check_module._crossings
 
     def spy(parts, old_coedge=None):
         calls.append(None if old_coedge is None else int(old_coedge.sum()))
+        segments.append(sum(p[0].shape[0] for p in parts))
         return real(parts, old_coedge)
 
     monkeypatch.setattr(check_module, "_crossings", spy)
@@ -840,16 +903,62 @@ def test_a_face_gaining_loops_has_only_its_new_loops_tested(monkeypatch):
     for k, at in enumerate(holes):
         tool = Cyl(1.0, 10.0).translate(at)
         calls.clear()
+        segments.clear()
         plate = plate - tool
         assert len(calls) == 1  # the result's check
+        tested.append(segments[0])
         # After k cuts the top has k + 1 loops: from _PREFIX_LOOPS on it is recorded, and the
         # next cut extends it.
         if k >= check_module._PREFIX_LOOPS:
             assert calls[0] is not None and calls[0] > 0  # old loops' coedges left out
         if k < check_module._PREFIX_LOOPS - 1:
             assert calls[0] is None
+    # The old holes far from the new one are not even passed to the pair search (_near_new_loops):
+    # the segments tested stop growing with the holes.
+    assert tested[-1] < tested[check_module._PREFIX_LOOPS - 2] / 4
     assert check(plate).ok
     assert math.isclose(plate.volume, 60 * 50 * 4 - len(holes) * math.pi * 4, rel_tol=1e-12)
+
+
+def test_faces_passed_found_through_the_last_clean_check_equal_the_per_spec_look_up(monkeypatch):
+    """_trims_passed finds the specs the last clean check recorded in one array pass
+    (_PASSED_FACES); the faces passed and extended are those of looking every spec up."""
+    from coons.topology.primitives import Cylinder as Cyl
+
+    real = check_module._trims_passed
+    memo = check_module._TRIMS_PASSED
+    real_get_many = memo.get_many
+    compared, looked_up = [], []
+
+    def get_many(objs):
+        objs = list(objs)
+        looked_up.append(len(objs))
+        return real_get_many(objs)
+
+    def spy(b, known, t, samples):
+        looked_up.clear()
+        passed, extends = real(b, known, t, samples)
+        fast = looked_up[0]
+        last = check_module._LAST_PASSED[0]
+        check_module._LAST_PASSED[0] = None
+        try:
+            again, extends_again = real(b, known, t, samples)
+        finally:
+            check_module._LAST_PASSED[0] = last
+        np.testing.assert_array_equal(passed, again)
+        assert extends == extends_again
+        compared.append((int(passed.sum()), fast, looked_up[1]))
+        return passed, extends
+
+    monkeypatch.setattr(check_module, "_trims_passed", spy)
+    monkeypatch.setattr(memo, "get_many", get_many)
+    plate = Box(60, 50, 4)
+    for k in range(20):
+        plate = plate - Cyl(1.0, 10.0).translate((-25.0 + 10 * (k % 6), -20.0 + 10 * (k // 6), 0.0))
+    assert len(compared) >= 20
+    n_passed, fast, slow = compared[-1]
+    assert n_passed > 10 and fast < slow / 4  # most faces passed before, found without a look-up each
+    assert check(plate).ok
 
 
 def test_coedges_of_faces_that_passed_before_are_not_measured_again(monkeypatch):

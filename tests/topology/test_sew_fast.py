@@ -202,6 +202,7 @@ def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
     monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
         np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))
     monkeypatch.setattr(BRepBuilder, "_assemble_loops_bulk", lambda *a, **kw: None)
+    monkeypatch.setattr(sew, "assembled_brep", lambda *a, **kw: None)
     old = cases()
     for a, b in zip(fast, old):
         for fld in dataclasses.fields(a.brep):
@@ -342,13 +343,18 @@ def _brep_tables(b) -> dict:
 
 
 def test_bulk_assembly_equals_the_per_coedge_path(monkeypatch):
-    # Sewing assembles its faces, loops and coedges in array passes (BRepBuilder._assemble_loops_bulk,
-    # the faces in bulk too); the per-coedge assembly must build the very same B-rep.
+    # Sewing builds a one-shell B-rep from arrays (builder.assembled_brep); the builder, which it
+    # falls back to, assembles its faces, loops and coedges in array passes
+    # (BRepBuilder._assemble_loops_bulk, the faces in bulk too); the per-coedge assembly must
+    # build the very same B-rep as both.
     from coons.topology import builder
 
     holes = [Profile.circle(0.5, center=(-4.0 + 1.5 * i, 0.0)).outer for i in range(6)]
     solid = extrude(Profile(Profile.rectangle(12.0, 4.0).outer, holes), 2.0)
     specs = sew.face_specs(solid.brep)
+    direct = sew.sew_faces(specs).brep
+    direct_tables = _brep_tables(direct)
+    monkeypatch.setattr(sew, "assembled_brep", lambda *a, **kw: None)
     taken = []
     bulk = builder.BRepBuilder._assemble_loops_bulk
 
@@ -365,7 +371,90 @@ def test_bulk_assembly_equals_the_per_coedge_path(monkeypatch):
             return None
 
     monkeypatch.setattr(sew, "BRepBuilder", PerCoedge)
-    slow = _brep_tables(sew.sew_faces(specs).brep)
-    assert fast.keys() == slow.keys()
+    slow_brep = sew.sew_faces(specs).brep
+    slow = _brep_tables(slow_brep)
+    assert fast.keys() == slow.keys() == direct_tables.keys()
     for k in fast:
         np.testing.assert_array_equal(fast[k], slow[k], err_msg=k)
+        np.testing.assert_array_equal(direct_tables[k], slow[k], err_msg=k)  # pools as identities too
+
+
+
+def test_pooled_is_the_builders_pool_order():
+    # builder._pooled (an empty pool filled in array passes) gives the pool and indices of
+    # pooling the objects one by one: first-seen order by identity, None as -1.
+    from coons.topology import builder
+
+    objs = [object() for _ in range(5)]
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        seq = [None if k == 5 else objs[k] for k in rng.integers(0, 6, size=int(rng.integers(0, 12))).tolist()]
+        b = builder.BRepBuilder()
+        one = [b._pool("curves", x) for x in seq]
+        pool, idx = builder._pooled(seq)
+        assert idx.tolist() == one and [id(x) for x in pool] == [id(x) for x in b.curves]
+        b2 = builder.BRepBuilder()
+        assert b2._pool_many("curves", seq) == one and [id(x) for x in b2.curves] == [id(x) for x in b.curves]
+        assert b2._pool_many("curves", seq) == one  # a pool with entries: the per-object path
+
+
+def test_several_shells_are_assembled_by_the_builder(monkeypatch):
+    # Two disjoint boxes are two shells (which sewing may nest): the array path declines and the
+    # builder assembles them, as before.
+    import coons
+    from coons.topology import builder
+
+    specs = sew.face_specs(coons.Box(1, 1, 1)) + sew.face_specs(coons.Box(1, 1, 1).translate((3, 0, 0)))
+    answers = []
+    direct = builder.assembled_brep
+
+    def spy(*a, **kw):
+        answers.append(direct(*a, **kw))
+        return answers[-1]
+
+    monkeypatch.setattr(sew, "assembled_brep", spy)
+    b = sew.sew_faces(specs).brep
+    assert answers == [None] and b.n_shells == 2 and b.n_solids == 2
+    assert sew.sew_faces(sew.face_specs(coons.Box(1, 2, 3))).brep.n_shells == 1 and answers[-1] is not None
+
+
+def _uses_columns(u) -> dict:
+    cols = {c: np.asarray(x) for c, x in zip(sew._COLUMNS, u.columns)}
+    cols["spec"] = np.array([id(e) for e in u.spec], dtype=np.int64)
+    cols["values"] = np.asarray(u.values)
+    for name in ("face", "loop", "pos", "loop_len", "t0", "t1", "tol", "start", "end", "mid", "next"):
+        cols[name] = np.asarray(getattr(u, name))
+    return cols
+
+
+def test_uses_gathered_from_the_last_sewing_equal_the_per_face_tables(monkeypatch):
+    # The faces of the last sewing take their use rows from its columns in one take
+    # (_gathered_uses); the arrays equal those built from the per-face tables, and only the
+    # faces it did not have, or whose curves are not values, go through _face_uses.
+    t = resolve(None)
+    box = sew.face_specs(Box(1, 2, 3).brep)
+    odd = sew.FaceSpec(box[0].surface, box[0].sense,
+                       [[sew.EdgeSpec(_Wrapped(e.curve), e.t0, e.t1, e.pcurve, e.tol) for e in box[0].loops[0]]])
+    first = [odd] + box[1:]
+    kept = sew.sew_faces(first)  # the last sewing (kept alive: its record lives with it)
+    others = sew.face_specs(Cylinder(1.0, 2.0).translate((5.0, 0.0, 0.0)).brep)
+    faces = [others[0], first[3], odd, first[1]] + others[1:] + [first[5], first[2]]
+    asked = []
+    real = sew._face_uses
+
+    def spy(fs, values=None):
+        asked.append([id(f) for f in fs])
+        return real(fs, values)
+
+    monkeypatch.setattr(sew, "_face_uses", spy)
+    fast = _uses_columns(sew._Uses(faces, t))
+    assert sorted(asked[-1]) == sorted(id(f) for f in [odd] + others)  # the rest from the record
+    monkeypatch.setattr(sew, "_LAST_SEWN", [None])  # no record: every face from its table
+    slow = _uses_columns(sew._Uses(faces, t))
+    assert len(asked[-1]) == len(faces)
+    assert fast.keys() == slow.keys()
+    for k in fast:
+        assert fast[k].dtype == slow[k].dtype, k
+        np.testing.assert_array_equal(fast[k], slow[k], err_msg=k)
+    assert not fast["values"][2] and fast["values"][[0, 1, 3]].all()
+    assert kept.brep.n_faces == 6

@@ -956,7 +956,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
 def _near_new_loops(b: BRep, part: tuple[np.ndarray, ...], old_loop: np.ndarray) -> tuple[np.ndarray, ...]:
     """The segments ``part`` (of :func:`_face_segments`' form) without the loops of ``old_loop``
     (``(L,)`` bool, loops tested against each other before) whose box, widened by the crossing
-    threshold ``eps``, misses the box of their face's other segments.
+    threshold ``eps``, misses the box of their face's new segments (widened alike).
 
     Two old segments are never tested, and an old segment crosses another properly only where
     the two meet, inside both boxes: a loop whose widened box misses its face's new segments has

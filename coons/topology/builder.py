@@ -783,33 +783,20 @@ class BRepBuilder:
         references in range, edge vertices among the new points, consecutive coedges of a loop
         meeting, every new edge used once each way, no empty loop.  Otherwise the per-coedge path
         runs and raises its own message.  Then the new coedges are exactly the contiguous range
-        ``2 e_off .. 2 (e_off + E)``, so their links are written as slices.
+        ``2 e_off .. 2 (e_off + E)``, so their links are written as slices (:func:`_bulk_loops`,
+        offset here).
         """
-        ne = edges.shape[0]
-        nv_new = len(self.vpoint) - v_off
         lens = list(map(len, chain.from_iterable(face_loops)))
-        if ne == 0 or not lens or min(lens) == 0 or edges.min() < 0 or edges.max() >= nv_new:
-            return None
         if any(x is not None and len(x) < len(face_loops) for x in (face_surfaces, face_senses)):
             return None  # (the per-coedge path fails on the missing entry)
         refs = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.int64, count=sum(lens))
-        if (refs == 0).any() or (np.abs(refs) > ne).any():
-            return None
-        e = np.abs(refs) - 1
-        side = (refs < 0).astype(np.int64)
-        if not (np.bincount(2 * e + side, minlength=2 * ne) == 1).all():
-            return None
         lens_a = np.asarray(lens, dtype=np.int64)
-        first = np.cumsum(lens_a) - lens_a  # position of each loop's first coedge
-        idx = np.arange(refs.size)
-        loop_of = np.repeat(np.arange(lens_a.size), lens_a)
-        nxt = np.where(idx + 1 < first[loop_of] + lens_a[loop_of], idx + 1, first[loop_of])
-        ev = edges + v_off
-        origin = ev[e, side]
-        target = ev[e, 1 - side]
-        if not (target == origin[nxt]).all():
+        bulk = _bulk_loops(edges, len(self.vpoint) - v_off, refs, lens_a)
+        if bulk is None:
             return None
-        c = 2 * (e + e_off) + side
+        c, first, link, back, cl, verts, at = bulk
+        base = 2 * e_off
+        c = c + base
         # Faces in input order (their geometry goes through the pools), then their loops, face by
         # face: the rows _new_loop would add, with their first coedges.
         nf = len(face_loops)
@@ -826,21 +813,11 @@ class BRepBuilder:
         for f, l, k in zip(face_ids, (l0 + np.cumsum(n_loops) - n_loops).tolist(), n_loops):
             if k:
                 self.fouter[f] = l  # the first loop is the outer one
-        base = 2 * e_off
-        link = np.empty(2 * ne, dtype=np.int64)
-        back = np.empty(2 * ne, dtype=np.int64)
-        cl = np.empty(2 * ne, dtype=np.int64)
-        link[c - base] = c[nxt]
-        back[c[nxt] - base] = c
-        cl[c - base] = lid[loop_of]
-        self.nxt[base:] = link.tolist()
-        self.prv[base:] = back.tolist()
-        self.cloop[base:] = cl.tolist()
+        self.nxt[base:] = (link + base).tolist()
+        self.prv[base:] = (back + base).tolist()
+        self.cloop[base:] = lid[cl].tolist()
         # Each new vertex's coedge: the first new coedge (in coedge order) leaving it.
-        cs = np.arange(base, base + 2 * ne)
-        orig = ev.ravel()  # origin of coedge base + 2 e + side is ev[e, side]
-        verts, at = np.unique(orig, return_index=True)
-        for v, cv in zip(verts.tolist(), cs[at].tolist()):
+        for v, cv in zip((verts + v_off).tolist(), (at + base).tolist()):
             if self.vcoedge[v] < 0:
                 self.vcoedge[v] = cv
         return face_ids
@@ -1010,6 +987,55 @@ def _pooled(objs: Sequence[Any]) -> tuple[list[Any], np.ndarray]:
     return [objs[i] for i in at.tolist()], idx
 
 
+def _bulk_loops(edges: np.ndarray, nv: int, refs: np.ndarray, lens: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """The links of loops given as signed edge references, in array passes over the coedges, with
+    coedges, loops and vertices numbered from 0 (the caller adds its offsets); None unless every
+    precondition of the per-coedge :meth:`BRepBuilder._assemble_loops` holds (it then names the
+    fault): edges present with vertices in ``0 .. nv - 1``, references in range, no empty loop,
+    every edge used once each way, consecutive coedges of a loop meeting.
+
+    Parameters
+    ----------
+    edges : (E, 2) int64, start and end vertex
+    nv : the number of vertices
+    refs : (K,) int64, the signed edge references of all loops in turn (``+(e + 1)`` forwards,
+        ``-(e + 1)`` backwards)
+    lens : (L,) int64, the references per loop
+
+    Returns
+    -------
+    c : (K,) int64, the coedge ``2 e + side`` of each reference; first : (L,) int64, the position of
+    each loop's first reference; link, back, cloop : (2E,) int64, each coedge's next and previous
+    coedge and its loop; verts, at : the vertices with a coedge leaving them and the first such
+    coedge (in coedge order).
+    """
+    ne = edges.shape[0]
+    if ne == 0 or lens.size == 0 or lens.min() <= 0 or edges.min() < 0 or edges.max() >= nv:
+        return None
+    if (refs == 0).any() or (np.abs(refs) > ne).any():
+        return None
+    e = np.abs(refs) - 1
+    side = (refs < 0).astype(np.int64)
+    c = 2 * e + side
+    if not (np.bincount(c, minlength=2 * ne) == 1).all():
+        return None
+    first = np.cumsum(lens) - lens
+    idx = np.arange(refs.size)
+    loop_of = np.repeat(np.arange(lens.size), lens)
+    nxt = np.where(idx + 1 < first[loop_of] + lens[loop_of], idx + 1, first[loop_of])
+    if not (edges[e, 1 - side] == edges[e, side][nxt]).all():
+        return None
+    # Every coedge is used once (the bincount), so c is a permutation of 0 .. 2E - 1.
+    link = np.empty(2 * ne, dtype=np.int64)
+    back = np.empty(2 * ne, dtype=np.int64)
+    cloop = np.empty(2 * ne, dtype=np.int64)
+    link[c] = c[nxt]
+    back[c[nxt]] = c
+    cloop[c] = loop_of
+    verts, at = np.unique(edges.ravel(), return_index=True)  # the origin of coedge 2 e + side is edges[e, side]
+    return c, first, link, back, cloop, verts, at
+
+
 def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarray, refs: np.ndarray,
                    loop_lens: np.ndarray, face_loop_counts: np.ndarray, face_surfaces: Sequence[Any],
                    face_senses: Sequence[bool], edge_curves: Sequence[Any], edge_ranges: np.ndarray,
@@ -1050,41 +1076,22 @@ def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarra
     nv, ne, nl, nf = points.shape[0], edges.shape[0], lens.size, per_face.size
     # The checks that send the builder off the bulk path (BRepBuilder.assemble, _assemble_loops_bulk,
     # set_edge_curves): then the builder runs and raises its own message.
-    if (points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all() or ne == 0 or nl == 0
-            or lens.min() <= 0 or per_face.min(initial=1) <= 0 or int(per_face.sum()) != nl
-            or int(lens.sum()) != refs.size or edges.min() < 0 or edges.max() >= nv
+    if (points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all()
+            or per_face.min(initial=1) <= 0 or int(per_face.sum()) != nl or int(lens.sum()) != refs.size
             or len(face_surfaces) < nf or len(face_senses) < nf or not (ranges[:, 0] < ranges[:, 1]).all()):
         return None
-    if (refs == 0).any() or (np.abs(refs) > ne).any():
+    bulk = _bulk_loops(edges, nv, refs, lens)
+    if bulk is None:
         return None
-    e = np.abs(refs) - 1
-    side = (refs < 0).astype(np.int64)
-    c = 2 * e + side
-    if not (np.bincount(c, minlength=2 * ne) == 1).all():
-        return None
-    first = np.cumsum(lens) - lens
-    idx = np.arange(refs.size)
-    loop_of = np.repeat(np.arange(nl), lens)
-    nxt = np.where(idx + 1 < first[loop_of] + lens[loop_of], idx + 1, first[loop_of])
-    origin = edges[e, side]
-    if not (edges[e, 1 - side] == origin[nxt]).all():
-        return None
+    c, first, link, back, cloop, verts, at = bulk
     loop_face = np.repeat(np.arange(nf, dtype=np.int64), per_face)
     # Shells: components of the faces through their shared edges (coedges 2e and 2e + 1).
-    cface = np.empty(2 * ne, dtype=np.int64)
-    cface[c] = loop_face[loop_of]
+    cface = loop_face[cloop]
     n_comp, label = components(nf, cface[0::2], cface[1::2])
     if n_comp != 1:
         return None
-    link = np.empty(2 * ne, dtype=np.int64)
-    back = np.empty(2 * ne, dtype=np.int64)
-    cloop = np.empty(2 * ne, dtype=np.int64)
-    link[c] = c[nxt]
-    back[c[nxt]] = c
-    cloop[c] = loop_of
     # Each vertex's coedge: the first coedge (in coedge order) leaving it (isolated vertices: -1).
     vcoedge = np.full(nv, -1, dtype=np.int64)
-    verts, at = np.unique(edges.ravel(), return_index=True)
     vcoedge[verts] = at
     surfaces, fs = _pooled(face_surfaces[:nf])
     curves, ci = _pooled(edge_curves)

@@ -760,9 +760,11 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     passed = np.zeros(len(specs), dtype=bool)
     rest = np.flatnonzero(unchanged)
     donor = _LAST_PASSED[0]() if _LAST_PASSED[0] is not None else None
-    rec = _PASSED_FACES.get(donor) if donor is not None and donor is not b else None
+    rec = _PASSED_FACES.get(donor) if donor is not None else None
     if rec is not None and rec.key == key and rest.size and rec.ids.size:
-        # The specs the last clean check recorded: found by id in one pass (it holds them).
+        # The specs the last clean check recorded: found by id in one pass (it holds them).  What
+        # it says is of the spec objects (each marked one is in _TRIMS_PASSED under ``key``), not
+        # of the B-rep checked then: it holds for any B-rep on them, ``b`` itself checked again too.
         ids = np.fromiter(map(id, specs), dtype=np.int64, count=len(specs))
         j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
         passed = unchanged & (rec.ids[j] == ids) & rec.passed[rec.order[j]]

@@ -287,10 +287,10 @@ class _Uses:
     """
 
     def __init__(self, faces: list[FaceSpec], t: Tolerance) -> None:
-        self.columns, self.spec, self.values = _gathered_uses(faces)
+        self.columns, self.spec, self.values, self.counts = _gathered_uses(faces)
         w, r, P, self.kind, self.frame, self.curve_id, self.own_tol, self.complete = self.columns
         k = len(self.spec)
-        self.face = np.repeat(np.arange(len(faces), dtype=np.int64), _face_counts(w))
+        self.face = np.repeat(np.arange(len(faces), dtype=np.int64), self.counts)
         self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2]
         self.t0, self.t1 = r[:, 0], r[:, 1]
         self.tol = np.maximum(r[:, 2], t.linear)
@@ -304,13 +304,6 @@ class _Uses:
 
     def __len__(self) -> int:
         return len(self.spec)
-
-
-def _face_counts(where: np.ndarray) -> np.ndarray:
-    """Uses per face ``(F,)`` from the ``where`` column (loop, position, loop length) in face order:
-    a face starts at the first use of its loop 0."""
-    starts = np.flatnonzero((where[:, 0] == 0) & (where[:, 1] == 0))
-    return np.diff(np.append(starts, where.shape[0]))
 
 
 #: The columns of :class:`_FaceUses` gathered per use by :func:`_gathered_uses`, in this order.
@@ -338,7 +331,7 @@ def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
     ids = np.fromiter(map(id, faces), dtype=np.int64, count=len(faces))
     rec.order = np.argsort(ids, kind="stable")
     rec.ids = ids[rec.order]
-    rec.count = _face_counts(uses.columns[0])
+    rec.count = uses.counts
     rec.first = np.cumsum(rec.count) - rec.count
     rec.values, rec.columns, rec.spec = uses.values, uses.columns, uses.spec
     _SEWN_USES.clear()
@@ -346,9 +339,10 @@ def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
     _LAST_SEWN[0] = weakref.ref(b)
 
 
-def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSpec], np.ndarray]:
-    """The :data:`_COLUMNS` over all uses of ``faces`` (face, loop, position order), the uses, and
-    ``(F,)`` bool: which faces' curves are all values.
+def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSpec], np.ndarray, np.ndarray]:
+    """The :data:`_COLUMNS` over all uses of ``faces`` (face, loop, position order), read-only (the
+    next sewing takes its rows from them, :func:`_remember_uses`), the uses, ``(F,)`` bool: which
+    faces' curves are all values, and ``(F,)`` int64 the uses per face.
 
     The faces of the last sewing (:data:`_SEWN_USES`; the very spec objects, matched by id while
     that sewing holds them) whose curves are values take their rows from its columns, all in one
@@ -358,22 +352,21 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSp
     n = len(faces)
     donor = _LAST_SEWN[0]() if _LAST_SEWN[0] is not None else None
     rec = _SEWN_USES.get(donor) if donor is not None else None
-    hit = None
+    hit = np.zeros(n, dtype=bool)
     if rec is not None and n and rec.ids.size:
         ids = np.fromiter(map(id, faces), dtype=np.int64, count=n)
         j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
         df = rec.order[j]
         hit = (rec.ids[j] == ids) & rec.values[df]
-    if hit is None or not hit.any():
-        values = [False] * n
-        tables = _face_uses(faces, values)
-        columns = [np.concatenate([getattr(x, c) for x in tables]) for c in _COLUMNS]
-        return columns, [e for f in faces for loop in f.loops for e in loop], np.array(values, dtype=bool)
     miss = np.flatnonzero(~hit)
-    mfaces = [faces[i] for i in miss.tolist()]
+    mfaces = faces if miss.size == n else [faces[i] for i in miss.tolist()]
     mvalues = [False] * len(mfaces)
     tables = _face_uses(mfaces, mvalues) if mfaces else []
     mcount = np.array([x.where.shape[0] for x in tables], dtype=np.int64)
+    mspec = [e for f in mfaces for loop in f.loops for e in loop]
+    if miss.size == n:  # nothing from the last sewing: the rows are the tables' in turn
+        columns = [_read_only(np.concatenate([getattr(x, c) for x in tables])) for c in _COLUMNS]
+        return columns, mspec, np.array(mvalues, dtype=bool), mcount
     count = np.empty(n, dtype=np.int64)
     count[hit] = rec.count[df[hit]]
     count[miss] = mcount
@@ -382,12 +375,13 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSp
     src_first[hit] = rec.first[df[hit]]
     src_first[miss] = len(rec.spec) + np.cumsum(mcount) - mcount
     src = np.repeat(src_first - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
-    columns = [np.concatenate([rc] + [getattr(x, c) for x in tables])[src] for rc, c in zip(rec.columns, _COLUMNS)]
-    pool = rec.spec + [e for f in mfaces for loop in f.loops for e in loop]
+    columns = [_read_only(np.concatenate([rc] + [getattr(x, c) for x in tables])[src])
+               for rc, c in zip(rec.columns, _COLUMNS)]
+    pool = rec.spec + mspec
     spec = list(map(pool.__getitem__, src.tolist()))
     values = np.ones(n, dtype=bool)
     values[miss] = mvalues
-    return columns, spec, values
+    return columns, spec, values, count
 
 
 #: Curve kinds of :class:`_FaceUses` (others are 0).

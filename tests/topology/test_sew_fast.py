@@ -457,4 +457,7 @@ def test_uses_gathered_from_the_last_sewing_equal_the_per_face_tables(monkeypatc
         assert fast[k].dtype == slow[k].dtype, k
         np.testing.assert_array_equal(fast[k], slow[k], err_msg=k)
     assert not fast["values"][2] and fast["values"][[0, 1, 3]].all()
+    # The columns become the next sewing's source rows (_SEWN_USES): read-only on either path.
+    for cols in (fast, slow):
+        assert not any(cols[c].flags.writeable for c in sew._COLUMNS)
     assert kept.brep.n_faces == 6

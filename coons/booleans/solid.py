@@ -1509,8 +1509,8 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
         sc = (W[..., 0] * E[..., 1] - W[..., 1] * E[..., 0]) / cross  # branch parameter of the crossing
         w = (W[..., 0] * d1 - W[..., 1] * d0) / cross  # fraction along the side
         meets = valid & (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (sc >= lo) & (sc <= hi)
-    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
-        & ((1.0 - w) * L > margin) & ((sc - lo) * dn > margin) & ((hi - sc) * dn > margin)
+        crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
+            & ((1.0 - w) * L > margin) & ((sc - lo) * dn > margin) & ((hi - sc) * dn > margin)
     # Clearance (_straight_clearance_arrays): the sides' ends from the branch, the branch's ends from the sides.
     V = np.concatenate([A, A + E], axis=1)
     tv = np.clip(np.einsum("kvj,kj->kv", V - p0[:, None], d) / (dn * dn), lo, hi)
@@ -1523,36 +1523,40 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
     clearance = np.minimum(near.min(axis=1), far.min(axis=(1, 2)))
     ok = ~np.any(meets & ~crossing, axis=1) & (clearance > margin[:, 0])
     out: list = [None] * K
-    pieces, mids, owners = {}, [], []
-    for k in np.flatnonzero(ok).tolist():
-        found = sc[k][crossing[k]]
-        br = [float(lo_t[k])] + np.sort(found).tolist() + [float(hi_t[k])]
-        if any((b - a) * float(dn[k, 0]) <= float(margin[k, 0]) for a, b in zip(br[:-1], br[1:])):
-            continue  # two crossings at one place: a vertex, let the general path decide
-        pieces[k] = br
-        mids += [0.5 * (a + b) for a, b in zip(br[:-1], br[1:])]
-        owners += [k] * (len(br) - 1)
-    if not pieces:
+    # Each branch's break points in one (K, width + 2) array: its lower end, its crossings in order, its upper
+    # end, then padding (inf); piece j runs from column j to j + 1 and is real for j < crossings + 1.
+    ncross = np.count_nonzero(crossing, axis=1)
+    br = np.full((K, width + 2), np.inf)
+    br[:, 0] = lo_t
+    br[:, 1 : width + 1] = np.sort(np.where(crossing, sc, np.inf), axis=1)
+    br[np.arange(K), ncross + 1] = hi_t
+    real = np.arange(width + 1)[None] <= ncross[:, None]
+    a, b = br[:, :-1], br[:, 1:]
+    with np.errstate(invalid="ignore"):  # (padding: inf - inf)
+        short = real & ((b - a) * dn <= margin)
+    # (two crossings at one place: a vertex, let the general path decide)
+    ok &= ~short.any(axis=1)
+    if not ok.any():
         return out
-    own = np.array(owners)
-    mid = np.array(mids)
-    inside = _in_faces(X, np.array(faces)[own], o[own] + mid[:, None] * dd[own]).tolist()
-    at = 0
-    for k, br in pieces.items():
-        runs: list[list] = []
-        for a, b in zip(br[:-1], br[1:]):
-            ins = inside[at]
-            at += 1
-            if runs and runs[-1][2] == ins:
-                runs[-1][1] = b
-            else:
-                runs.append([a, b, ins])
-        res = [(a, b, "inside") for a, b, ins in runs if ins]
+    own, col = np.nonzero(real & ok[:, None])  # the pieces, branch by branch in order
+    a, b = a[own, col], b[own, col]
+    inside = _in_faces(X, np.array(faces)[own], o[own] + (0.5 * (a + b))[:, None] * dd[own])
+    # Runs of consecutive inside pieces of one branch, by their first and last piece.
+    first = col == 0
+    last = np.append(own[1:] != own[:-1], True)
+    prev_in = np.append(False, inside[:-1]) & ~first
+    next_in = np.append(inside[1:], False) & ~last
+    starts = np.flatnonzero(inside & ~prev_in)
+    ends = np.flatnonzero(inside & ~next_in)
+    runs: dict[int, list] = {k: [] for k in np.flatnonzero(ok).tolist()}
+    for k, s0, s1 in zip(own[starts].tolist(), a[starts].tolist(), b[ends].tolist()):
+        runs[k].append((s0, s1, "inside"))
+    for k, res in runs.items():
         S = X.specs[faces[k]].surface
         if not res and (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
             continue  # (as in _clip_straight: a period away is the general path's business)
         if t0[k] > t1[k]:
-            res = [(b, a, w_) for a, b, w_ in reversed(res)]
+            res = [(s1, s0, w_) for s0, s1, w_ in reversed(res)]
         out[k] = res
     return out
 
@@ -1607,12 +1611,18 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
             f = int(uniq[u])
             out[rows] = _in_polygon(Q[rows], X.segments[f], _slopes(X, f))
     if small:
+        from coons.booleans.classify import _polygon_slopes
+
         width = max(sizes[u] for u in small)
         pad = np.full((len(uniq), 4, width), np.nan)  # rows: start x, start y, end y, slope
-        for u in small:
-            f = int(uniq[u])
-            seg, m = X.segments[f], _slopes(X, f)
-            pad[u, :, : len(m)] = (seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1], m)
+        # All small faces' segments in one array, scattered into the pad by (face, column) indices; their
+        # slopes in one elementwise pass (the same divisions as _slopes per face, so the same values).
+        seg = np.concatenate([X.segments[f] for f in uniq[small].tolist()])
+        n = np.array([sizes[u] for u in small])
+        at = np.repeat(np.asarray(small), n)
+        col = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+        pad[at, 0, col], pad[at, 1, col], pad[at, 2, col] = seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1]
+        pad[at, 3, col] = _polygon_slopes(seg)
         rows = np.flatnonzero(np.isin(inv, small))
         ax, ay, cy, m = np.moveaxis(pad[inv[rows]], 1, 0)
         x, y = Q[rows, 0:1], Q[rows, 1:2]

@@ -1388,19 +1388,29 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             P[k], T[k] = D[:, 0], D[:, 1]
     T = T / np.maximum(np.sqrt(np.add.reduce(T * T, axis=2, keepdims=True)), 1e-300)
     size = 1.0 + np.abs(P).max(axis=(1, 2))
-    # Every (range, side, edge) row, and the rows whose edge box comes near an end.
-    counts, edge_of, lo, hi, etol = [], [], [], [], []
+    # Every (range, side, edge) row, and the rows whose edge box comes near an end.  Many ranges share a face
+    # (a plate's face meets every hole): each distinct face's edges are stacked once, and the rows index them.
+    index: dict[tuple[int, int], int] = {}
+    uniq: list[tuple] = []
+    of = []
     for X, f in itertools.chain(face_a, face_b):
-        edges, elo, ehi, tol = X.edge_boxes(f)
-        counts.append(len(edges))
-        edge_of += edges
-        lo.append(elo)
-        hi.append(ehi)
-        etol.append(tol)
-    # (the range and side of every row by repeats: per-range arrays cost more than the rows for few edges)
+        u = index.get((id(X), f))
+        if u is None:
+            u = index[(id(X), f)] = len(uniq)
+            uniq.append(X.edge_boxes(f))
+        of.append(u)
+    edges_u = [e for edges, *_ in uniq for e in edges]
+    n_u = np.array([len(edges) for edges, *_ in uniq])
+    of = np.array(of)
+    counts = n_u[of]
+    total = int(counts.sum())
+    # (row -> its edge among the stacked distinct faces' edges: the face's first edge, then along its edges)
+    ge = np.repeat((np.cumsum(n_u) - n_u)[of] - (np.cumsum(counts) - counts), counts) + np.arange(total)
+    lo = np.concatenate([elo for _, elo, _, _ in uniq])[ge]
+    hi = np.concatenate([ehi for _, _, ehi, _ in uniq])[ge]
+    etol = np.concatenate([tol for *_, tol in uniq])[ge]
     ent = np.repeat(np.tile(np.arange(M), 2), counts)
-    side = np.repeat(np.arange(2), [sum(counts[:M]), sum(counts[M:])])
-    lo, hi, etol = np.concatenate(lo), np.concatenate(hi), np.concatenate(etol)
+    side = np.repeat(np.arange(2), [int(counts[:M].sum()), int(counts[M:].sum())])
     reach = (10.0 * np.maximum(base[ent], etol))[:, None, None]
     Pe = P[ent]
     inb = (Pe >= lo[:, None] - reach) & (Pe <= hi[:, None] + reach)
@@ -1411,36 +1421,43 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
     near = np.full((M, 2, 2), np.inf)
     rows = np.flatnonzero(hit)
     if rows.size:
-        kinds = [type(edge_of[r].curve) for r in rows.tolist()]
-        line = np.array([kd is Line for kd in kinds], dtype=bool)
-        delta = np.maximum(base[ent[rows]], np.array([edge_of[r].tol or 0.0 for r in rows.tolist()]))
+        # (what the rows need of their edges, read once per distinct edge: a face's edge meets several ranges)
+        hu, hinv = np.unique(ge[rows], return_inverse=True)
+        E = [edges_u[g] for g in hu.tolist()]
+        kinds = [type(e.curve) for e in E]
+        line_u = np.array([kd is Line for kd in kinds], dtype=bool)
+        line = line_u[hinv]
+        delta = np.maximum(base[ent[rows]], np.array([e.tol or 0.0 for e in E])[hinv])
         d = np.empty((rows.size, 2))
         sine = np.empty((rows.size, 2))
         if line.any():
             lr = rows[line]
-            O = np.array([edge_of[r].curve.origin for r in lr.tolist()])
-            D = np.array([edge_of[r].curve.direction for r in lr.tolist()])
-            lo_t = np.array([min(edge_of[r].t0, edge_of[r].t1) for r in lr.tolist()])[:, None]
-            hi_t = np.array([max(edge_of[r].t0, edge_of[r].t1) for r in lr.tolist()])[:, None]
+            le = [E[q] for q in np.flatnonzero(line_u).tolist()]
+            at = (np.cumsum(line_u) - 1)[hinv[line]]  # (each line row's place among the distinct line edges)
+            O = np.array([e.curve.origin for e in le])[at]
+            D = np.array([e.curve.direction for e in le])[at]
+            lo_t = np.array([min(e.t0, e.t1) for e in le])[at][:, None]
+            hi_t = np.array([max(e.t0, e.t1) for e in le])[at][:, None]
             Q = P[ent[lr]]  # (n, 2, 3)
             te = np.clip(np.einsum("nej,nj->ne", Q - O[:, None], D), lo_t, hi_t)
             d[line] = np.linalg.norm(O[:, None] + te[..., None] * D[:, None] - Q, axis=2)
             U = D / np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
             sine[line] = np.maximum(np.linalg.norm(np.cross(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
         for q in np.flatnonzero(~line).tolist():
-            r = int(rows[q])
-            e, k = edge_of[r], int(ent[r])
+            e, k = E[hinv[q]], int(ent[rows[q]])
             dq, sq = _end_sines(e.curve, P[k], T[k], min(e.t0, e.t1), max(e.t0, e.t1), 10.0 * float(delta[q]), t)
             d[q], sine[q] = dq, sq
         on = d <= 10.0 * delta[:, None]
-        ratio = np.where(on, delta[:, None] / sine, -np.inf).max(axis=1)
-        np.maximum.at(worst, ent[rows], ratio)
-        known = np.array([kd in (Line, Circle, Ellipse) for kd in kinds], dtype=bool)
+        ratio = np.where(on, delta[:, None] / sine, -np.inf)
+        np.maximum.at(worst, ent[rows], np.maximum(ratio[:, 0], ratio[:, 1]))
+        known_u = np.array([kd in (Line, Circle, Ellipse) for kd in kinds], dtype=bool)
+        known = known_u[hinv]
         if known.any():
             kr = rows[known]
-            O = np.array([(edge_of[r].curve.origin if type(edge_of[r].curve) is Line else edge_of[r].curve._origin)
-                          for r in kr.tolist()])
-            slack = 1e-12 * (size[ent[kr]] + np.abs(O).max(axis=1))
+            ke = [E[q] for q in np.flatnonzero(known_u).tolist()]
+            O = np.abs(np.array([(e.curve.origin if type(e.curve) is Line else e.curve._origin) for e in ke]))
+            O = np.maximum(np.maximum(O[:, 0], O[:, 1]), O[:, 2])[(np.cumsum(known_u) - 1)[hinv[known]]]
+            slack = 1e-12 * (size[ent[kr]] + O)
             np.minimum.at(near, (ent[kr], side[kr]), d[known] + slack[:, None])
     return worst.tolist(), near.tolist()
 

@@ -3696,8 +3696,26 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         return faces
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
-    X_all, cand_all = _split_candidates(open_uses, starts, t)
-    cand_all = _off_the_ends(open_uses, X_all, cand_all, starts, start_tol, t)
+    # The two uses of an edge (one per face, opposite ways round) share their samples and candidates: each
+    # distinct (curve, range, tolerance) is sampled and queried once, in the way its first use runs; the
+    # other use reads the samples backwards (the end samples are the curve at the range's ends either way;
+    # the inner ones only place the query's ball, which bounds the range whichever way it is sampled).
+    index: dict[tuple, int] = {}
+    distinct: list[EdgeSpec] = []
+    of, flip = [], []
+    for e in open_uses:
+        lo, hi = (e.t0, e.t1) if e.t0 <= e.t1 else (e.t1, e.t0)
+        key = (id(e.curve), lo, hi, e.tol or 0.0)
+        u = index.get(key)
+        if u is None:
+            u = index[key] = len(distinct)
+            distinct.append(e)
+        of.append(u)
+        flip.append(e.t0 != distinct[u].t0)
+    X_u, cand_u = _split_candidates(distinct, starts, t)
+    cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
+    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of, flip)]
+    cand_all = [cand_u[u] for u in of]
     at = iter(range(len(open_uses)))
     out = []
     changed_any = False

@@ -3828,10 +3828,13 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
         B = np.concatenate([b for b in boxes if b is not None]).reshape(-1, 2, 3)
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
         for s0 in range(0, idx.size, step):
-            pad = (ptol[None, :] + thr[idx[s0 : s0 + step], None])[..., None]  # (n, m, 1)
-            Bs = B[s0 : s0 + step, None]
-            near = np.all((P[None] >= Bs[:, :, 0] - pad) & (P[None] <= Bs[:, :, 1] + pad), axis=2).any(axis=1)
-            clear[idx[s0 : s0 + step]] = ~near
+            pad = ptol[None, :] + thr[idx[s0 : s0 + step], None]  # (n, m)
+            Bs = B[s0 : s0 + step]
+            # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
+            near = np.ones(pad.shape, dtype=bool)
+            for j in range(3):
+                near &= (P[None, :, j] >= Bs[:, 0, j, None] - pad) & (P[None, :, j] <= Bs[:, 1, j, None] + pad)
+            clear[idx[s0 : s0 + step]] = ~near.any(axis=1)
     return clear
 
 

@@ -1388,19 +1388,29 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             P[k], T[k] = D[:, 0], D[:, 1]
     T = T / np.maximum(np.sqrt(np.add.reduce(T * T, axis=2, keepdims=True)), 1e-300)
     size = 1.0 + np.abs(P).max(axis=(1, 2))
-    # Every (range, side, edge) row, and the rows whose edge box comes near an end.
-    counts, edge_of, lo, hi, etol = [], [], [], [], []
+    # Every (range, side, edge) row, and the rows whose edge box comes near an end.  Many ranges share a face
+    # (a plate's face meets every hole): each distinct face's edges are stacked once, and the rows index them.
+    index: dict[tuple[int, int], int] = {}
+    uniq: list[tuple] = []
+    of = []
     for X, f in itertools.chain(face_a, face_b):
-        edges, elo, ehi, tol = X.edge_boxes(f)
-        counts.append(len(edges))
-        edge_of += edges
-        lo.append(elo)
-        hi.append(ehi)
-        etol.append(tol)
-    # (the range and side of every row by repeats: per-range arrays cost more than the rows for few edges)
+        u = index.get((id(X), f))
+        if u is None:
+            u = index[(id(X), f)] = len(uniq)
+            uniq.append(X.edge_boxes(f))
+        of.append(u)
+    edges_u = [e for edges, *_ in uniq for e in edges]
+    n_u = np.array([len(edges) for edges, *_ in uniq])
+    of = np.array(of)
+    counts = n_u[of]
+    total = int(counts.sum())
+    # (row -> its edge among the stacked distinct faces' edges: the face's first edge, then along its edges)
+    ge = np.repeat((np.cumsum(n_u) - n_u)[of] - (np.cumsum(counts) - counts), counts) + np.arange(total)
+    lo = np.concatenate([elo for _, elo, _, _ in uniq])[ge]
+    hi = np.concatenate([ehi for _, _, ehi, _ in uniq])[ge]
+    etol = np.concatenate([tol for *_, tol in uniq])[ge]
     ent = np.repeat(np.tile(np.arange(M), 2), counts)
-    side = np.repeat(np.arange(2), [sum(counts[:M]), sum(counts[M:])])
-    lo, hi, etol = np.concatenate(lo), np.concatenate(hi), np.concatenate(etol)
+    side = np.repeat(np.arange(2), [int(counts[:M].sum()), int(counts[M:].sum())])
     reach = (10.0 * np.maximum(base[ent], etol))[:, None, None]
     Pe = P[ent]
     inb = (Pe >= lo[:, None] - reach) & (Pe <= hi[:, None] + reach)
@@ -1411,36 +1421,43 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
     near = np.full((M, 2, 2), np.inf)
     rows = np.flatnonzero(hit)
     if rows.size:
-        kinds = [type(edge_of[r].curve) for r in rows.tolist()]
-        line = np.array([kd is Line for kd in kinds], dtype=bool)
-        delta = np.maximum(base[ent[rows]], np.array([edge_of[r].tol or 0.0 for r in rows.tolist()]))
+        # (what the rows need of their edges, read once per distinct edge: a face's edge meets several ranges)
+        hu, hinv = np.unique(ge[rows], return_inverse=True)
+        E = [edges_u[g] for g in hu.tolist()]
+        kinds = [type(e.curve) for e in E]
+        line_u = np.array([kd is Line for kd in kinds], dtype=bool)
+        line = line_u[hinv]
+        delta = np.maximum(base[ent[rows]], np.array([e.tol or 0.0 for e in E])[hinv])
         d = np.empty((rows.size, 2))
         sine = np.empty((rows.size, 2))
         if line.any():
             lr = rows[line]
-            O = np.array([edge_of[r].curve.origin for r in lr.tolist()])
-            D = np.array([edge_of[r].curve.direction for r in lr.tolist()])
-            lo_t = np.array([min(edge_of[r].t0, edge_of[r].t1) for r in lr.tolist()])[:, None]
-            hi_t = np.array([max(edge_of[r].t0, edge_of[r].t1) for r in lr.tolist()])[:, None]
+            le = [E[q] for q in np.flatnonzero(line_u).tolist()]
+            at = (np.cumsum(line_u) - 1)[hinv[line]]  # (each line row's place among the distinct line edges)
+            O = np.array([e.curve.origin for e in le])[at]
+            D = np.array([e.curve.direction for e in le])[at]
+            lo_t = np.array([min(e.t0, e.t1) for e in le])[at][:, None]
+            hi_t = np.array([max(e.t0, e.t1) for e in le])[at][:, None]
             Q = P[ent[lr]]  # (n, 2, 3)
             te = np.clip(np.einsum("nej,nj->ne", Q - O[:, None], D), lo_t, hi_t)
             d[line] = np.linalg.norm(O[:, None] + te[..., None] * D[:, None] - Q, axis=2)
             U = D / np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
             sine[line] = np.maximum(np.linalg.norm(np.cross(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
         for q in np.flatnonzero(~line).tolist():
-            r = int(rows[q])
-            e, k = edge_of[r], int(ent[r])
+            e, k = E[hinv[q]], int(ent[rows[q]])
             dq, sq = _end_sines(e.curve, P[k], T[k], min(e.t0, e.t1), max(e.t0, e.t1), 10.0 * float(delta[q]), t)
             d[q], sine[q] = dq, sq
         on = d <= 10.0 * delta[:, None]
-        ratio = np.where(on, delta[:, None] / sine, -np.inf).max(axis=1)
-        np.maximum.at(worst, ent[rows], ratio)
-        known = np.array([kd in (Line, Circle, Ellipse) for kd in kinds], dtype=bool)
+        ratio = np.where(on, delta[:, None] / sine, -np.inf)
+        np.maximum.at(worst, ent[rows], np.maximum(ratio[:, 0], ratio[:, 1]))
+        known_u = np.array([kd in (Line, Circle, Ellipse) for kd in kinds], dtype=bool)
+        known = known_u[hinv]
         if known.any():
             kr = rows[known]
-            O = np.array([(edge_of[r].curve.origin if type(edge_of[r].curve) is Line else edge_of[r].curve._origin)
-                          for r in kr.tolist()])
-            slack = 1e-12 * (size[ent[kr]] + np.abs(O).max(axis=1))
+            ke = [E[q] for q in np.flatnonzero(known_u).tolist()]
+            O = np.abs(np.array([(e.curve.origin if type(e.curve) is Line else e.curve._origin) for e in ke]))
+            O = np.maximum(np.maximum(O[:, 0], O[:, 1]), O[:, 2])[(np.cumsum(known_u) - 1)[hinv[known]]]
+            slack = 1e-12 * (size[ent[kr]] + O)
             np.minimum.at(near, (ent[kr], side[kr]), d[known] + slack[:, None])
     return worst.tolist(), near.tolist()
 
@@ -1509,8 +1526,8 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
         sc = (W[..., 0] * E[..., 1] - W[..., 1] * E[..., 0]) / cross  # branch parameter of the crossing
         w = (W[..., 0] * d1 - W[..., 1] * d0) / cross  # fraction along the side
         meets = valid & (cross != 0.0) & (w >= 0.0) & (w <= 1.0) & (sc >= lo) & (sc <= hi)
-    crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
-        & ((1.0 - w) * L > margin) & ((sc - lo) * dn > margin) & ((hi - sc) * dn > margin)
+        crossing = meets & (np.abs(cross) >= _STRAIGHT_MIN_SINE * dn * L) & (w * L > margin) \
+            & ((1.0 - w) * L > margin) & ((sc - lo) * dn > margin) & ((hi - sc) * dn > margin)
     # Clearance (_straight_clearance_arrays): the sides' ends from the branch, the branch's ends from the sides.
     V = np.concatenate([A, A + E], axis=1)
     tv = np.clip(np.einsum("kvj,kj->kv", V - p0[:, None], d) / (dn * dn), lo, hi)
@@ -1523,36 +1540,40 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
     clearance = np.minimum(near.min(axis=1), far.min(axis=(1, 2)))
     ok = ~np.any(meets & ~crossing, axis=1) & (clearance > margin[:, 0])
     out: list = [None] * K
-    pieces, mids, owners = {}, [], []
-    for k in np.flatnonzero(ok).tolist():
-        found = sc[k][crossing[k]]
-        br = [float(lo_t[k])] + np.sort(found).tolist() + [float(hi_t[k])]
-        if any((b - a) * float(dn[k, 0]) <= float(margin[k, 0]) for a, b in zip(br[:-1], br[1:])):
-            continue  # two crossings at one place: a vertex, let the general path decide
-        pieces[k] = br
-        mids += [0.5 * (a + b) for a, b in zip(br[:-1], br[1:])]
-        owners += [k] * (len(br) - 1)
-    if not pieces:
+    # Each branch's break points in one (K, width + 2) array: its lower end, its crossings in order, its upper
+    # end, then padding (inf); piece j runs from column j to j + 1 and is real for j < crossings + 1.
+    ncross = np.count_nonzero(crossing, axis=1)
+    br = np.full((K, width + 2), np.inf)
+    br[:, 0] = lo_t
+    br[:, 1 : width + 1] = np.sort(np.where(crossing, sc, np.inf), axis=1)
+    br[np.arange(K), ncross + 1] = hi_t
+    real = np.arange(width + 1)[None] <= ncross[:, None]
+    a, b = br[:, :-1], br[:, 1:]
+    with np.errstate(invalid="ignore"):  # (padding: inf - inf)
+        short = real & ((b - a) * dn <= margin)
+    # (two crossings at one place: a vertex, let the general path decide)
+    ok &= ~short.any(axis=1)
+    if not ok.any():
         return out
-    own = np.array(owners)
-    mid = np.array(mids)
-    inside = _in_faces(X, np.array(faces)[own], o[own] + mid[:, None] * dd[own]).tolist()
-    at = 0
-    for k, br in pieces.items():
-        runs: list[list] = []
-        for a, b in zip(br[:-1], br[1:]):
-            ins = inside[at]
-            at += 1
-            if runs and runs[-1][2] == ins:
-                runs[-1][1] = b
-            else:
-                runs.append([a, b, ins])
-        res = [(a, b, "inside") for a, b, ins in runs if ins]
+    own, col = np.nonzero(real & ok[:, None])  # the pieces, branch by branch in order
+    a, b = a[own, col], b[own, col]
+    inside = _in_faces(X, np.array(faces)[own], o[own] + (0.5 * (a + b))[:, None] * dd[own])
+    # Runs of consecutive inside pieces of one branch, by their first and last piece.
+    first = col == 0
+    last = np.append(own[1:] != own[:-1], True)
+    prev_in = np.append(False, inside[:-1]) & ~first
+    next_in = np.append(inside[1:], False) & ~last
+    starts = np.flatnonzero(inside & ~prev_in)
+    ends = np.flatnonzero(inside & ~next_in)
+    runs: dict[int, list] = {k: [] for k in np.flatnonzero(ok).tolist()}
+    for k, s0, s1 in zip(own[starts].tolist(), a[starts].tolist(), b[ends].tolist()):
+        runs[k].append((s0, s1, "inside"))
+    for k, res in runs.items():
         S = X.specs[faces[k]].surface
         if not res and (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
             continue  # (as in _clip_straight: a period away is the general path's business)
         if t0[k] > t1[k]:
-            res = [(b, a, w_) for a, b, w_ in reversed(res)]
+            res = [(s1, s0, w_) for s0, s1, w_ in reversed(res)]
         out[k] = res
     return out
 
@@ -1607,12 +1628,18 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
             f = int(uniq[u])
             out[rows] = _in_polygon(Q[rows], X.segments[f], _slopes(X, f))
     if small:
+        from coons.booleans.classify import _polygon_slopes
+
         width = max(sizes[u] for u in small)
         pad = np.full((len(uniq), 4, width), np.nan)  # rows: start x, start y, end y, slope
-        for u in small:
-            f = int(uniq[u])
-            seg, m = X.segments[f], _slopes(X, f)
-            pad[u, :, : len(m)] = (seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1], m)
+        # All small faces' segments in one array, scattered into the pad by (face, column) indices; their
+        # slopes in one elementwise pass (the same divisions as _slopes per face, so the same values).
+        seg = np.concatenate([X.segments[f] for f in uniq[small].tolist()])
+        n = np.array([sizes[u] for u in small])
+        at = np.repeat(np.asarray(small), n)
+        col = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+        pad[at, 0, col], pad[at, 1, col], pad[at, 2, col] = seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1]
+        pad[at, 3, col] = _polygon_slopes(seg)
         rows = np.flatnonzero(np.isin(inv, small))
         ax, ay, cy, m = np.moveaxis(pad[inv[rows]], 1, 0)
         x, y = Q[rows, 0:1], Q[rows, 1:2]
@@ -3693,8 +3720,26 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         return faces
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
-    X_all, cand_all = _split_candidates(open_uses, starts, t)
-    cand_all = _off_the_ends(open_uses, X_all, cand_all, starts, start_tol, t)
+    # The two uses of an edge (one per face, opposite ways round) share their samples and candidates: each
+    # distinct (curve, range, tolerance) is sampled and queried once, in the way its first use runs; the
+    # other use reads the samples backwards (the end samples are the curve at the range's ends either way;
+    # the inner ones only place the query's ball, which bounds the range whichever way it is sampled).
+    index: dict[tuple, int] = {}
+    distinct: list[EdgeSpec] = []
+    of, flip = [], []
+    for e in open_uses:
+        lo, hi = (e.t0, e.t1) if e.t0 <= e.t1 else (e.t1, e.t0)
+        key = (id(e.curve), lo, hi, e.tol or 0.0)
+        u = index.get(key)
+        if u is None:
+            u = index[key] = len(distinct)
+            distinct.append(e)
+        of.append(u)
+        flip.append(e.t0 != distinct[u].t0)
+    X_u, cand_u = _split_candidates(distinct, starts, t)
+    cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
+    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of, flip)]
+    cand_all = [cand_u[u] for u in of]
     at = iter(range(len(open_uses)))
     out = []
     changed_any = False
@@ -3807,10 +3852,13 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
         B = np.concatenate([b for b in boxes if b is not None]).reshape(-1, 2, 3)
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
         for s0 in range(0, idx.size, step):
-            pad = (ptol[None, :] + thr[idx[s0 : s0 + step], None])[..., None]  # (n, m, 1)
-            Bs = B[s0 : s0 + step, None]
-            near = np.all((P[None] >= Bs[:, :, 0] - pad) & (P[None] <= Bs[:, :, 1] + pad), axis=2).any(axis=1)
-            clear[idx[s0 : s0 + step]] = ~near
+            pad = ptol[None, :] + thr[idx[s0 : s0 + step], None]  # (n, m)
+            Bs = B[s0 : s0 + step]
+            # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
+            near = np.ones(pad.shape, dtype=bool)
+            for j in range(3):
+                near &= (P[None, :, j] >= Bs[:, 0, j, None] - pad) & (P[None, :, j] <= Bs[:, 1, j, None] + pad)
+            clear[idx[s0 : s0 + step]] = ~near.any(axis=1)
     return clear
 
 

@@ -2309,9 +2309,19 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     circles = Circle.many(C, np.stack([X, Y, Z], axis=1), R)
     on_plane = Trig2D.many(o, al, be)
     on_cylinder = Line2D.many(np.stack([ou, ov], axis=1), np.stack([sg, np.zeros_like(sg)], axis=1))
+    # The constructor's check (finite t0 < t1) for all branches at once; then each is built as the constructor
+    # would leave it (Python floats and bools), without its per-object conversions.  A branch failing the
+    # check goes through the constructor, which raises.
+    trusted = bool(np.all(np.isfinite(s0) & np.isfinite(s1) & (s0 < s1)))
     for k, circle, pp, pc, a, b, d, f in zip(todo.tolist(), circles, on_plane, on_cylinder, s0.tolist(), s1.tolist(),
                                              dev.tolist(), first[todo].tolist()):
-        out[k] = [IntersectionCurve(circle, a, b, pp if f else pc, pc if f else pp, False, d, False)]
+        if trusted:
+            ic = object.__new__(IntersectionCurve)
+            ic.__dict__.update(curve=circle, t0=a, t1=b, pcurve_a=pp if f else pc, pcurve_b=pc if f else pp,
+                               closed=False, tol=d, tangent=False)
+        else:
+            ic = IntersectionCurve(circle, a, b, pp if f else pc, pc if f else pp, False, d, False)
+        out[k] = [ic]
     return out
 
 

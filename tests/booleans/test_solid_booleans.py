@@ -1416,3 +1416,60 @@ def test_clear_samples_of_fitted_pcurves_by_scipy_agree_with_evaluate(monkeypatc
         with monkeypatch.context() as m:
             m.setattr(S, "_SCIPY_SAMPLES", False)
             assert clip(X, f, pc, t0, t1, t, curve) == fast
+
+
+@pytest.mark.parametrize("case", ["plate", "tee"])
+def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeypatch, case):
+    """The T-junction pass samples and queries each edge once for its two uses (one per face, opposite ways
+    round); it splits every use where the same pass with each use on its own curve object (nothing shared)
+    splits it, at the same parameters."""
+    import copy
+
+    calls, sizes = [], []
+    real, real_cand = S._split_edges_at_vertices, S._split_candidates
+
+    def spy(faces, t, orig=None, orig_edges=None):
+        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
+        return real(faces, t, orig, orig_edges)
+
+    def spy_cand(uses, starts, t):
+        sizes.append(len(uses))
+        return real_cand(uses, starts, t)
+
+    monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
+    if case == "plate":
+        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
+                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
+    else:
+        _ok(S.boolean(Cylinder(2, 20), Cylinder(1.5, 10, direction=(1, 0, 0)).translate((5, 0, 0)), "union",
+                      method="brep"))
+    assert calls
+    monkeypatch.setattr(S, "_split_candidates", spy_cand)
+    pairs = []
+    for faces, t, orig, orig_edges in calls:
+        before = len(sizes)
+        shared = real(faces, t, orig, orig_edges)
+        n_shared = sizes[-1] if len(sizes) > before else 0
+        # Each use on its own copy of its curve (the operand maps re-keyed): no two uses share a key.
+        alone, edges_alone = [], {}
+        for f in faces:
+            loops = []
+            for loop in f.loops:
+                new = []
+                for e in loop:
+                    new.append(S.EdgeSpec(copy.copy(e.curve), e.t0, e.t1, e.pcurve, e.tol))
+                    if id(e) in orig_edges:
+                        edges_alone[id(new[-1])] = orig_edges[id(e)]
+                loops.append(new)
+            g = S.FaceSpec(f.surface, f.sense, loops)
+            alone.append(g)
+            if id(f) in orig:
+                orig[id(g)] = orig[id(f)]
+        before = len(sizes)
+        single = real(alone, t, orig, edges_alone)
+        n_single = sizes[-1] if len(sizes) > before else 0
+        assert [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in shared] == \
+            [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in single]
+        pairs.append((n_shared, n_single))
+    assert all(n <= m for n, m in pairs)
+    assert any(n < m for n, m in pairs)  # (some edge's two uses were queried once)

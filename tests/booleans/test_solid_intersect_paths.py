@@ -274,3 +274,40 @@ def test_apart_cuts_are_those_the_tree_pairs_none_of(n, gap, seed):
         slow = S._unique_cuts(cuts, T, repeated_slow)
     assert [id(c) for c in fast] == [id(c) for c in slow]
     assert repeated_fast == repeated_slow
+
+
+def test_batched_straight_clips_are_the_single_ones():
+    """``_clip_straight_many`` (break points, pieces and runs in arrays, the pieces' midpoints by ``_in_faces``)
+    returns ``_clip_straight``'s clip for every branch, bit for bit, and declines where it declines: random
+    straight p-curves, both ways round, across faces of a plate with square holes (several crossings each) and
+    of a cylinder (a periodic surface, where an empty clip is left to the general path)."""
+    from types import SimpleNamespace
+
+    plate = Box(20, 20, 4)
+    for x, y in ((-5.0, -5.0), (5.0, -5.0), (-5.0, 5.0), (5.0, 5.0)):
+        plate = plate - Box(3, 3, 10).translate((x, y, 0.0))
+    rng = np.random.default_rng(7)
+    for solid in (plate, Cylinder(3, 10)):
+        X = S._Operand(solid, "A", T)
+        faces = [f for f in range(len(X.specs)) if S._straight_data(X, f, T) is not None]
+        assert faces
+        fs, pcs, brs = [], [], []
+        for f in faces:
+            (u0, u1), (v0, v1) = X.uv_box[f]
+            for _ in range(40):
+                o = rng.uniform([u0, v0], [u1, v1])
+                d = rng.normal(size=2)
+                if rng.random() < 0.3:  # along a parameter direction: through rows of hole sides
+                    d[rng.integers(2)] = 0.0
+                span = 2.0 * max(u1 - u0, v1 - v0) / float(np.hypot(*d))
+                a, b = sorted(rng.uniform(-span, span, 2).tolist())
+                if rng.random() < 0.5:
+                    a, b = b, a
+                fs.append(f)
+                pcs.append(Line2D(o, d))
+                brs.append(SimpleNamespace(t0=a, t1=b))
+        many = S._clip_straight_many(X, fs, pcs, brs, T)
+        single = [S._clip_straight(X, f, p, c.t0, c.t1, T) for f, p, c in zip(fs, pcs, brs)]
+        assert many == single
+        if solid is plate:  # (some branches leave and re-enter a face)
+            assert sum(r is not None and len(r) > 1 for r in single) > 10

@@ -1202,6 +1202,10 @@ def test_batched_plane_cylinder_circles_take_the_plate_pairs():
     for g, pair in zip(got, pairs):
         (r,) = intersect_surfaces(*pair, tol=DEFAULT_TOLERANCE).curves
         (g,) = g
+        # (built without the constructor: as it would have left them, Python floats and bools included)
+        rebuilt = IntersectionCurve(**vars(g))
+        assert vars(rebuilt) == vars(g)
+        assert all(type(v) is type(vars(g)[k]) for k, v in vars(rebuilt).items())
         assert [g.t0, g.t1] == pytest.approx([r.t0, r.t1], abs=1e-13)
         np.testing.assert_allclose(g.curve.evaluate(np.linspace(g.t0, g.t1, 5)), r.curve.evaluate(np.linspace(r.t0, r.t1, 5)),
                                    rtol=0, atol=1e-13)

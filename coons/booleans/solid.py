@@ -397,7 +397,10 @@ def _disjoint_groups(solids, t: Tolerance) -> list[list[Solid]]:
 
 def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     """One solid made of the pairwise disjoint solids of ``group``: their B-reps side by side
-    (:func:`~coons.topology.disjoint.disjoint_union`, no sewing, no check: valid by construction).
+    (:func:`~coons.topology.disjoint.stacked`, as :func:`~coons.topology.disjoint.disjoint_union`
+    makes them, no sewing, no check: valid by construction).  ``group`` must be a group of
+    :func:`_disjoint_groups`, whose padded boxes are pairwise apart: ``disjoint_union``'s test is
+    not repeated here.
 
     The union's faces are the members' faces in order, on the very same geometry objects, so
     their face specs are handed on as the specs it was "sewn" from (``sew.sewn_from``): a member's own
@@ -708,6 +711,12 @@ def _prefill_samples(specs: list[FaceSpec]) -> None:
 def _use_pad(e: EdgeSpec, S) -> float:
     """How far a use's p-curve may stray from its :func:`_use_samples` polyline: its longest
     chord (0 for a straight p-curve, sampled by its two ends), cached with the samples."""
+    return _use_samples_pad(e, S)[1]
+
+
+def _use_samples_pad(e: EdgeSpec, S) -> tuple[np.ndarray, float]:
+    """``(_use_samples(e, S), _use_pad(e, S))`` with one cache look-up where both are cached (as
+    :func:`_prefill_samples` leaves them)."""
     got = _USE_SAMPLES.get(e)
     if got is None or got[0] is not S:
         _use_samples(e, S)
@@ -716,7 +725,7 @@ def _use_pad(e: EdgeSpec, S) -> float:
         Ue = got[1]
         pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
         got = _USE_SAMPLES[e] = (S, Ue, pad)
-    return got[2]
+    return got[1], got[2]
 
 
 #: Edge use -> (surface, its :func:`_edge_uv` samples on that surface, their pad (:func:`_use_pad`) or None
@@ -810,17 +819,7 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     views of the pass's arrays; the values are those of one loop at a time.
     """
     uses = [e for loop, _ in items for e in loop]
-    # The samples and pads of the uses (one look-up each where both are cached, as _prefill_samples leaves them).
-    samples, pads = [], []
-    for loop, S in items:
-        for e in loop:
-            got = _USE_SAMPLES.get(e)
-            if got is None or got[0] is not S or got[2] is None:
-                samples.append(_use_samples(e, S))
-                pads.append(_use_pad(e, S))
-            else:
-                samples.append(got[1])
-                pads.append(got[2])
+    samples, pads = zip(*[_use_samples_pad(e, S) for loop, S in items for e in loop])
     n_uses = np.array([len(loop) for loop, _ in items], dtype=np.int64)
     use_start = np.concatenate([[0], np.cumsum(n_uses)[:-1]])
     cnt = np.array([U.shape[0] for U in samples], dtype=np.int64)
@@ -2278,7 +2277,7 @@ def _edge_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
 
     boxed = np.array([isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)) for e in edges], dtype=bool)
     if not edges:
-        return np.empty((0, 2, 3)), boxed
+        return _frozen(np.empty((0, 2, 3))), boxed
     if boxed.all():
         boxes = curve_boxes([e.curve for e in edges], [e.t0 for e in edges], [e.t1 for e in edges])
     else:
@@ -2552,16 +2551,14 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
         return None
     # The pieces by the trusted constructors: the uses are the face's own and its (validated)
     # cuts, some reversed, in non-empty loops on the face's (validated) surface and sense.
-    trusted = EdgeSpec._trusted
     out_loops = list(spec.loops)
     islands = []
     for a, s, ar in zip(c0.tolist(), size.tolist(), area.tolist()):
-        uses = [cuts[k] if fd else trusted(cuts[k].curve, cuts[k].t1, cuts[k].t0, cuts[k].pcurve, cuts[k].tol)
-                for k, fd in zip(order[a:a + s], fwd_l[a:a + s])]
+        uses = [cuts[k] if fd else _reversed_use(cuts[k]) for k, fd in zip(order[a:a + s], fwd_l[a:a + s])]
         if ar < 0:
-            uses = [trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)]
+            uses = [_reversed_use(e) for e in reversed(uses)]
         islands.append(FaceSpec._trusted(spec.surface, spec.sense, (tuple(uses),)))
-        out_loops.append(tuple(trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(uses)))
+        out_loops.append(tuple(_reversed_use(e) for e in reversed(uses)))
     return [FaceSpec._trusted(spec.surface, spec.sense, tuple(out_loops))] + islands
 
 
@@ -2762,7 +2759,7 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
         i, j = starts.index(p), starts.index(q)
         path1 = R[i:j] if i < j else R[i:] + R[:j]
         path2 = R[j:i] if j < i else R[j:] + R[:i]
-        back = EdgeSpec._trusted(c.curve, c.t1, c.t0, c.pcurve, c.tol)  # a validated cut, reversed
+        back = _reversed_use(c)
         regions[r:r + 1] = [path1 + [(back, q)], path2 + [(c, p)]]
     # One non-empty loop of EdgeSpecs each, on the face's own (validated) surface and sense.
     return [FaceSpec._trusted(spec.surface, spec.sense, (tuple(e for e, _ in R),)) for R in regions]
@@ -3642,8 +3639,14 @@ def _select(op: str, pieces_a, status_a: np.ndarray, pieces_b, status_b: np.ndar
 
 def reversed_face(spec: FaceSpec) -> FaceSpec:
     """The face with the opposite orientation: sense flipped, each loop reversed with its uses' ``t0, t1`` swapped."""
-    loops = [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in spec.loops]
+    loops = [[_reversed_use(e) for e in reversed(loop)] for loop in spec.loops]
     return FaceSpec(spec.surface, not spec.sense, loops)
+
+
+def _reversed_use(e: EdgeSpec) -> EdgeSpec:
+    """The use ``e`` run the other way (``t0, t1`` swapped), by the trusted constructor: ``e`` is a
+    validated EdgeSpec, so its fields are already what validation makes of them."""
+    return EdgeSpec._trusted(e.curve, e.t1, e.t0, e.pcurve, e.tol)
 
 
 # ---------------------------------------------------------------------- T-junctions
@@ -4080,6 +4083,7 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
     ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
     offset = np.mean(ua - ub, axis=0)
+    # (_wrapping_pairs mirrors this test for many pairs at once: keep the two in step)
     if _wraps(A, B, _whole_periods(A.surface, offset)):
         return None  # (the cheap form of _fuse's own full-period test, before B is shifted: two half cylinders)
     B = _period_shifted(B, A.surface, offset)

@@ -91,7 +91,7 @@ def padded_box(s: Solid, t: Tolerance) -> np.ndarray:
 
 
 def padded_boxes(solids: Sequence[Solid], t: Tolerance) -> np.ndarray:
-    """:func:`padded_box` of each of the non-empty ``solids``, ``(n, 2, 3)``, the same floats.
+    """:func:`padded_box` of each of ``solids`` (each must be non-empty, as there), ``(n, 2, 3)``, the same floats.
 
     A solid whose curves are all lines and circles and whose surfaces are all planes, cylinders
     and cones (a drilling tool) is bounded with the others of its kind in one array pass: its

@@ -1565,6 +1565,9 @@ def _bounding_box(b: BRep) -> np.ndarray:
     extreme points, all in the hull, could not widen it (up to the round-off of an evaluation).
     The intersection curves of a Boolean's result lie inside the box of its faces, and searching
     them by sampling and Newton steps was most of the cost of the tessellator's default deflection.
+
+    :func:`~coons.topology.disjoint.padded_boxes` mirrors these candidates for B-reps of lines and
+    circles on planes, cylinders and cones (vertices and circle extrema only): keep the two in step.
     """
     lo = b.vertex_point.min(axis=0)
     hi = b.vertex_point.max(axis=0)

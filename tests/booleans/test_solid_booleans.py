@@ -943,7 +943,7 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
 
 
 def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
-    """The merge's batched full-period test rejects exactly pairs that _merged_pair rejects, and
+    """The merge's batched full-period test rejects only pairs that _merged_pair rejects, and
     takes the half cylinders of a plate drilled in one call (at off-grid places and depths)."""
     t = S.resolve(None)
     seen = []
@@ -962,6 +962,37 @@ def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
     decided = [(A, B, up, uq) for A, B, up, uq, w in seen if w]
     assert len(decided) == 18  # two seams per hole
     assert all(S._merged_pair(A, B, up, uq, t) is None for A, B, up, uq in decided)
+
+
+def test_wrapping_pairs_equal_the_pairwise_full_period_test(monkeypatch):
+    """For every pair _wrapping_pairs decides (one surface object, one sense, straight shared p-curves),
+    its answer is _merged_pair's full-period test (_wraps with _whole_periods of the shared edge's offset),
+    both ways: the half walls of a drilled hole wrap, the halves of a cylinder cut flat on one side
+    (an arc of 240 degrees across one seam) do not, and merge."""
+    from coons.kernel.pcurve import Line2D
+
+    seen = []
+    real = S._wrapping_pairs
+
+    def spy(faces, fpq, upq):
+        out = real(faces, fpq, upq)
+        seen.extend((faces[fp], faces[fq], tuple(up), tuple(uq), w) for (fp, fq), (up, uq), w in zip(fpq, upq, out))
+        return out
+
+    monkeypatch.setattr(S, "_wrapping_pairs", spy)
+    _ok(Box(10, 10, 4) - Cylinder(2, 10))
+    flat = _ok(Cylinder(2, 10) - Box(2, 6, 20).translate((2, 0, 0)))
+    assert _types(flat) == {"plane": 3, "cylinder": 1}
+    answers = []
+    for A, B, up, uq, w in seen:
+        ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+        if not (A.surface is B.surface and A.sense == B.sense and type(ea.pcurve) is Line2D
+                and type(eb.pcurve) is Line2D and S._uv_extent(A) and S._uv_extent(B)):
+            continue
+        offset = np.mean(S._edge_uv(ea, A.surface, 3) - S._edge_uv(eb, A.surface, 3)[::-1], axis=0)
+        assert w == S._wraps(A, B, S._whole_periods(A.surface, offset))
+        answers.append(w)
+    assert True in answers and False in answers
 
 
 def test_use_box_array_is_the_stacked_use_boxes():

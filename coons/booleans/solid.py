@@ -1615,7 +1615,7 @@ _PAD_SEGMENTS = 256
 def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """:func:`~coons.booleans.classify._in_polygon` of points ``Q (m, 2)``, each against its face ``faces[m]`` of X
     (the same crossings and comparisons; padding segments straddle no line)."""
-    from coons.booleans.classify import _in_polygon
+    from coons.booleans.classify import _in_polygon, _polygon_slopes
 
     out = np.zeros(len(Q), dtype=bool)
     uniq, inv = np.unique(faces, return_inverse=True)
@@ -1627,8 +1627,6 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
             f = int(uniq[u])
             out[rows] = _in_polygon(Q[rows], X.segments[f], _slopes(X, f))
     if small:
-        from coons.booleans.classify import _polygon_slopes
-
         width = max(sizes[u] for u in small)
         pad = np.full((len(uniq), 4, width), np.nan)  # rows: start x, start y, end y, slope
         # All small faces' segments in one array, scattered into the pad by (face, column) indices; their
@@ -3723,26 +3721,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         return faces
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
-    # The two uses of an edge (one per face, opposite ways round) share their samples and candidates: each
-    # distinct (curve, range, tolerance) is sampled and queried once, in the way its first use runs; the
-    # other use reads the samples backwards (the end samples are the curve at the range's ends either way;
-    # the inner ones only place the query's ball, which bounds the range whichever way it is sampled).
-    index: dict[tuple, int] = {}
-    distinct: list[EdgeSpec] = []
-    of, flip = [], []
-    for e in open_uses:
-        lo, hi = (e.t0, e.t1) if e.t0 <= e.t1 else (e.t1, e.t0)
-        key = (id(e.curve), lo, hi, e.tol or 0.0)
-        u = index.get(key)
-        if u is None:
-            u = index[key] = len(distinct)
-            distinct.append(e)
-        of.append(u)
-        flip.append(e.t0 != distinct[u].t0)
-    X_u, cand_u = _split_candidates(distinct, starts, t)
-    cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
-    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of, flip)]
-    cand_all = [cand_u[u] for u in of]
+    X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t)
     at = iter(range(len(open_uses)))
     out = []
     changed_any = False
@@ -3791,6 +3770,37 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         out.append(FaceSpec(f.surface, f.sense, loops) if face_changed else f)
         changed_any |= face_changed
     return out if changed_any else faces
+
+
+def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol: np.ndarray, t: Tolerance
+                       ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """:func:`_split_candidates` then :func:`_off_the_ends` of each of ``open_uses``: per use its samples
+    ``(17, 3)`` in its own direction and its candidate vertices, each distinct edge computed once.
+
+    The two uses of an edge (one per face, opposite ways round) share their samples and candidates: each
+    distinct (curve, range, tolerance) is sampled and queried once, in the way its first use runs; the
+    other use reads the samples backwards (the end samples are the curve at the range's ends either way;
+    the inner ones only place the query's ball, which bounds the range whichever way it is sampled). The
+    key holds all a use's candidates depend on (its curve, range and tolerance; the rest is the call's):
+    should the search ever read more of a use (its face, its operand group), the key must too.
+    """
+    index: dict[tuple, int] = {}
+    distinct: list[EdgeSpec] = []
+    of, flip = [], []
+    for e in open_uses:
+        lo, hi = (e.t0, e.t1) if e.t0 <= e.t1 else (e.t1, e.t0)
+        key = (id(e.curve), lo, hi, e.tol or 0.0)
+        u = index.get(key)
+        if u is None:
+            u = index[key] = len(distinct)
+            distinct.append(e)
+        of.append(u)
+        flip.append(e.t0 != distinct[u].t0)
+    X_u, cand_u = _split_candidates(distinct, starts, t)
+    cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
+    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of, flip)]
+    cand_all = [cand_u[u] for u in of]
+    return X_all, cand_all
 
 
 def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:

@@ -224,6 +224,22 @@ class IntersectionCurve:
         object.__setattr__(self, "closed", bool(self.closed))
         object.__setattr__(self, "tangent", bool(self.tangent))
 
+    @classmethod
+    def _trusted(cls, curve: Any, t0: float, t1: float, pcurve_a: Any, pcurve_b: Any, closed: bool, tol: float,
+                 tangent: bool) -> "IntersectionCurve":
+        """An IntersectionCurve made without ``__post_init__``'s check and conversions, for batched
+        kernel paths (:func:`_plane_cylinder_circles`: a hundred branches at about 0.4 µs each).
+
+        Only for fields that are already what ``__post_init__`` makes of them: ``t0 < t1`` finite
+        Python floats (checked by the caller for the whole batch), ``tol`` a Python float, ``closed``
+        and ``tangent`` bools.  The result then equals the validated one field by field.
+        """
+        ic = object.__new__(cls)
+        # The frozen dataclass forbids setattr; its instance dict is the one the constructor fills.
+        ic.__dict__.update(curve=curve, t0=t0, t1=t1, pcurve_a=pcurve_a, pcurve_b=pcurve_b, closed=closed, tol=tol,
+                           tangent=tangent)
+        return ic
+
 
 def _rows(a, width: int, what: str) -> np.ndarray:
     arr = np.array(a, dtype=np.float64)
@@ -2312,16 +2328,11 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     # The constructor's check (finite t0 < t1) for all branches at once; then each is built as the constructor
     # would leave it (Python floats and bools), without its per-object conversions.  A branch failing the
     # check goes through the constructor, which raises.
-    trusted = bool(np.all(np.isfinite(s0) & np.isfinite(s1) & (s0 < s1)))
+    make = IntersectionCurve._trusted if bool(np.all(np.isfinite(s0) & np.isfinite(s1) & (s0 < s1))) \
+        else IntersectionCurve
     for k, circle, pp, pc, a, b, d, f in zip(todo.tolist(), circles, on_plane, on_cylinder, s0.tolist(), s1.tolist(),
                                              dev.tolist(), first[todo].tolist()):
-        if trusted:
-            ic = object.__new__(IntersectionCurve)
-            ic.__dict__.update(curve=circle, t0=a, t1=b, pcurve_a=pp if f else pc, pcurve_b=pc if f else pp,
-                               closed=False, tol=d, tangent=False)
-        else:
-            ic = IntersectionCurve(circle, a, b, pp if f else pc, pc if f else pp, False, d, False)
-        out[k] = [ic]
+        out[k] = [make(circle, a, b, pp if f else pc, pc if f else pp, False, d, False)]
     return out
 
 

@@ -1449,11 +1449,12 @@ def test_clear_samples_of_fitted_pcurves_by_scipy_agree_with_evaluate(monkeypatc
             assert clip(X, f, pc, t0, t1, t, curve) == fast
 
 
-@pytest.mark.parametrize("case", ["plate", "tee"])
+@pytest.mark.parametrize("case", ["plate", "tee", "corner"])
 def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeypatch, case):
     """The T-junction pass samples and queries each edge once for its two uses (one per face, opposite ways
     round); it splits every use where the same pass with each use on its own curve object (nothing shared)
-    splits it, at the same parameters."""
+    splits it, at the same parameters.  In "corner" (a sphere whose meridian plane holds a box face) the
+    pass splits a sphere edge, read backwards by one of its uses."""
     import copy
 
     calls, sizes = [], []
@@ -1471,12 +1472,14 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
     if case == "plate":
         _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
                                             for i in (-1, 0, 1) for j in (-1, 0, 1)]))
-    else:
+    elif case == "tee":
         _ok(S.boolean(Cylinder(2, 20), Cylinder(1.5, 10, direction=(1, 0, 0)).translate((5, 0, 0)), "union",
                       method="brep"))
+    else:
+        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
     assert calls
     monkeypatch.setattr(S, "_split_candidates", spy_cand)
-    pairs = []
+    pairs, split = [], []
     for faces, t, orig, orig_edges in calls:
         before = len(sizes)
         shared = real(faces, t, orig, orig_edges)
@@ -1502,5 +1505,45 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
         assert [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in shared] == \
             [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in single]
         pairs.append((n_shared, n_single))
+        split.append(any(a is not b for a, b in zip(shared, faces)))
     assert all(n <= m for n, m in pairs)
     assert any(n < m for n, m in pairs)  # (some edge's two uses were queried once)
+    if case == "corner":
+        assert any(split)  # (the pass changed a face: the comparison above compared real splits)
+
+
+@pytest.mark.parametrize("case", ["plate", "corner"])
+def test_shared_candidates_are_each_uses_own(monkeypatch, case):
+    """_shared_candidates gives every open use (a shared edge's second use too, read backwards) the end samples
+    and candidate vertices that _split_candidates and _off_the_ends give it alone."""
+    calls = []
+    real = S._shared_candidates
+
+    def spy(open_uses, starts, start_tol, t):
+        out = real(open_uses, starts, start_tol, t)
+        calls.append((open_uses, starts, start_tol, t, out))
+        return out
+
+    monkeypatch.setattr(S, "_shared_candidates", spy)
+    if case == "plate":
+        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
+                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
+    else:
+        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
+    assert calls
+    flipped = with_candidates = 0
+    for open_uses, starts, start_tol, t, (X_all, cand_all) in calls:
+        assert len(X_all) == len(cand_all) == len(open_uses)
+        seen = {}
+        for e, X, cand in zip(open_uses, X_all, cand_all):
+            X1, c1 = S._split_candidates([e], starts, t)
+            c1 = S._off_the_ends([e], X1, c1, starts, start_tol, t)
+            np.testing.assert_array_equal(X[[0, -1]], X1[0][[0, -1]])
+            assert sorted(np.asarray(cand).tolist()) == sorted(np.asarray(c1[0]).tolist())
+            key = (id(e.curve), min(e.t0, e.t1), max(e.t0, e.t1))
+            flipped += key in seen and seen[key] != e.t0
+            seen.setdefault(key, e.t0)
+            with_candidates += len(cand) > 0
+    assert flipped  # (second uses, read backwards, were compared)
+    if case == "corner":
+        assert with_candidates  # (and uses with candidate vertices)

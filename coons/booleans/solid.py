@@ -234,6 +234,7 @@ from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
 from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface, surface_derivatives, surface_normals
+from coons.kernel.intersect import _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -1710,22 +1711,20 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
     same answer (or declines, and the sampled test answers).
     """
     from coons.booleans.classify import _in_polygon
-    from coons.kernel.intersect import _pcurve_points
     from coons.topology.split import clip_to_face
 
     straight = _clip_straight(X, f, pcurve, t0, t1, t)
     if straight is not None:
         return straight
     Q = None
-    if pcurve is not None:
-        kind = type(pcurve)
-        if (kind is Line2D or kind is Trig2D) and math.isfinite(t0) and math.isfinite(t1):
-            Q = _pcurve_points(pcurve, np.linspace(t0, t1, _CLEAR_SAMPLES))  # (evaluate's expressions)
-        else:
-            try:
-                Q = _clear_samples(pcurve, t0, t1)
-            except (CoonsError, ValueError, TypeError, ArithmeticError):
-                Q = None
+    if pcurve is not None and math.isfinite(t0) and math.isfinite(t1):
+        # (evaluate's expressions; a polynomial NURBS, the fits of intersection branches, by scipy's
+        # B-spline, kernel.curve.spline_points: round-off, far inside the margins below, which decide
+        # only whether the quick answer is taken, never a crossing)
+        try:
+            Q = np.asarray(_pcurve_points(pcurve, np.linspace(t0, t1, _CLEAR_SAMPLES)), dtype=np.float64)
+        except (CoonsError, ValueError, TypeError, ArithmeticError):
+            Q = None
     if Q is not None and Q.shape == (_CLEAR_SAMPLES, 2) and np.all(np.isfinite(Q)):
         # The largest step: the root of the largest squared step (the norms' own sums; sqrt is
         # monotone and correctly rounded, so this is the largest norm).
@@ -1743,30 +1742,6 @@ def _clip(X: _Operand, f: int, pcurve, t0: float, t1: float, t: Tolerance, curve
             if not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
                 return []  # (on a periodic surface clip_to_face may still find it a period away)
     return clip_to_face(X.specs[f], pcurve, t0, t1, t, curve=curve)
-
-
-#: :func:`_clear_samples` evaluates polynomial NURBS p-curves by scipy's compiled B-spline (tests switch it off).
-_SCIPY_SAMPLES = True
-
-
-def _clear_samples(pcurve, t0: float, t1: float) -> np.ndarray:
-    """The :data:`_CLEAR_SAMPLES` samples ``(n, 2)`` of a p-curve that :func:`_clip`'s quick test boxes.
-
-    A polynomial NURBS (the fitted p-curves of intersection branches, degree 5) by scipy's compiled de Boor
-    evaluation, where ``NurbsCurve.evaluate`` builds the basis functions in numpy at several times the cost;
-    the values agree to round-off, far inside the test's margins (the largest sample step and ``1e-9``
-    relative), which decide only whether the quick answer is taken, never a crossing.
-    """
-    from coons.kernel.curve import NurbsCurve
-
-    t = np.linspace(t0, t1, _CLEAR_SAMPLES)
-    if _SCIPY_SAMPLES and type(pcurve) is NurbsCurve and not pcurve.is_rational:
-        (lo, hi) = pcurve.domain
-        if lo <= min(t0, t1) and max(t0, t1) <= hi:
-            from scipy.interpolate import BSpline
-
-            return BSpline(pcurve.knots, pcurve.control_points, pcurve.degree)(t)
-    return np.asarray(pcurve.evaluate(t), dtype=np.float64)
 
 
 def _slopes(X: _Operand, f: int) -> np.ndarray:

@@ -1,11 +1,11 @@
 """Several polynomial NURBS curves evaluated as one batch.
 
 The checks and the mass integrals evaluate the fitted curves of a Boolean (intersection curves
-and their p-curves: a few dozen small cubic B-splines) one object at a time, and at a few
-hundred points each the fixed cost of a call (span search, basis recursion, contraction, some
-thirty numpy calls) dominates.  :func:`stacked_derivatives` concatenates the knot vectors and
-the nets of curves of one degree and evaluates them together: one span search per curve, then
-one basis evaluation and one contraction for all points.  A span's knot window
+and their p-curves: a few dozen small polynomial B-splines, degree 5 for the fits) one object at
+a time, and at a few hundred points each the fixed cost of a call (span search, basis recursion,
+contraction, some thirty numpy calls) dominates.  :func:`stacked_derivatives` concatenates the
+knot vectors and the nets of curves of one degree and evaluates them together: one span search
+per curve, then one basis evaluation and one contraction for all points.  A span's knot window
 ``U[span + 1 - p .. span + p]`` stays inside its own curve's knots, so the basis recursion
 (The NURBS Book A2.2 / A2.3) reads the same knots, and does the same floating-point operations
 in the same order, as :meth:`NurbsCurve.derivatives` (its numpy path) point by point: the

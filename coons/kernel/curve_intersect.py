@@ -639,7 +639,8 @@ _SCALAR_SEEDS = 4
 
 def _scalar_form(curve: Any) -> tuple | None:
     """``("line", o, d)``, ``("trig", C, A, B)`` or, for a clamped polynomial NURBS, ``("poly", breaks, coef)``
-    (:meth:`_PowerForm.scalar`) as lists of floats for :func:`_point1`, None for other curves."""
+    (:meth:`_PowerForm.scalar`: the breaks as a list of floats, the coefficients as span-indexed lists,
+    :class:`_SpanLists`) for :func:`_point1`, None for other curves."""
     lin = _linear(curve)
     if lin is not None:
         return ("line", lin[0].tolist(), lin[1].tolist())

@@ -72,7 +72,8 @@ direction rule).  The ellipses of two equal cylinders are cut at the points wher
 on a handful of values: where every p-curve coordinate is exact, the branch's window is clipped
 to the boxes in Python floats (``_exact_runs``), and the measured deviation evaluates the curves
 without their argument checks (``_curve_points`` and its siblings); both repeat the array
-expressions value for value, so the branches are the same bit for bit.  Many plane–cylinder
+expressions value for value, so the branches are the same bit for bit (fitted p-curves are sampled
+by scipy's B-spline, :func:`~coons.kernel.curve.spline_points`, to round-off).  Many plane–cylinder
 pairs with the plane perpendicular to the axis (a plate against the walls of its holes) are
 solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
 it); it takes only pairs clear of every near-tie and leaves the rest to this dispatcher.
@@ -94,7 +95,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
@@ -112,7 +113,7 @@ from coons.kernel.analytic import (
 )
 from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
-from coons.kernel.curve import NurbsCurve
+from coons.kernel.curve import NurbsCurve, spline_points
 from coons.kernel.fitting import _averaging
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -163,8 +164,6 @@ _FIT_DEGREE = 5
 #: another round.  Only the start: the refinement guarantees the bound.
 _FIT_START = 21
 _FIT_GRADE = 0.5
-#: :func:`_finished` measures fitted branches on the fits' scipy splines (tests switch it off to compare).
-_SPLINE_CHECK = True
 #: Relative inset from a sphere pole where a p-curve's longitude is taken (sqrt of double eps).
 _POLE_INSET = 1.5e-8
 #: Offset (1/π, irrational) of sample positions within their spacing, so that samples miss the
@@ -967,13 +966,7 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
             knots, ctrl = spline.t, spline.c
             p = _FIT_DEGREE
             pcurves = [NurbsCurve(ctrl[:, 3:5], knots, p), NurbsCurve(ctrl[:, 5:7], knots, p)]
-
-            def values(tt: np.ndarray, spline=spline) -> tuple:
-                G = spline(tt)
-                return G[:, :3], G[:, 3:5], G[:, 5:7]
-
-            return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False,
-                             values)
+            return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False)
         worst = float(e.max())
         count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1,
                         _MAX_FIT_SPLIT).astype(np.int64)
@@ -1697,10 +1690,9 @@ def _shift(coord: _Coord, t_mid: float, lo: float, hi: float, slack: float) -> f
 
 
 def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: float, surface, curve,
-                   tol: Tolerance, splines: list | None = None):
+                   tol: Tolerance):
     """``(p-curve, deviation)`` over ``[s0, s1]`` with periodic shifts ``du, dv``: Line2D or Trig2D (deviation 0:
-    measured later with the branch), or a fitted 2-D NURBS and its measured deviation (its scipy spline
-    appended to ``splines`` when given)."""
+    measured later with the branch), or a fitted 2-D NURBS and its measured deviation."""
     if cu.exact and cv.exact:  # (the coefficients as Python floats: the same values, cheaper to pack)
         (ou, su, au, bu), (ov, sv, av, bv) = cu.coef.tolist(), cv.coef.tolist()
         if au == 0.0 and bu == 0.0 and av == 0.0 and bv == 0.0:
@@ -1708,7 +1700,7 @@ def _public_pcurve(cu: _Coord, cv: _Coord, s0: float, s1: float, du: float, dv: 
         if su == 0.0 and sv == 0.0 and au * bv - av * bu != 0.0:
             return Trig2D([ou + du, ov + dv], [au, av], [bu, bv]), 0.0
     return _fitted_pcurve(lambda t: _pair_values(cu, cv, t) + np.array([du, dv]), s0, s1, surface, curve, tol,
-                          pointwise=True, splines=splines)
+                          pointwise=True)
 
 
 def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
@@ -1734,14 +1726,13 @@ def _fit_start(s0: float, s1: float) -> np.ndarray:
     return t
 
 
-def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False,
-                   max_split: int = _MAX_FIT_SPLIT, splines: list | None = None):
+def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False):
     """``(p-curve, deviation)``: interpolation of the exact parameters ``f(t)`` by a spline of degree
     :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by scipy's
     banded collocation of ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
     adaptively: every interval whose image on
     ``surface`` misses ``curve`` by ``e`` more than ``b = tol.linear / 2`` at its quarter points is cut into
-    ``ceil((e / b)^(1/(p+1)))`` equal parts (at least two, at most ``max_split + 1``) by new samples, until
+    ``ceil((e / b)^(1/(p+1)))`` equal parts (at least two, at most ``_MAX_FIT_SPLIT + 1``) by new samples, until
     none misses: the error of the interpolant falls with the ``p + 1``-th power of the spacing, so one round
     usually brings an interval within ``b`` where halving took several (each round refits and re-measures
     every interval).
@@ -1750,8 +1741,6 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
     samples of a fit, the checks and the per-call costs of ``interpolate_curve`` and
     ``NurbsCurve.evaluate`` were most of the time.
-
-    ``splines``: when given, the accepted scipy spline is appended to it (:func:`_finished` evaluates it).
 
     ``pointwise``: ``f``'s value at a parameter does not depend on the other parameters passed
     with it (a :class:`_Coord` pair), so each round evaluates only the new samples; otherwise
@@ -1777,10 +1766,9 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
         worst = float(e.max())
         bad = np.flatnonzero(e > bound)
         if bad.size == 0:
-            if splines is not None:
-                splines.append(spline)
             return NurbsCurve(spline.c, spline.t, _FIT_DEGREE), worst
-        count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1, max_split).astype(np.int64)
+        count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1,
+                        _MAX_FIT_SPLIT).astype(np.int64)
         owner, j = interval_cuts(bad, count)
         new = t[owner] + j * (t[owner + 1] - t[owner])
         if pointwise:
@@ -1995,22 +1983,13 @@ def _against(curve, t: float, a, b) -> bool:
 def _piece(curve, coords, s0, s1, a, b, boxes, slack, closed: bool, tangent: bool, tol: Tolerance):
     """The branch ``curve([s0, s1])`` with its p-curves shifted into the boxes."""
     tm = 0.5 * (s0 + s1)
-    pcurves, splines = [], []
+    pcurves = []
     for s, box, (cu, cv) in zip((a, b), boxes, coords):
         du = _shift(cu, tm, *box[0], slack)
         dv = _shift(cv, tm, *box[1], slack)
-        fits: list = []
-        pcurves.append(_public_pcurve(cu, cv, s0, s1, du, dv, s, curve, tol, fits))
-        splines.append(fits[0] if fits else None)
+        pcurves.append(_public_pcurve(cu, cv, s0, s1, du, dv, s, curve, tol))
     fit_dev = max(dev for _, dev in pcurves)
-    pcs = [pc for pc, _ in pcurves]
-    values = None
-    if any(sp is not None for sp in splines) and math.isfinite(s0) and math.isfinite(s1):
-        def values(t: np.ndarray) -> tuple:
-            trig = (np.cos(t), np.sin(t))
-            uv = [_pcurve_points(pc, t, trig) if sp is None else sp(t) for pc, sp in zip(pcs, splines)]
-            return _curve_points(curve, t, trig), uv[0], uv[1]
-    return _finished(curve, s0, s1, pcs, fit_dev, a, b, closed, tangent, values)
+    return _finished(curve, s0, s1, [pc for pc, _ in pcurves], fit_dev, a, b, closed, tangent)
 
 
 def _conic_piece(section: _ConeSection, s0: float, s1: float, a, b, boxes, tol: Tolerance) -> IntersectionCurve:
@@ -2037,11 +2016,7 @@ def _conic_piece(section: _ConeSection, s0: float, s1: float, a, b, boxes, tol: 
             uv[:, 0] += TWO_PI * math.ceil((lo - mid) / TWO_PI) if math.isfinite(lo) else 0.0
             return uv
 
-        # Halving only (max_split 1): with larger cuts the arc's p-curves come out on other samples,
-        # and OCCT's BRepMesh of the result converted to OCCT then leaves a cone face
-        # (tests/booleans/test_solid_vs_occt.py, box-cone-0 intersection; coons's own result is the
-        # same within its tolerance: volume to 1e-8).
-        fitted, dev = _fitted_pcurve(f, 0.0, 1.0, s, arc, tol, max_split=1)
+        fitted, dev = _fitted_pcurve(f, 0.0, 1.0, s, arc, tol)
         pcurves.append(fitted)
         fit_dev = max(fit_dev, dev)
     return _finished(arc, 0.0, 1.0, pcurves, fit_dev, a, b, False, False)
@@ -2083,23 +2058,17 @@ def _runs(br: np.ndarray, ok: np.ndarray, hard: np.ndarray, wrap: bool) -> list[
     return [tuple(r) for r in runs]
 
 
-def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool,
-              values: Callable | None = None) -> IntersectionCurve:
+def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangent: bool) -> IntersectionCurve:
     """The branch with its measured deviation (the fits' own, and on samples between their nodes).
 
-    ``values``: ``t -> (curve points, p-curve a's, p-curve b's)`` at finite ``t`` from the scipy splines the
-    fits made (:func:`_piece`, :func:`_loop_piece`): one compiled evaluation where ``NurbsCurve.evaluate`` of
-    a degree-5 fit costs a basis evaluation per curve; the same points to round-off.
+    Fitted (polynomial NURBS) curves are sampled by :func:`~coons.kernel.curve.spline_points`
+    (``_curve_points``, ``_pcurve_points``): the same points to round-off.
 
     Mirrored for many plane–cylinder pairs at once by :func:`_plane_cylinder_circles`: keep the two in step.
     """
     # An irrational offset keeps the samples off the interpolation nodes of fitted p-curves.
     t = s0 + (s1 - s0) * _CHECK_FRACTIONS
-    if values is not None and _SPLINE_CHECK:
-        P, uv_a, uv_b = values(t)
-        Pa = _surface_points(a, uv_a[:, 0], uv_a[:, 1])
-        Pb = _surface_points(b, uv_b[:, 0], uv_b[:, 1])
-    elif math.isfinite(s0) and math.isfinite(s1):  # (else evaluate raises its own error)
+    if math.isfinite(s0) and math.isfinite(s1):  # (else evaluate raises its own error)
         trig = (np.cos(t), np.sin(t))
         P = _curve_points(curve, t, trig)
         Pa = _surface_points(a, *_pcurve_points(pcurves[0], t, trig).T)
@@ -2118,7 +2087,8 @@ def _finished(curve, s0, s1, pcurves, fit_dev: float, a, b, closed: bool, tangen
 # The three evaluations below are those of the types' ``evaluate`` methods, expression for expression
 # (so bit for bit: tests/kernel/test_intersect.py compares them), without their argument checks:
 # ``_finished`` passes finite parameter arrays, and the checks cost more than the arithmetic on its
-# few samples.  ``trig`` is ``(cos t, sin t)`` when the caller has them.
+# few samples.  ``trig`` is ``(cos t, sin t)`` when the caller has them.  Other types go to
+# ``spline_points``: a polynomial NURBS at many parameters by scipy's B-spline (round-off, not bits).
 def _curve_points(curve, t: np.ndarray, trig=None) -> np.ndarray:
     """``curve.evaluate(t)`` for finite ``t`` ``(k,)``: ``(k, 3)``."""
     kind = type(curve)
@@ -2129,7 +2099,7 @@ def _curve_points(curve, t: np.ndarray, trig=None) -> np.ndarray:
         ra, rb = curve._radii()
         X, Y, _ = curve._frame
         return ((ra * c)[..., None] * X + (rb * s)[..., None] * Y) + curve._origin
-    return curve.evaluate(t)
+    return spline_points(curve, t)
 
 
 def _curve_tangents(curve, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -2155,7 +2125,7 @@ def _pcurve_points(pcurve, t: np.ndarray, trig=None) -> np.ndarray:
     if kind is Trig2D:
         c, s = trig if trig is not None else (np.cos(t), np.sin(t))
         return pcurve.center + c[..., None] * pcurve.a + s[..., None] * pcurve.b
-    return pcurve.evaluate(t)
+    return spline_points(pcurve, t)
 
 
 def _surface_points(surface, u: np.ndarray, v: np.ndarray) -> np.ndarray:

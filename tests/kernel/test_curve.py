@@ -187,3 +187,34 @@ def test_small_batches_on_python_floats_give_the_numpy_bits(c):
         curve_module._SCALAR_POINTS = old
     assert np.array_equal(fast, slow)
     assert np.array_equal(c.evaluate(u[:curve_module._SCALAR_POINTS]), slow[:curve_module._SCALAR_POINTS, 0])
+
+
+@pytest.mark.parametrize("degree", [3, 5])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_spline_points_of_polynomial_curves_by_scipy_agree_with_evaluate(degree, dim, monkeypatch):
+    """``spline_points`` takes scipy's B-spline for a polynomial curve at many in-domain parameters (the spline is
+    kept on the curve) with evaluate's points to round-off; otherwise, or switched off, it is ``evaluate``."""
+    import coons.kernel.curve as C
+
+    rng = np.random.default_rng(7 * degree + dim)
+    n = 3 * degree
+    inner = np.sort(rng.uniform(0.5, 3.0, n - degree - 1))
+    U = np.concatenate([[0.5] * (degree + 1), inner, [3.0] * (degree + 1)])
+    P = rng.uniform(-4.0, 4.0, (n, dim))
+    curve = NurbsCurve(P, U, degree)
+    u = np.concatenate([[0.5, 3.0], inner, rng.uniform(0.5, 3.0, 61)])
+    got = C.spline_points(curve, u)
+    assert "_bspline" in curve.__dict__  # (the scipy path was taken)
+    np.testing.assert_allclose(got, curve.evaluate(u), rtol=0, atol=1e-13 * np.abs(P).max())
+    # Few points, a rational curve, parameters outside the domain or not finite: evaluate, bit for bit or its error.
+    fresh = NurbsCurve(P, U, degree)
+    np.testing.assert_array_equal(C.spline_points(fresh, u[:C._SCALAR_POINTS]), fresh.evaluate(u[:C._SCALAR_POINTS]))
+    rational = NurbsCurve(P, U, degree, rng.uniform(0.5, 2.0, n))
+    np.testing.assert_array_equal(C.spline_points(rational, u), rational.evaluate(u))
+    for bad in (np.linspace(0.0, 3.0, 10), np.linspace(0.5, 3.5, 10), np.r_[np.linspace(0.5, 3.0, 9), np.nan]):
+        with pytest.raises(InvalidInputError):
+            C.spline_points(fresh, bad)
+    assert "_bspline" not in fresh.__dict__ and "_bspline" not in rational.__dict__
+    monkeypatch.setattr(C, "_SCIPY_POINTS", False)
+    np.testing.assert_array_equal(C.spline_points(fresh, u), fresh.evaluate(u))
+    assert "_bspline" not in fresh.__dict__

@@ -1213,15 +1213,26 @@ def test_batched_plane_cylinder_circles_take_the_plate_pairs():
 
 @pytest.mark.parametrize("offset", [(4.0, 2.0, 0.5), (1.0, -3.0, 2.5)])
 def test_sphere_fit_deviation_measured_on_the_splines_matches_the_curves(offset, monkeypatch):
-    """Fitted p-curves of oblique circles on spheres are measured on their scipy splines (``_SPLINE_CHECK``): the
-    same deviation, to round-off, as on the NURBS p-curves."""
+    """Fitted p-curves of oblique circles on spheres are measured by scipy's B-spline (``spline_points``,
+    ``_SCIPY_POINTS``): the same deviation, to round-off, as by ``NurbsCurve.evaluate``."""
+    import coons.kernel.curve as C
     import coons.kernel.intersect as I
 
     s1 = SphericalSurface([0, 0, 0], Z, X, 5.0)
     s2 = SphericalSurface(offset, Z, X, 5.0)
     boxes = (((-math.pi, math.pi), (-math.pi / 2, math.pi / 2)), ((0.0, 2 * math.pi), (-math.pi / 2, math.pi / 2)))
+    calls = []
+    finished = I._finished
+
+    def spy(curve, s0, s1, pcurves, *args):
+        out = finished(curve, s0, s1, pcurves, *args)
+        calls.append(any("_bspline" in pc.__dict__ for pc in pcurves))  # (the fits are new: _finished sampled them)
+        return out
+
+    monkeypatch.setattr(I, "_finished", spy)
     fast = run(s1, s2, *boxes)
-    monkeypatch.setattr(I, "_SPLINE_CHECK", False)
+    assert calls and all(calls)  # every branch measured its fitted p-curves by scipy's spline
+    monkeypatch.setattr(C, "_SCIPY_POINTS", False)
     slow = run(s1, s2, *boxes)
     assert len(fast.curves) == len(slow.curves) and any(isinstance(c.pcurve_a, NurbsCurve) for c in fast.curves)
     for f, s in zip(fast.curves, slow.curves):

@@ -335,20 +335,24 @@ def test_a_box_bound_just_inside_a_turn_between_grid_points_cuts_the_loop(row, p
 
 @pytest.mark.parametrize("case", range(14))
 def test_fit_deviation_measured_on_the_splines_matches_the_curves(case, monkeypatch):
-    """``_finished`` measures a fitted loop piece on the fit's scipy spline (``_SPLINE_CHECK``): the same branches
-    and the same deviation, to round-off, as measured on the NURBS curves themselves."""
+    """``_finished`` measures a fitted loop piece by scipy's B-spline (``spline_points``, ``_SCIPY_POINTS``): the
+    same branches and the same deviation, to round-off, as measured by ``NurbsCurve.evaluate``."""
+    import coons.kernel.curve as C
+
     a, b, box_a, box_b = _seeded_cases()[case]
     calls = []
     finished = ix._finished
 
-    def spy(*args, **kwargs):
-        calls.append(len(args) > 9 and args[9] is not None)
-        return finished(*args, **kwargs)
+    def spy(curve, s0, s1, pcurves, *args):
+        out = finished(curve, s0, s1, pcurves, *args)
+        # (the fits are new: _finished sampled all three by scipy's spline, kept on each curve)
+        calls.append(all("_bspline" in c.__dict__ for c in (curve, *pcurves)))
+        return out
 
     monkeypatch.setattr(ix, "_finished", spy)
     fast = intersect_surfaces(a, b, box_a, box_b)
     assert calls and all(calls)  # every loop piece took the spline path
-    monkeypatch.setattr(ix, "_SPLINE_CHECK", False)
+    monkeypatch.setattr(C, "_SCIPY_POINTS", False)
     slow = intersect_surfaces(a, b, box_a, box_b)
     assert len(fast.curves) == len(slow.curves)
     for f, s in zip(fast.curves, slow.curves):

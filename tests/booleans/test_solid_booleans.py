@@ -942,10 +942,8 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     assert again == first and len(calls) == n  # nothing tried again
 
 
-def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
-    """The merge's batched full-period test rejects only pairs that _merged_pair rejects, and
-    takes the half cylinders of a plate drilled in one call (at off-grid places and depths)."""
-    t = S.resolve(None)
+def _wrapping_pairs_seen(monkeypatch) -> list:
+    """A list that collects ``(A, B, up, uq, wraps)`` of every pair _wrapping_pairs decides from now on."""
     seen = []
     real = S._wrapping_pairs
 
@@ -955,6 +953,14 @@ def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
         return out
 
     monkeypatch.setattr(S, "_wrapping_pairs", spy)
+    return seen
+
+
+def test_wrapping_pairs_decide_as_merged_pair(monkeypatch):
+    """The merge's batched full-period test rejects only pairs that _merged_pair rejects, and
+    takes the half cylinders of a plate drilled in one call (at off-grid places and depths)."""
+    t = S.resolve(None)
+    seen = _wrapping_pairs_seen(monkeypatch)
     tools = [Cylinder(1.5 + 0.2 * i, 20).translate((-8.7 + 8.1 * i, -7.3 + 7.9 * j, -1.3 * j)) for i in range(3)
              for j in range(3)]
     r = _ok(S.difference(Box(30, 30, 10), *tools))
@@ -971,15 +977,7 @@ def test_wrapping_pairs_equal_the_pairwise_full_period_test(monkeypatch):
     (an arc of 240 degrees across one seam) do not, and merge."""
     from coons.kernel.pcurve import Line2D
 
-    seen = []
-    real = S._wrapping_pairs
-
-    def spy(faces, fpq, upq):
-        out = real(faces, fpq, upq)
-        seen.extend((faces[fp], faces[fq], tuple(up), tuple(uq), w) for (fp, fq), (up, uq), w in zip(fpq, upq, out))
-        return out
-
-    monkeypatch.setattr(S, "_wrapping_pairs", spy)
+    seen = _wrapping_pairs_seen(monkeypatch)
     _ok(Box(10, 10, 4) - Cylinder(2, 10))
     flat = _ok(Cylinder(2, 10) - Box(2, 6, 20).translate((2, 0, 0)))
     assert _types(flat) == {"plane": 3, "cylinder": 1}

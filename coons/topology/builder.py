@@ -744,6 +744,9 @@ class BRepBuilder:
                     self.fouter[f] = l
                 cs = []
                 for ref in loop:
+                    if isinstance(ref, bool) or not (isinstance(ref, (int, np.integer)) or (
+                            isinstance(ref, (float, np.floating)) and float(ref).is_integer())):
+                        raise InvalidInputError(f"face {fi}: edge reference {ref!r} must be a signed integer")
                     if ref == 0 or abs(ref) > len(edges):
                         raise TopologyError(f"face {fi}: edge reference {ref} out of range 1..{len(edges)}")
                     e = abs(int(ref)) - 1
@@ -789,7 +792,10 @@ class BRepBuilder:
         lens = list(map(len, chain.from_iterable(face_loops)))
         if any(x is not None and len(x) < len(face_loops) for x in (face_surfaces, face_senses)):
             return None  # (the per-coedge path fails on the missing entry)
-        refs = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.int64, count=sum(lens))
+        try:
+            refs = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.int64, count=sum(lens))
+        except (OverflowError, ValueError, TypeError):
+            return None  # (references that are no int64: the per-coedge path names the fault)
         lens_a = np.asarray(lens, dtype=np.int64)
         bulk = _bulk_loops(edges, len(self.vpoint) - v_off, refs, lens_a)
         if bulk is None:

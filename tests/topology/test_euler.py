@@ -145,6 +145,20 @@ def test_build_refuses_an_open_shell():
         b2.assemble(np.eye(3), [[0, 1], [1, 2], [2, 0]], [[[1, 2, 3]]])
 
 
+@pytest.mark.parametrize("ref, error, match", [
+    (2 ** 70, TopologyError, "out of range"),  # (no int64: the bulk path declines, the per-coedge path names it)
+    ("x", InvalidInputError, "must be a signed integer"),
+    (1.5, InvalidInputError, "must be a signed integer"),
+    (None, InvalidInputError, "must be a signed integer"),
+])
+def test_assemble_refuses_edge_references_that_are_no_signed_integers(ref, error, match):
+    P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    E = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]]
+    faces = [[[-3, -2, ref]], [[1, 5, -4]], [[2, 6, -5]], [[3, 4, -6]]]
+    with pytest.raises(error, match=match):
+        BRepBuilder().assemble(P, E, faces)
+
+
 def test_assemble_tetrahedron_and_check_catches_inward_orientation():
     P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     E = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]]

@@ -347,6 +347,12 @@ def _fold(op: str, solids: tuple, tol: Tolerance | None, method: str) -> Solid:
     for i, s in enumerate(solids):
         if not isinstance(s, Solid):
             raise InvalidInputError(f"{op}: argument {i} must be a coons Solid, got {type(s).__name__}")
+    # (the gathering of many tools allocates as the pipeline does: the collector paused over the whole call)
+    with _collector_paused():
+        return _folded(op, solids, t, method)
+
+
+def _folded(op: str, solids: tuple, t: Tolerance, method: str) -> Solid:
     if op == "difference" and len(solids) > 2:
         out = solids[0]
         for group in _disjoint_groups(solids[1:], t):

@@ -1350,6 +1350,25 @@ def test_collector_paused_during_the_pipeline_and_restored(monkeypatch):
         gc.enable()
 
 
+def test_collector_paused_over_an_n_ary_call(monkeypatch):
+    """An n-ary difference gathers its tools (boxes, groups, stacked B-reps) with the collector off too, and
+    turns it back on after."""
+    import gc
+
+    seen = []
+    real = S._disjoint_groups
+
+    def spy(solids, t):
+        seen.append(gc.isenabled())
+        return real(solids, t)
+
+    monkeypatch.setattr(S, "_disjoint_groups", spy)
+    assert gc.isenabled()
+    r = S.difference(Box(20, 20, 4), *[Cylinder(1, 10).translate((6.0 * i, 0, 0)) for i in (-1, 0, 1)])
+    assert seen == [False] and gc.isenabled()
+    assert abs(r.volume - (1600 - 3 * np.pi * 4)) < 1e-9
+
+
 def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     """_boolean maps to their operand only the uses of A's split faces and of B; every use the
     T-junction pass looks up (those of faces not passed through whole) gets the operand a map

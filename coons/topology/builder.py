@@ -793,9 +793,13 @@ class BRepBuilder:
         if any(x is not None and len(x) < len(face_loops) for x in (face_surfaces, face_senses)):
             return None  # (the per-coedge path fails on the missing entry)
         try:
-            refs = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.int64, count=sum(lens))
+            # (read as floats, exact for integers up to 2**53, so that a non-integer reference is seen, not truncated)
+            real = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.float64, count=sum(lens))
         except (OverflowError, ValueError, TypeError):
-            return None  # (references that are no int64: the per-coedge path names the fault)
+            return None  # (references that are no numbers: the per-coedge path names the fault)
+        if real.size and not (np.all(np.trunc(real) == real) and np.max(np.abs(real)) <= 2.0 ** 53):
+            return None  # (non-integer or huge references: likewise)
+        refs = real.astype(np.int64)
         lens_a = np.asarray(lens, dtype=np.int64)
         bulk = _bulk_loops(edges, len(self.vpoint) - v_off, refs, lens_a)
         if bulk is None:

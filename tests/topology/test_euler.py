@@ -157,6 +157,11 @@ def test_assemble_refuses_edge_references_that_are_no_signed_integers(ref, error
     faces = [[[-3, -2, ref]], [[1, 5, -4]], [[2, 6, -5]], [[3, 4, -6]]]
     with pytest.raises(error, match=match):
         BRepBuilder().assemble(P, E, faces)
+    if isinstance(ref, float):
+        # In place of a valid reference (-1, which the bulk path would take), -1.5 is refused, not truncated.
+        faces[0][0][2] = -1.5
+        with pytest.raises(InvalidInputError, match="must be a signed integer"):
+            BRepBuilder().assemble(P, E, faces)
 
 
 def test_assemble_tetrahedron_and_check_catches_inward_orientation():

@@ -181,8 +181,8 @@ Status and limitations
   face whose spec passed an earlier clean check (a face extending such a spec by new loops has
   only its new loops' segment pairs tested); sewing records which faces equal their spec (in arrays, while sewing),
   which the next Boolean reads instead of comparing the B-rep with the specs; every other
-  invariant is verified on the whole result.  The cyclic garbage collector is paused inside
-  the pipeline (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.
+  invariant is verified on the whole result.  The cyclic garbage collector is paused over
+  every public union, difference and intersection call (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.
   Reused as well: an operand's mesh when it was tessellated before (meshes are cached per
   B-rep; a result with voids shares the mesh its void nesting made, when it made one).  Local: the face boxes of
   the broad phase (per face spec, from its edges, no tessellation); the end tolerance of a cut
@@ -347,7 +347,8 @@ def _fold(op: str, solids: tuple, tol: Tolerance | None, method: str) -> Solid:
     for i, s in enumerate(solids):
         if not isinstance(s, Solid):
             raise InvalidInputError(f"{op}: argument {i} must be a coons Solid, got {type(s).__name__}")
-    # (the gathering of many tools allocates as the pipeline does: the collector paused over the whole call)
+    # The collector paused over the whole call (every union/difference/intersection, binary and polyhedral
+    # ones too): an n-ary call's gathering of many tools allocates as the pipeline does (_collector_paused).
     with _collector_paused():
         return _folded(op, solids, t, method)
 

@@ -792,14 +792,15 @@ class BRepBuilder:
         lens = list(map(len, chain.from_iterable(face_loops)))
         if any(x is not None and len(x) < len(face_loops) for x in (face_surfaces, face_senses)):
             return None  # (the per-coedge path fails on the missing entry)
+        flat = list(chain.from_iterable(chain.from_iterable(face_loops)))
+        # Python or numpy integers only (not bools, floats or strings, which int64 conversion would
+        # truncate or parse): anything else goes to the per-coedge path, which names it.
+        if not all(type(r) is int or isinstance(r, np.integer) for r in flat):
+            return None
         try:
-            # (read as floats, exact for integers up to 2**53, so that a non-integer reference is seen, not truncated)
-            real = np.fromiter(chain.from_iterable(chain.from_iterable(face_loops)), dtype=np.float64, count=sum(lens))
-        except (OverflowError, ValueError, TypeError):
-            return None  # (references that are no numbers: the per-coedge path names the fault)
-        if real.size and not (np.all(np.trunc(real) == real) and np.max(np.abs(real)) <= 2.0 ** 53):
-            return None  # (non-integer or huge references: likewise)
-        refs = real.astype(np.int64)
+            refs = np.fromiter(flat, dtype=np.int64, count=len(flat))
+        except OverflowError:
+            return None  # (beyond int64: the per-coedge path reports it out of range)
         lens_a = np.asarray(lens, dtype=np.int64)
         bulk = _bulk_loops(edges, len(self.vpoint) - v_off, refs, lens_a)
         if bulk is None:

@@ -157,11 +157,16 @@ def test_assemble_refuses_edge_references_that_are_no_signed_integers(ref, error
     faces = [[[-3, -2, ref]], [[1, 5, -4]], [[2, 6, -5]], [[3, 4, -6]]]
     with pytest.raises(error, match=match):
         BRepBuilder().assemble(P, E, faces)
-    if isinstance(ref, float):
-        # In place of a valid reference (-1, which the bulk path would take), -1.5 is refused, not truncated.
-        faces[0][0][2] = -1.5
+    # In place of a valid reference (-1, which the bulk path would take), what int64 conversion would truncate
+    # or parse is refused.
+    for bad in (-1.5, np.float64(-1.5), "-1", True):
+        faces[0][0][2] = bad
         with pytest.raises(InvalidInputError, match="must be a signed integer"):
             BRepBuilder().assemble(P, E, faces)
+    faces[0][0][2] = np.int32(-1)  # (numpy integers are references)
+    b = BRepBuilder()
+    b.assemble(P, E, faces)
+    assert check(b.build(check=False)).ok
 
 
 def test_assemble_tetrahedron_and_check_catches_inward_orientation():

@@ -182,7 +182,7 @@ Status and limitations
   only its new loops' segment pairs tested); sewing records which faces equal their spec (in arrays, while sewing),
   which the next Boolean reads instead of comparing the B-rep with the specs; every other
   invariant is verified on the whole result.  The cyclic garbage collector is paused over
-  every public union, difference and intersection call (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.
+  every Boolean and over every public union, difference and intersection call (``_collector_paused``).  Where the time goes and what is left: ``docs/performance.md``.
   Reused as well: an operand's mesh when it was tessellated before (meshes are cached per
   B-rep; a result with voids shares the mesh its void nesting made, when it made one).  Local: the face boxes of
   the broad phase (per face spec, from its edges, no tessellation); the end tolerance of a cut
@@ -347,8 +347,8 @@ def _fold(op: str, solids: tuple, tol: Tolerance | None, method: str) -> Solid:
     for i, s in enumerate(solids):
         if not isinstance(s, Solid):
             raise InvalidInputError(f"{op}: argument {i} must be a coons Solid, got {type(s).__name__}")
-    # The collector paused over the whole call (every union/difference/intersection, binary and polyhedral
-    # ones too): an n-ary call's gathering of many tools allocates as the pipeline does (_collector_paused).
+    # The collector paused over the whole call (as _dispatch pauses it over each Boolean, either engine): an
+    # n-ary call's gathering of many tools allocates as the pipeline does (_collector_paused).
     with _collector_paused():
         return _folded(op, solids, t, method)
 
@@ -441,11 +441,11 @@ def is_polyhedral(s: Solid) -> bool:
 
 
 def _dispatch(a: Solid, b: Solid, op: str, t: Tolerance, method: str) -> Solid:
-    if method == "polyhedral" or (method == "auto" and is_polyhedral(a) and is_polyhedral(b)):
-        from coons.booleans import polyhedral
+    with _collector_paused():  # (either engine: a no-op inside _fold's pause)
+        if method == "polyhedral" or (method == "auto" and is_polyhedral(a) and is_polyhedral(b)):
+            from coons.booleans import polyhedral
 
-        return polyhedral.boolean(a, b, op, t)
-    with _collector_paused():
+            return polyhedral.boolean(a, b, op, t)
         return _boolean(a, b, op, t)
 
 
@@ -678,12 +678,12 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     if got is not None and got[0] is S:
         return got[1]
     Ue = _frozen(_edge_uv(e, S, _LOOP_SAMPLES))
-    _USE_SAMPLES[e] = (S, Ue, None)  # (the pad on demand, :func:`_use_pad`)
+    _USE_SAMPLES[e] = (S, Ue, None)  # (the pad on demand, :func:`_use_samples_pad`)
     return Ue
 
 
 def _prefill_samples(specs: list[FaceSpec]) -> None:
-    """Fill :func:`_use_samples` (and :func:`_use_pad`) for the uses of ``specs`` not sampled yet
+    """Fill :func:`_use_samples` (and the pads of :func:`_use_samples_pad`) for the uses of ``specs`` not sampled yet
     whose p-curve is a :class:`Line2D` or :class:`Trig2D`, all in one array pass
     (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own formulas): the pieces of a
     Boolean bring many new cut edges."""
@@ -709,34 +709,27 @@ def _prefill_samples(specs: list[FaceSpec]) -> None:
             if group is lines:
                 pad = [0.0] * len(group)
             else:
-                # np.linalg.norm's sum of squares over the last axis, written out (a short axis reduces slowly)
-                D = np.diff(U, axis=1)
-                pad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1]).max(axis=1).tolist()
+                pad = _norms2(np.diff(U, axis=1)).max(axis=1).tolist()
             for (e, S), Ue, p in zip(group, U, pad):
                 _USE_SAMPLES[e] = (S, Ue, p)
 
 
-def _use_pad(e: EdgeSpec, S) -> float:
-    """How far a use's p-curve may stray from its :func:`_use_samples` polyline: its longest
-    chord (0 for a straight p-curve, sampled by its two ends), cached with the samples."""
-    return _use_samples_pad(e, S)[1]
-
-
 def _use_samples_pad(e: EdgeSpec, S) -> tuple[np.ndarray, float]:
-    """``(_use_samples(e, S), _use_pad(e, S))`` with one cache look-up where both are cached (as
-    :func:`_prefill_samples` leaves them)."""
+    """``(_use_samples(e, S), pad)``: the pad is how far the use's p-curve may stray from its samples'
+    polyline, its longest chord (0 for a straight p-curve, sampled by its two ends); both cached
+    together, one look-up where both are (as :func:`_prefill_samples` leaves them)."""
     got = _USE_SAMPLES.get(e)
     if got is None or got[0] is not S:
         _use_samples(e, S)
         got = _USE_SAMPLES[e]
     if got[2] is None:
         Ue = got[1]
-        pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
+        pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(_norms2(np.diff(Ue, axis=0))))
         got = _USE_SAMPLES[e] = (S, Ue, pad)
     return got[1], got[2]
 
 
-#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface, their pad (:func:`_use_pad`) or None
+#: Edge use -> (surface, its :func:`_edge_uv` samples on that surface, their pad (:func:`_use_samples_pad`) or None
 #: until asked for).
 _USE_SAMPLES: "weakref.WeakKeyDictionary[EdgeSpec, tuple]" = weakref.WeakKeyDictionary()
 
@@ -794,7 +787,7 @@ class _LoopData:
     first is not held, so that the entry dies with it), ``surface``, ``t``;
     ``ring (k, 2)`` (the uses' :func:`_use_samples` in turn), ``seg (k, 2, 2)`` and its padded
     boxes ``seg_lo, seg_hi`` with their union ``seg_min, seg_max (2,)``, the ring's extremes
-    ``rmin, rmax (2,)``, the uses' :func:`_use_boxes` ``use_lo, use_hi (k, 3)`` (infinite where
+    ``rmin, rmax (2,)``, the uses' :func:`_use_box_array` ``use_lo, use_hi (k, 3)`` (infinite where
     there is none), ``box (2, 3)`` their union (None when a use has none) and ``tol`` their
     largest tolerance.
     """
@@ -974,11 +967,11 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
 
     The space box ``(2, 3)`` (rows ``lo, hi``) contains the face, padded by its edges'
     tolerances and ``t.linear``; it is None when an edge's curve has no proven box
-    (:func:`_use_boxes`) or the surface's type is not handled (:func:`_interior_extremes`).
+    (:func:`_use_box_array`) or the surface's type is not handled (:func:`_interior_extremes`).
     Each coordinate ``x_k ∘ S`` is a smooth function of ``(u, v)`` on the face's parameter
     region ``D`` (compact), so its extremes lie on ``∂D`` or at interior critical points.  The
     image of ``∂D`` lies within the edge tolerances of the edge curves (``S(pcurve(t)) ≈
-    curve(t)``; a gap at a pole maps to the vertex there), boxed by :func:`_use_boxes`.  The
+    curve(t)``; a gap at a pole maps to the vertex there), boxed by :func:`_use_box_array`.  The
     critical points add nothing on a plane (``x_k`` affine in ``(u, v)``), a cylinder or a cone
     (``x_k`` is affine along each ruling ``u = const``, so where its gradient vanishes it is
     constant along the whole ruling, which reaches ``∂D``); :func:`_interior_extremes` gives
@@ -2450,8 +2443,7 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     Q = _cut_samples(cuts)  # (n, _CLEAR_SAMPLES, 2)
     if Q is None or not np.all(np.isfinite(Q)):
         return None
-    D = np.diff(Q, axis=1)
-    step = np.max(np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1]), axis=1)  # (np.linalg.norm's sum, written out)
+    step = np.max(_norms2(np.diff(Q, axis=1)), axis=1)
     margin = step + 1e-9 * (1.0 + np.max(np.abs(Q), axis=(1, 2)))
     Q_lo, Q_hi = _middle_extremes(Q)
     lo, hi = Q_lo - margin[:, None], Q_hi + margin[:, None]
@@ -2540,6 +2532,12 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
         islands.append(FaceSpec._trusted(spec.surface, spec.sense, (tuple(uses),)))
         out_loops.append(tuple(_reversed_use(e) for e in reversed(uses)))
     return [FaceSpec._trusted(spec.surface, spec.sense, tuple(out_loops))] + islands
+
+
+def _norms2(D: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(D, axis=-1)`` of 2-D rows ``D (..., 2)``, written out: the same sum of squares and root
+    (the same floats), where numpy reduces a short last axis row by row, several times slower."""
+    return np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1])
 
 
 def _middle_extremes(Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -3829,7 +3827,7 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     (at least ``tol.linear``).  An unchanged edge use can only be split by a foreign vertex
     (``face_foreign``, the foreign vertices in an unchanged face's box, else
     ``foreign_of[operand of the use]``; a new use has none and is never clear): a use is clear
-    when no such vertex lies in its box (:func:`_use_boxes`) padded by both tolerances.  All uses
+    when no such vertex lies in its box (:func:`_use_box_array`) padded by both tolerances.  All uses
     of one group against all their foreign vertices in one array test (a plate face with many
     holes has many edges).
     """
@@ -3838,13 +3836,12 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     for key in np.unique(keys).tolist():
         if key != -1 and key not in foreign_of:
             continue
-        rows = np.flatnonzero(keys == key).tolist()
-        boxes = _use_boxes([edges[i] for i in rows])
-        idx = np.array([i for i, b in zip(rows, boxes) if b is not None], dtype=np.int64)
+        rows = np.flatnonzero(keys == key)
+        B, none = _use_box_array([edges[i] for i in rows.tolist()])
+        idx, B = rows[~none], B[~none]
         if idx.size == 0:
             continue
         P, ptol = face_foreign if key == -1 else foreign_of[key]
-        B = np.concatenate([b for b in boxes if b is not None]).reshape(-1, 2, 3)
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
         for s0 in range(0, idx.size, step):
             pad = ptol[None, :] + thr[idx[s0 : s0 + step], None]  # (n, m)
@@ -3895,8 +3892,10 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
 
 
 def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_use_boxes` stacked: ``(k, 2, 3)`` boxes (rows ``-inf, inf`` where there is none) and
-    ``(k,)`` bool where there is none.  The uses not cached yet are boxed together and their rows
+    """:func:`_edge_boxes` of each use as one array, cached per use (an EdgeSpec is immutable; the uses of
+    the faces a Boolean result carries over to the next Boolean are the same objects, ``sew.sewn_from``, so
+    their boxes are computed once for a chain of cuts): ``(k, 2, 3)`` boxes (rows ``-inf, inf`` where there
+    is none) and ``(k,)`` bool where there is none.  The uses not cached yet are boxed together and their rows
     filled from that batch in one assignment (an operand of a hundred tools brings a thousand new
     uses: stacking their row views again cost more than boxing them)."""
     n = len(edges)
@@ -3922,20 +3921,6 @@ def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
 
 #: The row :func:`_use_box_array` gives a use without a box.
 _NO_BOX_ROW = np.array([[-np.inf] * 3, [np.inf] * 3])
-
-
-def _use_boxes(edges: list[EdgeSpec]) -> list[np.ndarray | None]:
-    """:func:`_edge_boxes` of each use, cached per use (an EdgeSpec is immutable; one memo look-up
-    for all, the missing ones boxed together by :func:`_edge_boxes`).  The uses of the faces a
-    Boolean result carries over to the next Boolean are the same objects (``sew.sewn_from``): their boxes
-    are computed once for a chain of cuts."""
-    out = _USE_BOXES.get_many(edges)
-    todo = [k for k, got in enumerate(out) if got is None]
-    if todo:
-        for k, got in zip(todo, _edge_boxes([edges[k] for k in todo])):
-            out[k] = _NO_BOX if got is None else got
-            _USE_BOXES.set(edges[k], out[k])
-    return [None if got is _NO_BOX else got for got in out]
 
 
 _NO_BOX = object()

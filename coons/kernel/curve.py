@@ -13,7 +13,8 @@ points so temporaries stay small; batches of :data:`coons.kernel._accel.THRESHOL
 points or more go to the optional numba kernels of :mod:`coons.kernel._accel`, and
 points of batches up to :data:`_SCALAR_POINTS` are evaluated one by one on Python
 floats (numpy's per-operation cost dominates there); both do the same operations, so
-give the same bits.  :func:`spline_points` is the unchecked fast route for callers that evaluate
+give the same bits.  :func:`spline_points` is the fast route (in-domain parameters go to scipy
+without :meth:`NurbsCurve.evaluate`'s per-call checks, anything else to ``evaluate``) for callers that evaluate
 polynomial curves at many in-domain parameters and accept round-off differences: scipy's compiled
 de Boor evaluation (the fitted intersection curves of degree 5, where the numpy path's basis
 evaluation costs several times more).

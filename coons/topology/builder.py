@@ -586,11 +586,6 @@ class BRepBuilder:
     def _pool_many(self, kind: str, objs: Sequence[Any]) -> list[int]:
         """:meth:`_pool` of each object in turn (the same pool order)."""
         index, pool, out = self._pool_index[kind], getattr(self, kind), []
-        if not index:  # an empty pool (a fresh builder's): the first-seen order in array passes
-            new, idx = _pooled(objs)
-            pool.extend(new)
-            index.update(zip(map(id, new), range(len(new))))
-            return idx.tolist()
         for obj in objs:
             if obj is None:
                 out.append(-1)
@@ -794,7 +789,8 @@ class BRepBuilder:
             return None  # (the per-coedge path fails on the missing entry)
         flat = list(chain.from_iterable(chain.from_iterable(face_loops)))
         # Python or numpy integers only (not bools, floats or strings, which int64 conversion would
-        # truncate or parse): anything else goes to the per-coedge path, which names it.
+        # truncate or parse): anything else goes to the per-coedge path, which refuses bools, strings and
+        # fractional floats by name (and takes whole floats such as -1.0 as the integers they are).
         if not all(type(r) is int or isinstance(r, np.integer) for r in flat):
             return None
         try:

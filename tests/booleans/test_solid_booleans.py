@@ -994,9 +994,9 @@ def test_wrapping_pairs_equal_the_pairwise_full_period_test(monkeypatch):
     assert True in answers and False in answers
 
 
-def test_use_box_array_is_the_stacked_use_boxes():
-    """_use_box_array, half of the uses cached before and one without a box, gives _use_boxes' rows
-    (-inf, inf where there is none) and fills the cache with them."""
+def test_use_box_array_is_the_stacked_edge_boxes():
+    """_use_box_array, half of the uses cached before and one without a box, gives each use's _edge_boxes row
+    (-inf, inf where there is none), fills the cache with them and answers from it."""
     from dataclasses import dataclass
 
     from coons.kernel.analytic import Circle, Line
@@ -1012,18 +1012,27 @@ def test_use_box_array_is_the_stacked_use_boxes():
     uses = [S.EdgeSpec(line, 0.0, 1.5), S.EdgeSpec(circle, 2.0, 0.5), S.EdgeSpec(Spiral(), 0.0, 1.0),
             S.EdgeSpec(circle, 0.1, 4.0), S.EdgeSpec(line, -1.0, 0.5), S.EdgeSpec(Spiral(), 1.0, 2.0)]
     S._USE_BOXES.clear()
-    S._use_boxes(uses[::2])
+    S._use_box_array(uses[::2])
+    assert all(got is not None for got in S._USE_BOXES.get_many(uses[::2]))  # (cached, a Spiral's as "no box")
     B, none = S._use_box_array(uses)
     assert none.tolist() == [False, False, True, False, False, True]
-    S._USE_BOXES.clear()
-    ref = S._use_boxes(uses)
-    for k, box in enumerate(ref):
+    for k, e in enumerate(uses):
+        box = S._edge_boxes([e])[0]
         np.testing.assert_array_equal(B[k], [[-np.inf] * 3, [np.inf] * 3] if box is None else box)
     S._USE_BOXES.clear()
     B2, none2 = S._use_box_array(uses)  # nothing cached
     np.testing.assert_array_equal(B2, B)
     assert none2.tolist() == none.tolist()
-    assert [b is None for b in S._use_boxes(uses)] == none.tolist()  # (from the cache it filled)
+    calls = []
+    real = S._edge_box_array
+    try:
+        S._edge_box_array = lambda edges: calls.append(edges) or real(edges)
+        B3, none3 = S._use_box_array(uses)  # all from the cache it filled
+    finally:
+        S._edge_box_array = real
+    assert calls == []
+    np.testing.assert_array_equal(B3, B)
+    assert none3.tolist() == none.tolist()
 
 
 def test_fuse_edges_keeps_untouched_faces():
@@ -1221,7 +1230,7 @@ def test_prefilled_samples_are_the_single_ones():
             assert got[0] is surface and not got[1].flags.writeable
             Ue = S._edge_uv(e, surface, S._LOOP_SAMPLES)
             np.testing.assert_array_equal(got[1], Ue)
-            # the pad _use_pad computes for one use alone
+            # the pad _use_samples_pad computes for one use alone
             pad = 0.0 if type(e.pcurve).__name__ == "Line2D" else float(np.max(np.linalg.norm(np.diff(Ue, axis=0), axis=1)))
             assert got[2] == pad
 

@@ -26,7 +26,8 @@ RTOL_OCCT = 1e-6
 
 def _cases() -> dict:
     return {
-        # The benchmark's T-junction (the branch ends inside the main pipe) and crossing pipes (skew axes).
+        # The benchmark's T-junction (the branch ends inside the main pipe) and crossing pipes (axes meeting at
+        # right angles, the thin pipe's 1 above the thick one's centre).
         "tee": (Cylinder(2, 20), Cylinder(1.5, 10, direction=(1, 0, 0)).translate((5, 0, 0))),
         "cross": (Cylinder(2, 20), Cylinder(1.5, 20, direction=(1, 0, 0)).translate((0, 0, 1))),
         # Axes meeting at 60°, and skew axes at an oblique angle with an offset.
@@ -61,7 +62,7 @@ def test_pipes_in_closed_form_are_valid_and_obey_the_algebra(name, monkeypatch):
 
 
 def test_crossing_pipes_volume_in_closed_form():
-    # Skew axes 1 apart: slices y = const are rectangles 2 sqrt(R² - y²) × (the thin pipe's chord of the
+    # Axes at right angles (where the thin pipe crosses does not change the volume): slices y = const are rectangles 2 sqrt(R² - y²) × (the thin pipe's chord of the
     # slice), the latter 2 sqrt(r² - y²) wide in z and entirely inside the thick pipe's height.
     R, r = 2.0, 1.5
     exact, _ = quad(lambda y: 4 * math.sqrt(R * R - y * y) * math.sqrt(r * r - y * y), -r, r,

@@ -49,14 +49,13 @@ import pytest
 
 from coons.errors import CoonsError
 from coons.topology.shape import Solid
+from tests.booleans.algebra import RTOL_ALGEBRA
 from tests.booleans.occt_cases import DEFAULT_PAIRS, EXTENDED_PAIRS, OPS, pair
 
 pytestmark = pytest.mark.occt
 
 #: Relative agreement of volume and area with OCCT.
 RTOL_OCCT = 1e-6
-#: Relative tolerance of the algebra identities (coons alone).
-RTOL_ALGEBRA = 1e-9
 #: Deflection of both tessellations relative to the diagonal of the operands' bounding box
 #: (resolution only: it bounds the Hausdorff distance that the tests accept).
 DEFLECTION = 4e-3

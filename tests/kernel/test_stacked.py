@@ -38,7 +38,7 @@ def test_stacked_is_bitwise_the_curves_own_evaluation(order):
 def test_derivatives_many_mixes_kinds_and_checks_parameters():
     rng = np.random.default_rng(3)
     curves = [_curve(rng, 9, 3, 3), _curve(rng, 6, 2, 3, weights=True), Line([0, 0, 0], [1, 2, 3]),
-              _curve(rng, 12, 3, 3), _curve(rng, 7, 2, 2)]
+              _curve(rng, 12, 3, 3), _curve(rng, 7, 2, 2), _curve(rng, 8, 3, 2)]  # (degree 3 in 2-D and 3-D)
     params = [rng.uniform(0.0, 1.0, 40) for _ in curves]
     for c, u, D in zip(curves, params, derivatives_many(curves, params, 1)):
         np.testing.assert_array_equal(D, np.moveaxis(c.derivatives(u, 1), 1, 0))

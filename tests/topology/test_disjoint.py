@@ -104,9 +104,10 @@ def test_meeting_pair_is_the_first_of_all_pairs(spec):
     assert meeting_pair(boxes) == (every[0] if every else None)
 
 
-def test_padded_boxes_are_padded_box_one_by_one():
+def test_padded_boxes_are_padded_box_one_by_one(monkeypatch):
     """The batch of line-and-circle solids (tools, tilted and cut ones among them) and the
-    one-by-one path for the others give padded_box's very floats."""
+    one-by-one path for the others give padded_box's very floats; only the others go one by one."""
+    from coons.topology import disjoint
     from coons.tolerance import resolve
 
     t = resolve(None)
@@ -114,7 +115,11 @@ def test_padded_boxes_are_padded_box_one_by_one():
     tilted = Pos(1, 2, 3) * Rot(10, 20, 30) * Cylinder(1, 2)
     notched = Box(4, 4, 4) - Cylinder(1, 10).translate((2, 0, 0))  # arcs that are not half circles
     solids = parts() + tools + [tilted, Cone(1, 0.5, 2).translate((0, 40, 0)), notched]
+    one_by_one = []
+    monkeypatch.setattr(disjoint, "padded_box", lambda s, t: one_by_one.append(s) or padded_box(s, t))
     got = padded_boxes(solids, t)
+    batched = tools + [tilted, solids[-2], notched]
+    assert one_by_one and not any(s is u for s in one_by_one for u in batched)
     np.testing.assert_array_equal(got, np.stack([padded_box(s, t) for s in solids]))
 
 

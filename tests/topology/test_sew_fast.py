@@ -395,7 +395,7 @@ def test_pooled_is_the_builders_pool_order():
         assert idx.tolist() == one and [id(x) for x in pool] == [id(x) for x in b.curves]
         b2 = builder.BRepBuilder()
         assert b2._pool_many("curves", seq) == one and [id(x) for x in b2.curves] == [id(x) for x in b.curves]
-        assert b2._pool_many("curves", seq) == one  # a pool with entries: the per-object path
+        assert b2._pool_many("curves", seq) == one  # (a pool with entries)
 
 
 def test_several_shells_are_assembled_by_the_builder(monkeypatch):

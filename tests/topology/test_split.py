@@ -1063,9 +1063,8 @@ def test_cut_box_from_its_control_points_contains_the_cut(slant):
     from coons.topology import split
 
     face, branches = _slant_branches(*slant)
+    plane = split._face_data(face, DEFAULT_TOLERANCE).plane([])
     for c in branches:
-        data = split._face_data(face, DEFAULT_TOLERANCE)
-        plane = data.plane([])
         pc = split._pcurve(plane, EdgeSpec(c.curve, c.t0, c.t1, c.pcurve_a, c.tol), "cut")
         assert type(pc) is NurbsCurve and not pc.is_rational
         lo, hi = min(c.t0, c.t1), max(c.t0, c.t1)
@@ -1074,3 +1073,6 @@ def test_cut_box_from_its_control_points_contains_the_cut(slant):
             X = _derivs(pc, np.linspace(min(a, b), max(a, b), 2001), 0)[:, 0]
             slack = 1e-13 * (1.0 + np.abs(X).max())  # the samples' own rounding
             assert np.all(X >= box[0] - slack) and np.all(X <= box[1] + slack)
+            # (the acting control points' box, which curve_box's Bézier pieces would not give)
+            P = split._acting(pc, min(a, b), max(a, b))[1]
+            np.testing.assert_array_equal(box, [P.min(axis=0), P.max(axis=0)])

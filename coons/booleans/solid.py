@@ -69,7 +69,10 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    Coincident surfaces imprint each face's boundary edges onto the other (``pcurve_on`` of the
    edge curve on the other surface, ``clip_to_face``).  Isolated tangent points split nothing.
    Cuts repeated by several pairs (a curve along an edge of the other operand meets both faces of
-   that edge) are kept once.  A cut's tolerance is widened to ``δ / sin φ`` at ends where it
+   that edge) are kept once.  Cuts along the other operand's edges can also overlap with
+   different ends (the section of a face, blind to the vertices of the edge chain it runs along,
+   beside that chain's imprint from a coincident face): they are first split at each other's ends
+   (``_split_overlaps``), so that the overlaps become repeats.  A cut's tolerance is widened to ``δ / sin φ`` at ends where it
    crosses a boundary edge at a small angle ``φ`` (both faces compute that point independently).
    Every cut end must meet another cut end, the face's boundary or an edge of the other operand;
    a dangling end means a missing branch and raises here rather than as an open shell later
@@ -1187,6 +1190,7 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
     cuts_a: dict[int, list[EdgeSpec]] = {}
     cuts_b: dict[int, list[EdgeSpec]] = {}
     bounded: set[int] = set()  # ids of the cuts whose ends _end_tolerance found on their face's boundary
+    along: set[int] = set()  # ids of the cuts that run along the other operand's edges (_split_overlaps)
     sections = _batched_sections(A, B, I, J, t)
     try:
         ready = _batched_pieces(A, B, I, J, sections, t)
@@ -1200,8 +1204,11 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
             if curves is None:
                 si = intersect_surfaces(X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
                 if si.coincident:
-                    _imprint(X, Y, A.uv_box[i], cuts_a.setdefault(i, []), t)
-                    _imprint(Y, X, B.uv_box[j], cuts_b.setdefault(j, []), t)
+                    for out, args in ((cuts_a.setdefault(i, []), (X, Y, A.uv_box[i])),
+                                      (cuts_b.setdefault(j, []), (Y, X, B.uv_box[j]))):
+                        k0 = len(out)
+                        _imprint(*args, out, t)
+                        along.update(id(e) for e in out[k0:])
                     continue
                 curves = si.curves
             for c in curves:
@@ -1217,10 +1224,14 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                         cuts_a.setdefault(i, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
                         if max(near[0]) <= reach:
                             bounded.add(id(e))
+                        if wb != "inside":
+                            along.add(id(e))
                     if wb == "inside":
                         cuts_b.setdefault(j, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
                         if max(near[1]) <= reach:
                             bounded.add(id(e))
+                        if wa != "inside":
+                            along.add(id(e))
                     if wa == "inside" and wb == "inside" and links is not None:
                         links.setdefault(id(c.curve), []).append(_Link(s0, s1, (i, j), (c.pcurve_a, c.pcurve_b)))
         except BooleanError:
@@ -1232,8 +1243,9 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
             ) from exc
     repeated: set[int] = set()
     for X, cuts in ((A, cuts_a), (B, cuts_b)):
+        resplit = _resplit_along(cuts, along, t)
         # (the quick test of the faces with few cuts, all in one pass: a hole's wall has two)
-        few = [f for f, cs in cuts.items() if 2 <= len(cs) <= _SCALAR_CUTS]
+        few = [f for f, cs in cuts.items() if 2 <= len(cs) <= _SCALAR_CUTS and f not in resplit]
         apart = dict(zip(few, _apart_many([cuts[f] for f in few], t)))
         for f in list(cuts):
             cuts[f] = _unique_cuts(cuts[f], t, repeated, apart.get(f))
@@ -2316,6 +2328,133 @@ def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
         m = mids[s0:s0 + len(g)]
         s0 += len(g)
         out.append(all(_distance(p, q) > r for i, p in enumerate(m) for q in m[:i]))
+    return out
+
+
+#: Where along a cut that ends on another cut the run-along test of :func:`_split_overlaps` looks
+#: (fraction of the ending cut's parameter range from that end).
+_ALONG_FRACTION = 0.1
+
+
+def _length_bound(e: EdgeSpec) -> float:
+    """An upper bound of the length of a cut's curve over its range (inf for curves of other types).
+
+    Arcs: the larger radius times the angle; NURBS curves (weights positive, so knot insertion cuts
+    corners): the length of the whole control polygon."""
+    from coons.kernel.curve import NurbsCurve
+
+    c, dt = e.curve, abs(e.t1 - e.t0)
+    if type(c) is Line:
+        return dt * math.sqrt(float(c.direction @ c.direction))
+    if type(c) is Circle:
+        return dt * c.radius
+    if type(c) is Ellipse:
+        return dt * max(c.major_radius, c.minor_radius)
+    if isinstance(c, NurbsCurve):
+        return float(np.sum(np.linalg.norm(np.diff(c.control_points, axis=0), axis=1)))
+    return math.inf
+
+
+def _resplit_along(cuts: dict[int, list[EdgeSpec]], along: set[int], t: Tolerance) -> set[int]:
+    """Split in place the cuts of every face that has two or more cuts along the other operand's
+    edges (``along``: their ids) by :func:`_split_overlaps`; the faces whose cuts changed.
+
+    Only such cuts can overlap: a cut inside a face of the other operand lies off that operand's
+    edges, and the other operand's faces do not overlap."""
+    faces = [f for f, cs in cuts.items() if len(cs) >= 2 and sum(id(c) in along for c in cs) >= 2]
+    if not faces:
+        return set()
+    groups = [[c for c in cuts[f] if id(c) in along] for f in faces]
+    changed = set()
+    for f, g, split in zip(faces, groups, _split_overlaps(groups, t)):
+        if split is None:
+            continue
+        pieces = {id(c): p for c, p in zip(g, split)}
+        cuts[f] = [e for c in cuts[f] for e in pieces.get(id(c), (c,))]
+        changed.add(f)
+    return changed
+
+
+def _split_overlaps(groups: list[list[EdgeSpec]], t: Tolerance) -> list[list[list[EdgeSpec]] | None]:
+    """Per group of one face's cuts: per cut, its pieces split at the ends of other cuts of the group
+    that run along it (the group None where no cut ends inside another).
+
+    A branch along an edge chain of the other operand can be found twice on this face with
+    different ends: as the section of a face that the chain bounds (one cut, blind to the chain's
+    vertices) and as the imprint of a coincident face (one cut per edge of the chain), or by two
+    faces whose runs along the chain end at different vertices.  Split at each other's ends, the
+    overlapping stretches become repeats that :func:`_unique_cuts` drops; left whole, one copy
+    survives beside the other and ``split_face`` leaves it dangling (three cylinders sharing
+    their cap planes, ``(A & B) & C``).  An end counts when it lies on the other cut's interior
+    (within both cuts' tolerances) and the ending cut's point a tenth of the way in lies on the
+    other's curve too: a cut leaving another across it (a T) does not split it.
+
+    Candidates come from one k-d tree over all cut ends: a point of a cut lies within the ellipse
+    of foci its ends and major axis its length (:func:`_length_bound`), so within the ball around
+    the ends' midpoint of radius half that length; only candidates of the same face, inside that
+    ellipse and away from the cut's ends get closest-point tests.
+    """
+    from scipy.spatial import cKDTree
+
+    from coons.booleans.classify import _curve_closest
+
+    out: list[list[EdgeSpec] | None] = [None] * len(groups)
+    flat = [c for g in groups for c in g]
+    if not flat:
+        return out
+    n = len(flat)
+    E = _cut_ends(flat)  # (2 n, 3)
+    E0, E1 = E[0::2], E[1::2]
+    thr = np.array([max(t.linear, c.tol or 0.0) for c in flat])
+    reach = np.array([_length_bound(c) for c in flat]) + 2.0 * thr.max()
+    sizes = np.array([len(g) for g in groups])
+    owner = np.repeat(np.arange(len(groups)), sizes)  # face of each cut
+    hits = cKDTree(E).query_ball_point(0.5 * (E0 + E1), np.minimum(0.5 * reach, 1e300), return_sorted=False)
+    counts = np.fromiter((len(h) for h in hits), dtype=np.intp, count=n)
+    qi = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.intp, count=int(counts.sum()))
+    ci = np.repeat(np.arange(n), counts)
+    keep = (owner[qi // 2] == owner[ci]) & (qi // 2 != ci)
+    qi, ci = qi[keep], ci[keep]
+    th = np.maximum(thr[ci], thr[qi // 2])
+    Q = E[qi]
+    d0, d1 = np.linalg.norm(Q - E0[ci], axis=1), np.linalg.norm(Q - E1[ci], axis=1)
+    inside = (d0 + d1 <= reach[ci]) & (d0 > th) & (d1 > th)
+    if not inside.any():
+        return out
+    at: dict[int, list[float]] = {}
+    for q, c, h in zip(qi[inside].tolist(), ci[inside].tolist(), th[inside].tolist()):
+        cut, d = flat[c], flat[q // 2]
+        lo, hi = min(cut.t0, cut.t1), max(cut.t0, cut.t1)
+        s = float(_curve_closest(cut.curve, E[q][None], lo, t)[0])
+        if not lo < s < hi or _distance(np.asarray(cut.curve.evaluate(np.array([s]))).reshape(3).tolist(),
+                                        E[q].tolist()) > h:
+            continue
+        e0, e1 = (d.t0, d.t1) if q % 2 == 0 else (d.t1, d.t0)
+        P = np.asarray(d.curve.evaluate(np.array([e0 + _ALONG_FRACTION * (e1 - e0)]))).reshape(1, 3)
+        s_in = float(_curve_closest(cut.curve, P, lo, t)[0])
+        if _distance(np.asarray(cut.curve.evaluate(np.array([s_in]))).reshape(3).tolist(), P[0].tolist()) > h:
+            continue  # d leaves the cut across it
+        at.setdefault(c, []).append(s)
+    first = np.concatenate(([0], np.cumsum(sizes)[:-1])).tolist()
+    for g, cs in enumerate(groups):
+        o = first[g]
+        if not any(o + k in at for k in range(len(cs))):
+            continue
+        split: list[list[EdgeSpec]] = []
+        for k, cut in enumerate(cs):
+            if o + k not in at:
+                split.append([cut])
+                continue
+            # split points closer than tolerance (ends of two cuts at one vertex) are one
+            ends = [cut.t0]
+            for s in sorted(set(at[o + k]), reverse=cut.t1 < cut.t0):
+                if _long_enough(cut.curve, min(ends[-1], s), max(ends[-1], s), t):
+                    ends.append(s)
+            if len(ends) > 1 and not _long_enough(cut.curve, min(ends[-1], cut.t1), max(ends[-1], cut.t1), t):
+                ends.pop()
+            ends.append(cut.t1)
+            split.append([EdgeSpec(cut.curve, a, b, cut.pcurve, cut.tol) for a, b in zip(ends[:-1], ends[1:])])
+        out[g] = split
     return out
 
 

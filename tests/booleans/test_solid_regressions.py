@@ -379,3 +379,132 @@ def test_batched_end_tolerances_are_the_per_range_ones(monkeypatch):
             expect_near = [[math.inf, math.inf], [math.inf, math.inf]]
             S._end_tolerance(c, e, faces, t, expect_near)
             np.testing.assert_allclose(near, expect_near, rtol=1e-9, atol=1e-12)
+
+
+# Solids whose caps lie in the same two planes, combined three or four at a time.  A cap of the
+# first result carries an edge chain (an arc split at a seam vertex) that the next operand's cap
+# meets twice over: as the imprint of the coincident cap (one cut per edge) and as the section of
+# the side face that the chain bounds (one cut across the vertex).  Until the cuts were split at
+# each other's ends (``_split_overlaps``), the second copy was left dangling and the split raised
+# (14 of the 40 seeded chains below).
+_R, _H = 2.0, 4.0
+
+
+def _lens(r: float, d: float) -> float:
+    """Area of the intersection of two discs of radius ``r`` whose centres are ``d`` apart."""
+    return 2 * r * r * math.acos(d / (2 * r)) - 0.5 * d * math.sqrt(4 * r * r - d * d)
+
+
+@functools.lru_cache(maxsize=None)
+def _three_cylinders():
+    a = Cylinder(_R, _H)
+    return a, a.translate((0.2, 0.1, 0)), a.translate((0.4, 0.2, 0))
+
+
+@pytest.mark.parametrize("how", ["(A&B)&C", "A&(B&C)", "(A&C)&B", "one call"])
+def test_three_cylinders_sharing_cap_planes_intersect_to_the_lens(how):
+    """Centres on a line at equal steps: the middle disc holds the outer two's lens (the norm is
+    convex), so the common part is that lens times the height, in whatever order."""
+    a, b, c = _three_cylinders()
+    r = {"(A&B)&C": lambda: (a & b) & c, "A&(B&C)": lambda: a & (b & c), "(A&C)&B": lambda: (a & c) & b,
+         "one call": lambda: S.intersection(a, b, c)}[how]()
+    assert r.check().ok
+    want = _H * _lens(_R, math.hypot(0.4, 0.2))
+    assert abs(r.volume - want) <= 1e-9 * want
+    assert len(r.faces()) == 4  # two caps, a wall from each outer cylinder
+
+
+def test_three_cylinders_sharing_cap_planes_union_and_differences():
+    a, b, c = _three_cylinders()
+    d1, d2 = math.hypot(0.2, 0.1), math.hypot(0.4, 0.2)
+    disc = math.pi * _R * _R
+    # inclusion-exclusion; the triple overlap is the outer pair's lens
+    union = _H * (3 * disc - 2 * _lens(_R, d1))
+    cases = {
+        "(A+B)+C": ((a + b) + c, union),
+        "C-(A&B)": (c - (a & b), _H * (disc - _lens(_R, d2))),
+        # (A ∪ B) ∩ C = (A ∩ C) ∪ (B ∩ C), whose overlap A ∩ B ∩ C is A ∩ C: the lens of B and C
+        "(A+B)-C": ((a + b) - c, _H * (2 * disc - 2 * _lens(_R, d1))),
+    }
+    for name, (r, want) in cases.items():
+        assert r.check().ok, name
+        assert abs(r.volume - want) <= 1e-9 * want, name
+
+
+def _capped_chain(lib, seed: int):
+    """A seeded chain of two or three Booleans of cylinders and boxes between the planes
+    z = ±2, in coons (``lib`` = "coons") or build123d; None where build123d's result is empty."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 5))
+    kind = str(rng.choice(["cyl", "box", "mix"]))
+    solids = []
+    for k in range(n):
+        x, y = rng.uniform(-1, 1, 2).round(2)
+        r = float(rng.choice([2.0, 1.5, 2.5]))
+        w = float(rng.choice([3.0, 4.0]))
+        cyl = kind == "cyl" or (kind == "mix" and k % 2 == 0)
+        if lib == "coons":
+            solids.append((Cylinder(r, _H) if cyl else Box(w, w, _H)).translate((x, y, 0)))
+        else:
+            import build123d as bd
+
+            solids.append(bd.Pos(x, y, 0) * (bd.Cylinder(r, _H) if cyl else bd.Box(w, w, _H)))
+    ops = rng.choice(["+", "-", "&"], n - 1)
+    s = solids[0]
+    for op, t in zip(ops.tolist(), solids[1:]):
+        try:
+            s = s + t if op == "+" else s - t if op == "-" else s & t
+        except ValueError:  # build123d on an empty compound
+            return None
+    return s
+
+
+#: Chains that still raise: seed 29, ``((A ∪ B) ∩ C)`` where B's rim (r 1.5) and C's (r 2) are
+#: internally tangent to 1e-5 beside C's seam vertex.  The cuts' end tolerance there is 1e-4, the
+#: vertex lies within it of B's rim, and ``split_face`` splits the rim at the vertex 0.005 from
+#: where the rims cross: the stretch between is used once (coverage 1.99), and the split raises.
+_CAPPED_CHAINS_RAISING = {29}
+
+
+@pytest.mark.occt
+@pytest.mark.parametrize("seed", [
+    pytest.param(k, marks=pytest.mark.xfail(raises=BooleanError, strict=True,
+                                            reason="near-tangent rims beside a seam vertex"))
+    if k in _CAPPED_CHAINS_RAISING else k for k in range(40)])
+def test_chains_of_solids_sharing_cap_planes_agree_with_occt(seed):
+    r = _capped_chain("coons", seed)
+    ref = _capped_chain("build123d", seed)
+    if ref is None or ref.volume == 0.0:
+        assert r.is_empty or r.volume <= 1e-9
+        return
+    assert r.check().ok
+    assert r.volume == pytest.approx(ref.volume, rel=RTOL_OCCT)
+    assert r.area == pytest.approx(ref.area, rel=RTOL_OCCT)
+
+
+def test_split_overlaps_splits_a_cut_along_another_cuts_chain_only():
+    """A section cut across a seam vertex and the two imprint cuts of the chain: the long cut is
+    split at the vertex and the middle end; a cut leaving the circle across it (a T) splits nothing."""
+    from coons.kernel.analytic import Circle, Line
+
+    t = resolve(None)
+    # (in the plane x = 0: distances need all three coordinates)
+    circle = Circle((0, 0, 0), (1, 0, 0), (0, 1, 0), 2.0)
+    other = Circle((0, 0, 0), (1, 0, 0), (0, 1, 0), 2.0)  # the same circle, another object
+    long_cut = S.EdgeSpec(circle, -1.0, 1.0)
+    chain = [S.EdgeSpec(other, 2 * math.pi - 1.0, 2 * math.pi), S.EdgeSpec(other, 0.0, 1.0)]
+    (split,) = S._split_overlaps([chain + [long_cut]], t)
+    assert [len(p) for p in split] == [1, 1, 2] and split[0][0] is chain[0] and split[1][0] is chain[1]
+    np.testing.assert_allclose([(e.t0, e.t1) for e in split[2]], [(-1.0, 0.0), (0.0, 1.0)], atol=1e-12)
+    assert all(e.curve is circle for e in split[2])
+    assert S._unique_cuts([e for p in split for e in p], t) == chain  # the long cut's pieces repeat the chain
+    # the face's cuts in place, only the cuts along the other operand's edges taken
+    inner = S.EdgeSpec(Circle((0, 0, 0), (1, 0, 0), (0, 1, 0), 1.0), 0.0, 1.0)
+    cuts = {3: [inner, *chain, long_cut]}
+    assert S._resplit_along(cuts, {id(e) for e in (*chain, long_cut)}, t) == {3}
+    assert cuts[3][:3] == [inner, *chain] and len(cuts[3]) == 5
+    assert S._resplit_along(cuts := {3: [inner, long_cut]}, {id(long_cut)}, t) == set()
+    # a radial line from the circle's point at angle 0.5 outwards: a T, no split
+    P = np.asarray(circle.evaluate(0.5), dtype=float)
+    tee = S.EdgeSpec(Line(P, P / 2.0), 0.0, 1.0)
+    assert S._split_overlaps([[long_cut, tee]], t) == [None]

@@ -890,6 +890,7 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     _snap_cut_ends(pieces, nb, plane)
     sub = _sub_pieces(pieces, plane)
     _check_cuts_inside(sub, pieces, region, cuts, plane)
+    sub = _without_closed_virtual(sub, pieces, plane)
     while True:
         graph = _Graph(sub, pieces, plane)
         cycles = graph.cycles()
@@ -1197,6 +1198,24 @@ def _components(m: int, pairs: np.ndarray) -> np.ndarray:
         if np.array_equal(new, label):
             return label
         label = new
+
+
+def _without_closed_virtual(sub: list["_Sub"], pieces: list[_Piece], plane: _Plane) -> list["_Sub"]:
+    """The sub-pieces without the virtual segments whose two ends are one node of the arrangement.
+
+    A virtual segment closes the gap between two p-curve ends of one vertex; near a pole, where the
+    node merge reaches further (see the module docstring), the two ends can be merged after all.
+    The segment would then be a loop at the node whose direction (of a gap of round-off size)
+    misorders the turn there: the walk joins the regions on both sides of the node (a sphere face
+    with a vertex 3° from its pole, split by a latitude cut, came back as one region)."""
+    virtual = [k for k, s in enumerate(sub) if pieces[s.piece].kind == "virtual"]
+    if not virtual:
+        return sub
+    n = len(sub)
+    X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
+    label = _components(2 * n, _node_pairs(X, plane))
+    closed = {k for k in virtual if label[k] == label[n + k]}
+    return [s for k, s in enumerate(sub) if k not in closed] if closed else sub
 
 
 class _Graph:

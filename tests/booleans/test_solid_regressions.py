@@ -508,3 +508,35 @@ def test_split_overlaps_splits_a_cut_along_another_cuts_chain_only():
     P = np.asarray(circle.evaluate(0.5), dtype=float)
     tee = S.EdgeSpec(Line(P, P / 2.0), 0.0, 1.0)
     assert S._split_overlaps([[long_cut, tee]], t) == [None]
+
+
+def test_sphere_face_with_a_vertex_near_its_pole_splits_into_both_regions():
+    """A half sphere face of ``s1 - s2`` has a vertex 2.8° from the south pole, where the two
+    p-curves meeting there end 1e-6 apart in the parameter plane: the virtual segment closing that
+    gap had both ends in one node of the arrangement (the node merge reaches further near a pole),
+    and the walk around the node joined the regions above and below a latitude cut into one (the
+    split raised: the cut bounded one piece).  Now: both pieces, the algebra of the difference
+    and the intersection, and OCCT's volumes."""
+    s1 = Sphere(1.5).translate((0.75, -1, 1))
+    s2 = Sphere(1.5).translate((-0.5, -0.5, 0))
+    cyl = Cylinder(2, 2).translate((1, -0.25, -1))
+    a = s1 - s2
+    u, i, d = a + cyl, a & cyl, a - cyl
+    for r in (u, i, d):
+        assert r.check().ok
+    assert len(d.faces()) == 5  # four sphere pieces (both regions of the split face kept or dropped whole) and the cap
+    # the sphere-sphere and sphere-cylinder curves are fitted (to 5e-8): 1e-8, not RTOL_ALGEBRA
+    assert abs(u.volume + i.volume - a.volume - cyl.volume) <= 1e-8 * (a.volume + cyl.volume)
+    assert abs(d.volume - a.volume + i.volume) <= 1e-8 * a.volume
+
+
+@pytest.mark.occt
+def test_sphere_face_with_a_vertex_near_its_pole_agrees_with_occt():
+    from coons.io.ocp import to_build123d
+    from tests.booleans.test_solid_vs_occt import _occt_ops, occt_volume_area
+
+    a = Sphere(1.5).translate((0.75, -1, 1)) - Sphere(1.5).translate((-0.5, -0.5, 0))
+    cyl = Cylinder(2, 2).translate((1, -0.25, -1))
+    ref = _occt_ops(to_build123d(a), to_build123d(cyl))
+    for op, res in (("union", a + cyl), ("intersection", a & cyl), ("difference", a - cyl)):
+        assert res.volume == pytest.approx(occt_volume_area(ref[op])[0], rel=RTOL_OCCT), op

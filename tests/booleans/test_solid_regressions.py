@@ -524,7 +524,7 @@ def test_sphere_face_with_a_vertex_near_its_pole_splits_into_both_regions():
     u, i, d = a + cyl, a & cyl, a - cyl
     for r in (u, i, d):
         assert r.check().ok
-    assert len(d.faces()) == 5  # four sphere pieces (both regions of the split face kept or dropped whole) and the cap
+    assert len(d.faces()) == 5  # four sphere faces and the cylinder's top cap
     # the sphere-sphere and sphere-cylinder curves are fitted (to 5e-8): 1e-8, not RTOL_ALGEBRA
     assert abs(u.volume + i.volume - a.volume - cyl.volume) <= 1e-8 * (a.volume + cyl.volume)
     assert abs(d.volume - a.volume + i.volume) <= 1e-8 * a.volume

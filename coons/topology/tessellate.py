@@ -43,7 +43,9 @@ Algorithm (the BRepMesh idea, made watertight by construction)
 2. **Face boundaries** (trimmed faces).  Each loop is walked in order; a coedge contributes
    its edge's samples mapped through its own p-curve (reversed for right sides).  Where
    consecutive p-curves end and start at different parameter points (a sphere's pole, a
-   cone's apex: see ``docs/brep.md``) both points are kept and joined by a *gap segment*;
+   cone's apex: see ``docs/brep.md``; the surface must be singular there, one first
+   derivative vanishing against the other, else the two ends are one point) both points are
+   kept and joined by a *gap segment*;
    both carry the same mesh vertex, so the one triangle on the gap degenerates and is
    dropped, which is an edge collapse of the parameter-space triangulation onto the pole.
    A loop that would get fewer than three samples (a sliver bounded by an arc and a line
@@ -118,6 +120,12 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    interior points and are triangulated again (at most ``_MAX_REPAIRS`` rounds; a result
    still not closed raises).  Strips never draw such chords (interior rows have at least two
    segments of their own).
+8. **Crossing chords.**  Chords of two edges can cross in a face's parameter plane although
+   the edges do not: a vertex of one lies within the sagitta of the other's chord (a box
+   corner 0.002 inside a cylinder's rim).  The triangulator refuses such a boundary; the
+   curved edges of the crossing chords then get half their parameter step and the whole
+   tessellation runs again (shared samples: both faces of an edge see its new chords), at most
+   ``_MAX_CROSSING_ROUNDS`` times (each quarters the sagitta) before the crossing is reported.
 
 *Flat NURBS faces.*  A NURBS surface whose control points lie within ``tol.linear`` of a plane
 (with a control net whose cells all face one way) lies in that plane (convex-hull property, positive
@@ -203,6 +211,9 @@ _CURVATURE_SAMPLES = 9
 #: Relative parameter distance below which two p-curve ends are the same point (round-off of
 #: the p-curve evaluation, far below any real pole gap).
 _SAME_UV = 1e-10
+#: A surface is singular at a point (a pole, an apex) where one first derivative is this small against
+#: the other (:meth:`_Builder._pole_gap`).
+_SINGULAR = 1e-3
 #: Fraction of the deflection refinement aims at: its deviation estimate (centroid and edge
 #: midpoints in the quadratic model) is exact to second order only, and third-order terms (a cone
 #: near its apex) put the true worst point of a triangle up to a few tenths of a percent above it.
@@ -302,9 +313,47 @@ def share_tessellations(src: BRep, dst: BRep) -> None:
         _MESHES.setdefault(dst, {}).update(meshes)
 
 
+#: Rounds of :func:`_tessellate` that refine the chords of curved edges crossing another edge's in a
+#: face's parameter plane (each round quarters their sagitta) before the crossing is reported.
+_MAX_CROSSING_ROUNDS = 6
+
+
+class _Crossing(Exception):
+    """Internal: boundary chords of a face cross; ``edges`` are the curved edges to refine."""
+
+    def __init__(self, edges: set[int], error: TopologyError) -> None:
+        super().__init__(str(error))
+        self.edges, self.error = edges, error
+
+
 def _tessellate(b: BRep, d: float, a: float, t: Tolerance) -> TriangleMesh:
-    """:func:`tessellate` with resolved arguments, uncached."""
+    """:func:`tessellate` with resolved arguments, uncached.
+
+    Chords of two edges can cross in a face's parameter plane although the edges do not: a
+    vertex of one within the sagitta of the other's chord (a box corner 0.003 inside a
+    cylinder's rim, whose chords sag 0.013).  The curved edges of crossing chords then get
+    chords of half the parameter step, and the whole tessellation runs again (the samples of
+    an edge are shared by its two faces, so both see the finer chords).
+    """
+    refine: dict[int, int] = {}
+    for _ in range(_MAX_CROSSING_ROUNDS):
+        try:
+            return _tessellate_once(b, d, a, t, refine)
+        except _Crossing as exc:
+            if not exc.edges:
+                raise exc.error from exc.error.__cause__
+            for e in exc.edges:
+                refine[e] = refine.get(e, 0) + 1
+    try:
+        return _tessellate_once(b, d, a, t, refine)
+    except _Crossing as exc:
+        raise exc.error from exc.error.__cause__
+
+
+def _tessellate_once(b: BRep, d: float, a: float, t: Tolerance, refine: dict[int, int]) -> TriangleMesh:
+    """One run of :func:`_tessellate`; ``refine``: edge -> how many times to halve its parameter steps."""
     ctx = _Builder(b, d, a, t)
+    ctx.refine = refine
     ctx.plan_revolved_faces()
     ctx.discretise_edges()
     ctx.triangulate_faces()
@@ -908,6 +957,8 @@ class _Builder:
         # (origin, x_dir, y_dir, normal along Su x Sv), made into PlanarSurface values only where needed.
         self.flat, self.flat_frames = _flat_nurbs_planes(b.surfaces, t.linear)
         self._flat_planes: dict[int, PlanarSurface] = {}
+        # Edges whose parameter steps are halved this many times (chords crossing, see _tessellate).
+        self.refine: dict[int, int] = {}
 
     def point_array(self) -> np.ndarray:
         """All mesh vertices so far, ``(n, 3)`` (concatenated once, then cached)."""
@@ -1165,7 +1216,7 @@ class _Builder:
         ec, er, ev = b.edge_curve.tolist(), b.edge_range.tolist(), b.edge_vertex.tolist()
         straight = self.straight.tolist()
         todo = [e for e in range(b.n_edges)
-                if not straight[e] or curved[e] or ev[e][0] == ev[e][1] or e in self.proposals]
+                if not straight[e] or curved[e] or ev[e][0] == ev[e][1] or e in self.proposals or e in self.refine]
         if not todo:  # a polyhedron: the B-rep vertices are all the boundary points
             self.boundary_points = self.point_array()
             return
@@ -1248,6 +1299,9 @@ class _Builder:
         """Parameters of edge ``e`` (range ``t0, t1``, ``curve``): its own discretisation, merged with what its
         planned faces ask."""
         base = _edge_params(self.b, e, self.d, self.a, curved_sides, t0, t1, curve, closed)
+        halve = self.refine.get(e, 0)
+        if halve:
+            base = _subdivided(base, float(np.diff(base).max()) / 2**halve)
         prop = self.proposals.get(e)
         if prop is None:
             return base
@@ -1652,10 +1706,13 @@ class _Builder:
         the radius) to much more.
         """
         D = S.derivatives(p[0], p[1], 1)
-        stretch = max(float(np.linalg.norm(D[1, 0])), float(np.linalg.norm(D[0, 1])))
+        speeds = (float(np.linalg.norm(D[1, 0])), float(np.linalg.norm(D[0, 1])))
         et = self.b.edge_tol
         allowed = max(self.tol.linear, float(et[c >> 1]) + float(et[c_next >> 1]))
-        return float(np.linalg.norm(p - q)) * stretch > allowed
+        # Near but not at a pole (a vertex 1° from it) the slow direction makes a fitting mismatch
+        # look long: it is a pole only where the surface is singular, one speed vanishing against the
+        # other; else the two ends are one point and a gap segment there may cross the next chord.
+        return float(np.linalg.norm(p - q)) * max(speeds) > allowed and min(speeds) <= _SINGULAR * max(speeds)
 
     def _grid(self, S, bd: _Boundary, X_b: np.ndarray, scale: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
         """Interior candidate parameters ``(q, 2)`` (unscaled) of a curved face: the grid of ``steps`` inside the box."""
@@ -1691,10 +1748,48 @@ class _Builder:
             cdt = ConstrainedDelaunay(X, bd.segments)
             T, idx = cdt.triangles(return_index=True)
         except InvalidInputError as exc:
-            raise TopologyError(f"face {f}: its boundary cannot be triangulated in parameter space: {exc}") from exc
+            error = TopologyError(f"face {f}: its boundary cannot be triangulated in parameter space: {exc}")
+            error.__cause__ = exc
+            raise _Crossing(self._crossing_edges(X_b, bd), error) from exc
         uv_all = np.concatenate([bd.uv, uv_in])
         ids_all = np.concatenate([bd.ids, np.full(uv_in.shape[0], -1, dtype=np.int64)])
         return cdt, T, idx, uv_all, ids_all
+
+    def _crossing_edges(self, X: np.ndarray, bd: _Boundary) -> set[int]:
+        """The curved edges (not sides of planned faces) with a boundary chord properly crossing another chord
+        of the face (points ``X (p, 2)`` in the triangulation plane); empty when no such edge.
+
+        A chord between two samples of one edge is that edge's; a chord between two B-rep vertices is
+        every edge joining them.  Cold: only a face that failed to triangulate gets here.
+        """
+        seg = bd.segments
+        a, c = X[seg[:, 0]], X[seg[:, 1]]
+
+        def orient(p, q, r):
+            return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+        A, C = a[:, None], c[:, None]
+        B, D = a[None], c[None]
+        cross = (orient(A, C, B) * orient(A, C, D) < 0) & (orient(B, D, A) * orient(B, D, C) < 0)
+        hit = np.unique(np.nonzero(cross)[0])
+        if hit.size == 0:
+            return set()
+        owner: dict[int, int] = {}
+        for e, ids in self.edge_ids.items():
+            for i in ids[1:-1].tolist():
+                owner[i] = e
+        ends: dict[tuple[int, int], list[int]] = {}
+        for e, (v0, v1) in enumerate(self.b.edge_vertex.tolist()):
+            ends.setdefault((min(v0, v1), max(v0, v1)), []).append(e)
+        out: set[int] = set()
+        for k in hit.tolist():
+            i, j = (int(x) for x in bd.ids[seg[k]])
+            if i in owner or j in owner:
+                out.add(owner.get(i, owner.get(j)))
+            else:
+                out.update(ends.get((min(i, j), max(i, j)), []))
+        planned = {e for e, prop in self.proposals.items() if prop.samples}
+        return {e for e in out if not self.straight[e] and e not in planned}
 
     def _finish_ids(self, S, uv_all: np.ndarray, ids_all: np.ndarray, T: np.ndarray) -> np.ndarray:
         """Allocate mesh vertices for the interior points used by ``T`` (in place on ids_all)."""

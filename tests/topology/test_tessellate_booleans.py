@@ -50,6 +50,16 @@ HAND_PICKED = {
     "steinmetz_r2": (lambda: Cylinder(2.0, 10) & Cylinder(2.0, 10, direction=(1, 0, 0)), 16 * 8 / 3),
     # A sphere of radius 2 minus a coaxial cylinder of radius 1.2: height h = 3.2, V = π h³ / 6.
     "napkin_ring": (lambda: Sphere(2.0) - Cylinder(1.2, 6), math.pi * 3.2**3 / 6),
+    # A unit box turned 30° whose corner is 0.0023 inside a cylinder's rim (the box lies inside it in
+    # plan: V = 9π − 1): the rim's chords sag further than that and crossed the notch's side in the
+    # cap's plane; the rim is refined until they do not (tessellate's crossing rounds).
+    "notch_near_rim": (lambda: (Pos(0.5, 0.25, 1) * Cylinder(1.5, 4))
+                       - (Pos(-0.25, 0.5, -1) * Rot(0, 0, 30) * Box(1, 1, 2)), 9 * math.pi - 1),
+    # A sphere face with a vertex 1.2° from its pole where a fitted p-curve ends 1.6e-6 off the seam:
+    # taken for a pole gap (the slow direction there makes the mismatch look long), its gap segment
+    # crossed the next chord.  No closed form.
+    "vertex_near_pole": (lambda: ((Pos(-0.25, -1, 1) * Cylinder(1.5, 4)) & (Pos(-0.5, -0.25, 0) * Sphere(1.0)))
+                         + (Pos(1, 0, -1) * Cylinder(1.5, 4)), None),
 }
 
 

@@ -575,10 +575,20 @@ class _Operand:
 
         return tessellate(self.solid, tol=self.t)
 
+    def _meshed(self, stage: str, why: str):
+        """:attr:`mesh`, a failure of the tessellator reported as a ``BooleanError`` of ``stage``."""
+        try:
+            return self.mesh
+        except (CoonsError, ValueError, ArithmeticError) as exc:
+            raise BooleanError(
+                f"operand {self.name}: its tessellation ({why}) failed: {type(exc).__name__}: {exc}",
+                stage=stage, diagnostics={"operand": self.name, "error": str(exc)},
+            ) from exc
+
     def _mesh_boxes(self) -> np.ndarray:
         """``(F, 2, 3)`` face boxes from :attr:`mesh`, padded by its deflection, the edges'
         tolerances and ``t.linear`` (the exact face lies within that of its triangles)."""
-        mesh, b = self.mesh, self.solid.brep
+        mesh, b = self._meshed("broad_phase", "for face boxes"), self.solid.brep
         F = b.n_faces
         diag = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
         # The tessellator's default deflection is 1e-3 of the diagonal.
@@ -610,7 +620,7 @@ class _Operand:
         from coons.booleans.classify import Classifier
 
         if self._classifier is None:
-            self._classifier = Classifier(self.solid, self.t, mesh=self.mesh)
+            self._classifier = Classifier(self.solid, self.t, mesh=self._meshed("classify", "for point classification"))
         return self._classifier
 
 

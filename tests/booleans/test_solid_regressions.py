@@ -540,3 +540,19 @@ def test_sphere_face_with_a_vertex_near_its_pole_agrees_with_occt():
     ref = _occt_ops(to_build123d(a), to_build123d(cyl))
     for op, res in (("union", a + cyl), ("intersection", a & cyl), ("difference", a - cyl)):
         assert res.volume == pytest.approx(occt_volume_area(ref[op])[0], rel=RTOL_OCCT), op
+
+
+def test_a_tessellation_failure_in_classification_is_a_boolean_error(monkeypatch):
+    """A sphere inside a sphere needs point classification, hence the operand's mesh: a tessellator
+    that fails there reports as the Boolean's own error, naming the stage and the operand."""
+    import coons.topology.tessellate as tess
+    from coons.errors import TopologyError
+
+    def failing(*args, **kwargs):
+        raise TopologyError("face 1: its boundary cannot be triangulated")
+
+    monkeypatch.setattr(tess, "tessellate", failing)
+    with pytest.raises(BooleanError) as info:
+        S.difference(Sphere(3), Sphere(1))
+    assert info.value.stage == "classify" and info.value.diagnostics["operand"] in ("A", "B")
+    assert "cannot be triangulated" in str(info.value)

@@ -1321,6 +1321,25 @@ class _Builder:
                 t = base if n == base.size - 1 else _linspace(t0, t1, n)
             else:
                 t = _subdivided(t, gap)
+        return self._off_the_ends(e, curve, t) if prop.samples else t
+
+    def _off_the_ends(self, e: int, curve, t: np.ndarray) -> np.ndarray:
+        """``t`` without the interior samples within ten tolerances of the edge's end vertices.
+
+        A planned face's row lands there when the face's box (from its fitted p-curves) ends a
+        hair off the edge's end: a second mesh point at the vertex, and the chord of the next edge,
+        leaving the vertex from a p-curve end as far off, can cross the short chord between them.
+        (Both sides of a plan must then agree again; where they do not, the face takes the general path.)
+        """
+        b = self.b
+        reach = 10.0 * max(self.tol.linear, float(b.edge_tol[e]))
+        V = b.vertex_point[b.edge_vertex[e]]
+        while t.size > 2:
+            P = np.asarray(_edge_eval(b, e, curve, t[[1, -2]]), dtype=np.float64).reshape(2, 3)
+            near = np.linalg.norm(P - V, axis=1) <= reach
+            if not near.any():
+                break
+            t = np.delete(t, [k for k, n in zip((1, t.size - 2), near.tolist()) if n])
         return t
 
     def samples(self, e: int) -> tuple[np.ndarray, np.ndarray]:

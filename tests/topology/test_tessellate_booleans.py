@@ -60,6 +60,10 @@ HAND_PICKED = {
     # crossed the next chord.  No closed form.
     "vertex_near_pole": (lambda: ((Pos(-0.25, -1, 1) * Cylinder(1.5, 4)) & (Pos(-0.5, -0.25, 0) * Sphere(1.0)))
                          + (Pos(1, 0, -1) * Cylinder(1.5, 4)), None),
+    # A planned sphere face whose top row (from its fitted p-curves) lands 3e-8 below its seam
+    # edge's end: a second mesh point at the vertex, whose short chord the next edge's crossed.
+    "row_at_a_vertex": (lambda: ((Pos(-1, -0.5, 1) * Sphere(2.0)) & (Pos(0.5, 1, 0) * Cylinder(1.0, 2)))
+                        + (Pos(1, 0, 1) * Sphere(1.0)), None),
 }
 
 

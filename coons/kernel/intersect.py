@@ -46,7 +46,9 @@ when both are trigonometric a :class:`~coons.kernel.pcurve.Trig2D`.  Otherwise (
 a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a quintic 2-D
 :class:`~coons.kernel.curve.NurbsCurve` interpolating the exact parameters (The NURBS Book
 A9.1) on the branch's own parameter, refined until its image is within ``tol.linear / 2`` of
-the curve; the plane's p-curve of a rational conic arc is exact (same weights).  The loops of
+the curve; the plane's p-curve of a rational conic arc is exact (same weights).  Every fit starts
+from the same graded samples mapped onto its range, where the collocation is one fixed matrix
+(``_first_round``); the refined rounds solve theirs with scipy.  The loops of
 crossing cylinders have no conic form: their 3-D curve and both p-curves are one quintic spline fitted
 to the exact points and parameters at the same samples (``_loop_piece``), on the parameter ``±θ``.
 
@@ -947,13 +949,14 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
 
     t = _fit_start(s0, s1)
     Q = f(t)
-    quarters = np.array([0.25, 0.5, 0.75])
     bound = 0.5 * tol.linear
     worst = math.inf
+    first = True
     while len(t) <= _MAX_FIT_SAMPLES:
-        spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=_averaging(t, _FIT_DEGREE))
-        tq = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
-        F, E = spline(tq), loop.evaluate(tq)
+        F, ctrl, knots = _fit_round(t, Q, first)
+        first = False
+        tq = _quarter_points(t)
+        E = loop.evaluate(tq)
         C = F[:, :3]
         Pa = _surface_points(a, F[:, 3], F[:, 4])
         Pb = _surface_points(b, F[:, 5], F[:, 6])
@@ -963,7 +966,6 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
         if bad.size == 0:
             gaps = np.concatenate([Pa - C, Pb - C, Pa - Pb])
             fit_dev = math.sqrt(float(np.max(np.add.reduce(gaps * gaps, axis=-1))))
-            knots, ctrl = spline.t, spline.c
             p = _FIT_DEGREE
             pcurves = [NurbsCurve(ctrl[:, 3:5], knots, p), NurbsCurve(ctrl[:, 5:7], knots, p)]
             return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False)
@@ -1726,10 +1728,63 @@ def _fit_start(s0: float, s1: float) -> np.ndarray:
     return t
 
 
+#: The quarter points of every interval between samples, where a fit round measures its error.
+_QUARTERS = _frozen(np.array([0.25, 0.5, 0.75]))
+#: The first round of a fit takes its interpolating spline from :func:`_first_round` (True), not from scipy's
+#: ``make_interp_spline``; tests switch it off to compare.
+_FAST_FIRST = True
+
+
+def _quarter_points(t: np.ndarray) -> np.ndarray:
+    """``(3 (n - 1),)``: the quarter points of the intervals between the samples ``t`` (n,), interval by interval."""
+    return (t[:-1, None] + _QUARTERS[None, :] * np.diff(t)[:, None]).ravel()
+
+
+@functools.lru_cache(maxsize=8)
+def _first_round(n: int, p: int, grade: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(inverse, at_quarters)``: the maps ``(n, n)`` and ``(3 (n - 1), n)`` from the values of a fit's first
+    round at the samples of :func:`_fit_start` (``n`` of them, degree ``p``, grading ``grade``) to the control
+    points of the interpolating spline and to its values at the quarter points (:func:`_quarter_points`).
+
+    The samples and the averaged knots (The NURBS Book eq. 9.8) of every range ``[s0, s1]`` are the images
+    of those of ``[0, 1]`` under ``x -> s0 + (s1 - s0) x``, and B-spline basis functions are invariant
+    under that map: the collocation matrix and the basis at the quarter points are the same for every
+    first round (to the round-off of the mapped parameters).  Two small products replace scipy's banded
+    solve and evaluation, whose set-up cost was most of a round on the few samples of a first round.
+    The collocation matrix is totally positive and well conditioned (condition number about 13 for the
+    module's constants): the inverse loses nothing that the bound ``tol.linear / 2`` could see.  Cached
+    per ``(n, p, grade)``: tests change the module's constants.
+    """
+    from scipy.interpolate import BSpline
+
+    x = np.linspace(0.0, 1.0, n)  # (the samples of _fit_start on [0, 1])
+    x = x - grade * np.sin(TWO_PI * x) / TWO_PI
+    x[-1] = 1.0
+    knots = _averaging(x, p)
+    A = BSpline.design_matrix(x, knots, p).toarray()
+    inverse = np.linalg.solve(A, np.eye(n))
+    E = BSpline.design_matrix(_quarter_points(x), knots, p).toarray()
+    return _frozen(inverse), _frozen(E @ inverse)
+
+
+def _fit_round(t: np.ndarray, Q: np.ndarray, first: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(at_quarters, control points, knots)`` of the spline of degree :data:`_FIT_DEGREE` interpolating ``Q``
+    ``(n, d)`` at ``t`` (n,) on the averaged knots (The NURBS Book A9.1, eq. 9.8): its values ``(3 (n - 1), d)``
+    at :func:`_quarter_points`.  ``first``: ``t`` is :func:`_fit_start`'s (the matrices of
+    :func:`_first_round`); otherwise scipy's banded collocation (``make_interp_spline``)."""
+    knots = _averaging(t, _FIT_DEGREE)
+    if first and _FAST_FIRST and t.size == _FIT_START:
+        inverse, at_quarters = _first_round(_FIT_START, _FIT_DEGREE, _FIT_GRADE)
+        return at_quarters @ Q, inverse @ Q, knots
+    spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=knots)
+    return spline(_quarter_points(t)), spline.c, spline.t
+
+
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False):
     """``(p-curve, deviation)``: interpolation of the exact parameters ``f(t)`` by a spline of degree
-    :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by scipy's
-    banded collocation of ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
+    :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by
+    :func:`_fit_round`: the fixed matrices of :func:`_first_round`, then scipy's banded collocation of
+    ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
     adaptively: every interval whose image on
     ``surface`` misses ``curve`` by ``e`` more than ``b = tol.linear / 2`` at its quarter points is cut into
     ``ceil((e / b)^(1/(p+1)))`` equal parts (at least two, at most ``_MAX_FIT_SPLIT + 1``) by new samples, until
@@ -1737,8 +1792,8 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     usually brings an interval within ``b`` where halving took several (each round refits and re-measures
     every interval).
 
-    The rounds work on scipy's spline and evaluate without argument checks (``_surface_points``,
-    ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
+    The rounds work on the arrays of :func:`_fit_round` and evaluate without argument checks
+    (``_surface_points``, ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
     samples of a fit, the checks and the per-call costs of ``interpolate_curve`` and
     ``NurbsCurve.evaluate`` were most of the time.
 
@@ -1754,19 +1809,19 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     t = _fit_start(s0, s1)
     Q = f(t)
     worst = math.inf
-    quarters = np.array([0.25, 0.5, 0.75])
     bound = 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
+    first = True
     while len(t) <= _MAX_FIT_SAMPLES:
-        # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), scipy's banded collocation solve.
-        spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=_averaging(t, _FIT_DEGREE))
-        tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
-        uv = spline(tm)
+        # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), one collocation solve (_fit_round).
+        uv, ctrl, knots = _fit_round(t, Q, first)
+        first = False
+        tm = _quarter_points(t)
         gap = _surface_points(surface, uv[:, 0], uv[:, 1]) - _curve_points(curve, tm)
         e = np.sqrt(np.max(np.add.reduce(gap * gap, axis=-1).reshape(-1, 3), axis=1))
         worst = float(e.max())
         bad = np.flatnonzero(e > bound)
         if bad.size == 0:
-            return NurbsCurve(spline.c, spline.t, _FIT_DEGREE), worst
+            return NurbsCurve(ctrl, knots, _FIT_DEGREE), worst
         count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1,
                         _MAX_FIT_SPLIT).astype(np.int64)
         owner, j = interval_cuts(bad, count)

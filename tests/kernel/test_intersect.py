@@ -437,6 +437,52 @@ def test_sphere_sphere_fitted_pcurves_are_quintic_within_half_the_tolerance(offs
     assert spans5 < 0.7 * spans3, (spans5, spans3)
 
 
+@settings(max_examples=25, deadline=None)
+@given(kind=st.sampled_from(["spheres", "cylinders"]),
+       offset=st.tuples(st.floats(-3.0, 3.0), st.floats(-3.0, 3.0), st.floats(-3.0, 3.0)),
+       radius=st.floats(0.3, 0.9))
+def test_first_fit_round_from_fixed_matrices_is_scipys(kind, offset, radius):
+    """The first round of every fit (sphere–sphere circles in (longitude, latitude): ``_fitted_pcurve``; crossing
+    cylinders: ``_loop_piece``) interpolates by the fixed matrices of ``_first_round``, without scipy's
+    ``make_interp_spline`` (a fit accepted in that round calls it never), and gives the branches scipy's solve
+    gives: the same knots and p-curves to round-off."""
+    import coons.kernel.intersect as I
+
+    if kind == "spheres":
+        a = SphericalSurface([0, 0, 0], Z, X, 1.0)
+        b = SphericalSurface(np.array(offset) * 0.5, Z, X, radius + 0.5)
+        boxes = ((0.0, TWO_PI), (-math.pi / 2, math.pi / 2)), ((0.0, TWO_PI), (-math.pi / 2, math.pi / 2))
+    else:
+        a = CylindricalSurface([0, 0, -3], Z, X, 1.0)
+        b = CylindricalSurface([-3.0, offset[1] * 0.1, offset[2]], X, Y, radius)
+        boxes = ((0.0, TWO_PI), (0.0, 6.0)), ((0.0, TWO_PI), (0.0, 6.0))
+    solves = []
+    scipy_solve = I.make_interp_spline
+
+    def spy(*args, **kwargs):
+        solves.append(len(args[0]))
+        return scipy_solve(*args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "make_interp_spline", spy)
+        fast = intersect_surfaces(a, b, *boxes)
+        rounds = len(solves)
+        m.setattr(I, "_FAST_FIRST", False)
+        general = intersect_surfaces(a, b, *boxes)
+    fitted = [pc for c in fast.curves for pc in (c.pcurve_a, c.pcurve_b) if isinstance(pc, NurbsCurve)]
+    assume(fitted)
+    assert I._FIT_START not in solves[:rounds]  # (every first round has _FIT_START samples, later ones more)
+    assert len(solves) > rounds
+    assert len(fast.curves) == len(general.curves)
+    for c, g in zip(fast.curves, general.curves):
+        assert (c.t0, c.t1) == (g.t0, g.t1)
+        for pc, pg in ((c.pcurve_a, g.pcurve_a), (c.pcurve_b, g.pcurve_b), (c.curve, g.curve)):
+            assert type(pc) is type(pg)
+            if isinstance(pc, NurbsCurve):
+                np.testing.assert_array_equal(pc.knots, pg.knots)
+                np.testing.assert_allclose(pc.control_points, pg.control_points, rtol=0, atol=1e-12)
+
+
 def test_coaxial_pairs_circles_at_meridian_crossings():
     sph = SphericalSurface([0, 0, 0.3], Z, X, 1.5)
     cyl = CylindricalSurface([0, 0, -1], -Z, X, 1.0)

@@ -112,6 +112,7 @@ from coons.kernel.analytic import (
     PlanarSurface,
     SphericalSurface,
     ToroidalSurface,
+    _angle,
 )
 from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
@@ -1313,7 +1314,7 @@ def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolera
     closed = _closed_coords(surface, curve, window, full, tol)
     if closed is not None:
         return closed
-    uv = np.asarray(surface.closest_parameters(curve.evaluate(_form_parameters(window))), dtype=np.float64)
+    uv = np.asarray(_projected(surface, curve, _form_parameters(window)), dtype=np.float64)
     return [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
 
 
@@ -1377,6 +1378,23 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
             c[1] = float(round(c[1]))
         out.append(_Coord.exact_form(surface, curve, i, window, full, np.array(c)))
     return out
+
+
+def _projected(surface, curve, t: np.ndarray) -> np.ndarray:
+    """``surface.closest_parameters(curve.evaluate(t))`` for finite ``t`` ``(k,)``: ``(k, 2)``.
+
+    A line, circle or ellipse on a sphere or cylinder by the same expressions as those methods (the curve's
+    points of :func:`_curve_points`, the local coordinates by the same product, ``_angle``, and the sphere's
+    ``arctan2(z, ρ)``) without their argument checks, which cost as much as the arithmetic on the few dozen
+    points of a numeric coordinate's samples; other pairs through their methods.
+    """
+    kind = type(surface)
+    if (kind is SphericalSurface or kind is CylindricalSurface) and type(curve) in (Line, Circle, Ellipse):
+        L = (_curve_points(curve, t) - surface._origin) @ surface._frame.T
+        x, y, z = L[..., 0], L[..., 1], L[..., 2]
+        phi = _angle(y, x)
+        return np.stack([phi, np.arctan2(z, np.hypot(x, y)) if kind is SphericalSurface else z], axis=-1)
+    return surface.closest_parameters(curve.evaluate(t))
 
 
 def _first_parameters(surface, curve, t: np.ndarray) -> tuple[float, float]:
@@ -1451,7 +1469,7 @@ class _Coord:
         return self
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
-        return self.surface.closest_parameters(self.curve.evaluate(self._inset(t)))[..., self.index]
+        return _projected(self.surface, self.curve, self._inset(t))[..., self.index]
 
     def _inset(self, t: np.ndarray) -> np.ndarray:
         """The parameters where :meth:`_raw` projects the curve: ``t`` itself, but on a periodic coordinate whose
@@ -1714,7 +1732,7 @@ def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
             and cu.curve is cv.curve:
         tu, tv = cu._inset(t), cv._inset(t)
         if tu is tv or np.array_equal(tu, tv):
-            raw = cu.surface.closest_parameters(cu.curve.evaluate(tu))
+            raw = _projected(cu.surface, cu.curve, tu)
             return np.stack([cu._unwrapped(t, raw[..., 0]), cv._unwrapped(t, raw[..., 1])], axis=-1)
     return np.stack([cu(t), cv(t)], axis=-1)
 

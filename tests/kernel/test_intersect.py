@@ -483,6 +483,33 @@ def test_first_fit_round_from_fixed_matrices_is_scipys(kind, offset, radius):
                 np.testing.assert_allclose(pc.control_points, pg.control_points, rtol=0, atol=1e-12)
 
 
+@settings(max_examples=40, deadline=None)
+@given(kind=st.sampled_from(["line", "circle", "ellipse"]), sphere=st.booleans(),
+       centre=st.tuples(*[st.floats(-2, 2) for _ in range(3)]),
+       axis=st.tuples(*[st.floats(-1, 1) for _ in range(3)]).filter(lambda v: np.linalg.norm(v) > 0.3),
+       t0=st.floats(-7, 7), span=st.floats(0.1, 7))
+def test_lean_projection_is_the_surface_methods(kind, sphere, centre, axis, t0, span):
+    """``_projected`` (the numeric coordinates' projections without argument checks) calls neither method and gives
+    ``surface.closest_parameters(curve.evaluate(t))`` bit for bit on spheres and cylinders."""
+    import coons.kernel.intersect as I
+    from coons.kernel.analytic import Ellipse
+
+    n = _unit_vector(axis)
+    x = perpendicular_direction(n)
+    C = np.array(centre)
+    curve = {"line": lambda: Line(C, n), "circle": lambda: Circle(C, n, x, 1.3),
+             "ellipse": lambda: Ellipse(C, n, x, 1.7, 0.6)}[kind]()
+    S = (SphericalSurface([0.3, -0.2, 0.1], Z, X, 1.5) if sphere
+         else CylindricalSurface([0.3, -0.2, 0.1], _unit_vector([0.2, 0.1, 1.0]), X, 1.5))
+    t = np.linspace(t0, t0 + span, 37)
+    expected = S.closest_parameters(curve.evaluate(t))
+    with pytest.MonkeyPatch.context() as m:  # (taken: neither method runs)
+        m.setattr(type(S), "closest_parameters", None)
+        m.setattr(type(curve), "evaluate", None)
+        got = I._projected(S, curve, t)
+    np.testing.assert_array_equal(got, expected)
+
+
 def test_coaxial_pairs_circles_at_meridian_crossings():
     sph = SphericalSurface([0, 0, 0.3], Z, X, 1.5)
     cyl = CylindricalSurface([0, 0, -1], -Z, X, 1.0)

@@ -75,9 +75,12 @@ on a handful of values: where every p-curve coordinate is exact, the branch's wi
 to the boxes in Python floats (``_exact_runs``), and the measured deviation evaluates the curves
 without their argument checks (``_curve_points`` and its siblings); both repeat the array
 expressions value for value, so the branches are the same bit for bit (fitted p-curves are sampled
-by scipy's B-spline, :func:`~coons.kernel.curve.spline_points`, to round-off).  Many plane–cylinder
-pairs with the plane perpendicular to the axis (a plate against the walls of its holes) are
-solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
+by scipy's B-spline, :func:`~coons.kernel.curve.spline_points`, to round-off).  The numeric
+coordinates of a curve on a surface (their samples, unwrapping grid and box crossings) are
+remembered per surface for curves equal in value (``_coords``): the several face pairs of two
+surfaces (a sphere's halves against another sphere's) find one curve and differ only by their
+boxes.  Many plane–cylinder pairs with the plane perpendicular to the axis (a plate against the
+walls of its holes) are solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
 it); it takes only pairs clear of every near-tie and leaves the rest to this dispatcher.
 
 *Tolerances.*  ``tol.linear`` decides tangency, coincidence and whether a curve passes
@@ -96,6 +99,7 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -1310,12 +1314,57 @@ def _form_basis(w0: float, w1: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"]:
     """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples
-    (or in closed form, :func:`_closed_coords`)."""
+    (or in closed form, :func:`_closed_coords`).
+
+    Numeric coordinates are remembered per surface for curves equal in value (:data:`_COORDS`): the
+    faces of one surface meet the faces of another in several pairs (a sphere's two halves against
+    another sphere's), each pair finds the same exact curve, and its coordinates differ only by the
+    boxes, which the coordinates do not depend on."""
     closed = _closed_coords(surface, curve, window, full, tol)
     if closed is not None:
         return closed
+    key = _curve_key(curve)
+    per = None
+    if key is not None:
+        key = (key, float(window[0]), float(window[1]), bool(full), tol.linear, tol.angular, tol.solver)
+        try:
+            per = _COORDS.get(surface)
+            if per is None:
+                per = _COORDS[surface] = {}
+        except TypeError:  # not weak-referenceable or not hashable: no memo
+            per = None
+        states = per.get(key) if per is not None else None
+        if states is not None:
+            return [_Coord.restored(surface, curve, state) for state in states]
     uv = np.asarray(_projected(surface, curve, _form_parameters(window)), dtype=np.float64)
-    return [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+    out = [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+    if per is not None:
+        if len(per) >= _COORDS_PER_SURFACE:
+            del per[next(iter(per))]  # the oldest: a long-lived surface met by many curves keeps the latest
+        per[key] = [c.state() for c in out]
+    return out
+
+
+#: Surface -> ``{(curve key, window, full, tolerance): states}``: the :meth:`_Coord.state` of both numeric
+#: coordinates of a curve on that surface (:func:`_coords`), found again for a curve equal in value
+#: (:func:`_curve_key`).  The states hold arrays and numbers, never the surface or the curve: an entry
+#: dies with its surface.
+_COORDS: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+#: Most curves remembered per surface in :data:`_COORDS` (two reference grids of ~4 kB each per curve).
+_COORDS_PER_SURFACE = 32
+
+
+def _curve_key(curve) -> bytes | None:
+    """The bytes of what a line, circle or ellipse evaluates from (its type, origin or centre, frame or
+    direction, radii): equal keys, the same points at every parameter; None for other curves."""
+    kind = type(curve)
+    if kind is Circle or kind is Ellipse:
+        parts = (curve._origin, curve._frame, np.array(curve._radii(), dtype=np.float64))
+    elif kind is Line:
+        parts = (curve.origin, curve.direction)
+    else:
+        return None
+    return kind.__name__.encode() + b"".join(np.ascontiguousarray(x, dtype=np.float64).tobytes() for x in parts)
 
 
 def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"] | None:
@@ -1453,9 +1502,25 @@ class _Coord:
         if not self.exact and self.periodic:
             # The reference that unwraps a periodic coordinate in __call__ (a non-periodic one needs none).
             n = _SEARCH_SAMPLES
-            self.grid = np.linspace(w0, w1, n + 1)
-            self.ref = np.unwrap(self._raw(self.grid), period=TWO_PI)
+            self.grid = _frozen(np.linspace(w0, w1, n + 1))
+            self.ref = _frozen(np.unwrap(self._raw(self.grid), period=TWO_PI))
             self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if full else 0
+        _frozen(self.coef)
+        self._crossed: dict[tuple[float, float, float], np.ndarray] = {}  # crossings of a numeric coordinate
+
+    def state(self) -> dict:
+        """What the coordinate computed from its surface and curve (all but those two objects), for
+        :meth:`restored`; the crossings found so far and later are shared with the restored copies."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("surface", "curve")}
+
+    @classmethod
+    def restored(cls, surface, curve, state: dict) -> "_Coord":
+        """The coordinate of :meth:`state` on ``surface`` along ``curve`` (equal in value to the curve it was
+        computed for)."""
+        self = object.__new__(cls)
+        self.__dict__.update(state)
+        self.surface, self.curve = surface, curve
+        return self
 
     @classmethod
     def exact_form(cls, surface, curve, index: int, window: tuple[float, float], full: bool,
@@ -1536,8 +1601,15 @@ class _Coord:
             k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
             out = (base[:, None] + TWO_PI * np.arange(k0, k1 + 1)[None, :]).ravel()
             return np.unique(out[(out > t0) & (out < t1)])
+        memo = getattr(self, "_crossed", None)
+        key = (bound, t0, t1)
+        if memo is not None and key in memo:
+            return memo[key]
         found = _conic_crossings(self, bound, t0, t1)
-        return self._searched_crossings(bound, t0, t1) if found is None else found
+        found = self._searched_crossings(bound, t0, t1) if found is None else found
+        if memo is not None:
+            memo[key] = _frozen(found)
+        return found
 
     def _searched_crossings(self, bound: float, t0: float, t1: float) -> np.ndarray:
         """:meth:`crossings` of a coordinate without a closed form: bracket sign changes on a grid of

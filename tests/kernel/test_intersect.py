@@ -510,6 +510,65 @@ def test_lean_projection_is_the_surface_methods(kind, sphere, centre, axis, t0, 
     np.testing.assert_array_equal(got, expected)
 
 
+def _same_branches(r, g) -> None:
+    """The same branches bit for bit: ranges, curves' defining arrays, p-curves' knots and control points."""
+    assert len(r.curves) == len(g.curves)
+    for c, d in zip(r.curves, g.curves):
+        assert (c.t0, c.t1, c.closed, c.tol) == (d.t0, d.t1, d.closed, d.tol)
+        np.testing.assert_array_equal(c.curve.evaluate(np.linspace(c.t0, c.t1, 7)),
+                                      d.curve.evaluate(np.linspace(d.t0, d.t1, 7)))
+        for p, q in ((c.pcurve_a, d.pcurve_a), (c.pcurve_b, d.pcurve_b)):
+            assert type(p) is type(q)
+            if isinstance(p, NurbsCurve):
+                np.testing.assert_array_equal(p.knots, q.knots)
+                np.testing.assert_array_equal(p.control_points, q.control_points)
+
+
+@pytest.mark.parametrize("offset", [(4.0, 2.0, 0.5), (1.0, -3.0, 2.5), (0.5, 0.5, -4.5)])
+def test_numeric_coordinates_are_found_again_on_the_same_surfaces(offset):
+    """The face pairs of two spheres (their halves) find one circle; the second and third pair take its numeric
+    coordinates from the memo (no ``_Coord`` is computed) and give the branches a cold run gives, bit for bit.
+    The memo dies with its surface and ``_forget_caches`` clears it."""
+    import gc
+
+    import coons.kernel.intersect as I
+    from coons.booleans.solid import _forget_caches
+
+    a = SphericalSurface([0, 0, 0], Z, X, 5.0)
+    b = SphericalSurface(offset, Z, X, 5.0)
+    halves = [((-0.03, math.pi + 0.03), (-math.pi / 2, math.pi / 2)), ((math.pi - 0.03, TWO_PI + 0.03),
+                                                                       (-math.pi / 2, math.pi / 2))]
+    pairs = [(ha, hb) for ha in halves for hb in halves]
+    cold = []
+    for ha, hb in pairs:
+        I._COORDS.clear()
+        cold.append(intersect_surfaces(a, b, ha, hb))
+    I._COORDS.clear()
+    made = []
+    init = I._Coord.__init__
+
+    def spy(self, *args, **kwargs):
+        made.append(args[2])
+        init(self, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I._Coord, "__init__", spy)
+        warm = [intersect_surfaces(a, b, ha, hb) for ha, hb in pairs]
+        first = len(made)
+        again = [intersect_surfaces(a, b, ha, hb) for ha, hb in pairs]
+    assert first == 4 and len(made) == first  # both coordinates on both spheres, once
+    for r, g in zip(warm + again, cold + cold):
+        _same_branches(r, g)
+    assert a in I._COORDS and b in I._COORDS
+    _forget_caches()
+    assert len(I._COORDS) == 0
+    intersect_surfaces(a, b, *pairs[0])
+    n = len(I._COORDS)
+    del a
+    gc.collect()
+    assert len(I._COORDS) == n - 1  # (the entry of the sphere that died)
+
+
 def test_coaxial_pairs_circles_at_meridian_crossings():
     sph = SphericalSurface([0, 0, 0.3], Z, X, 1.5)
     cyl = CylindricalSurface([0, 0, -1], -Z, X, 1.0)

@@ -783,12 +783,12 @@ def _forget_caches() -> None:
     operation) and for tests that compare a chain of Booleans warm and cold.  Results never
     depend on these caches, only the time does.
     """
-    from coons.kernel import curve_intersect, onsurface
+    from coons.kernel import curve_intersect, intersect, onsurface
     from coons.topology import _memo, check, mass, split, tessellate
 
     for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _FACE_DATA, _USE_SAMPLES,
                   curve_intersect._TRIG, curve_intersect._FORMS, curve_intersect._MEMO, onsurface._PERIODS_CACHE,
-                  split._FACES, split._MAPPED):
+                  split._FACES, split._MAPPED, intersect._COORDS):
         cache.clear()
     _memo.clear_all()  # every IdentityMemo (sewing, checking, mass, the pipeline's per-use memos)
 

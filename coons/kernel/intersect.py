@@ -46,7 +46,9 @@ when both are trigonometric a :class:`~coons.kernel.pcurve.Trig2D`.  Otherwise (
 a cylinder or cone, oblique circles on a sphere, conic arcs on a cone) it is a quintic 2-D
 :class:`~coons.kernel.curve.NurbsCurve` interpolating the exact parameters (The NURBS Book
 A9.1) on the branch's own parameter, refined until its image is within ``tol.linear / 2`` of
-the curve; the plane's p-curve of a rational conic arc is exact (same weights).  The loops of
+the curve; the plane's p-curve of a rational conic arc is exact (same weights).  Every fit starts
+from the same graded samples mapped onto its range, where the collocation is one fixed matrix
+(``_first_round``); the refined rounds solve theirs with scipy.  The loops of
 crossing cylinders have no conic form: their 3-D curve and both p-curves are one quintic spline fitted
 to the exact points and parameters at the same samples (``_loop_piece``), on the parameter ``±θ``.
 
@@ -73,9 +75,12 @@ on a handful of values: where every p-curve coordinate is exact, the branch's wi
 to the boxes in Python floats (``_exact_runs``), and the measured deviation evaluates the curves
 without their argument checks (``_curve_points`` and its siblings); both repeat the array
 expressions value for value, so the branches are the same bit for bit (fitted p-curves are sampled
-by scipy's B-spline, :func:`~coons.kernel.curve.spline_points`, to round-off).  Many plane–cylinder
-pairs with the plane perpendicular to the axis (a plate against the walls of its holes) are
-solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
+by scipy's B-spline, :func:`~coons.kernel.curve.spline_points`, to round-off).  The numeric
+coordinates of a curve on a surface (their samples, unwrapping grid and box crossings) are
+remembered per surface for curves equal in value (``_coords``): the several face pairs of two
+surfaces (a sphere's halves against another sphere's) find one curve and differ only by their
+boxes.  Many plane–cylinder pairs with the plane perpendicular to the axis (a plate against the
+walls of its holes) are solved together by ``_plane_cylinder_circles`` in array passes (the Booleans' phase 3 calls
 it); it takes only pairs clear of every near-tie and leaves the rest to this dispatcher.
 
 *Tolerances.*  ``tol.linear`` decides tangency, coincidence and whether a curve passes
@@ -94,6 +99,7 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -110,6 +116,7 @@ from coons.kernel.analytic import (
     PlanarSurface,
     SphericalSurface,
     ToroidalSurface,
+    _angle,
 )
 from coons.kernel._common import interval_cuts
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
@@ -947,13 +954,14 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
 
     t = _fit_start(s0, s1)
     Q = f(t)
-    quarters = np.array([0.25, 0.5, 0.75])
     bound = 0.5 * tol.linear
     worst = math.inf
+    first = True
     while len(t) <= _MAX_FIT_SAMPLES:
-        spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=_averaging(t, _FIT_DEGREE))
-        tq = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
-        F, E = spline(tq), loop.evaluate(tq)
+        F, ctrl, knots = _fit_round(t, Q, first)
+        first = False
+        tq = _quarter_points(t)
+        E = loop.evaluate(tq)
         C = F[:, :3]
         Pa = _surface_points(a, F[:, 3], F[:, 4])
         Pb = _surface_points(b, F[:, 5], F[:, 6])
@@ -963,7 +971,6 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
         if bad.size == 0:
             gaps = np.concatenate([Pa - C, Pb - C, Pa - Pb])
             fit_dev = math.sqrt(float(np.max(np.add.reduce(gaps * gaps, axis=-1))))
-            knots, ctrl = spline.t, spline.c
             p = _FIT_DEGREE
             pcurves = [NurbsCurve(ctrl[:, 3:5], knots, p), NurbsCurve(ctrl[:, 5:7], knots, p)]
             return _finished(NurbsCurve(ctrl[:, :3], knots, p), s0, s1, pcurves, fit_dev, a, b, closed, False)
@@ -1307,12 +1314,57 @@ def _form_basis(w0: float, w1: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"]:
     """Both coordinates ``[u, v]`` of the p-curve of ``curve`` on ``surface``, from one projection of the samples
-    (or in closed form, :func:`_closed_coords`)."""
+    (or in closed form, :func:`_closed_coords`).
+
+    Numeric coordinates are remembered per surface for curves equal in value (:data:`_COORDS`): the
+    faces of one surface meet the faces of another in several pairs (a sphere's two halves against
+    another sphere's), each pair finds the same exact curve, and its coordinates differ only by the
+    boxes, which the coordinates do not depend on."""
     closed = _closed_coords(surface, curve, window, full, tol)
     if closed is not None:
         return closed
-    uv = np.asarray(surface.closest_parameters(curve.evaluate(_form_parameters(window))), dtype=np.float64)
-    return [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+    key = _curve_key(curve)
+    per = None
+    if key is not None:
+        key = (key, float(window[0]), float(window[1]), bool(full), tol.linear, tol.angular, tol.solver)
+        try:
+            per = _COORDS.get(surface)
+            if per is None:
+                per = _COORDS[surface] = {}
+        except TypeError:  # not weak-referenceable or not hashable: no memo
+            per = None
+        states = per.get(key) if per is not None else None
+        if states is not None:
+            return [_Coord.restored(surface, curve, state) for state in states]
+    uv = np.asarray(_projected(surface, curve, _form_parameters(window)), dtype=np.float64)
+    out = [_Coord(surface, curve, i, window, full, tol, samples=uv[..., i]) for i in (0, 1)]
+    if per is not None:
+        if len(per) >= _COORDS_PER_SURFACE:
+            del per[next(iter(per))]  # the oldest: a long-lived surface met by many curves keeps the latest
+        per[key] = [c.state() for c in out]
+    return out
+
+
+#: Surface -> ``{(curve key, window, full, tolerance): states}``: the :meth:`_Coord.state` of both numeric
+#: coordinates of a curve on that surface (:func:`_coords`), found again for a curve equal in value
+#: (:func:`_curve_key`).  The states hold arrays and numbers, never the surface or the curve: an entry
+#: dies with its surface.
+_COORDS: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+#: Most curves remembered per surface in :data:`_COORDS` (two reference grids of ~4 kB each per curve).
+_COORDS_PER_SURFACE = 32
+
+
+def _curve_key(curve) -> bytes | None:
+    """The bytes of what a line, circle or ellipse evaluates from (its type, origin or centre, frame or
+    direction, radii): equal keys, the same points at every parameter; None for other curves."""
+    kind = type(curve)
+    if kind is Circle or kind is Ellipse:
+        parts = (curve._origin, curve._frame, np.array(curve._radii(), dtype=np.float64))
+    elif kind is Line:
+        parts = (curve.origin, curve.direction)
+    else:
+        return None
+    return kind.__name__.encode() + b"".join(np.ascontiguousarray(x, dtype=np.float64).tobytes() for x in parts)
 
 
 def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol: Tolerance) -> list["_Coord"] | None:
@@ -1377,6 +1429,23 @@ def _closed_coords(surface, curve, window: tuple[float, float], full: bool, tol:
     return out
 
 
+def _projected(surface, curve, t: np.ndarray) -> np.ndarray:
+    """``surface.closest_parameters(curve.evaluate(t))`` for finite ``t`` ``(k,)``: ``(k, 2)``.
+
+    A line, circle or ellipse on a sphere or cylinder by the same expressions as those methods (the curve's
+    points of :func:`_curve_points`, the local coordinates by the same product, ``_angle``, and the sphere's
+    ``arctan2(z, ρ)``) without their argument checks, which cost as much as the arithmetic on the few dozen
+    points of a numeric coordinate's samples; other pairs through their methods.
+    """
+    kind = type(surface)
+    if (kind is SphericalSurface or kind is CylindricalSurface) and type(curve) in (Line, Circle, Ellipse):
+        L = (_curve_points(curve, t) - surface._origin) @ surface._frame.T
+        x, y, z = L[..., 0], L[..., 1], L[..., 2]
+        phi = _angle(y, x)
+        return np.stack([phi, np.arctan2(z, np.hypot(x, y)) if kind is SphericalSurface else z], axis=-1)
+    return surface.closest_parameters(curve.evaluate(t))
+
+
 def _first_parameters(surface, curve, t: np.ndarray) -> tuple[float, float]:
     """``surface.closest_parameters(curve.evaluate(t))`` of one parameter ``t`` ``(1,)`` as two floats.
 
@@ -1433,9 +1502,25 @@ class _Coord:
         if not self.exact and self.periodic:
             # The reference that unwraps a periodic coordinate in __call__ (a non-periodic one needs none).
             n = _SEARCH_SAMPLES
-            self.grid = np.linspace(w0, w1, n + 1)
-            self.ref = np.unwrap(self._raw(self.grid), period=TWO_PI)
+            self.grid = _frozen(np.linspace(w0, w1, n + 1))
+            self.ref = _frozen(np.unwrap(self._raw(self.grid), period=TWO_PI))
             self.turns = round((self.ref[-1] - self.ref[0]) / TWO_PI) if full else 0
+        _frozen(self.coef)
+        self._crossed: dict[tuple[float, float, float], np.ndarray] = {}  # crossings of a numeric coordinate
+
+    def state(self) -> dict:
+        """What the coordinate computed from its surface and curve (all but those two objects), for
+        :meth:`restored`; the crossings found so far and later are shared with the restored copies."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("surface", "curve")}
+
+    @classmethod
+    def restored(cls, surface, curve, state: dict) -> "_Coord":
+        """The coordinate of :meth:`state` on ``surface`` along ``curve`` (equal in value to the curve it was
+        computed for)."""
+        self = object.__new__(cls)
+        self.__dict__.update(state)
+        self.surface, self.curve = surface, curve
+        return self
 
     @classmethod
     def exact_form(cls, surface, curve, index: int, window: tuple[float, float], full: bool,
@@ -1449,7 +1534,7 @@ class _Coord:
         return self
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
-        return self.surface.closest_parameters(self.curve.evaluate(self._inset(t)))[..., self.index]
+        return _projected(self.surface, self.curve, self._inset(t))[..., self.index]
 
     def _inset(self, t: np.ndarray) -> np.ndarray:
         """The parameters where :meth:`_raw` projects the curve: ``t`` itself, but on a periodic coordinate whose
@@ -1516,8 +1601,15 @@ class _Coord:
             k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
             out = (base[:, None] + TWO_PI * np.arange(k0, k1 + 1)[None, :]).ravel()
             return np.unique(out[(out > t0) & (out < t1)])
+        memo = getattr(self, "_crossed", None)
+        key = (bound, t0, t1)
+        if memo is not None and key in memo:
+            return memo[key]
         found = _conic_crossings(self, bound, t0, t1)
-        return self._searched_crossings(bound, t0, t1) if found is None else found
+        found = self._searched_crossings(bound, t0, t1) if found is None else found
+        if memo is not None:
+            memo[key] = _frozen(found)
+        return found
 
     def _searched_crossings(self, bound: float, t0: float, t1: float) -> np.ndarray:
         """:meth:`crossings` of a coordinate without a closed form: bracket sign changes on a grid of
@@ -1712,7 +1804,7 @@ def _pair_values(cu: _Coord, cv: _Coord, t: np.ndarray) -> np.ndarray:
             and cu.curve is cv.curve:
         tu, tv = cu._inset(t), cv._inset(t)
         if tu is tv or np.array_equal(tu, tv):
-            raw = cu.surface.closest_parameters(cu.curve.evaluate(tu))
+            raw = _projected(cu.surface, cu.curve, tu)
             return np.stack([cu._unwrapped(t, raw[..., 0]), cv._unwrapped(t, raw[..., 1])], axis=-1)
     return np.stack([cu(t), cv(t)], axis=-1)
 
@@ -1726,10 +1818,63 @@ def _fit_start(s0: float, s1: float) -> np.ndarray:
     return t
 
 
+#: The quarter points of every interval between samples, where a fit round measures its error.
+_QUARTERS = _frozen(np.array([0.25, 0.5, 0.75]))
+#: The first round of a fit takes its interpolating spline from :func:`_first_round` (True), not from scipy's
+#: ``make_interp_spline``; tests switch it off to compare.
+_FAST_FIRST = True
+
+
+def _quarter_points(t: np.ndarray) -> np.ndarray:
+    """``(3 (n - 1),)``: the quarter points of the intervals between the samples ``t`` (n,), interval by interval."""
+    return (t[:-1, None] + _QUARTERS[None, :] * np.diff(t)[:, None]).ravel()
+
+
+@functools.lru_cache(maxsize=8)
+def _first_round(n: int, p: int, grade: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(inverse, at_quarters)``: the maps ``(n, n)`` and ``(3 (n - 1), n)`` from the values of a fit's first
+    round at the samples of :func:`_fit_start` (``n`` of them, degree ``p``, grading ``grade``) to the control
+    points of the interpolating spline and to its values at the quarter points (:func:`_quarter_points`).
+
+    The samples and the averaged knots (The NURBS Book eq. 9.8) of every range ``[s0, s1]`` are the images
+    of those of ``[0, 1]`` under ``x -> s0 + (s1 - s0) x``, and B-spline basis functions are invariant
+    under that map: the collocation matrix and the basis at the quarter points are the same for every
+    first round (to the round-off of the mapped parameters).  Two small products replace scipy's banded
+    solve and evaluation, whose set-up cost was most of a round on the few samples of a first round.
+    The collocation matrix is totally positive and well conditioned (condition number about 13 for the
+    module's constants): the inverse loses nothing that the bound ``tol.linear / 2`` could see.  Cached
+    per ``(n, p, grade)``: tests change the module's constants.
+    """
+    from scipy.interpolate import BSpline
+
+    x = np.linspace(0.0, 1.0, n)  # (the samples of _fit_start on [0, 1])
+    x = x - grade * np.sin(TWO_PI * x) / TWO_PI
+    x[-1] = 1.0
+    knots = _averaging(x, p)
+    A = BSpline.design_matrix(x, knots, p).toarray()
+    inverse = np.linalg.solve(A, np.eye(n))
+    E = BSpline.design_matrix(_quarter_points(x), knots, p).toarray()
+    return _frozen(inverse), _frozen(E @ inverse)
+
+
+def _fit_round(t: np.ndarray, Q: np.ndarray, first: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(at_quarters, control points, knots)`` of the spline of degree :data:`_FIT_DEGREE` interpolating ``Q``
+    ``(n, d)`` at ``t`` (n,) on the averaged knots (The NURBS Book A9.1, eq. 9.8): its values ``(3 (n - 1), d)``
+    at :func:`_quarter_points`.  ``first``: ``t`` is :func:`_fit_start`'s (the matrices of
+    :func:`_first_round`); otherwise scipy's banded collocation (``make_interp_spline``)."""
+    knots = _averaging(t, _FIT_DEGREE)
+    if first and _FAST_FIRST and t.size == _FIT_START:
+        inverse, at_quarters = _first_round(_FIT_START, _FIT_DEGREE, _FIT_GRADE)
+        return at_quarters @ Q, inverse @ Q, knots
+    spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=knots)
+    return spline(_quarter_points(t)), spline.c, spline.t
+
+
 def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, pointwise: bool = False):
     """``(p-curve, deviation)``: interpolation of the exact parameters ``f(t)`` by a spline of degree
-    :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by scipy's
-    banded collocation of ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
+    :data:`_FIT_DEGREE` ``p`` (The NURBS Book A9.1 with the averaged knots of eq. 9.8, solved by
+    :func:`_fit_round`: the fixed matrices of :func:`_first_round`, then scipy's banded collocation of
+    ``make_interp_spline``) from the graded samples of :func:`_fit_start`, refined
     adaptively: every interval whose image on
     ``surface`` misses ``curve`` by ``e`` more than ``b = tol.linear / 2`` at its quarter points is cut into
     ``ceil((e / b)^(1/(p+1)))`` equal parts (at least two, at most ``_MAX_FIT_SPLIT + 1``) by new samples, until
@@ -1737,8 +1882,8 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     usually brings an interval within ``b`` where halving took several (each round refits and re-measures
     every interval).
 
-    The rounds work on scipy's spline and evaluate without argument checks (``_surface_points``,
-    ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
+    The rounds work on the arrays of :func:`_fit_round` and evaluate without argument checks
+    (``_surface_points``, ``_curve_points``); only the accepted fit becomes a :class:`NurbsCurve`: on the few hundred
     samples of a fit, the checks and the per-call costs of ``interpolate_curve`` and
     ``NurbsCurve.evaluate`` were most of the time.
 
@@ -1754,19 +1899,19 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     t = _fit_start(s0, s1)
     Q = f(t)
     worst = math.inf
-    quarters = np.array([0.25, 0.5, 0.75])
     bound = 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
+    first = True
     while len(t) <= _MAX_FIT_SAMPLES:
-        # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), scipy's banded collocation solve.
-        spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=_averaging(t, _FIT_DEGREE))
-        tm = (t[:-1, None] + quarters[None, :] * np.diff(t)[:, None]).ravel()
-        uv = spline(tm)
+        # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), one collocation solve (_fit_round).
+        uv, ctrl, knots = _fit_round(t, Q, first)
+        first = False
+        tm = _quarter_points(t)
         gap = _surface_points(surface, uv[:, 0], uv[:, 1]) - _curve_points(curve, tm)
         e = np.sqrt(np.max(np.add.reduce(gap * gap, axis=-1).reshape(-1, 3), axis=1))
         worst = float(e.max())
         bad = np.flatnonzero(e > bound)
         if bad.size == 0:
-            return NurbsCurve(spline.c, spline.t, _FIT_DEGREE), worst
+            return NurbsCurve(ctrl, knots, _FIT_DEGREE), worst
         count = np.clip(np.ceil((e[bad] / bound) ** (1.0 / (_FIT_DEGREE + 1))) - 1.0, 1,
                         _MAX_FIT_SPLIT).astype(np.int64)
         owner, j = interval_cuts(bad, count)

@@ -61,7 +61,8 @@ the general path.  Two cuts sharing one end (consecutive pieces of a branch, bra
 one boundary point) are proven to meet only there when the line through the end between their
 directions keeps each on its side (monotone control-point distances, :func:`_end_contact_only`):
 the end contact is left to the node merge; crossing cuts, and pairs the control points do not
-separate, take the general path.
+separate, take the general path.  Likewise a cut end within ``eps`` of a piece's end needs no snap
+to that piece (:func:`_snap_cut_ends` searches no foot there).
 
 The module does not compute intersection curves (:mod:`coons.kernel.intersect`), does not
 classify pieces against another solid, does not re-sew, and does not merge faces.  Its
@@ -215,8 +216,9 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
 
 #: The fast paths on: the per-face cache, the skip of exact crossings in :func:`_in_space`, the
 #: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
-#: proof (:func:`_end_contact_only`) and the span-polynomial evaluation (:func:`_pc_derivatives`);
-#: tests switch them off to compare with the general path.
+#: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`) and the skip of
+#: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`); tests switch them off to compare
+#: with the general path.
 _FAST = True
 
 
@@ -1130,6 +1132,7 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     ends_all = np.concatenate([_uv(c.pc, np.array([c.a, c.b])) for c in pieces[nb:]])
     P_all, reach_all = _space_reach(plane, ends_all)
     samples: dict = {}  # dense samples of the pieces, per curve and range (pieces live through the call)
+    piece_ends: dict[int, np.ndarray] = {}  # (2, 2) end points of the pieces examined, cuts' from ends_all
     for i in range(nb, len(pieces)):
         k = 2 * (i - nb)
         ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
@@ -1140,6 +1143,17 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
             for j, o in enumerate(pieces):
                 if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
                     continue
+                if _FAST:
+                    # An end of the piece within eps of q bounds the foot's distance by eps: no split (the
+                    # test below), and the node merge joins the two ends.  Consecutive cuts of one branch,
+                    # and branches ending at one point, skip the dense search of the foot.
+                    E = piece_ends.get(j)
+                    if E is None:
+                        E = piece_ends[j] = (ends_all[2 * (j - nb):2 * (j - nb) + 2] if j >= nb
+                                             else _uv(o.pc, np.array([o.a, o.b])))
+                    dq = E - q
+                    if float(np.min(dq[:, 0] * dq[:, 0] + dq[:, 1] * dq[:, 1])) <= plane.eps * plane.eps:
+                        continue
                 s, d = _foot(o.pc, o.a, o.b, q, samples)
                 if not plane.eps < d <= r:
                     continue

@@ -437,6 +437,138 @@ def test_sphere_sphere_fitted_pcurves_are_quintic_within_half_the_tolerance(offs
     assert spans5 < 0.7 * spans3, (spans5, spans3)
 
 
+@settings(max_examples=25, deadline=None)
+@given(kind=st.sampled_from(["spheres", "cylinders"]),
+       offset=st.tuples(st.floats(-3.0, 3.0), st.floats(-3.0, 3.0), st.floats(-3.0, 3.0)),
+       radius=st.floats(0.3, 0.9))
+def test_first_fit_round_from_fixed_matrices_is_scipys(kind, offset, radius):
+    """The first round of every fit (sphere–sphere circles in (longitude, latitude): ``_fitted_pcurve``; crossing
+    cylinders: ``_loop_piece``) interpolates by the fixed matrices of ``_first_round``, without scipy's
+    ``make_interp_spline`` (a fit accepted in that round calls it never), and gives the branches scipy's solve
+    gives: the same knots and p-curves to round-off."""
+    import coons.kernel.intersect as I
+
+    if kind == "spheres":
+        a = SphericalSurface([0, 0, 0], Z, X, 1.0)
+        b = SphericalSurface(np.array(offset) * 0.5, Z, X, radius + 0.5)
+        boxes = ((0.0, TWO_PI), (-math.pi / 2, math.pi / 2)), ((0.0, TWO_PI), (-math.pi / 2, math.pi / 2))
+    else:
+        a = CylindricalSurface([0, 0, -3], Z, X, 1.0)
+        b = CylindricalSurface([-3.0, offset[1] * 0.1, offset[2]], X, Y, radius)
+        boxes = ((0.0, TWO_PI), (0.0, 6.0)), ((0.0, TWO_PI), (0.0, 6.0))
+    solves = []
+    scipy_solve = I.make_interp_spline
+
+    def spy(*args, **kwargs):
+        solves.append(len(args[0]))
+        return scipy_solve(*args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I, "make_interp_spline", spy)
+        fast = intersect_surfaces(a, b, *boxes)
+        rounds = len(solves)
+        m.setattr(I, "_FAST_FIRST", False)
+        general = intersect_surfaces(a, b, *boxes)
+    fitted = [pc for c in fast.curves for pc in (c.pcurve_a, c.pcurve_b) if isinstance(pc, NurbsCurve)]
+    assume(fitted)
+    assert I._FIT_START not in solves[:rounds]  # (every first round has _FIT_START samples, later ones more)
+    assert len(solves) > rounds
+    assert len(fast.curves) == len(general.curves)
+    for c, g in zip(fast.curves, general.curves):
+        assert (c.t0, c.t1) == (g.t0, g.t1)
+        for pc, pg in ((c.pcurve_a, g.pcurve_a), (c.pcurve_b, g.pcurve_b), (c.curve, g.curve)):
+            assert type(pc) is type(pg)
+            if isinstance(pc, NurbsCurve):
+                np.testing.assert_array_equal(pc.knots, pg.knots)
+                np.testing.assert_allclose(pc.control_points, pg.control_points, rtol=0, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(kind=st.sampled_from(["line", "circle", "ellipse"]), sphere=st.booleans(),
+       centre=st.tuples(*[st.floats(-2, 2) for _ in range(3)]),
+       axis=st.tuples(*[st.floats(-1, 1) for _ in range(3)]).filter(lambda v: np.linalg.norm(v) > 0.3),
+       t0=st.floats(-7, 7), span=st.floats(0.1, 7))
+def test_lean_projection_is_the_surface_methods(kind, sphere, centre, axis, t0, span):
+    """``_projected`` (the numeric coordinates' projections without argument checks) calls neither method and gives
+    ``surface.closest_parameters(curve.evaluate(t))`` bit for bit on spheres and cylinders."""
+    import coons.kernel.intersect as I
+    from coons.kernel.analytic import Ellipse
+
+    n = _unit_vector(axis)
+    x = perpendicular_direction(n)
+    C = np.array(centre)
+    curve = {"line": lambda: Line(C, n), "circle": lambda: Circle(C, n, x, 1.3),
+             "ellipse": lambda: Ellipse(C, n, x, 1.7, 0.6)}[kind]()
+    S = (SphericalSurface([0.3, -0.2, 0.1], Z, X, 1.5) if sphere
+         else CylindricalSurface([0.3, -0.2, 0.1], _unit_vector([0.2, 0.1, 1.0]), X, 1.5))
+    t = np.linspace(t0, t0 + span, 37)
+    expected = S.closest_parameters(curve.evaluate(t))
+    with pytest.MonkeyPatch.context() as m:  # (taken: neither method runs)
+        m.setattr(type(S), "closest_parameters", None)
+        m.setattr(type(curve), "evaluate", None)
+        got = I._projected(S, curve, t)
+    np.testing.assert_array_equal(got, expected)
+
+
+def _same_branches(r, g) -> None:
+    """The same branches bit for bit: ranges, curves' defining arrays, p-curves' knots and control points."""
+    assert len(r.curves) == len(g.curves)
+    for c, d in zip(r.curves, g.curves):
+        assert (c.t0, c.t1, c.closed, c.tol) == (d.t0, d.t1, d.closed, d.tol)
+        np.testing.assert_array_equal(c.curve.evaluate(np.linspace(c.t0, c.t1, 7)),
+                                      d.curve.evaluate(np.linspace(d.t0, d.t1, 7)))
+        for p, q in ((c.pcurve_a, d.pcurve_a), (c.pcurve_b, d.pcurve_b)):
+            assert type(p) is type(q)
+            if isinstance(p, NurbsCurve):
+                np.testing.assert_array_equal(p.knots, q.knots)
+                np.testing.assert_array_equal(p.control_points, q.control_points)
+
+
+@pytest.mark.parametrize("offset", [(4.0, 2.0, 0.5), (1.0, -3.0, 2.5), (0.5, 0.5, -4.5)])
+def test_numeric_coordinates_are_found_again_on_the_same_surfaces(offset):
+    """The face pairs of two spheres (their halves) find one circle; the second and third pair take its numeric
+    coordinates from the memo (no ``_Coord`` is computed) and give the branches a cold run gives, bit for bit.
+    The memo dies with its surface and ``_forget_caches`` clears it."""
+    import gc
+
+    import coons.kernel.intersect as I
+    from coons.booleans.solid import _forget_caches
+
+    a = SphericalSurface([0, 0, 0], Z, X, 5.0)
+    b = SphericalSurface(offset, Z, X, 5.0)
+    halves = [((-0.03, math.pi + 0.03), (-math.pi / 2, math.pi / 2)), ((math.pi - 0.03, TWO_PI + 0.03),
+                                                                       (-math.pi / 2, math.pi / 2))]
+    pairs = [(ha, hb) for ha in halves for hb in halves]
+    cold = []
+    for ha, hb in pairs:
+        I._COORDS.clear()
+        cold.append(intersect_surfaces(a, b, ha, hb))
+    I._COORDS.clear()
+    made = []
+    init = I._Coord.__init__
+
+    def spy(self, *args, **kwargs):
+        made.append(args[2])
+        init(self, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(I._Coord, "__init__", spy)
+        warm = [intersect_surfaces(a, b, ha, hb) for ha, hb in pairs]
+        first = len(made)
+        again = [intersect_surfaces(a, b, ha, hb) for ha, hb in pairs]
+    assert first == 4 and len(made) == first  # both coordinates on both spheres, once
+    for r, g in zip(warm + again, cold + cold):
+        _same_branches(r, g)
+    assert a in I._COORDS and b in I._COORDS
+    _forget_caches()
+    assert len(I._COORDS) == 0
+    intersect_surfaces(a, b, *pairs[0])
+    n = len(I._COORDS)
+    del a
+    gc.collect()
+    assert len(I._COORDS) == n - 1  # (the entry of the sphere that died)
+
+
 def test_coaxial_pairs_circles_at_meridian_crossings():
     sph = SphericalSurface([0, 0, 0.3], Z, X, 1.5)
     cyl = CylindricalSurface([0, 0, -1], -Z, X, 1.0)

@@ -999,6 +999,53 @@ def test_consecutive_and_crossing_fitted_cuts_match_the_general_path(z0, a, b, z
     np.testing.assert_allclose(sum(_area(p) for p in fast), 2 * math.pi, rtol=RTOL_AREA)
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-0.8, 0.8), st.floats(-0.8, 0.8), st.floats(-0.8, 0.8), st.floats(0.9, 1.3),
+       st.floats(0.2, 0.8))
+def test_consecutive_fitted_cuts_on_a_hemisphere_skip_the_foot_search(dx, dy, dz, r, f):
+    """A sphere–sphere circle on a hemisphere (fitted p-curves in (lon, lat), where the surface is slow along
+    ``u`` and cut ends are snapped), clipped and cut into consecutive pieces: a cut end with an end of the
+    other piece within eps (the shared ends) takes no foot search, and the split gives the general path's
+    regions."""
+    from coons.kernel.intersect import intersect_surfaces
+    from coons.topology import split
+
+    face = face_specs(Sphere(1))[0]
+    other = Sphere(r).translate((1.0 + dx, dy, dz))
+    S2 = face_specs(other)[0].surface
+    box = ((-0.05, math.pi + 0.05), (-math.pi / 2, math.pi / 2))
+    far = ((-10.0, 10.0), (-math.pi / 2, math.pi / 2))
+    cuts = []
+    for c in intersect_surfaces(face.surface, S2, box, far).curves:
+        for s0, s1, w in clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve):
+            if w != "inside" or s1 - s0 < 1e-2:
+                continue
+            m = s0 + f * (s1 - s0)
+            cuts += [EdgeSpec(c.curve, s0, m, c.pcurve_a, c.tol), EdgeSpec(c.curve, m, s1, c.pcurve_a, c.tol)]
+    if not cuts:
+        return
+    searched = []
+    foot = split._foot
+
+    def spy(pc, a, b, q, *args):
+        searched.append((pc, a, b, q))
+        return foot(pc, a, b, q, *args)
+
+    split._foot = spy
+    try:
+        general = _general(split_face, face, cuts)
+        n_general = len(searched)
+        del searched[:]
+        fast = split_face(face, cuts)
+    finally:
+        split._foot = foot
+    eps = split._face_data(face, split.resolve(None)).plane(cuts).eps
+    for pc, a, b, q in searched:  # the feet still searched: no end of the piece within eps
+        assert np.min(np.linalg.norm(split._uv(pc, np.array([a, b])) - q, axis=1)) > eps
+    assert len(searched) < n_general  # (the shared ends of consecutive cuts were searched by the general path)
+    _assert_same_split(fast, general)
+
+
 def test_end_contact_only_proves_a_shared_end_and_declines_a_second_meeting():
     """Quadratic Bézier arcs leaving the origin: one climbing above and one dipping below meet only
     there (True, and ``intersect_curves`` agrees); one that dips and climbs across the first also

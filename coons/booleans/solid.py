@@ -233,7 +233,8 @@ import numpy as np
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
-from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface, surface_derivatives, surface_normals
+from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
+                                   surface_derivatives, surface_normals)
 from coons.kernel.intersect import _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -620,8 +621,6 @@ def _within_domain(S, ub: tuple, vb: tuple, v_face: tuple) -> tuple[tuple[float,
     (``v_face`` is the face's own ``v`` range, which says which nappe).  Periodic and infinite
     directions are not clipped.
     """
-    from coons.kernel.analytic import ConicalSurface
-
     (u0, u1), (v0, v1) = ub, vb
     dom = getattr(S, "domain", None)
     if dom is not None:
@@ -849,9 +848,9 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     loop_box = _frozen(np.stack([box_lo, box_hi], axis=1))
     no_box = no_box.tolist()
     out = []
-    for k, (loop, S) in enumerate(items):
-        a, b = int(start[k]), int(start[k] + n_pts[k])
-        ua, ub = int(use_start[k]), int(use_start[k] + n_uses[k])
+    # (the bounds as Python ints, read once: a hundred tools bring hundreds of loops)
+    bounds = zip(start.tolist(), (start + n_pts).tolist(), use_start.tolist(), (use_start + n_uses).tolist())
+    for k, ((loop, S), (a, b, ua, ub)) in enumerate(zip(items, bounds)):
         ld = _LoopData()
         ld.rest, ld.surface, ld.t = tuple(loop[1:]), S, t
         ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
@@ -991,18 +990,21 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     # A loop is its surface and every use (what _cached_loop checks), not its first use alone.
     todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
     parts_of = []
+    missing: list[tuple[list, int, tuple]] = []  # (a face's parts, the loop's place, its key)
     for spec in specs:
         S = spec.surface
         parts = [_cached_loop(loop, S, t) for loop in spec.loops]
-        for loop, ld in zip(spec.loops, parts):
+        for li, ld in enumerate(parts):
             if ld is None:
-                todo.setdefault((id(S),) + tuple(map(id, loop)), (loop, S))
+                loop = spec.loops[li]
+                key = (id(S),) + tuple(map(id, loop))
+                todo.setdefault(key, (loop, S))
+                missing.append((parts, li, key))
         parts_of.append(parts)
     if todo:
         made = dict(zip(todo, _new_loop_data(list(todo.values()), t)))
-        parts_of = [[made[(id(spec.surface),) + tuple(map(id, loop))] if ld is None else ld
-                     for loop, ld in zip(spec.loops, parts)]
-                    for spec, parts in zip(specs, parts_of)]
+        for parts, li, key in missing:
+            parts[li] = made[key]
     lds = [ld for parts in parts_of for ld in parts]
     first = np.cumsum([0] + [len(parts) for parts in parts_of[:-1]])
     # Per face: the rings' extremes (u0, v0, u1, v1), the segment boxes' union, the loop boxes'
@@ -1075,8 +1077,6 @@ _ANGLE_SLACK = 1e-12
 def _no_interior_extremes(S) -> bool:
     """Whether no coordinate of ``S`` has a critical point inside a face (planes, cylinders, cones: a
     coordinate is affine along a ruling, see :func:`_new_face_data`)."""
-    from coons.kernel.analytic import ConicalSurface, CylindricalSurface
-
     return isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface))
 
 
@@ -1263,7 +1263,6 @@ def _batched_sections(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t:
     When the batch raises (a degenerate circle or p-curve), every pair is left to the per-pair
     path, which reports the failing pair.
     """
-    from coons.kernel.analytic import CylindricalSurface
     from coons.kernel.intersect import _plane_cylinder_circles
 
     out: list = [None] * len(I)
@@ -1785,8 +1784,6 @@ def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
     """:func:`_straight_data` of the faces ``faces`` of X not computed yet, in one array pass over
     their segments (the walls of a hundred holes): the sides of each face are rows of the
     stacked arrays (read-only views), reduced per face."""
-    from coons.kernel.analytic import CylindricalSurface
-
     todo, speeds = [], []
     for f in faces:
         d = X._data[f]
@@ -2714,10 +2711,13 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
     finite = all(math.isfinite(x) for pair in tau_l for x in pair)
     items: list[tuple[EdgeSpec, int]] = []
     for i, e in enumerate(loop):
-        at = at_side.get(i, [])
-        at.sort(key=lambda p: p[0], reverse=e.t1 < e.t0)
-        if any(abs(a[0] - b[0]) * SL[i] / abs(e.t1 - e.t0) <= margin for a, b in zip(at, at[1:])):
-            return None
+        at = at_side.get(i, ())
+        if len(at) > 1:  # (the sort and the spacing test only where a side holds several chord ends)
+            at.sort(key=_first, reverse=e.t1 < e.t0)
+            sl, dt = SL[i], abs(e.t1 - e.t0)
+            for a, b in zip(at, at[1:]):
+                if abs(a[0] - b[0]) * sl / dt <= margin:
+                    return None
         make = (EdgeSpec._trusted if finite and (not at or (at[0][0] != e.t0 and at[-1][0] != e.t1))
                 else EdgeSpec)
         prev, node = e.t0, -1
@@ -2740,7 +2740,10 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
         back = _reversed_use(c)
         regions[r:r + 1] = [path1 + [(back, q)], path2 + [(c, p)]]
     # One non-empty loop of EdgeSpecs each, on the face's own (validated) surface and sense.
-    return [FaceSpec._trusted(spec.surface, spec.sense, (tuple(e for e, _ in R),)) for R in regions]
+    return [FaceSpec._trusted(spec.surface, spec.sense, (tuple([e for e, _ in R]),)) for R in regions]
+
+
+_first = operator.itemgetter(0)
 
 
 def _chord_data(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> dict[int, tuple | None]:
@@ -2758,8 +2761,6 @@ def _chord_data(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> d
     feet on the sides' lines and circles are computed for all ends at once, by the curves'
     own ``closest_parameters`` and ``evaluate`` expressions (the stacked ``@`` rounds as theirs).
     """
-    from coons.kernel.analytic import CylindricalSurface
-
     out: dict[int, tuple | None] = {}
     groups: dict[tuple[int, int], list[int]] = {}
     for f, cs in cuts.items():
@@ -3617,8 +3618,11 @@ def _select(op: str, pieces_a, status_a: np.ndarray, pieces_b, status_b: np.ndar
 
 def reversed_face(spec: FaceSpec) -> FaceSpec:
     """The face with the opposite orientation: sense flipped, each loop reversed with its uses' ``t0, t1`` swapped."""
-    loops = [[_reversed_use(e) for e in reversed(loop)] for loop in spec.loops]
-    return FaceSpec(spec.surface, not spec.sense, loops)
+    # (the trusted constructors: a FaceSpec's loops are already non-empty tuples of validated EdgeSpecs
+    # and its sense a bool, so the validating ones would only copy them again; a Boolean reverses every
+    # kept face of its tool: a plate's hundred hole walls)
+    loops = tuple(tuple([_reversed_use(e) for e in reversed(loop)]) for loop in spec.loops)
+    return FaceSpec._trusted(spec.surface, not spec.sense, loops)
 
 
 def _reversed_use(e: EdgeSpec) -> EdgeSpec:
@@ -3662,10 +3666,11 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.  Every use of
     # an unchanged face is an unchanged use of its operand.
     info_of = [orig.get(id(f)) for f in faces]
-    group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), np.diff(first))
-    for k, f in enumerate(faces):
-        if info_of[k] is None:
-            group[first[k] : first[k + 1]] = [orig_edges.get(id(e), 0) for loop in f.loops for e in loop]
+    count = np.diff(first)
+    group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), count)
+    # (the uses of the other faces looked up one by one, their rows written in one assignment)
+    other = np.repeat(np.array([i is None for i in info_of], dtype=bool), count)
+    group[other] = [orig_edges.get(id(e), 0) for f, i in zip(faces, info_of) if i is None for loop in f.loops for e in loop]
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     # The foreign vertices in the box of each unchanged face (after many cuts most faces of a
     # plate are unchanged and far from the new vertices; :func:`_foreign_in_boxes`).
@@ -3702,14 +3707,20 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
     X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t)
-    at = iter(range(len(open_uses)))
+    # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
+    # faces' open uses have none), each face's open uses a run of open_uses.
+    n_open = [len(clear) - int(np.count_nonzero(clear)) for clear in todo.values()]
+    has = np.fromiter((c.size for c in cand_all), dtype=np.int64, count=len(cand_all)) > 0
+    busy = dict(zip(todo, np.logical_or.reduceat(has, np.cumsum(n_open) - n_open).tolist()))
+    first_open = dict(zip(todo, (np.cumsum(n_open) - n_open).tolist()))
     out = []
     changed_any = False
     for k, f in enumerate(faces):
         clear = todo.get(k)
-        if clear is None:
+        if clear is None or not busy[k]:
             out.append(f)  # no vertex can split any of its uses
             continue
+        at = itertools.count(first_open[k])
         loops = []
         face_changed = False
         clear = iter(clear.tolist())
@@ -3810,7 +3821,7 @@ def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.nd
     ``X[:, -1]``: only those can split it.  All pairs in one pass (most candidates are the
     use's own end vertices)."""
     n = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(cand))
-    flat = np.fromiter((j for c in cand for j in c), dtype=np.int64, count=int(n.sum()))
+    flat = np.fromiter(itertools.chain.from_iterable(cand), dtype=np.int64, count=int(n.sum()))
     use = np.repeat(np.arange(len(cand)), n)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     Q, qt = starts[flat], np.maximum(start_tol[flat], thr[use])
@@ -3833,7 +3844,8 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     """
     clear = np.zeros(len(edges), dtype=bool)
     keys = np.full(len(edges), -1, dtype=np.int64) if face_foreign is not None else group
-    for key in np.unique(keys).tolist():
+    # (the distinct keys, ascending, of a face's few uses by a set: np.unique's sort costs more)
+    for key in ([-1] if face_foreign is not None else sorted(set(group.tolist()))):
         if key != -1 and key not in foreign_of:
             continue
         rows = np.flatnonzero(keys == key)

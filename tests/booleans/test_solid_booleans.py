@@ -503,6 +503,14 @@ def test_reversed_face_flips_sense_and_loops():
     e0, r_last = f.loops[0][0], r.loops[0][-1]
     assert r_last.curve is e0.curve and (r_last.t0, r_last.t1) == (e0.t1, e0.t0)
     assert S.reversed_face(r).loops[0][0].t0 == e0.t0
+    # (made by the trusted constructors: field by field what the validating ones make)
+    for spec in face_specs(Cylinder(1, 1)) + face_specs(Box(1, 2, 3)):
+        got = S.reversed_face(spec)
+        want = S.FaceSpec(spec.surface, not spec.sense,
+                          [[S.EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in spec.loops])
+        assert got.surface is want.surface and type(got.sense) is bool and got.sense == want.sense
+        assert type(got.loops) is tuple and all(type(loop) is tuple for loop in got.loops)
+        assert [[vars(e) for e in loop] for loop in got.loops] == [[vars(e) for e in loop] for loop in want.loops]
 
 
 # ---------------------------------------------------------------------- OCCT
@@ -1548,6 +1556,55 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
     assert any(n < m for n, m in pairs)  # (some edge's two uses were queried once)
     if case == "corner":
         assert any(split)  # (the pass changed a face: the comparison above compared real splits)
+
+
+@pytest.mark.parametrize("case", ["plate", "corner"])
+def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_would(monkeypatch, case):
+    """The T-junction pass leaves a face whose open uses have no candidate vertex without walking its uses; the
+    faces it gives equal (the same objects where unchanged, the same ranges where split) those of the pass
+    with every open use walked (each given a candidate that cannot split it: a vertex the real query did not
+    find near the use's interior), and it walks fewer uses."""
+    from coons.booleans import classify
+
+    calls = []
+    real, real_shared, real_closest = S._split_edges_at_vertices, S._shared_candidates, classify._curve_closest
+
+    def spy(faces, t, orig=None, orig_edges=None):
+        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
+        return real(faces, t, orig, orig_edges)
+
+    monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
+    if case == "plate":
+        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
+                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
+    else:
+        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
+    assert calls
+    walked = []
+
+    def closest(*a, **k):
+        walked[-1] += 1
+        return real_closest(*a, **k)
+
+    def every_use(open_uses, starts, start_tol, t):
+        X_all, cand_all = real_shared(open_uses, starts, start_tol, t)
+        return X_all, [c if c.size else np.array([0]) for c in cand_all]
+
+    monkeypatch.setattr(classify, "_curve_closest", closest)
+    changed = False
+    for faces, t, orig, orig_edges in calls:
+        walked.append(0)
+        fast = real(faces, t, orig, orig_edges)
+        with monkeypatch.context() as m:
+            m.setattr(S, "_shared_candidates", every_use)
+            walked.append(0)
+            full = real(faces, t, orig, orig_edges)
+        assert walked[-2] < walked[-1]  # (the fast pass walked fewer uses)
+        assert [a is b for a, b in zip(fast, faces)] == [a is b for a, b in zip(full, faces)]
+        assert [[[(e.curve, e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in fast] == \
+            [[[(e.curve, e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in full]
+        changed |= any(a is not b for a, b in zip(fast, faces))
+    assert changed == (case == "corner")  # ("corner" really splits an edge: the comparison compares splits)
 
 
 @pytest.mark.parametrize("case", ["plate", "corner"])

@@ -543,10 +543,15 @@ class _Operand:
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
             specs[f] = FaceSpec(S, spec.sense, loops)
         self.specs: list[FaceSpec] = specs
-        fresh = [spec for spec in self.specs if spec not in _FACE_DATA]
-        _prefill_samples(fresh)
-        _prefill_faces(fresh, t)
-        self._data = [_face_data(spec, t) for spec in self.specs]
+        # The cached data (:func:`_face_data`), the rest computed together (:func:`_new_face_data`).
+        data = [_FACE_DATA.get(spec) for spec in specs]
+        fresh = [k for k, d in enumerate(data) if d is None or d.t != t]
+        if fresh:
+            todo = [specs[k] for k in fresh]
+            _prefill_samples(todo)
+            for k, d in zip(fresh, _new_face_data(todo, t)):
+                data[k] = d
+        self._data: list[_FaceData] = data
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
         self.segments = [d.seg for d in self._data]
@@ -861,13 +866,6 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         _LOOP_DATA.set(loop[0], ld)
         out.append(ld)
     return out
-
-
-def _prefill_faces(specs: list[FaceSpec], t: Tolerance) -> None:
-    """:func:`_face_data` of every spec of ``specs`` not cached yet, all in one pass (:func:`_new_face_data`)."""
-    todo = [spec for spec in specs if spec.loops and spec not in _FACE_DATA]
-    if todo:
-        _new_face_data(todo, t)
 
 
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
@@ -2895,18 +2893,19 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     rows: list[tuple[int, EdgeSpec, int, EdgeSpec]] = []
     tau0, SLr, mg = [], [], []
     for q, (f, ends, tau, SL, margin) in enumerate(feet):
-        loop = X.specs[f].loops[0]
-        for k, ik in enumerate(ends.tolist()):
-            for which in (0, 1):
-                rows.append((q, cuts[f][k], which, loop[ik[which]]))
-                tau0.append(float(tau[k, which]))
-                SLr.append(SL[ik[which]])
-                mg.append(margin)
+        loop, cs = X.specs[f].loops[0], cuts[f]
+        for k, (i0, i1) in enumerate(ends.tolist()):
+            rows += [(q, cs[k], 0, loop[i0]), (q, cs[k], 1, loop[i1])]
+        # (the entry's rows in order: cut k, end 0 then 1)
+        tau0 += tau.ravel().tolist()
+        SLr.append(SL[ends].ravel())
+        mg += [margin] * (2 * ends.shape[0])
     R = len(rows)
     ok = [True] * len(feet)
-    # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would).
-    ends3 = evaluate_curves([c.curve for _, c, _, _ in rows], np.array([[c.t0, c.t1] for _, c, _, _ in rows]))
-    Pc = ends3[np.arange(R), [which for _, _, which, _ in rows]]
+    # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would), once
+    # per cut: its two rows (ends 0 and 1) follow each other.
+    chords = [c for _, c, _, _ in rows[0::2]]
+    Pc = evaluate_curves([c.curve for c in chords], np.array([[c.t0, c.t1] for c in chords])).reshape(R, 3)
     tau0 = np.array(tau0)
     x = tau0.copy()
     sides = [e.curve for _, _, _, e in rows]
@@ -2937,14 +2936,14 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     Pe[good] = evaluate_curves([sides[r] for r in good], x[good][:, None])[:, 0]
     span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
     thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
-    bad = (np.abs(x - tau0) * np.array(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
+    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
     for r in np.flatnonzero(bad).tolist():
         ok[rows[r][0]] = False
     r = 0
     for f, ends, tau, SL, margin in feet:
-        for k in range(ends.shape[0]):
-            tau[k, 0], tau[k, 1] = x[r], x[r + 1]
-            r += 2
+        n = ends.shape[0]
+        tau[:] = x[r:r + 2 * n].reshape(n, 2)
+        r += 2 * n
     return ok
 
 
@@ -3115,39 +3114,41 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
     a hundred hole discs is one evaluation).  ``cut``
     (when given) holds the faces that were split: only their pieces have cut edges.
     """
-    cand: list[tuple[int, FaceSpec, EdgeSpec, float, int, object]] = []
-    for k, (f, spec) in enumerate(pieces):
-        if cut is not None and f not in cut:
-            continue
-        for loop in spec.loops:
-            for e in loop:
-                got = links.get(id(e.curve))
-                if got is None:
-                    continue
-                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                for ln in got:
-                    a, b = max(lo, ln.s0), min(hi, ln.s1)
-                    if ln.faces[side] == f and b > a:
-                        cand.append((k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side]))
-    if not cand:
-        return
-    # Each piece takes its first candidate that passes (in the order gathered): evaluated in
-    # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole
-    # circles needs one of them, not all.
-    of_piece: dict[int, list[int]] = {}
-    for i, c in enumerate(cand):
-        of_piece.setdefault(c[0], []).append(i)
-    r = 0
-    while True:
-        rows = [got[r] for k, got in of_piece.items() if r < len(got) and status[k] < 0]
-        if not rows:
+    # Each piece takes its first candidate that passes (in the order of its loops and uses): evaluated in
+    # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole circles needs one
+    # of them, not all; each piece's candidates are found as its rounds come (most pieces need one).
+    gens = {k: _piece_candidates(k, f, spec, links, side) for k, (f, spec) in enumerate(pieces)
+            if cut is None or f in cut}
+    while gens:
+        sub = []
+        for k, gen in list(gens.items()):
+            c = next(gen, None) if status[k] < 0 else None
+            if c is None:
+                del gens[k]
+            else:
+                sub.append(c)
+        if not sub:
             return
-        sub = [cand[i] for i in rows]
         ok, cos = _local_tests(sub, Y, t)
         for c, good, x in zip(sub, ok.tolist(), cos.tolist()):
             if good and status[c[0]] < 0:
                 status[c[0]] = IN if x < 0 else OUT
-        r += 1
+
+
+def _piece_candidates(k: int, f: int, spec: FaceSpec, links: dict[int, list[_Link]], side: int):
+    """The local test's candidates ``(piece, spec, use, s, face of Y, p-curve on it)`` of piece ``k`` (of face
+    ``f``), in the order of its loops, uses and links (:func:`_local_status`): a generator, read as far as the
+    piece's rounds go."""
+    for loop in spec.loops:
+        for e in loop:
+            got = links.get(id(e.curve))
+            if got is None:
+                continue
+            lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+            for ln in got:
+                a, b = max(lo, ln.s0), min(hi, ln.s1)
+                if ln.faces[side] == f and b > a:
+                    yield (k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side])
 
 
 def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:

@@ -1642,3 +1642,25 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
     assert flipped  # (second uses, read backwards, were compared)
     if case == "corner":
         assert with_candidates  # (and uses with candidate vertices)
+
+
+def test_operand_face_data_is_each_faces_own_under_its_tolerance():
+    """_Operand reads its faces' cached data and computes the rest together: every face gets the data
+    _face_data gives it alone (a face cached under another tolerance computed again under the operand's)."""
+    t = S.resolve(None)
+    coarse = t.scaled(100.0)
+    tools = S._gathered([Cylinder(1.0, 10).translate((4.0 * i, 0, 0)) for i in range(3)], t)
+    first = S._Operand(tools, "B", coarse)
+    assert all(d.t == coarse for d in first._data)
+    X = S._Operand(tools, "B", t)  # (the same specs: their data cached under the coarse tolerance)
+    assert [id(s) for s in X.specs] == [id(s) for s in first.specs]
+    assert all(d.t == t for d in X._data)
+    for spec, d in zip(X.specs, X._data):
+        assert S._face_data(spec, t) is d  # (cached)
+        del S._FACE_DATA[spec]
+    S._LOOP_DATA.clear()
+    for spec, d in zip(X.specs, X._data):
+        alone = S._face_data(spec, t)
+        assert alone is not d and alone.uv_box == d.uv_box
+        for name in ("seg", "seg_lo", "seg_hi", "box"):
+            np.testing.assert_array_equal(getattr(alone, name), getattr(d, name), err_msg=name)

@@ -3707,7 +3707,15 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         return faces
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
-    X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t)
+    # The open uses' keys for _shared_candidates from the use tables (curve ids, ranges), in open_uses' order.
+    of_todo = np.zeros(len(faces), dtype=bool)
+    of_todo[list(todo)] = True
+    is_open = np.zeros(int(first[-1]), dtype=bool)
+    is_open[np.repeat(of_todo, count)] = ~np.concatenate(list(todo.values()))
+    open_rows = np.flatnonzero(is_open)
+    open_ranges = np.concatenate([x.ranges for x in tables])[open_rows]
+    keys = (np.concatenate([x.curve_id for x in tables])[open_rows], *open_ranges.T)
+    X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t, keys)
     # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
     # faces' open uses have none), each face's open uses a run of open_uses.
     n_open = [len(clear) - int(np.count_nonzero(clear)) for clear in todo.values()]
@@ -3764,8 +3772,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     return out if changed_any else faces
 
 
-def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol: np.ndarray, t: Tolerance
-                       ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol: np.ndarray, t: Tolerance,
+                       keys: tuple[np.ndarray, ...] | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """:func:`_split_candidates` then :func:`_off_the_ends` of each of ``open_uses``: per use its samples
     ``(17, 3)`` in its own direction and its candidate vertices, each distinct edge computed once.
 
@@ -3775,23 +3783,41 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
     the inner ones only place the query's ball, which bounds the range whichever way it is sampled). The
     key holds all a use's candidates depend on (its curve, range and tolerance; the rest is the call's):
     should the search ever read more of a use (its face, its operand group), the key must too.
+
+    ``keys``: the uses' ``(id(curve), t0, t1, tol or 0)`` as arrays ``(k,)`` when the caller has them (the
+    T-junction pass reads them from the use tables, :class:`~coons.topology.sew._FaceUses`), else read from
+    the uses.  The distinct keys are found by one sort (float keys compare as Python's do: ``0.0 == -0.0``).
     """
-    index: dict[tuple, int] = {}
-    distinct: list[EdgeSpec] = []
-    of, flip = [], []
-    for e in open_uses:
-        lo, hi = (e.t0, e.t1) if e.t0 <= e.t1 else (e.t1, e.t0)
-        key = (id(e.curve), lo, hi, e.tol or 0.0)
-        u = index.get(key)
-        if u is None:
-            u = index[key] = len(distinct)
-            distinct.append(e)
-        of.append(u)
-        flip.append(e.t0 != distinct[u].t0)
+    n = len(open_uses)
+    if keys is None:
+        keys = (np.array([id(e.curve) for e in open_uses], dtype=np.int64).reshape(n),
+                np.array([e.t0 for e in open_uses], dtype=np.float64).reshape(n),
+                np.array([e.t1 for e in open_uses], dtype=np.float64).reshape(n),
+                np.array([e.tol or 0.0 for e in open_uses], dtype=np.float64).reshape(n))
+    ids, t0, t1, tol = keys
+    lo, hi = np.minimum(t0, t1), np.maximum(t0, t1)
+    # Groups of equal keys (sorted by them), numbered in the order of their first use.
+    order = np.lexsort((tol, hi, lo, ids))
+    same = np.ones(max(n - 1, 0), dtype=bool)  # (each sorted key equal to the one before)
+    for col in (ids, lo, hi, tol):
+        c = col[order]
+        same &= c[1:] == c[:-1]
+    group = np.empty(n, dtype=np.int64)
+    group[order] = np.cumsum(np.concatenate([[True], ~same])) - 1
+    first = np.full(int(group.max()) + 1 if n else 0, n, dtype=np.int64)
+    np.minimum.at(first, group, np.arange(n))
+    rank = np.argsort(first, kind="stable")  # the groups in the order of their first use
+    first = first[rank]
+    u_of = np.empty(rank.size, dtype=np.int64)
+    u_of[rank] = np.arange(rank.size)
+    of = u_of[group]
+    flip = t0 != t0[first][of]  # (a use running the other way from its group's first)
+    distinct = [open_uses[i] for i in first.tolist()]
     X_u, cand_u = _split_candidates(distinct, starts, t)
     cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
-    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of, flip)]
-    cand_all = [cand_u[u] for u in of]
+    of_l = of.tolist()
+    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of_l, flip.tolist())]
+    cand_all = [cand_u[u] for u in of_l]
     return X_all, cand_all
 
 

@@ -1586,8 +1586,8 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
         walked[-1] += 1
         return real_closest(*a, **k)
 
-    def every_use(open_uses, starts, start_tol, t):
-        X_all, cand_all = real_shared(open_uses, starts, start_tol, t)
+    def every_use(open_uses, starts, start_tol, t, keys=None):
+        X_all, cand_all = real_shared(open_uses, starts, start_tol, t, keys)
         return X_all, [c if c.size else np.array([0]) for c in cand_all]
 
     monkeypatch.setattr(classify, "_curve_closest", closest)
@@ -1614,9 +1614,9 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
     calls = []
     real = S._shared_candidates
 
-    def spy(open_uses, starts, start_tol, t):
-        out = real(open_uses, starts, start_tol, t)
-        calls.append((open_uses, starts, start_tol, t, out))
+    def spy(open_uses, starts, start_tol, t, keys=None):
+        out = real(open_uses, starts, start_tol, t, keys)
+        calls.append((open_uses, starts, start_tol, t, keys, out))
         return out
 
     monkeypatch.setattr(S, "_shared_candidates", spy)
@@ -1627,8 +1627,15 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
         _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
     assert calls
     flipped = with_candidates = 0
-    for open_uses, starts, start_tol, t, (X_all, cand_all) in calls:
+    for open_uses, starts, start_tol, t, keys, (X_all, cand_all) in calls:
         assert len(X_all) == len(cand_all) == len(open_uses)
+        # The T-junction pass hands over the keys read from its use tables: those the uses give.
+        assert keys is not None
+        np.testing.assert_array_equal(keys[0], [id(e.curve) for e in open_uses])
+        np.testing.assert_array_equal(np.stack(keys[1:], axis=1), [(e.t0, e.t1, e.tol or 0.0) for e in open_uses])
+        X_own, cand_own = real(open_uses, starts, start_tol, t)  # (the keys read from the uses)
+        assert all(np.array_equal(a, b) for a, b in zip(X_all, X_own))
+        assert all(np.array_equal(a, b) for a, b in zip(cand_all, cand_own))
         seen = {}
         for e, X, cand in zip(open_uses, X_all, cand_all):
             X1, c1 = S._split_candidates([e], starts, t)

@@ -98,7 +98,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    the cut's tangent in the piece's loop direction and ``N`` the outward normals,
    ``d = N_X × T`` points into the piece, which is IN when ``d · N_Y < 0``; used only where the
    surfaces cross at an angle (``|sin| >= 1e-2``) and ``q`` is clear of the other face's loops,
-   all candidates in one array pass, curves and surfaces evaluated by type (``_local_status``).
+   in rounds of one candidate per undecided piece, each round one array pass with curves and surfaces
+   evaluated by type, each piece's candidates found only as its rounds come (``_local_status``).
    *Far* (first of all): a face whose box lies outside the other operand's box is OUT.
    *Propagated*: a face in no broad-phase pair (it and its edges are away from the other
    boundary) takes the status of a classified piece across one of its edges (``_propagate``).
@@ -3708,20 +3709,23 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
     # The open uses' keys for _shared_candidates from the use tables (curve ids, ranges), in open_uses' order.
+    open_flag = ~np.concatenate(list(todo.values()))  # (the uses of the faces in todo, in turn)
     of_todo = np.zeros(len(faces), dtype=bool)
     of_todo[list(todo)] = True
     is_open = np.zeros(int(first[-1]), dtype=bool)
-    is_open[np.repeat(of_todo, count)] = ~np.concatenate(list(todo.values()))
+    is_open[np.repeat(of_todo, count)] = open_flag
     open_rows = np.flatnonzero(is_open)
     open_ranges = np.concatenate([x.ranges for x in tables])[open_rows]
     keys = (np.concatenate([x.curve_id for x in tables])[open_rows], *open_ranges.T)
     X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t, keys)
     # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
-    # faces' open uses have none), each face's open uses a run of open_uses.
-    n_open = [len(clear) - int(np.count_nonzero(clear)) for clear in todo.values()]
+    # faces' open uses have none); each face's open uses are a run of open_uses (at least one).
+    size = np.array([clear.size for clear in todo.values()], dtype=np.int64)
+    n_open = np.add.reduceat(open_flag, np.cumsum(size) - size, dtype=np.int64)
+    run = np.cumsum(n_open) - n_open
     has = np.fromiter((c.size for c in cand_all), dtype=np.int64, count=len(cand_all)) > 0
-    busy = dict(zip(todo, np.logical_or.reduceat(has, np.cumsum(n_open) - n_open).tolist()))
-    first_open = dict(zip(todo, (np.cumsum(n_open) - n_open).tolist()))
+    busy = dict(zip(todo, np.logical_or.reduceat(has, run).tolist()))
+    first_open = dict(zip(todo, run.tolist()))
     out = []
     changed_any = False
     for k, f in enumerate(faces):

@@ -2247,13 +2247,21 @@ def _edge_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
     boxed = np.array([isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)) for e in edges], dtype=bool)
     if not edges:
         return _frozen(np.empty((0, 2, 3))), boxed
-    if boxed.all():
-        boxes = curve_boxes([e.curve for e in edges], [e.t0 for e in edges], [e.t1 for e in edges])
+    uses = edges if boxed.all() else [e for e, ok in zip(edges, boxed.tolist()) if ok]
+    got = np.empty((0, 2, 3))
+    if uses:
+        # Each distinct (curve, range) once: the two uses of an edge (its faces' loops, opposite ways
+        # round) have one box (curve_boxes orders each range; a hundred tools bring six hundred edges).
+        t0 = np.array([e.t0 for e in uses], dtype=np.float64)
+        t1 = np.array([e.t1 for e in uses], dtype=np.float64)
+        lo, hi = np.minimum(t0, t1), np.maximum(t0, t1)
+        first, of = _groups(np.fromiter(map(id, (e.curve for e in uses)), dtype=np.int64, count=len(uses)), lo, hi)
+        got = curve_boxes([uses[i].curve for i in first.tolist()], lo[first], hi[first])[of]
+    if len(uses) == len(edges):
+        boxes = got
     else:
         boxes = np.full((len(edges), 2, 3), np.nan)
-        uses = [e for e, ok in zip(edges, boxed.tolist()) if ok]
-        if uses:
-            boxes[boxed] = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
+        boxes[boxed] = got
     boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
     return boxes, boxed
 
@@ -3799,22 +3807,7 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
                 np.array([e.t1 for e in open_uses], dtype=np.float64).reshape(n),
                 np.array([e.tol or 0.0 for e in open_uses], dtype=np.float64).reshape(n))
     ids, t0, t1, tol = keys
-    lo, hi = np.minimum(t0, t1), np.maximum(t0, t1)
-    # Groups of equal keys (sorted by them), numbered in the order of their first use.
-    order = np.lexsort((tol, hi, lo, ids))
-    same = np.ones(max(n - 1, 0), dtype=bool)  # (each sorted key equal to the one before)
-    for col in (ids, lo, hi, tol):
-        c = col[order]
-        same &= c[1:] == c[:-1]
-    group = np.empty(n, dtype=np.int64)
-    group[order] = np.cumsum(np.concatenate([[True], ~same])) - 1
-    first = np.full(int(group.max()) + 1 if n else 0, n, dtype=np.int64)
-    np.minimum.at(first, group, np.arange(n))
-    rank = np.argsort(first, kind="stable")  # the groups in the order of their first use
-    first = first[rank]
-    u_of = np.empty(rank.size, dtype=np.int64)
-    u_of[rank] = np.arange(rank.size)
-    of = u_of[group]
+    first, of = _groups(ids, np.minimum(t0, t1), np.maximum(t0, t1), tol)
     flip = t0 != t0[first][of]  # (a use running the other way from its group's first)
     distinct = [open_uses[i] for i in first.tolist()]
     X_u, cand_u = _split_candidates(distinct, starts, t)
@@ -3823,6 +3816,26 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
     X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of_l, flip.tolist())]
     cand_all = [cand_u[u] for u in of_l]
     return X_all, cand_all
+
+
+def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows equal in every column of ``cols`` (``(k,)`` each) as groups numbered in the order of their first
+    row: ``first (g,)`` the first row of each group and ``of (k,)`` each row's group.  One sort of the rows
+    (floats compare as Python's do: ``0.0 == -0.0``, as in a dict of key tuples)."""
+    k = cols[0].size
+    order = np.lexsort(cols[::-1])
+    same = np.ones(max(k - 1, 0), dtype=bool)  # (each sorted row equal to the one before)
+    for col in cols:
+        c = col[order]
+        same &= c[1:] == c[:-1]
+    group = np.empty(k, dtype=np.int64)
+    group[order] = np.cumsum(np.concatenate([[True], ~same])) - 1
+    first = np.full(int(group.max()) + 1 if k else 0, k, dtype=np.int64)
+    np.minimum.at(first, group, np.arange(k))
+    rank = np.argsort(first, kind="stable")  # the groups in the order of their first row
+    renumber = np.empty(rank.size, dtype=np.int64)
+    renumber[rank] = np.arange(rank.size)
+    return first[rank], renumber[group]
 
 
 def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:

@@ -1671,3 +1671,27 @@ def test_operand_face_data_is_each_faces_own_under_its_tolerance():
         assert alone is not d and alone.uv_box == d.uv_box
         for name in ("seg", "seg_lo", "seg_hi", "box"):
             np.testing.assert_array_equal(getattr(alone, name), getattr(d, name), err_msg=name)
+
+
+def test_edge_box_array_boxes_each_distinct_edge_once_as_each_use_alone():
+    """_edge_box_array boxes the two uses of an edge (opposite ways round) once: every row is the box
+    curve_box gives the use alone, bit for bit; a use whose curve has no proven box gets a NaN row."""
+    from coons.kernel.curve_intersect import curve_box
+    from coons.topology.sew import face_specs
+
+    class Bare:  # (a curve with evaluate only: no proven box)
+        def evaluate(self, t):
+            return np.zeros(np.shape(t) + (3,))
+
+    tools = S._gathered([Cylinder(1.0 + 0.1 * i, 10).translate((4.0 * i, 0, 0)) for i in range(3)], S.resolve(None))
+    uses = [e for spec in face_specs(tools) for loop in spec.loops for e in loop]
+    uses.insert(3, S.EdgeSpec(Bare(), 0.0, 1.0))
+    boxes, boxed = S._edge_box_array(uses)
+    assert not boxes.flags.writeable and boxed.tolist() == [not isinstance(e.curve, Bare) for e in uses]
+    keys = {(id(e.curve), min(e.t0, e.t1), max(e.t0, e.t1)) for e in uses}
+    assert len(keys) < len(uses)  # (shared edges: boxed once for their two uses)
+    for e, box, ok in zip(uses, boxes, boxed.tolist()):
+        if ok:
+            np.testing.assert_array_equal(box, curve_box(e.curve, (e.t0, e.t1)))
+        else:
+            assert np.isnan(box).all()

@@ -1695,3 +1695,18 @@ def test_edge_box_array_boxes_each_distinct_edge_once_as_each_use_alone():
             np.testing.assert_array_equal(box, curve_box(e.curve, (e.t0, e.t1)))
         else:
             assert np.isnan(box).all()
+
+
+def test_groups_number_equal_rows_as_a_dict_of_key_tuples_would():
+    """_groups (one sort) numbers equal rows in the order of their first row, as a dict of key tuples does
+    (``0.0 == -0.0`` included): the first rows and every row's group."""
+    rng = np.random.default_rng(7)
+    for k in (0, 1, 2, 50, 400):
+        ids = rng.integers(0, 6, size=k)
+        lo = rng.choice([0.0, -0.0, 1.5, 2.0], size=k)
+        hi = rng.choice([3.0, 4.0], size=k)
+        index: dict = {}
+        of = [index.setdefault((int(i), float(a), float(b)), len(index)) for i, a, b in zip(ids, lo, hi)]
+        first = [of.index(g) for g in range(len(index))]
+        got_first, got_of = S._groups(ids, lo, hi)
+        assert got_first.tolist() == first and got_of.tolist() == of

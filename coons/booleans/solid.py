@@ -101,7 +101,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    the cut's tangent in the piece's loop direction and ``N`` the outward normals,
    ``d = N_X × T`` points into the piece, which is IN when ``d · N_Y < 0``; used only where the
    surfaces cross at an angle (``|sin| >= 1e-2``) and ``q`` is clear of the other face's loops,
-   all candidates in one array pass, curves and surfaces evaluated by type (``_local_status``).
+   in rounds of one candidate per undecided piece, each round one array pass with curves and surfaces
+   evaluated by type, each piece's candidates found only as its rounds come (``_local_status``).
    *Far* (first of all): a face whose box lies outside the other operand's box is OUT.
    *Propagated*: a face in no broad-phase pair (it and its edges are away from the other
    boundary) takes the status of a classified piece across one of its edges (``_propagate``).
@@ -236,7 +237,8 @@ import numpy as np
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
-from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface, surface_derivatives, surface_normals
+from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
+                                   surface_derivatives, surface_normals)
 from coons.kernel.intersect import _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -545,10 +547,15 @@ class _Operand:
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
             specs[f] = FaceSpec(S, spec.sense, loops)
         self.specs: list[FaceSpec] = specs
-        fresh = [spec for spec in self.specs if spec not in _FACE_DATA]
-        _prefill_samples(fresh)
-        _prefill_faces(fresh, t)
-        self._data = [_face_data(spec, t) for spec in self.specs]
+        # The cached data (:func:`_face_data`), the rest computed together (:func:`_new_face_data`).
+        data = [_FACE_DATA.get(spec) for spec in specs]
+        fresh = [k for k, d in enumerate(data) if d is None or d.t != t]
+        if fresh:
+            todo = [specs[k] for k in fresh]
+            _prefill_samples(todo)
+            for k, d in zip(fresh, _new_face_data(todo, t)):
+                data[k] = d
+        self._data: list[_FaceData] = data
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
         self.segments = [d.seg for d in self._data]
@@ -633,8 +640,6 @@ def _within_domain(S, ub: tuple, vb: tuple, v_face: tuple) -> tuple[tuple[float,
     (``v_face`` is the face's own ``v`` range, which says which nappe).  Periodic and infinite
     directions are not clipped.
     """
-    from coons.kernel.analytic import ConicalSurface
-
     (u0, u1), (v0, v1) = ub, vb
     dom = getattr(S, "domain", None)
     if dom is not None:
@@ -862,9 +867,9 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     loop_box = _frozen(np.stack([box_lo, box_hi], axis=1))
     no_box = no_box.tolist()
     out = []
-    for k, (loop, S) in enumerate(items):
-        a, b = int(start[k]), int(start[k] + n_pts[k])
-        ua, ub = int(use_start[k]), int(use_start[k] + n_uses[k])
+    # (the bounds as Python ints, read once: a hundred tools bring hundreds of loops)
+    bounds = zip(start.tolist(), (start + n_pts).tolist(), use_start.tolist(), (use_start + n_uses).tolist())
+    for k, ((loop, S), (a, b, ua, ub)) in enumerate(zip(items, bounds)):
         ld = _LoopData()
         ld.rest, ld.surface, ld.t = tuple(loop[1:]), S, t
         ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
@@ -875,13 +880,6 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         _LOOP_DATA.set(loop[0], ld)
         out.append(ld)
     return out
-
-
-def _prefill_faces(specs: list[FaceSpec], t: Tolerance) -> None:
-    """:func:`_face_data` of every spec of ``specs`` not cached yet, all in one pass (:func:`_new_face_data`)."""
-    todo = [spec for spec in specs if spec.loops and spec not in _FACE_DATA]
-    if todo:
-        _new_face_data(todo, t)
 
 
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
@@ -1004,18 +1002,21 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     # A loop is its surface and every use (what _cached_loop checks), not its first use alone.
     todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
     parts_of = []
+    missing: list[tuple[list, int, tuple]] = []  # (a face's parts, the loop's place, its key)
     for spec in specs:
         S = spec.surface
         parts = [_cached_loop(loop, S, t) for loop in spec.loops]
-        for loop, ld in zip(spec.loops, parts):
+        for li, ld in enumerate(parts):
             if ld is None:
-                todo.setdefault((id(S),) + tuple(map(id, loop)), (loop, S))
+                loop = spec.loops[li]
+                key = (id(S),) + tuple(map(id, loop))
+                todo.setdefault(key, (loop, S))
+                missing.append((parts, li, key))
         parts_of.append(parts)
     if todo:
         made = dict(zip(todo, _new_loop_data(list(todo.values()), t)))
-        parts_of = [[made[(id(spec.surface),) + tuple(map(id, loop))] if ld is None else ld
-                     for loop, ld in zip(spec.loops, parts)]
-                    for spec, parts in zip(specs, parts_of)]
+        for parts, li, key in missing:
+            parts[li] = made[key]
     lds = [ld for parts in parts_of for ld in parts]
     first = np.cumsum([0] + [len(parts) for parts in parts_of[:-1]])
     # Per face: the rings' extremes (u0, v0, u1, v1), the segment boxes' union, the loop boxes'
@@ -1088,8 +1089,6 @@ _ANGLE_SLACK = 1e-12
 def _no_interior_extremes(S) -> bool:
     """Whether no coordinate of ``S`` has a critical point inside a face (planes, cylinders, cones: a
     coordinate is affine along a ruling, see :func:`_new_face_data`)."""
-    from coons.kernel.analytic import ConicalSurface, CylindricalSurface
-
     return isinstance(S, (PlanarSurface, CylindricalSurface, ConicalSurface))
 
 
@@ -1285,7 +1284,6 @@ def _batched_sections(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t:
     When the batch raises (a degenerate circle or p-curve), every pair is left to the per-pair
     path, which reports the failing pair.
     """
-    from coons.kernel.analytic import CylindricalSurface
     from coons.kernel.intersect import _plane_cylinder_circles
 
     out: list = [None] * len(I)
@@ -1807,8 +1805,6 @@ def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
     """:func:`_straight_data` of the faces ``faces`` of X not computed yet, in one array pass over
     their segments (the walls of a hundred holes): the sides of each face are rows of the
     stacked arrays (read-only views), reduced per face."""
-    from coons.kernel.analytic import CylindricalSurface
-
     todo, speeds = [], []
     for f in faces:
         d = X._data[f]
@@ -2273,13 +2269,21 @@ def _edge_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
     boxed = np.array([isinstance(e.curve, (Line, Circle, Ellipse, NurbsCurve)) for e in edges], dtype=bool)
     if not edges:
         return _frozen(np.empty((0, 2, 3))), boxed
-    if boxed.all():
-        boxes = curve_boxes([e.curve for e in edges], [e.t0 for e in edges], [e.t1 for e in edges])
+    uses = edges if boxed.all() else [e for e, ok in zip(edges, boxed.tolist()) if ok]
+    got = np.empty((0, 2, 3))
+    if uses:
+        # Each distinct (curve, range) once: the two uses of an edge (its faces' loops, opposite ways
+        # round) have one box (curve_boxes orders each range; a hundred tools bring six hundred edges).
+        t0 = np.array([e.t0 for e in uses], dtype=np.float64)
+        t1 = np.array([e.t1 for e in uses], dtype=np.float64)
+        lo, hi = np.minimum(t0, t1), np.maximum(t0, t1)
+        first, of = _groups(np.fromiter(map(id, (e.curve for e in uses)), dtype=np.int64, count=len(uses)), lo, hi)
+        got = curve_boxes([uses[i].curve for i in first.tolist()], lo[first], hi[first])[of]
+    if len(uses) == len(edges):
+        boxes = got
     else:
         boxes = np.full((len(edges), 2, 3), np.nan)
-        uses = [e for e, ok in zip(edges, boxed.tolist()) if ok]
-        if uses:
-            boxes[boxed] = curve_boxes([e.curve for e in uses], [e.t0 for e in uses], [e.t1 for e in uses])
+        boxes[boxed] = got
     boxes.setflags(write=False)  # (each use's box a view: the batch lives while one of them is cached)
     return boxes, boxed
 
@@ -2863,10 +2867,13 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
     finite = all(math.isfinite(x) for pair in tau_l for x in pair)
     items: list[tuple[EdgeSpec, int]] = []
     for i, e in enumerate(loop):
-        at = at_side.get(i, [])
-        at.sort(key=lambda p: p[0], reverse=e.t1 < e.t0)
-        if any(abs(a[0] - b[0]) * SL[i] / abs(e.t1 - e.t0) <= margin for a, b in zip(at, at[1:])):
-            return None
+        at = at_side.get(i, ())
+        if len(at) > 1:  # (the sort and the spacing test only where a side holds several chord ends)
+            at.sort(key=_first, reverse=e.t1 < e.t0)
+            sl, dt = SL[i], abs(e.t1 - e.t0)
+            for a, b in zip(at, at[1:]):
+                if abs(a[0] - b[0]) * sl / dt <= margin:
+                    return None
         make = (EdgeSpec._trusted if finite and (not at or (at[0][0] != e.t0 and at[-1][0] != e.t1))
                 else EdgeSpec)
         prev, node = e.t0, -1
@@ -2889,7 +2896,10 @@ def _split_chords(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance,
         back = _reversed_use(c)
         regions[r:r + 1] = [path1 + [(back, q)], path2 + [(c, p)]]
     # One non-empty loop of EdgeSpecs each, on the face's own (validated) surface and sense.
-    return [FaceSpec._trusted(spec.surface, spec.sense, (tuple(e for e, _ in R),)) for R in regions]
+    return [FaceSpec._trusted(spec.surface, spec.sense, (tuple([e for e, _ in R]),)) for R in regions]
+
+
+_first = operator.itemgetter(0)
 
 
 def _chord_data(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> dict[int, tuple | None]:
@@ -2907,8 +2917,6 @@ def _chord_data(X: _Operand, cuts: dict[int, list[EdgeSpec]], t: Tolerance) -> d
     feet on the sides' lines and circles are computed for all ends at once, by the curves'
     own ``closest_parameters`` and ``evaluate`` expressions (the stacked ``@`` rounds as theirs).
     """
-    from coons.kernel.analytic import CylindricalSurface
-
     out: dict[int, tuple | None] = {}
     groups: dict[tuple[int, int], list[int]] = {}
     for f, cs in cuts.items():
@@ -3043,18 +3051,19 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     rows: list[tuple[int, EdgeSpec, int, EdgeSpec]] = []
     tau0, SLr, mg = [], [], []
     for q, (f, ends, tau, SL, margin) in enumerate(feet):
-        loop = X.specs[f].loops[0]
-        for k, ik in enumerate(ends.tolist()):
-            for which in (0, 1):
-                rows.append((q, cuts[f][k], which, loop[ik[which]]))
-                tau0.append(float(tau[k, which]))
-                SLr.append(SL[ik[which]])
-                mg.append(margin)
+        loop, cs = X.specs[f].loops[0], cuts[f]
+        for k, (i0, i1) in enumerate(ends.tolist()):
+            rows += [(q, cs[k], 0, loop[i0]), (q, cs[k], 1, loop[i1])]
+        # (the entry's rows in order: cut k, end 0 then 1)
+        tau0 += tau.ravel().tolist()
+        SLr.append(SL[ends].ravel())
+        mg += [margin] * (2 * ends.shape[0])
     R = len(rows)
     ok = [True] * len(feet)
-    # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would).
-    ends3 = evaluate_curves([c.curve for _, c, _, _ in rows], np.array([[c.t0, c.t1] for _, c, _, _ in rows]))
-    Pc = ends3[np.arange(R), [which for _, _, which, _ in rows]]
+    # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would), once
+    # per cut: its two rows (ends 0 and 1) follow each other.
+    chords = [c for _, c, _, _ in rows[0::2]]
+    Pc = evaluate_curves([c.curve for c in chords], np.array([[c.t0, c.t1] for c in chords])).reshape(R, 3)
     tau0 = np.array(tau0)
     x = tau0.copy()
     sides = [e.curve for _, _, _, e in rows]
@@ -3085,14 +3094,14 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     Pe[good] = evaluate_curves([sides[r] for r in good], x[good][:, None])[:, 0]
     span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
     thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
-    bad = (np.abs(x - tau0) * np.array(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
+    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
     for r in np.flatnonzero(bad).tolist():
         ok[rows[r][0]] = False
     r = 0
     for f, ends, tau, SL, margin in feet:
-        for k in range(ends.shape[0]):
-            tau[k, 0], tau[k, 1] = x[r], x[r + 1]
-            r += 2
+        n = ends.shape[0]
+        tau[:] = x[r:r + 2 * n].reshape(n, 2)
+        r += 2 * n
     return ok
 
 
@@ -3263,39 +3272,41 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
     a hundred hole discs is one evaluation).  ``cut``
     (when given) holds the faces that were split: only their pieces have cut edges.
     """
-    cand: list[tuple[int, FaceSpec, EdgeSpec, float, int, object]] = []
-    for k, (f, spec) in enumerate(pieces):
-        if cut is not None and f not in cut:
-            continue
-        for loop in spec.loops:
-            for e in loop:
-                got = links.get(id(e.curve))
-                if got is None:
-                    continue
-                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                for ln in got:
-                    a, b = max(lo, ln.s0), min(hi, ln.s1)
-                    if ln.faces[side] == f and b > a:
-                        cand.append((k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side]))
-    if not cand:
-        return
-    # Each piece takes its first candidate that passes (in the order gathered): evaluated in
-    # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole
-    # circles needs one of them, not all.
-    of_piece: dict[int, list[int]] = {}
-    for i, c in enumerate(cand):
-        of_piece.setdefault(c[0], []).append(i)
-    r = 0
-    while True:
-        rows = [got[r] for k, got in of_piece.items() if r < len(got) and status[k] < 0]
-        if not rows:
+    # Each piece takes its first candidate that passes (in the order of its loops and uses): evaluated in
+    # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole circles needs one
+    # of them, not all; each piece's candidates are found as its rounds come (most pieces need one).
+    gens = {k: _piece_candidates(k, f, spec, links, side) for k, (f, spec) in enumerate(pieces)
+            if cut is None or f in cut}
+    while gens:
+        sub = []
+        for k, gen in list(gens.items()):
+            c = next(gen, None) if status[k] < 0 else None
+            if c is None:
+                del gens[k]
+            else:
+                sub.append(c)
+        if not sub:
             return
-        sub = [cand[i] for i in rows]
         ok, cos = _local_tests(sub, Y, t)
         for c, good, x in zip(sub, ok.tolist(), cos.tolist()):
             if good and status[c[0]] < 0:
                 status[c[0]] = IN if x < 0 else OUT
-        r += 1
+
+
+def _piece_candidates(k: int, f: int, spec: FaceSpec, links: dict[int, list[_Link]], side: int):
+    """The local test's candidates ``(piece, spec, use, s, face of Y, p-curve on it)`` of piece ``k`` (of face
+    ``f``), in the order of its loops, uses and links (:func:`_local_status`): a generator, read as far as the
+    piece's rounds go."""
+    for loop in spec.loops:
+        for e in loop:
+            got = links.get(id(e.curve))
+            if got is None:
+                continue
+            lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+            for ln in got:
+                a, b = max(lo, ln.s0), min(hi, ln.s1)
+                if ln.faces[side] == f and b > a:
+                    yield (k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side])
 
 
 def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
@@ -3766,8 +3777,11 @@ def _select(op: str, pieces_a, status_a: np.ndarray, pieces_b, status_b: np.ndar
 
 def reversed_face(spec: FaceSpec) -> FaceSpec:
     """The face with the opposite orientation: sense flipped, each loop reversed with its uses' ``t0, t1`` swapped."""
-    loops = [[_reversed_use(e) for e in reversed(loop)] for loop in spec.loops]
-    return FaceSpec(spec.surface, not spec.sense, loops)
+    # (the trusted constructors: a FaceSpec's loops are already non-empty tuples of validated EdgeSpecs
+    # and its sense a bool, so the validating ones would only copy them again; a Boolean reverses every
+    # kept face of its tool: a plate's hundred hole walls)
+    loops = tuple(tuple([_reversed_use(e) for e in reversed(loop)]) for loop in spec.loops)
+    return FaceSpec._trusted(spec.surface, not spec.sense, loops)
 
 
 def _reversed_use(e: EdgeSpec) -> EdgeSpec:
@@ -3811,10 +3825,11 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.  Every use of
     # an unchanged face is an unchanged use of its operand.
     info_of = [orig.get(id(f)) for f in faces]
-    group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), np.diff(first))
-    for k, f in enumerate(faces):
-        if info_of[k] is None:
-            group[first[k] : first[k + 1]] = [orig_edges.get(id(e), 0) for loop in f.loops for e in loop]
+    count = np.diff(first)
+    group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), count)
+    # (the uses of the other faces looked up one by one, their rows written in one assignment)
+    other = np.repeat(np.array([i is None for i in info_of], dtype=bool), count)
+    group[other] = [orig_edges.get(id(e), 0) for f, i in zip(faces, info_of) if i is None for loop in f.loops for e in loop]
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     # The foreign vertices in the box of each unchanged face (after many cuts most faces of a
     # plate are unchanged and far from the new vertices; :func:`_foreign_in_boxes`).
@@ -3850,15 +3865,32 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
         return faces
     open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
                                                                   clear.tolist()) if not c]
-    X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t)
-    at = iter(range(len(open_uses)))
+    # The open uses' keys for _shared_candidates from the use tables (curve ids, ranges), in open_uses' order.
+    open_flag = ~np.concatenate(list(todo.values()))  # (the uses of the faces in todo, in turn)
+    of_todo = np.zeros(len(faces), dtype=bool)
+    of_todo[list(todo)] = True
+    is_open = np.zeros(int(first[-1]), dtype=bool)
+    is_open[np.repeat(of_todo, count)] = open_flag
+    open_rows = np.flatnonzero(is_open)
+    open_ranges = np.concatenate([x.ranges for x in tables])[open_rows]
+    keys = (np.concatenate([x.curve_id for x in tables])[open_rows], *open_ranges.T)
+    X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t, keys)
+    # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
+    # faces' open uses have none); each face's open uses are a run of open_uses (at least one).
+    size = np.array([clear.size for clear in todo.values()], dtype=np.int64)
+    n_open = np.add.reduceat(open_flag, np.cumsum(size) - size, dtype=np.int64)
+    run = np.cumsum(n_open) - n_open
+    has = np.fromiter((c.size for c in cand_all), dtype=np.int64, count=len(cand_all)) > 0
+    busy = dict(zip(todo, np.logical_or.reduceat(has, run).tolist()))
+    first_open = dict(zip(todo, run.tolist()))
     out = []
     changed_any = False
     for k, f in enumerate(faces):
         clear = todo.get(k)
-        if clear is None:
+        if clear is None or not busy[k]:
             out.append(f)  # no vertex can split any of its uses
             continue
+        at = itertools.count(first_open[k])
         loops = []
         face_changed = False
         clear = iter(clear.tolist())
@@ -3901,8 +3933,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     return out if changed_any else faces
 
 
-def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol: np.ndarray, t: Tolerance
-                       ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol: np.ndarray, t: Tolerance,
+                       keys: tuple[np.ndarray, ...] | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """:func:`_split_candidates` then :func:`_off_the_ends` of each of ``open_uses``: per use its samples
     ``(17, 3)`` in its own direction and its candidate vertices, each distinct edge computed once.
 
@@ -3912,24 +3944,47 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
     the inner ones only place the query's ball, which bounds the range whichever way it is sampled). The
     key holds all a use's candidates depend on (its curve, range and tolerance; the rest is the call's):
     should the search ever read more of a use (its face, its operand group), the key must too.
+
+    ``keys``: the uses' ``(id(curve), t0, t1, tol or 0)`` as arrays ``(k,)`` when the caller has them (the
+    T-junction pass reads them from the use tables, :class:`~coons.topology.sew._FaceUses`), else read from
+    the uses.  The distinct keys are found by one sort (float keys compare as Python's do: ``0.0 == -0.0``).
     """
-    index: dict[tuple, int] = {}
-    distinct: list[EdgeSpec] = []
-    of, flip = [], []
-    for e in open_uses:
-        lo, hi = (e.t0, e.t1) if e.t0 <= e.t1 else (e.t1, e.t0)
-        key = (id(e.curve), lo, hi, e.tol or 0.0)
-        u = index.get(key)
-        if u is None:
-            u = index[key] = len(distinct)
-            distinct.append(e)
-        of.append(u)
-        flip.append(e.t0 != distinct[u].t0)
+    n = len(open_uses)
+    if keys is None:
+        keys = (np.array([id(e.curve) for e in open_uses], dtype=np.int64).reshape(n),
+                np.array([e.t0 for e in open_uses], dtype=np.float64).reshape(n),
+                np.array([e.t1 for e in open_uses], dtype=np.float64).reshape(n),
+                np.array([e.tol or 0.0 for e in open_uses], dtype=np.float64).reshape(n))
+    ids, t0, t1, tol = keys
+    first, of = _groups(ids, np.minimum(t0, t1), np.maximum(t0, t1), tol)
+    flip = t0 != t0[first][of]  # (a use running the other way from its group's first)
+    distinct = [open_uses[i] for i in first.tolist()]
     X_u, cand_u = _split_candidates(distinct, starts, t)
     cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
-    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of, flip)]
-    cand_all = [cand_u[u] for u in of]
+    of_l = of.tolist()
+    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of_l, flip.tolist())]
+    cand_all = [cand_u[u] for u in of_l]
     return X_all, cand_all
+
+
+def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows equal in every column of ``cols`` (``(k,)`` each) as groups numbered in the order of their first
+    row: ``first (g,)`` the first row of each group and ``of (k,)`` each row's group.  One sort of the rows
+    (floats compare as Python's do: ``0.0 == -0.0``, as in a dict of key tuples)."""
+    k = cols[0].size
+    order = np.lexsort(cols[::-1])
+    same = np.ones(max(k - 1, 0), dtype=bool)  # (each sorted row equal to the one before)
+    for col in cols:
+        c = col[order]
+        same &= c[1:] == c[:-1]
+    group = np.empty(k, dtype=np.int64)
+    group[order] = np.cumsum(np.concatenate([[True], ~same])) - 1
+    first = np.full(int(group.max()) + 1 if k else 0, k, dtype=np.int64)
+    np.minimum.at(first, group, np.arange(k))
+    rank = np.argsort(first, kind="stable")  # the groups in the order of their first row
+    renumber = np.empty(rank.size, dtype=np.int64)
+    renumber[rank] = np.arange(rank.size)
+    return first[rank], renumber[group]
 
 
 def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:
@@ -3959,7 +4014,7 @@ def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.nd
     ``X[:, -1]``: only those can split it.  All pairs in one pass (most candidates are the
     use's own end vertices)."""
     n = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(cand))
-    flat = np.fromiter((j for c in cand for j in c), dtype=np.int64, count=int(n.sum()))
+    flat = np.fromiter(itertools.chain.from_iterable(cand), dtype=np.int64, count=int(n.sum()))
     use = np.repeat(np.arange(len(cand)), n)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     Q, qt = starts[flat], np.maximum(start_tol[flat], thr[use])
@@ -3982,7 +4037,8 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     """
     clear = np.zeros(len(edges), dtype=bool)
     keys = np.full(len(edges), -1, dtype=np.int64) if face_foreign is not None else group
-    for key in np.unique(keys).tolist():
+    # (the distinct keys, ascending, of a face's few uses by a set: np.unique's sort costs more)
+    for key in ([-1] if face_foreign is not None else sorted(set(group.tolist()))):
         if key != -1 and key not in foreign_of:
             continue
         rows = np.flatnonzero(keys == key)

@@ -128,3 +128,72 @@ def test_local_tests_on_a_face_of_many_loops_look_only_at_nearby_loops(monkeypat
         np.testing.assert_array_equal(fast[1], every[1])
         rejected += int((~every[0]).sum())
     assert rejected > 0  # the case the loop boxes must not lose is reached
+
+
+def _eager_local_status(pieces, Y, links, side, t, status, cut=None):
+    """The local way as it ran before its candidates were found round by round: every candidate of every
+    piece first, then rounds of each undecided piece's next candidate (the reference of the test below)."""
+    cand = []
+    for k, (f, spec) in enumerate(pieces):
+        if cut is not None and f not in cut:
+            continue
+        for loop in spec.loops:
+            for e in loop:
+                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+                for ln in links.get(id(e.curve), ()):
+                    a, b = max(lo, ln.s0), min(hi, ln.s1)
+                    if ln.faces[side] == f and b > a:
+                        cand.append((k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side]))
+    of_piece: dict = {}
+    for i, c in enumerate(cand):
+        of_piece.setdefault(c[0], []).append(i)
+    r = 0
+    while True:
+        rows = [got[r] for k, got in of_piece.items() if r < len(got) and status[k] < 0]
+        if not rows:
+            return len(cand)
+        sub = [cand[i] for i in rows]
+        ok, cos = S._local_tests(sub, Y, t)
+        for c, good, x in zip(sub, ok.tolist(), cos.tolist()):
+            if good and status[c[0]] < 0:
+                status[c[0]] = S.IN if x < 0 else S.OUT
+        r += 1
+
+
+@pytest.mark.parametrize("case", ["plate-holes", "tangent"])
+def test_local_candidates_found_round_by_round_as_all_at_once(monkeypatch, case):
+    """_local_status reads each piece's candidates only as far as its rounds go (_piece_candidates): the
+    same rounds, each testing the same candidates in the same order, and the same statuses as gathering
+    every candidate first; on a plate drilled by many tools it reads fewer candidates than there are."""
+    a, b = {
+        "plate-holes": lambda: (Box(40, 40, 10), S._gathered([_cyl(2, 20, (x, y, 0)) for x in (-10, 0, 10)
+                                                              for y in (-10, 0, 10)], resolve(None))),
+        "tangent": lambda: (Box(10, 10, 10), _cyl(2, 20, (0.0, 0.0, 7.0), (1, 0, 0))),
+    }[case]()
+    t, A, B, I, J, links, cuts, pieces = _phases(a, b)
+    batches, read = [], [0]
+    real_tests, real_cand = S._local_tests, S._piece_candidates
+
+    def spy_tests(cand, Y, tol):
+        batches[-1].append([(c[0], id(c[2]), c[3], c[4]) for c in cand])
+        return real_tests(cand, Y, tol)
+
+    def spy_cand(*args):
+        for c in real_cand(*args):
+            read[0] += 1
+            yield c
+
+    monkeypatch.setattr(S, "_local_tests", spy_tests)
+    monkeypatch.setattr(S, "_piece_candidates", spy_cand)
+    total = 0
+    for side, (X, Y) in enumerate(((A, B), (B, A))):
+        lazy, eager = (np.full(len(pieces[side]), -1, dtype=np.int8) for _ in range(2))
+        batches.append([])
+        S._local_status(pieces[side], Y, links, side, t, lazy, cut=cuts[side])
+        batches.append([])
+        total += _eager_local_status(pieces[side], Y, links, side, t, eager, cut=cuts[side])
+        np.testing.assert_array_equal(lazy, eager)
+        assert batches[-2] == batches[-1]
+    assert any(batches) and read[0] <= total
+    if case == "plate-holes":
+        assert read[0] < total  # (the plate's face with nine hole circles needs one of them)

@@ -503,6 +503,14 @@ def test_reversed_face_flips_sense_and_loops():
     e0, r_last = f.loops[0][0], r.loops[0][-1]
     assert r_last.curve is e0.curve and (r_last.t0, r_last.t1) == (e0.t1, e0.t0)
     assert S.reversed_face(r).loops[0][0].t0 == e0.t0
+    # (made by the trusted constructors: field by field what the validating ones make)
+    for spec in face_specs(Cylinder(1, 1)) + face_specs(Box(1, 2, 3)):
+        got = S.reversed_face(spec)
+        want = S.FaceSpec(spec.surface, not spec.sense,
+                          [[S.EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in spec.loops])
+        assert got.surface is want.surface and type(got.sense) is bool and got.sense == want.sense
+        assert type(got.loops) is tuple and all(type(loop) is tuple for loop in got.loops)
+        assert [[vars(e) for e in loop] for loop in got.loops] == [[vars(e) for e in loop] for loop in want.loops]
 
 
 # ---------------------------------------------------------------------- OCCT
@@ -1551,15 +1559,64 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
 
 
 @pytest.mark.parametrize("case", ["plate", "corner"])
+def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_would(monkeypatch, case):
+    """The T-junction pass leaves a face whose open uses have no candidate vertex without walking its uses; the
+    faces it gives equal (the same objects where unchanged, the same ranges where split) those of the pass
+    with every open use walked (each given a candidate that cannot split it: a vertex the real query did not
+    find near the use's interior), and it walks fewer uses."""
+    from coons.booleans import classify
+
+    calls = []
+    real, real_shared, real_closest = S._split_edges_at_vertices, S._shared_candidates, classify._curve_closest
+
+    def spy(faces, t, orig=None, orig_edges=None):
+        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
+        return real(faces, t, orig, orig_edges)
+
+    monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
+    if case == "plate":
+        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
+                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
+    else:
+        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
+    assert calls
+    walked = []
+
+    def closest(*a, **k):
+        walked[-1] += 1
+        return real_closest(*a, **k)
+
+    def every_use(open_uses, starts, start_tol, t, keys=None):
+        X_all, cand_all = real_shared(open_uses, starts, start_tol, t, keys)
+        return X_all, [c if c.size else np.array([0]) for c in cand_all]
+
+    monkeypatch.setattr(classify, "_curve_closest", closest)
+    changed = False
+    for faces, t, orig, orig_edges in calls:
+        walked.append(0)
+        fast = real(faces, t, orig, orig_edges)
+        with monkeypatch.context() as m:
+            m.setattr(S, "_shared_candidates", every_use)
+            walked.append(0)
+            full = real(faces, t, orig, orig_edges)
+        assert walked[-2] < walked[-1]  # (the fast pass walked fewer uses)
+        assert [a is b for a, b in zip(fast, faces)] == [a is b for a, b in zip(full, faces)]
+        assert [[[(e.curve, e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in fast] == \
+            [[[(e.curve, e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in full]
+        changed |= any(a is not b for a, b in zip(fast, faces))
+    assert changed == (case == "corner")  # ("corner" really splits an edge: the comparison compares splits)
+
+
+@pytest.mark.parametrize("case", ["plate", "corner"])
 def test_shared_candidates_are_each_uses_own(monkeypatch, case):
     """_shared_candidates gives every open use (a shared edge's second use too, read backwards) the end samples
     and candidate vertices that _split_candidates and _off_the_ends give it alone."""
     calls = []
     real = S._shared_candidates
 
-    def spy(open_uses, starts, start_tol, t):
-        out = real(open_uses, starts, start_tol, t)
-        calls.append((open_uses, starts, start_tol, t, out))
+    def spy(open_uses, starts, start_tol, t, keys=None):
+        out = real(open_uses, starts, start_tol, t, keys)
+        calls.append((open_uses, starts, start_tol, t, keys, out))
         return out
 
     monkeypatch.setattr(S, "_shared_candidates", spy)
@@ -1570,8 +1627,15 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
         _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
     assert calls
     flipped = with_candidates = 0
-    for open_uses, starts, start_tol, t, (X_all, cand_all) in calls:
+    for open_uses, starts, start_tol, t, keys, (X_all, cand_all) in calls:
         assert len(X_all) == len(cand_all) == len(open_uses)
+        # The T-junction pass hands over the keys read from its use tables: those the uses give.
+        assert keys is not None
+        np.testing.assert_array_equal(keys[0], [id(e.curve) for e in open_uses])
+        np.testing.assert_array_equal(np.stack(keys[1:], axis=1), [(e.t0, e.t1, e.tol or 0.0) for e in open_uses])
+        X_own, cand_own = real(open_uses, starts, start_tol, t)  # (the keys read from the uses)
+        assert all(np.array_equal(a, b) for a, b in zip(X_all, X_own))
+        assert all(np.array_equal(a, b) for a, b in zip(cand_all, cand_own))
         seen = {}
         for e, X, cand in zip(open_uses, X_all, cand_all):
             X1, c1 = S._split_candidates([e], starts, t)
@@ -1585,3 +1649,64 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
     assert flipped  # (second uses, read backwards, were compared)
     if case == "corner":
         assert with_candidates  # (and uses with candidate vertices)
+
+
+def test_operand_face_data_is_each_faces_own_under_its_tolerance():
+    """_Operand reads its faces' cached data and computes the rest together: every face gets the data
+    _face_data gives it alone (a face cached under another tolerance computed again under the operand's)."""
+    t = S.resolve(None)
+    coarse = t.scaled(100.0)
+    tools = S._gathered([Cylinder(1.0, 10).translate((4.0 * i, 0, 0)) for i in range(3)], t)
+    first = S._Operand(tools, "B", coarse)
+    assert all(d.t == coarse for d in first._data)
+    X = S._Operand(tools, "B", t)  # (the same specs: their data cached under the coarse tolerance)
+    assert [id(s) for s in X.specs] == [id(s) for s in first.specs]
+    assert all(d.t == t for d in X._data)
+    for spec, d in zip(X.specs, X._data):
+        assert S._face_data(spec, t) is d  # (cached)
+        del S._FACE_DATA[spec]
+    S._LOOP_DATA.clear()
+    for spec, d in zip(X.specs, X._data):
+        alone = S._face_data(spec, t)
+        assert alone is not d and alone.uv_box == d.uv_box
+        for name in ("seg", "seg_lo", "seg_hi", "box"):
+            np.testing.assert_array_equal(getattr(alone, name), getattr(d, name), err_msg=name)
+
+
+def test_edge_box_array_boxes_each_distinct_edge_once_as_each_use_alone():
+    """_edge_box_array boxes the two uses of an edge (opposite ways round) once: every row is the box
+    curve_box gives the use alone, bit for bit; a use whose curve has no proven box gets a NaN row."""
+    from coons.kernel.curve_intersect import curve_box
+    from coons.topology.sew import face_specs
+
+    class Bare:  # (a curve with evaluate only: no proven box)
+        def evaluate(self, t):
+            return np.zeros(np.shape(t) + (3,))
+
+    tools = S._gathered([Cylinder(1.0 + 0.1 * i, 10).translate((4.0 * i, 0, 0)) for i in range(3)], S.resolve(None))
+    uses = [e for spec in face_specs(tools) for loop in spec.loops for e in loop]
+    uses.insert(3, S.EdgeSpec(Bare(), 0.0, 1.0))
+    boxes, boxed = S._edge_box_array(uses)
+    assert not boxes.flags.writeable and boxed.tolist() == [not isinstance(e.curve, Bare) for e in uses]
+    keys = {(id(e.curve), min(e.t0, e.t1), max(e.t0, e.t1)) for e in uses}
+    assert len(keys) < len(uses)  # (shared edges: boxed once for their two uses)
+    for e, box, ok in zip(uses, boxes, boxed.tolist()):
+        if ok:
+            np.testing.assert_array_equal(box, curve_box(e.curve, (e.t0, e.t1)))
+        else:
+            assert np.isnan(box).all()
+
+
+def test_groups_number_equal_rows_as_a_dict_of_key_tuples_would():
+    """_groups (one sort) numbers equal rows in the order of their first row, as a dict of key tuples does
+    (``0.0 == -0.0`` included): the first rows and every row's group."""
+    rng = np.random.default_rng(7)
+    for k in (0, 1, 2, 50, 400):
+        ids = rng.integers(0, 6, size=k)
+        lo = rng.choice([0.0, -0.0, 1.5, 2.0], size=k)
+        hi = rng.choice([3.0, 4.0], size=k)
+        index: dict = {}
+        of = [index.setdefault((int(i), float(a), float(b)), len(index)) for i, a, b in zip(ids, lo, hi)]
+        first = [of.index(g) for g in range(len(index))]
+        got_first, got_of = S._groups(ids, lo, hi)
+        assert got_first.tolist() == first and got_of.tolist() == of

@@ -747,7 +747,9 @@ class _Revolved(_Framed):
         return _is_close(self, other, tol)
 
     def _polar(self, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(φ, ρ, z)``: angle in ``[0, 2π)`` (0 on the axis), distance to the axis, height along it."""
+        """``(φ, ρ, z)``: angle in ``[0, 2π)`` (0 on the axis), distance to the axis, height along it.
+
+        ``coons.kernel.intersect._projected`` repeats these expressions without the checks: keep them in step."""
         L = self._local(points)
         return _angle(L[..., 1], L[..., 0]), np.hypot(L[..., 0], L[..., 1]), L[..., 2]
 

@@ -1435,7 +1435,9 @@ def _projected(surface, curve, t: np.ndarray) -> np.ndarray:
     A line, circle or ellipse on a sphere or cylinder by the same expressions as those methods (the curve's
     points of :func:`_curve_points`, the local coordinates by the same product, ``_angle``, and the sphere's
     ``arctan2(z, ρ)``) without their argument checks, which cost as much as the arithmetic on the few dozen
-    points of a numeric coordinate's samples; other pairs through their methods.
+    points of a numeric coordinate's samples; other pairs through their methods.  It mirrors
+    ``analytic._Revolved._polar`` and the surfaces' ``closest_parameters``: keep them in step (a test compares
+    them bit for bit).
     """
     kind = type(surface)
     if (kind is SphericalSurface or kind is CylindricalSurface) and type(curve) in (Line, Circle, Ellipse):

@@ -1144,7 +1144,7 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
                 if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
                     continue
                 if _FAST:
-                    # An end of the piece within eps of q bounds the foot's distance by eps: no split (the
+                    # An end of the piece within eps of q bounds the true foot's distance by eps: no split (the
                     # test below), and the node merge joins the two ends.  Consecutive cuts of one branch,
                     # and branches ending at one point, skip the dense search of the foot.
                     E = piece_ends.get(j)

@@ -3781,6 +3781,8 @@ def reversed_face(spec: FaceSpec) -> FaceSpec:
     # and its sense a bool, so the validating ones would only copy them again; a Boolean reverses every
     # kept face of its tool: a plate's hundred hole walls)
     loops = tuple(tuple([_reversed_use(e) for e in reversed(loop)]) for loop in spec.loops)
+    if type(spec) is not FaceSpec:  # (a stand-in from a caller of this public function: validated)
+        return FaceSpec(spec.surface, not spec.sense, loops)
     return FaceSpec._trusted(spec.surface, not spec.sense, loops)
 
 
@@ -3978,9 +3980,9 @@ def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         c = col[order]
         same &= c[1:] == c[:-1]
     group = np.empty(k, dtype=np.int64)
-    group[order] = np.cumsum(np.concatenate([[True], ~same])) - 1
-    first = np.full(int(group.max()) + 1 if k else 0, k, dtype=np.int64)
-    np.minimum.at(first, group, np.arange(k))
+    start = np.concatenate([[True], ~same])[:k]
+    group[order] = np.cumsum(start) - 1
+    first = order[start]  # (the sort is stable: a run's first row is its group's smallest)
     rank = np.argsort(first, kind="stable")  # the groups in the order of their first row
     renumber = np.empty(rank.size, dtype=np.int64)
     renumber[rank] = np.arange(rank.size)

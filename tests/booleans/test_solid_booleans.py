@@ -511,6 +511,11 @@ def test_reversed_face_flips_sense_and_loops():
         assert got.surface is want.surface and type(got.sense) is bool and got.sense == want.sense
         assert type(got.loops) is tuple and all(type(loop) is tuple for loop in got.loops)
         assert [[vars(e) for e in loop] for loop in got.loops] == [[vars(e) for e in loop] for loop in want.loops]
+    # a stand-in that is no FaceSpec is validated as before: no loops is refused
+    from types import SimpleNamespace
+
+    with pytest.raises(InvalidInputError):
+        S.reversed_face(SimpleNamespace(surface=f.surface, sense=True, loops=()))
 
 
 # ---------------------------------------------------------------------- OCCT
@@ -1675,7 +1680,8 @@ def test_operand_face_data_is_each_faces_own_under_its_tolerance():
 
 def test_edge_box_array_boxes_each_distinct_edge_once_as_each_use_alone():
     """_edge_box_array boxes the two uses of an edge (opposite ways round) once: every row is the box
-    curve_box gives the use alone, bit for bit; a use whose curve has no proven box gets a NaN row."""
+    curve_box gives the use alone (equal; bit for bit up to the sign of a zero end); a use whose curve has no
+    proven box gets a NaN row."""
     from coons.kernel.curve_intersect import curve_box
     from coons.topology.sew import face_specs
 

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import operator
 import weakref
-from itertools import chain
+from itertools import chain, repeat
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -900,6 +900,14 @@ def _trims_key(t: Tolerance, samples: int) -> tuple:
     return t, samples, _REFINE, _REFINE_LEVELS
 
 
+def _instances(objs: tuple, cls: type) -> np.ndarray:
+    """``(n + 1,)`` bool: which of ``objs`` are ``cls`` instances, and True last (read at index -1: none)."""
+    n = len(objs)
+    out = np.ones(n + 1, dtype=bool)
+    out[:n] = np.fromiter(map(isinstance, objs, repeat(cls)), dtype=bool, count=n)  # (no Python-level loop)
+    return out
+
+
 def _partial_faces(b: BRep, extends: dict[int, int] | None, found: dict, t: Tolerance,
                    samples: int) -> dict[int, tuple[int, "_FaceSums"]]:
     """``{face: (n, sums)}``: the faces of ``extends`` (``{face: n}``, :func:`_trims_passed`) whose
@@ -953,8 +961,8 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         return sums
     parts: list[tuple[np.ndarray, ...]] = []
     # Index -1 (no curve: a straight segment; no p-curve) reads the appended True.
-    straight_curve = np.array([isinstance(c, Line) for c in b.curves] + [True])[b.edge_curve]
-    straight_pc = np.array([isinstance(p, Line2D) for p in b.pcurves] + [True])[b.edge_pcurve]  # (E, 2)
+    straight_curve = _instances(b.curves, Line)[b.edge_curve]
+    straight_pc = _instances(b.pcurves, Line2D)[b.edge_pcurve]  # (E, 2)
     implicit = b.face_surface < 0
     cf = b.coedge_face
     straight_c = np.where(implicit[cf], np.repeat(straight_curve, 2), straight_pc.ravel())
@@ -964,7 +972,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     n_coedges = np.bincount(cf, minlength=b.n_faces)
     # At most three straight edges in one loop cannot cross each other — unless the loop also jumps
     # across a collapsed side in parameter space, which only non-planar surfaces have.
-    flat = np.array([isinstance(S, PlanarSurface) for S in b.surfaces] + [True])[b.face_surface]
+    flat = _instances(b.surfaces, PlanarSurface)[b.face_surface]
     simple = (n_loops == 1) & (n_coedges <= 3) & all_straight & flat
     vec_faces = implicit & all_straight & ~simple
     if np.any(vec_faces):
@@ -1227,7 +1235,9 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     if sums is not None:
         many = np.flatnonzero(judged & (np.diff(ptr) >= _PREFIX_LOOPS))
         if many.size:
-            mc = c[np.isin(b.coedge_face[c], many)]
+            wanted = np.zeros(b.n_faces, dtype=bool)
+            wanted[many] = True
+            mc = c[wanted[b.coedge_face[c]]]
             loops, lo, hi = _loop_boxes(b, mc, table.uv[table.pos[mc]])
             at = np.full(b.n_loops, -1, dtype=np.int64)
             at[loops] = np.arange(loops.size)

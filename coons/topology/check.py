@@ -40,7 +40,9 @@ closure are the spec's, as for a passed face) nor made into rings: the face's ar
 one plus the new loops', and only the old loops whose recorded box meets the new rings' box are
 sampled (from the earlier measurements, ``_coedge_samples``) for the crossing search.  Every other
 check, topological and geometric
-(vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
+(vertices on edges, edge tolerances, orientation), runs on the whole model; the shell volumes of
+a sewn B-rep are summed from face contributions, those of faces equal to a spec integrated before
+carried (:func:`~coons.topology.mass.carried_shell_volumes`, for the sign test).  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
 :func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
@@ -146,7 +148,7 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         table = _check_geometry(b, t, samples, problems, passed, partial)
         sums = _check_trims(b, t, samples, problems, table, passed, extends, partial)
         if not problems:
-            _check_orientation(b, t, problems)
+            _check_orientation(b, t, problems, known, {f: (n, found[f]) for f, n in (extends or {}).items()})
         if not problems and known is not None:
             _remember_passed(b, known, passed | _remember_trims(b, known, passed, t, samples, table.gapped, sums),
                              t, samples)
@@ -1569,14 +1571,20 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
     return i[o], j[o]
 
 
-def _check_orientation(b: BRep, t: Tolerance, out: list[Problem]) -> None:
-    """Outer shells enclose positive volume, voids negative (divergence theorem)."""
+def _check_orientation(b: BRep, t: Tolerance, out: list[Problem], known: tuple | None = None,
+                       extends: dict | None = None) -> None:
+    """Outer shells enclose positive volume, voids negative (divergence theorem).
+
+    For a B-rep sewn from face specs (``known``: :data:`_SEWN_FROM`'s record; ``extends``: ``{face:
+    (n, spec)}`` of :func:`_trims_passed`), the volumes are summed from the faces' contributions,
+    those of faces equal to a spec integrated before taken from then
+    (:func:`~coons.topology.mass.carried_shell_volumes`: equal up to round-off, for this sign test)."""
     try:
-        from coons.topology.mass import shell_volumes
+        from coons.topology.mass import carried_shell_volumes, shell_volumes
     except ImportError:  # pragma: no cover - mass properties land with the primitives
         return
     try:
-        vols = shell_volumes(b)
+        vols = shell_volumes(b) if known is None else carried_shell_volumes(b, known[0], known[1], extends or {})
     except CoonsError as exc:  # geometry the integrator does not know: report, do not crash
         out.append(Problem("orientation-unchecked", "brep", 0, f"shell volumes could not be computed: {exc}"))
         return

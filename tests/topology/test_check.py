@@ -1226,3 +1226,54 @@ def test_a_face_extending_a_passed_one_is_checked_as_a_whole_would_be(monkeypatc
     assert sizes[-1] < sizes[check_module._PREFIX_LOOPS - 2] / 4
     assert check(plate).ok
     assert math.isclose(plate.volume, 60 * 50 * 4 - len(holes) * math.pi * 4, rel_tol=1e-12)
+
+
+def test_carried_shell_volumes_equal_the_integrated_ones_and_integrate_only_what_changed(monkeypatch):
+    """The orientation check of a sewn B-rep sums face contributions carried from earlier checks
+    (mass.carried_shell_volumes): along a chain of cuts they equal the volumes integrated whole (to
+    round-off), and a late cut integrates only its new faces and the new loops of the faces gaining
+    a hole (the plate's top and bottom)."""
+    from coons.topology import mass
+    from coons.topology.primitives import Cylinder as Cyl
+
+    real, real_part = mass.carried_shell_volumes, mass._face_volumes
+    compared, integrated = [], []
+
+    def carried(b, specs, unchanged, extends, tol=None):
+        vols = real(b, specs, unchanged, extends, tol)
+        ref = mass._reference_point(b)
+        whole = np.bincount(b.face_shell, weights=mass._face_integrals(b, ref[0], ref[1], 2, mass._quadrature_rtol(tol))[:, 1],
+                            minlength=b.n_shells)
+        np.testing.assert_allclose(vols, whole, rtol=1e-12)
+        compared.append(len(extends))
+        return vols
+
+    def part(b, need, new_loop, *args):
+        integrated.append((int(need.sum()), int(new_loop.sum())))
+        return real_part(b, need, new_loop, *args)
+
+    monkeypatch.setattr(mass, "carried_shell_volumes", carried)
+    monkeypatch.setattr(mass, "_face_volumes", part)
+    plate = Box(60, 50, 4)
+    for k in range(20):
+        integrated.clear()
+        plate = plate - Cyl(1.0, 10.0).translate((-25.0 + 10 * (k % 6), -20.0 + 10 * (k // 6), 0.0))
+    assert len(compared) >= 20 and compared[-1] == 2  # the top and bottom extend their specs
+    assert integrated[-1] == (2, 2)  # the hole's two half cylinders, one new loop in the top and the bottom
+    assert check(plate).ok
+    assert math.isclose(plate.volume, 60 * 50 * 4 - 20 * math.pi * 4, rel_tol=1e-12)
+
+
+def test_an_inside_out_shell_sewn_after_its_faces_were_carried_is_still_found():
+    """The faces of a checked B-rep, every one reversed, sew into an inward shell: the carried
+    contributions (of the unreversed specs) do not stand in for the reversed faces."""
+    from coons.topology.primitives import Cylinder as Cyl
+
+    b = (Box(4, 4, 2) - Cyl(1.0, 5.0)).brep
+    specs = face_specs(b)
+    assert check(sew_faces(specs).brep).ok  # records the faces' contributions
+    flipped = [FaceSpec(s.surface, not s.sense,
+                        [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in s.loops])
+               for s in specs]
+    with pytest.raises(TopologyError, match="inward-shell"):
+        sew_faces(flipped)

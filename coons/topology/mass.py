@@ -505,7 +505,8 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     a polygon, its vertices: a carried one equals the integral up to round-off and the vertices'
     tolerance, never in sign for a shell whose volume is larger than that.  So the result is for a
     sign test; :func:`shell_volumes` gives the volumes (and is what this returns when ``b``'s
-    integrals are computed already).  Contributions of faces equal to a spec whose curves are values
+    integrals are computed already, or when no face is carried: then they are computed and cached
+    as there).  Contributions of faces equal to a spec whose curves are values
     are recorded (:data:`_FACE_VOLUMES`).
 
     Raises
@@ -558,7 +559,9 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
             new_loop[b.face_loops[b.face_loop_ptr[f] + n:b.face_loop_ptr[f + 1]]] = True
             extended.append(f)
     need = ~have
-    if need.any() or extended:
+    if not have.any():  # nothing carried: the B-rep's own integrals (cached, as shell_volumes)
+        vol = _columns(b, rtol, False)[:, _VOL].copy()
+    elif need.any() or extended:
         vol += _face_volumes(b, need, new_loop, ref[0], ref[1], rtol)
     # Recorded for specs whose surface, curves and p-curves are values (nothing can change under
     # the record); an extended face's old loops are its old spec's, recorded under that test.

@@ -607,7 +607,8 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
         return np.empty(0, dtype=np.int64)
     order = np.lexsort((X[:, 2], X[:, 1], X[:, 0]))
     Xs = X[order]
-    distinct = np.concatenate([[True], np.any(Xs[1:] != Xs[:-1], axis=1)])
+    ne = Xs[1:] != Xs[:-1]
+    distinct = np.concatenate([[True], ne[:, 0] | ne[:, 1] | ne[:, 2]])  # (columns or-ed: numpy reduces a short axis row by row)
     at = np.flatnonzero(distinct)
     point_of = np.empty(n, dtype=np.int64)
     point_of[order] = np.cumsum(distinct) - 1
@@ -703,7 +704,8 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     # general path below would find; every other group goes through it.
     two = (stop - start) == 2
     i2, j2 = order[start[two]], order[start[two] + 1]
-    fast = ((np.linalg.norm(uses.mid[i2] - uses.mid[j2], axis=1) <= np.maximum(uses.tol[i2], uses.tol[j2]))
+    D = uses.mid[i2] - uses.mid[j2]
+    fast = ((np.sqrt(D[:, 0] * D[:, 0] + D[:, 1] * D[:, 1] + D[:, 2] * D[:, 2]) <= np.maximum(uses.tol[i2], uses.tol[j2]))
             & ~closed[i2] & (vs[i2] == ve[j2]))
     pairs = [np.stack([i2[fast], j2[fast]], axis=1)]
     samples: dict = {}  # first-round samples of _distance_to_curve, shared by the uses of one curve

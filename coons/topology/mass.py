@@ -544,25 +544,28 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
             vol[f] = got[key]
             have[f] = True
     carried = have.copy()
-    T = _tables(b)
-    code = T.surface_code.take(b.face_surface)
-    curved = np.zeros(nf, dtype=bool)
-    curved[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
-    new_loop = np.zeros(b.n_loops, dtype=bool)
     extended = []
-    for f, (n, old) in extends.items():
-        got = _FACE_VOLUMES.get(old)
-        if (not have[f] and got is not None and key in got and b.face_surface[f] >= 0
-                and code[f] == _C_PLANE and curved[f]):
-            vol[f] = got[key]
-            have[f] = True
-            new_loop[b.face_loops[b.face_loop_ptr[f] + n:b.face_loop_ptr[f + 1]]] = True
-            extended.append(f)
-    need = ~have
-    if not have.any():  # nothing carried: the B-rep's own integrals (cached, as shell_volumes)
+    if not have.any() and not extends:  # nothing carried: the B-rep's own integrals (cached, as shell_volumes)
         vol = _columns(b, rtol, False)[:, _VOL].copy()
-    elif need.any() or extended:
-        vol += _face_volumes(b, need, new_loop, ref[0], ref[1], rtol)
+    else:
+        T = _tables(b)
+        code = T.surface_code.take(b.face_surface)
+        curved = np.zeros(nf, dtype=bool)
+        curved[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
+        new_loop = np.zeros(b.n_loops, dtype=bool)
+        for f, (n, old) in extends.items():
+            got = _FACE_VOLUMES.get(old)
+            if (not have[f] and got is not None and key in got and b.face_surface[f] >= 0
+                    and code[f] == _C_PLANE and curved[f]):
+                vol[f] = got[key]
+                have[f] = True
+                new_loop[b.face_loops[b.face_loop_ptr[f] + n:b.face_loop_ptr[f + 1]]] = True
+                extended.append(f)
+        need = ~have
+        if not have.any():
+            vol = _columns(b, rtol, False)[:, _VOL].copy()
+        elif need.any() or extended:
+            vol += _face_volumes(b, need, new_loop, ref[0], ref[1], rtol)
     # Recorded for specs whose surface, curves and p-curves are values (nothing can change under
     # the record); an extended face's old loops are its old spec's, recorded under that test.
     old_loops = {f: extends[f][0] for f in extended}

@@ -33,8 +33,16 @@ keep theirs; faces whose loop closure was judged against a vertex are never reco
 ends of every edge are still compared with its vertices.  A face on a plane or cylinder whose loops extend,
 use for use, those of a spec that passed tests only the pairs of segments involving its new loops
 (a plate's top gaining a hole; ``_PASSED_ON``), and of its old loops only those whose box meets
-the new ones' (``_near_new_loops``).  Every other check, topological and geometric
-(vertices on edges, edge tolerances, orientation, volumes), runs on the whole model.  The
+the new ones' (``_near_new_loops``).  When the spec it extends was recorded with its face's
+orientation sums and loop boxes (``_PASSED_SUMS``: total signed parameter-plane area, largest ring
+box and speed, one box per loop), its old loops are not measured again either (their deviation and
+closure are the spec's, as for a passed face) nor made into rings: the face's area is the recorded
+one plus the new loops', and only the old loops whose recorded box meets the new rings' box are
+sampled (from the earlier measurements, ``_coedge_samples``) for the crossing search.  Every other
+check, topological and geometric
+(vertices on edges, edge tolerances, orientation), runs on the whole model; the shell volumes of
+a sewn B-rep are summed from face contributions, those of faces equal to a spec integrated before
+carried (:func:`~coons.topology.mass.carried_shell_volumes`, for the sign test).  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
 :func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
@@ -46,7 +54,7 @@ from __future__ import annotations
 
 import operator
 import weakref
-from itertools import chain
+from itertools import chain, repeat
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -134,13 +142,15 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         _check_euler(b, problems)
     if geometry and topo_ok:
         known = _SEWN_FROM.get(b)
-        passed, extends = _trims_passed(b, known, t, samples) if known is not None else (None, None)
-        table = _check_geometry(b, t, samples, problems, passed)
-        _check_trims(b, t, samples, problems, table, passed, extends)
+        found: dict = {}
+        passed, extends = _trims_passed(b, known, t, samples, found) if known is not None else (None, None)
+        partial = _partial_faces(b, extends, found, t, samples)
+        table = _check_geometry(b, t, samples, problems, passed, partial)
+        sums = _check_trims(b, t, samples, problems, table, passed, extends, partial)
         if not problems:
-            _check_orientation(b, t, problems)
+            _check_orientation(b, t, problems, known, {f: (n, found[f]) for f, n in (extends or {}).items()})
         if not problems and known is not None:
-            _remember_passed(b, known, passed | _remember_trims(b, known, passed, t, samples, table.gapped),
+            _remember_passed(b, known, passed | _remember_trims(b, known, passed, t, samples, table.gapped, sums),
                              t, samples)
     counts = {"vertices": b.n_vertices, "edges": b.n_edges, "loops": b.n_loops, "faces": b.n_faces,
               "shells": b.n_shells, "solids": b.n_solids}
@@ -449,8 +459,18 @@ def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
 _SAME_PARAMETER = IdentityMemo()
 
 
+def _norms(X: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(X, axis=-1)`` for a last axis of 2 or 3, written out: the same floats (its
+    sum of squares runs left to right too), without numpy's row-by-row reduction of a short axis."""
+    S = X[..., 0] * X[..., 0] + X[..., 1] * X[..., 1]
+    if X.shape[-1] == 3:
+        S += X[..., 2] * X[..., 2]
+    return np.sqrt(S)
+
+
 def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
-                    passed: np.ndarray | None = None) -> _PcurveSamples:
+                    passed: np.ndarray | None = None,
+                    partial: dict[int, tuple[int, "_FaceSums"]] | None = None) -> _PcurveSamples:
     # Only edges with a 3-D curve or a p-curve on a surface are sampled: a straight edge without
     # p-curves is the segment between its vertices, nothing about it can deviate.
     has_pc = (b.edge_pcurve >= 0) & (b.face_surface[b.edge_face] >= 0)  # (E, 2)
@@ -460,6 +480,13 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         # same edge tolerance (an unchanged face's uses keep theirs), and their loops closed
         # then; only their edges' ends are compared with the vertices again, below.
         has_pc &= ~passed[b.edge_face]
+    if partial:
+        # Likewise the old loops of a face extending a spec that passed (:func:`_partial_faces`):
+        # their uses are the spec's, with their own tolerances as edge tolerances then and now.
+        old_loop = np.zeros(b.n_loops, dtype=bool)
+        for f, (n, _) in partial.items():
+            old_loop[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+        has_pc &= ~old_loop[b.edge_loop]
     rows = np.flatnonzero((b.edge_curve >= 0) | has_pc.any(axis=1))
     # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance, every p-curve sample of
     # the model in one batch (surfaces of one structure evaluated together).  A coedge whose
@@ -499,7 +526,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     ev = b.edge_vertex[rows]
     ends = b.vertex_point[ev]  # (k, 2, 3)
     allow = b.edge_tol[rows, None] + b.vertex_tol[ev] + t.linear
-    gap = np.linalg.norm(ends_pts - ends, axis=-1)
+    gap = _norms(ends_pts - ends)
     bad = np.argwhere(gap > allow)
     for r, k in bad[:10]:
         out.append(Problem("vertex-off-edge", "edge", int(rows[r]),
@@ -539,7 +566,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     j = pos[b.coedge_next[coedge]]
     i = np.flatnonzero(j >= 0)
     j = j[i]
-    far = np.linalg.norm(end[i] - start[j], axis=1) > t.solver * (1.0 + np.abs(end[i]).max(axis=1))
+    e_i = end[i]
+    far = _norms(e_i - start[j]) > t.solver * (1.0 + np.maximum(np.abs(e_i[:, 0]), np.abs(e_i[:, 1])))
     table = _PcurveSamples(coedge, uv, speed, line, pos,
                            frozenset(b.coedge_face[coedge[i[far]]].tolist()) if far.any() else frozenset())
     for k, kn in zip(i[far].tolist(), j[far].tolist()):
@@ -745,16 +773,22 @@ _TRIMS_PASSED = IdentityMemo()
 #: checks: a face that extends one of them by new loops (a plate's top gaining a hole) has only
 #: the pairs involving its new loops tested (:func:`_trims_passed`).
 _PASSED_ON = IdentityMemo()
+#: Spec recorded in :data:`_PASSED_ON` -> ``{trims key: _FaceSums}``: its face's total signed
+#: parameter-plane area, largest ring box and speed, and loop boxes as :func:`_sampled_rings` found
+#: them in the clean check that recorded it.  A face extending the spec takes them for its old
+#: loops instead of measuring them and making their rings again (:func:`_partial_faces`).
+_PASSED_SUMS = IdentityMemo()
 #: Loops from which a face is worth recording in :data:`_PASSED_ON`, and how many are kept per surface.
 _PREFIX_LOOPS, _PREFIX_KEPT = 16, 4
 
 
 def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
-                  samples: int) -> tuple[np.ndarray, dict[int, int]]:
+                  samples: int, found: dict | None = None) -> tuple[np.ndarray, dict[int, int]]:
     """``(F,)`` bool: faces equal to a spec that passed the trim checks with ``t`` and ``samples``;
     and ``{face: n}`` for faces equal to a spec whose first ``n`` loops are, use for use, the
     loops of a spec that passed (same surface and sense, a plane or a cylinder, whose parameter
-    scale, and so the crossing threshold, does not depend on where the loops lie)."""
+    scale, and so the crossing threshold, does not depend on where the loops lie).  ``found``, when
+    given, receives ``{face: that spec}``."""
     specs, unchanged = known
     key = _trims_key(t, samples)
     passed = np.zeros(len(specs), dtype=bool)
@@ -799,6 +833,8 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
                 loops = b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f + 1]]
                 if sizes[loops].tolist() == [len(loop) for loop in spec.loops]:
                     extends[f] = best
+                    if found is not None:
+                        found[f] = old
     return passed, extends
 
 
@@ -833,13 +869,14 @@ def _remember_passed(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray
 
 
 def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,
-                    gapped: frozenset = frozenset()) -> np.ndarray:
+                    gapped: frozenset = frozenset(), sums: dict | None = None) -> np.ndarray:
     """Record that the unchanged faces' specs of ``b`` passed the checks (the check found nothing),
     except the faces whose loop closure was judged against a vertex (``gapped``), and those whose
     spec, surface, curves or p-curves are not all values (what the record depends on could change
     under it); ``(F,)`` bool, the faces recorded.  An unchanged face's uses hold the very curves
     and p-curves of its coedges in ``b``: their being values is read from the pools
-    (:func:`_value_faces`)."""
+    (:func:`_value_faces`).  A spec recorded in :data:`_PASSED_ON` also keeps its face's orientation
+    sums from ``sums`` (:func:`_sampled_rings`) in :data:`_PASSED_SUMS`."""
     specs, unchanged = known
     key = _trims_key(t, samples)
     todo = np.flatnonzero(unchanged & ~passed).tolist()
@@ -854,6 +891,8 @@ def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray,
                     and is_value(spec.surface)):
                 refs = [r for r in _PASSED_ON.get(spec.surface, ()) if r() is not None][-(_PREFIX_KEPT - 1):]
                 _PASSED_ON.set(spec.surface, refs + [weakref.ref(spec)])
+                if sums is not None and f in sums:
+                    _PASSED_SUMS.setdefault(spec, dict)[key] = sums[f]
     return recorded
 
 
@@ -873,8 +912,38 @@ def _trims_key(t: Tolerance, samples: int) -> tuple:
     return t, samples, _REFINE, _REFINE_LEVELS
 
 
+def _instances(objs: tuple, cls: type) -> np.ndarray:
+    """``(n + 1,)`` bool: which of ``objs`` are ``cls`` instances, and True last (read at index -1: none)."""
+    n = len(objs)
+    out = np.ones(n + 1, dtype=bool)
+    out[:n] = np.fromiter(map(isinstance, objs, repeat(cls)), dtype=bool, count=n)  # (no Python-level loop)
+    return out
+
+
+def _partial_faces(b: BRep, extends: dict[int, int] | None, found: dict, t: Tolerance,
+                   samples: int) -> dict[int, tuple[int, "_FaceSums"]]:
+    """``{face: (n, sums)}``: the faces of ``extends`` (``{face: n}``, :func:`_trims_passed`) whose
+    spec extends one (``found``: ``{face: that spec}``) with :class:`_FaceSums` recorded under this
+    check's key (:data:`_PASSED_SUMS`).  Their first ``n`` loops are, use for use, the loops of a
+    face that passed every check, in the face they are now too (an unchanged face's uses keep their
+    curves, p-curves, ranges and tolerances, which its edges take): their p-curves' deviation and
+    closure are those measured then, their crossings with each other and their orientation were
+    judged then.  The check measures and rings only their new loops (and old ones near them)."""
+    out: dict[int, tuple[int, _FaceSums]] = {}
+    if not extends:
+        return out
+    key = _trims_key(t, samples)
+    for f, n in extends.items():
+        got = _PASSED_SUMS.get(found[f]) if f in found else None
+        x = got.get(key) if got is not None else None
+        if x is not None and x.lo.shape[0] == n and b.face_surface[f] >= 0:
+            out[f] = (n, x)
+    return out
+
+
 def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table: _PcurveSamples,
-                 passed: np.ndarray | None = None, extends: dict[int, int] | None = None) -> None:
+                 passed: np.ndarray | None = None, extends: dict[int, int] | None = None,
+                 partial: dict[int, tuple[int, "_FaceSums"]] | None = None) -> dict[int, "_FaceSums"]:
     """Self-intersecting trim loops: two segments of a face's boundary polylines crossing properly.
 
     Every loop of a face is turned into a closed polyline in the face's parameter plane (its
@@ -895,14 +964,17 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     one loop of at most three straight edges cannot self-intersect and are skipped, and so are
     the faces of ``passed`` (``(F,)`` bool, :func:`_trims_passed`), for crossings and orientation;
     in a face of ``extends`` (``{face: n}``) two segments of its first ``n`` loops are not tested
-    against each other (they were, in the spec it extends).
+    against each other (they were, in the spec it extends); of the faces of ``partial``
+    (:func:`_partial_faces`) the old loops far from the new ones are not even made into rings
+    (:func:`_sampled_rings`).  Returns the :class:`_FaceSums` of the faces with many loops.
     """
+    sums: dict[int, _FaceSums] = {}
     if b.n_faces == 0 or b.n_edges == 0:
-        return
+        return sums
     parts: list[tuple[np.ndarray, ...]] = []
     # Index -1 (no curve: a straight segment; no p-curve) reads the appended True.
-    straight_curve = np.array([isinstance(c, Line) for c in b.curves] + [True])[b.edge_curve]
-    straight_pc = np.array([isinstance(p, Line2D) for p in b.pcurves] + [True])[b.edge_pcurve]  # (E, 2)
+    straight_curve = _instances(b.curves, Line)[b.edge_curve]
+    straight_pc = _instances(b.pcurves, Line2D)[b.edge_pcurve]  # (E, 2)
     implicit = b.face_surface < 0
     cf = b.coedge_face
     straight_c = np.where(implicit[cf], np.repeat(straight_curve, 2), straight_pc.ravel())
@@ -912,7 +984,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     n_coedges = np.bincount(cf, minlength=b.n_faces)
     # At most three straight edges in one loop cannot cross each other — unless the loop also jumps
     # across a collapsed side in parameter space, which only non-planar surfaces have.
-    flat = np.array([isinstance(S, PlanarSurface) for S in b.surfaces] + [True])[b.face_surface]
+    flat = _instances(b.surfaces, PlanarSurface)[b.face_surface]
     simple = (n_loops == 1) & (n_coedges <= 3) & all_straight & flat
     vec_faces = implicit & all_straight & ~simple
     if np.any(vec_faces):
@@ -922,7 +994,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     # Faces on surfaces: rings from the p-curve samples of the geometric check, all faces at once
     # (orientation of every one, segments of those that can cross); implicit planes face by face.
     seg = _sampled_rings(b, np.flatnonzero(todo & ~simple), np.flatnonzero(todo & simple),
-                         table, samples, t, out)
+                         table, samples, t, out, partial, sums)
     if seg is not None:
         parts.append(seg)
     for f in np.flatnonzero(~simple & ~vec_faces & ~on_surface):
@@ -930,7 +1002,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         if seg is not None:
             parts.append(seg)
     if not parts:
-        return
+        return sums
     old_loop = None
     if extends:
         old_loop = np.zeros(b.n_loops, dtype=bool)
@@ -953,6 +1025,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         out.append(Problem("self-intersecting-trim", "face", f,
                            f"edge {ci >> 1} of loop {int(b.coedge_loop[ci])} crosses edge {cj >> 1} of loop "
                            f"{int(b.coedge_loop[cj])} near {np.round(x, 9).tolist()} in the face's parameter plane"))
+    return sums
 
 
 def _near_new_loops(b: BRep, part: tuple[np.ndarray, ...], old_loop: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -1027,8 +1100,79 @@ def _ring_successors(ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts, nxt
 
 
+class _FaceSums:
+    """What the trim checks found of one face with many loops (:func:`_sampled_rings`), kept with its
+    spec for a face that extends it (:data:`_PASSED_SUMS`): ``area`` its loops' total signed
+    parameter-plane area, ``scale`` the largest product of a ring's box sides, ``stretch`` the
+    largest speed ``max(|Su|, |Sv|)`` at its ring points, ``lo, hi (L, 2)`` each loop's box of all
+    its p-curve samples, in the face's loop order."""
+
+    __slots__ = ("area", "scale", "stretch", "lo", "hi")
+
+
+def _loop_boxes(b: BRep, c: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The loops of the coedges ``c`` (sorted) and each one's box ``lo, hi (l, 2)`` of the samples
+    ``uv (n, samples, 2)`` of its coedges in ``c``."""
+    # (samples, n, 2), contiguous: a reduction over the outer axis runs elementwise (over a short
+    # inner axis numpy runs row by row, about 40 times slower here)
+    U = np.ascontiguousarray(uv.transpose(1, 0, 2))
+    cl = b.coedge_loop[c]
+    o = np.argsort(cl, kind="stable")
+    first = np.flatnonzero(np.concatenate([[True], cl[o][1:] != cl[o][:-1]]))
+    return (cl[o][first], np.minimum.reduceat(U.min(axis=0)[o], first, axis=0),
+            np.maximum.reduceat(U.max(axis=0)[o], first, axis=0))
+
+
+def _coedge_samples(b: BRep, c: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The p-curve samples of the coedges ``c`` (each with a p-curve on a surface), as
+    :func:`_check_geometry` takes them: ``uv (n, samples, 2)``, ``speed (n, samples)``, ``line
+    (n,)``; from the measurements of an earlier check where there are some (:func:`_cached_samples`),
+    else evaluated.  Nothing is compared with a tolerance here (for coedges checked before)."""
+    e, side = c >> 1, c & 1
+    pi = b.edge_pcurve[e, side]
+    si = b.face_surface[b.edge_face[e, side]]
+    hit, H = _cached_samples(b, pi, b.edge_curve[e], si, e, samples)
+    uv = np.empty((c.size, samples, 2))
+    speed = np.empty((c.size, samples))
+    line = np.empty(c.size, dtype=bool)
+    uv_h, speed_h, _, _, line_h = _unpacked(H, samples)
+    uv[hit], speed[hit], line[hit] = uv_h, speed_h, line_h
+    miss = np.ones(c.size, dtype=bool)
+    miss[hit] = False
+    miss = np.flatnonzero(miss)
+    if miss.size:
+        T, _ = _edge_samples(b, samples, e[miss])
+        uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], T)
+        D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), uv_m[..., 0].ravel(),
+                                 uv_m[..., 1].ravel(), 1).reshape(miss.size, samples, 2, 2, 3)
+        uv[miss], line[miss] = uv_m, line_m
+        speed[miss] = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
+    return uv, speed, line
+
+
+def _ring_points(b: BRep, c: np.ndarray, k: np.ndarray, uv: np.ndarray, speed: np.ndarray, line: np.ndarray,
+                 samples: int, ranks: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The rings of the loops of the coedges ``c`` (each loop whole; coedge ``c[i]`` sampled in row
+    ``k[i]`` of ``uv, speed, line``, :class:`_PcurveSamples`' columns): points ``(m, 2)`` loop by
+    loop in loop order (both ends of a :class:`Line2D`, every sample of other p-curves, reversed on
+    the right side), and per point its coedge, loop, face and speed.  ``ranks``: :func:`_loop_ranks`."""
+    o = np.lexsort((ranks[c], b.coedge_loop[c]))  # loops of one face are contiguous: a face owns its loops
+    c, k = c[o], k[o]
+    loop = b.coedge_loop[c]
+    S = samples
+    npts = np.where(line[k], 2, S)
+    rep = np.repeat(np.arange(c.size), npts)
+    local = np.arange(rep.size) - np.repeat(np.cumsum(npts) - npts, npts)
+    sidx = np.where(line[k][rep], local * (S - 1), local)
+    sidx = np.where((c[rep] & 1) == 1, S - 1 - sidx, sidx)  # the right side runs backwards
+    kr = k[rep]
+    owner = c[rep]
+    return uv[kr, sidx], owner, loop[rep], b.coedge_face[owner], speed[kr, sidx]
+
+
 def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, table: _PcurveSamples, samples: int,
-                   t: Tolerance, out: list[Problem]) -> tuple[np.ndarray, ...] | None:
+                   t: Tolerance, out: list[Problem], partial: dict[int, tuple[int, _FaceSums]] | None = None,
+                   sums: dict[int, _FaceSums] | None = None) -> tuple[np.ndarray, ...] | None:
     """:func:`_face_rings` and :func:`_face_segments` for many faces on surfaces at once, and their orientation.
 
     Every loop of ``cross_faces`` and ``sense_faces`` becomes its ring of p-curve samples (both
@@ -1043,6 +1187,19 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     other way has its material on the wrong side: the shell's volume can still come out right when
     another face compensates, so the sign is checked per face.  Areas within the sampling's
     resolution of zero (``1e-9`` of the largest ring's parameter box) are not judged.
+
+    ``partial``: ``{face: (n, sums)}`` for faces whose first ``n`` loops are, use for use, those of
+    a spec that passed the trim checks (:func:`_trims_passed`'s ``extends``) with its
+    :class:`_FaceSums`; ``table`` need not hold those loops' coedges (:func:`check` leaves them
+    out).  Their area is the recorded one plus the new loops', their scale and stretch the larger
+    of the recorded and the new loops' (a maximum over a union: the very floats of all the rings;
+    the area, a sum in another order, may differ in its last bits, which only a sign decides).  Of
+    their old loops, only those whose recorded box, widened by the crossing threshold, meets the
+    widened box of the face's new ring points become rings, for the crossing search: a superset
+    of those :func:`_near_new_loops` then keeps (its boxes are of the segments left after dropping
+    repeats), their samples from :func:`_coedge_samples`.  ``sums``, when given, receives the
+    :class:`_FaceSums` of the judged faces of :data:`_PREFIX_LOOPS` loops or more (what
+    :func:`_remember_trims` records).
     """
     faces = np.concatenate([cross_faces, sense_faces]).astype(np.int64)
     if faces.size == 0 or b.n_edges == 0:
@@ -1050,26 +1207,19 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     want = np.zeros(b.n_faces, dtype=bool)
     want[faces] = True
     c = np.flatnonzero(want[b.coedge_face])
+    ptr = b.face_loop_ptr
+    if partial:
+        old_loop = np.zeros(b.n_loops, dtype=bool)
+        for f, (n, _) in partial.items():
+            old_loop[b.face_loops[ptr[f]:ptr[f] + n]] = True
+        c = c[~old_loop[b.coedge_loop[c]]]
     missing = np.zeros(b.n_faces, dtype=bool)
     missing[b.coedge_face[c[table.pos[c] < 0]]] = True
     c = c[~missing[b.coedge_face[c]]]
     if c.size == 0:
         return None
-    loop = b.coedge_loop[c]
-    c = c[np.lexsort((_loop_ranks(b)[c], loop))]  # loops of one face are contiguous: a face owns its loops
-    loop = b.coedge_loop[c]
-    k = table.pos[c]
-    S = samples
-    npts = np.where(table.line[k], 2, S)
-    rep = np.repeat(np.arange(c.size), npts)
-    local = np.arange(rep.size) - np.repeat(np.cumsum(npts) - npts, npts)
-    sidx = np.where(table.line[k][rep], local * (S - 1), local)
-    sidx = np.where((c[rep] & 1) == 1, S - 1 - sidx, sidx)  # the right side runs backwards
-    kr = k[rep]
-    pts = table.uv[kr, sidx]
-    owner = c[rep]
-    ring = loop[rep]
-    face = b.coedge_face[owner]
+    ranks = _loop_ranks(b)
+    pts, owner, ring, face, speed = _ring_points(b, c, table.pos[c], table.uv, table.speed, table.line, samples, ranks)
     m = pts.shape[0]
     starts, nxt = _ring_successors(ring)
     ring_id = np.repeat(np.arange(starts.size), np.diff(np.append(starts, m)))
@@ -1079,21 +1229,69 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     ptp = np.maximum.reduceat(pts, starts, axis=0) - np.minimum.reduceat(pts, starts, axis=0)
     scale = np.zeros(b.n_faces)
     np.maximum.at(scale, face[starts], ptp[:, 0] * ptp[:, 1])
+    stretch = np.zeros(b.n_faces)
+    np.maximum.at(stretch, face, speed)
     judged = np.zeros(b.n_faces, dtype=bool)
     judged[face] = True
+    done = [f for f in partial if judged[f]] if partial else []
+    for f in done:
+        old = partial[f][1]
+        area[f] += old.area
+        scale[f] = max(scale[f], old.scale)
+        stretch[f] = max(stretch[f], old.stretch)
     wrong = judged & (np.abs(area) > 1e-9 * scale) & ((area > 0) != b.face_sense.astype(bool))
     for f in np.flatnonzero(wrong):
         out.append(Problem("face-orientation", "face", int(f),
                            f"its loops enclose signed area {area[f]:.6g} in the parameter plane but face_sense is "
                            f"{bool(b.face_sense[f])} (the face lies on the wrong side of its boundary)"))
+    if sums is not None:
+        many = np.flatnonzero(judged & (np.diff(ptr) >= _PREFIX_LOOPS))
+        if many.size:
+            wanted = np.zeros(b.n_faces, dtype=bool)
+            wanted[many] = True
+            mc = c[wanted[b.coedge_face[c]]]
+            loops, lo, hi = _loop_boxes(b, mc, table.uv[table.pos[mc]])
+            at = np.full(b.n_loops, -1, dtype=np.int64)
+            at[loops] = np.arange(loops.size)
+            for f in many.tolist():
+                fl = at[b.face_loops[ptr[f]:ptr[f + 1]]]
+                x = _FaceSums()
+                x.area, x.scale, x.stretch = float(area[f]), float(scale[f]), float(stretch[f])
+                n = partial[f][0] if f in done else 0
+                fl = fl[n:]
+                x.lo, x.hi = lo[fl], hi[fl]
+                if n:
+                    old = partial[f][1]
+                    x.lo, x.hi = np.concatenate([old.lo, x.lo]), np.concatenate([old.hi, x.hi])
+                x.lo.setflags(write=False)
+                x.hi.setflags(write=False)
+                sums[f] = x
     # Segments of the faces tested for crossings, consecutive repeats (closer than eps) dropped.
-    stretch = np.zeros(b.n_faces)
-    np.maximum.at(stretch, face, table.speed[kr, sidx])
     eps_face = np.where(stretch > 0, t.linear / np.where(stretch > 0, stretch, 1.0), t.linear)
-    prv = np.empty(m, dtype=np.int64)
-    prv[nxt] = np.arange(m)
     crossing = np.zeros(b.n_faces, dtype=bool)
     crossing[cross_faces] = True
+    near = [f for f in done if crossing[f]]
+    if near:
+        # The old loops near the new ones, as _near_new_loops tests them, term for term, on boxes
+        # that can only be larger: it keeps no loop that this drops.
+        keep_loop = np.zeros(b.n_loops, dtype=bool)
+        for f in near:
+            n, old = partial[f]
+            mine = pts[face == f]
+            e = eps_face[f]
+            flo, fhi = mine.min(axis=0) - e, mine.max(axis=0) + e
+            meet = (old.lo - e <= fhi) & (flo <= old.hi + e)
+            keep_loop[b.face_loops[ptr[f]:ptr[f] + n][meet[:, 0] & meet[:, 1]]] = True
+        c_near = np.flatnonzero(keep_loop[b.coedge_loop])
+        if c_near.size:
+            uv2, speed2, line2 = _coedge_samples(b, c_near, samples)
+            P2 = _ring_points(b, c_near, np.arange(c_near.size), uv2, speed2, line2, samples, ranks)
+            pts, owner, ring, face = (np.concatenate([u, v]) for u, v in zip((pts, owner, ring, face), P2[:4]))
+            m = pts.shape[0]
+            starts, nxt = _ring_successors(ring)
+            ring_id = np.repeat(np.arange(starts.size), np.diff(np.append(starts, m)))
+    prv = np.empty(m, dtype=np.int64)
+    prv[nxt] = np.arange(m)
     keep = crossing[face] & (np.linalg.norm(pts - pts[prv], axis=1) > eps_face[face])
     idx = np.flatnonzero(keep)
     if idx.size == 0:
@@ -1383,14 +1581,20 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
     return i[o], j[o]
 
 
-def _check_orientation(b: BRep, t: Tolerance, out: list[Problem]) -> None:
-    """Outer shells enclose positive volume, voids negative (divergence theorem)."""
+def _check_orientation(b: BRep, t: Tolerance, out: list[Problem], known: tuple | None = None,
+                       extends: dict | None = None) -> None:
+    """Outer shells enclose positive volume, voids negative (divergence theorem).
+
+    For a B-rep sewn from face specs (``known``: :data:`_SEWN_FROM`'s record; ``extends``: ``{face:
+    (n, spec)}`` of :func:`_trims_passed`), the volumes are summed from the faces' contributions,
+    those of faces equal to a spec integrated before taken from then
+    (:func:`~coons.topology.mass.carried_shell_volumes`: equal up to round-off, for this sign test)."""
     try:
-        from coons.topology.mass import shell_volumes
+        from coons.topology.mass import carried_shell_volumes, shell_volumes
     except ImportError:  # pragma: no cover - mass properties land with the primitives
         return
     try:
-        vols = shell_volumes(b)
+        vols = shell_volumes(b) if known is None else carried_shell_volumes(b, known[0], known[1], extends or {})
     except CoonsError as exc:  # geometry the integrator does not know: report, do not crash
         out.append(Problem("orientation-unchecked", "brep", 0, f"shell volumes could not be computed: {exc}"))
         return

@@ -2,7 +2,10 @@
 
 :func:`mass_properties` returns the volume, area, centroid and inertia tensor of a B-rep for
 unit density; :func:`shell_volumes` the signed volume each shell encloses (what the checker
-uses to verify orientation); :func:`face_areas` the area of every face; :func:`bounding_box`
+uses to verify orientation; for a B-rep sewn from face specs it sums
+:func:`carried_shell_volumes`: the contributions of faces equal to a spec integrated before are
+taken from then, equal up to round-off, and a planar face gaining loops adds only their paths);
+:func:`face_areas` the area of every face; :func:`bounding_box`
 the axis-aligned box of the exact geometry (vertices, edge curves and face surfaces; not the
 control nets).  Everything is computed from the B-rep's own geometry: nothing is
 tessellated, and no quantity depends on a deflection.  Results are cached per B-rep (B-reps
@@ -161,6 +164,7 @@ __all__ = [
     "MassProperties",
     "mass_properties",
     "shell_volumes",
+    "carried_shell_volumes",
     "face_areas",
     "bounding_box",
     "face_box_bounds",
@@ -461,6 +465,189 @@ def face_areas(brep, tol: Tolerance | None = None) -> np.ndarray:
     """
     b = _as_brep(brep)
     return _columns(b, _quadrature_rtol(tol), False)[:, _AREA].copy()
+
+
+# ============================================================================ carried shell volumes
+#: Face spec -> ``{(x0 bytes, L, rtol): volume}``: the signed volume contribution of a face equal to
+#: the spec (every use keeping its curve, p-curve, range and tolerance, :func:`~coons.topology.sew.sewn_unchanged`),
+#: integrated about ``x0`` with length scale ``L`` (:func:`_reference_point`) to ``rtol``.  For
+#: :func:`carried_shell_volumes`, whose totals only the orientation check's sign test reads.
+_FACE_VOLUMES = IdentityMemo()
+
+
+class _Volumes:
+    """The face contributions of the last :func:`carried_shell_volumes`: ``specs`` (held, so that their
+    ids stay theirs), ``ids (F,)`` sorted and ``order (F,)`` the faces in that order, ``vol (F,)``,
+    ``recorded (F,)`` bool: the face's contribution is the one in :data:`_FACE_VOLUMES` under ``key``."""
+
+    __slots__ = ("specs", "ids", "order", "vol", "recorded", "key")
+
+
+#: The last B-rep :func:`carried_shell_volumes` summed -> its :class:`_Volumes` (one entry), and a weak
+#: reference to it: the next (a Boolean's result on its operand's faces) finds its carried faces'
+#: contributions in one array pass.
+_VOLUMES_OF = IdentityMemo()
+_LAST_VOLUMES: list = [None]
+
+
+def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends: dict[int, tuple[int, object]],
+                          tol: Tolerance | None = None) -> np.ndarray:
+    """Signed volume enclosed by each shell, ``(S,)``, for the checker's orientation test: the faces
+    equal to a spec whose contribution was integrated before about the same reference point take
+    it from there; the others are integrated.
+
+    ``specs`` (the face specs of ``b``, face order) and ``unchanged (F,)`` bool (the faces equal to
+    them) as the sewing recorded them; ``extends``: ``{face: (n, spec)}`` for faces whose first
+    ``n`` loops are, use for use, the loops of ``spec`` (a plate's top gaining a hole).  A face on a
+    plane with a curved edge (its integral a sum over its boundary paths, about one plane point)
+    extending a spec with a recorded contribution adds its new loops' paths to it.  A face's
+    contribution is a function of its surface, sense, boundary (curves, p-curves, ranges) and, for
+    a polygon, its vertices: a carried one equals the integral up to round-off and the vertices'
+    tolerance, never in sign for a shell whose volume is larger than that.  So the result is for a
+    sign test; :func:`shell_volumes` gives the volumes (and is what this returns when ``b``'s
+    integrals are computed already, or when no face is carried: then they are computed and cached
+    as there).  Contributions of faces equal to a spec whose curves are values
+    are recorded (:data:`_FACE_VOLUMES`).
+
+    Raises
+    ------
+    InvalidInputError, TopologyError, ConvergenceError
+        As :func:`shell_volumes`.
+    """
+    rtol = _quadrature_rtol(tol)
+    cache = _cache(b)
+    if ("columns", rtol, True) in cache or ("columns", rtol, False) in cache:
+        return shell_volumes(b, tol)
+    ref = cache.get("x0")
+    if ref is None:
+        ref = cache["x0"] = _reference_point(b)
+    key = (ref[0].tobytes(), ref[1], rtol)
+    nf = b.n_faces
+    vol = np.zeros(nf)
+    have = np.zeros(nf, dtype=bool)
+    rest = np.flatnonzero(unchanged)
+    donor = _LAST_VOLUMES[0]() if _LAST_VOLUMES[0] is not None else None
+    last = _VOLUMES_OF.get(donor) if donor is not None else None
+    if last is not None and last.key == key and rest.size and last.ids.size:
+        # The specs of the last B-rep recorded, found by id in one pass (it holds them): a Boolean's
+        # result carries most of its operand's faces.
+        ids = np.fromiter(map(id, specs), dtype=np.int64, count=len(specs))
+        j = np.minimum(np.searchsorted(last.ids, ids), last.ids.size - 1)
+        k = last.order[j]
+        hit = unchanged & (last.ids[j] == ids) & last.recorded[k]
+        vol[hit] = last.vol[k[hit]]
+        have = hit
+        rest = np.flatnonzero(unchanged & ~hit)
+    rows = rest.tolist()
+    for f, got in zip(rows, _FACE_VOLUMES.get_many([specs[f] for f in rows])):
+        if got is not None and key in got:
+            vol[f] = got[key]
+            have[f] = True
+    carried = have.copy()
+    extended = []
+    if not have.any() and not extends:  # nothing carried: the B-rep's own integrals (cached, as shell_volumes)
+        vol = _columns(b, rtol, False)[:, _VOL].copy()
+    else:
+        T = _tables(b)
+        code = T.surface_code.take(b.face_surface)
+        curved = np.zeros(nf, dtype=bool)
+        curved[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
+        new_loop = np.zeros(b.n_loops, dtype=bool)
+        for f, (n, old) in extends.items():
+            got = _FACE_VOLUMES.get(old)
+            if (not have[f] and got is not None and key in got and b.face_surface[f] >= 0
+                    and code[f] == _C_PLANE and curved[f]):
+                vol[f] = got[key]
+                have[f] = True
+                new_loop[b.face_loops[b.face_loop_ptr[f] + n:b.face_loop_ptr[f + 1]]] = True
+                extended.append(f)
+        need = ~have
+        if not have.any():
+            vol = _columns(b, rtol, False)[:, _VOL].copy()
+        elif need.any() or extended:
+            vol += _face_volumes(b, need, new_loop, ref[0], ref[1], rtol)
+    # Recorded for specs whose surface, curves and p-curves are values (nothing can change under
+    # the record); an extended face's old loops are its old spec's, recorded under that test.
+    old_loops = {f: extends[f][0] for f in extended}
+    recorded = carried.copy()
+    for f in np.flatnonzero(unchanged & ~carried).tolist():
+        spec = specs[f]
+        if is_value(spec) and is_value(spec.surface) and all(
+                is_value(e.curve) and is_value(e.pcurve) for loop in spec.loops[old_loops.get(f, 0):] for e in loop):
+            _FACE_VOLUMES.setdefault(spec, dict)[key] = float(vol[f])
+            recorded[f] = True
+    rec = _Volumes()
+    rec.specs, rec.key, rec.vol, rec.recorded = tuple(specs), key, vol, recorded
+    ids = np.fromiter(map(id, rec.specs), dtype=np.int64, count=len(rec.specs))
+    rec.order = np.argsort(ids, kind="stable")
+    rec.ids = ids[rec.order]
+    _VOLUMES_OF.clear()
+    _VOLUMES_OF.set(b, rec)
+    _LAST_VOLUMES[0] = weakref.ref(b)
+    return np.bincount(b.face_shell, weights=vol, minlength=b.n_shells)[: b.n_shells]
+
+
+def _face_volumes(b: BRep, need: np.ndarray, new_loop: np.ndarray, x0: np.ndarray, L: float,
+                  rtol: float) -> np.ndarray:
+    """Volume contributions ``(F,)`` of the faces of ``need`` ``(F,)`` bool and of the loops of
+    ``new_loop`` ``(L,)`` bool (of planar faces with a curved edge, not in ``need``), the rest 0:
+    :func:`_face_integrals`' volume column, its steps restricted to those faces and paths (the
+    Green's-theorem sum of a planar face is one term per boundary path, about a point of its plane)."""
+    nf = b.n_faces
+    out = np.zeros((nf, _N_VOL_COLS))
+    T = _tables(b)
+    fs = b.face_surface
+    code = T.surface_code.take(fs)
+    partial = np.zeros(nf, dtype=bool)
+    partial[b.loop_face[new_loop]] = True
+    face_has_curve = None
+    if T.has_planes:
+        face_has_curve = np.zeros(nf, dtype=bool)
+        face_has_curve[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
+        poly = ((code == _C_PLANE) | ((code == _C_NURBS) & T.flat_nurbs.take(fs))) & ~face_has_curve
+        if (poly & need).any():
+            _polyhedral_integrals(b, poly & need, x0, _N_VOL_COLS, out)
+        code[poly] = _C_NONE
+    code[~(need | partial)] = _C_NONE
+    counts = np.bincount(code + 1, minlength=_C_OTHER + 2)
+    if counts[_C_OTHER + 1]:
+        S = b.surfaces[int(fs[(code == _C_OTHER).nonzero()[0][0]])]
+        raise InvalidInputError(
+            f"cannot integrate over a {type(S).__name__}: supported surfaces are PlanarSurface, CylindricalSurface, "
+            "ConicalSurface, SphericalSurface, ToroidalSurface and NurbsSurface"
+        )
+    green = code >= 0
+    if not green.any():
+        return out[:, _VOL]
+    rows = T.surface_rows.take(fs, axis=0)
+    origin, frame, par = rows[:, 0:3], rows[:, 3:12].reshape(-1, 3, 3), rows[:, 12:17]
+    if T.implicit_curved:
+        for f in ((fs < 0) & face_has_curve & green).nonzero()[0]:
+            P = _implicit_plane(b, int(f))
+            origin[f], frame[f] = P.origin, P.frame
+    n_nurbs = counts[_C_NURBS + 1]
+    nurbs = code == _C_NURBS if n_nurbs else None
+    paths, uref = _gather_paths(b, green, code, origin, frame, nurbs)
+    if partial.any():
+        # Only the new loops' paths of the partial faces (the coedge paths come first, in the
+        # coedge order of _gather_paths; gap paths, of NURBS faces only, after them).
+        sel = green.take(b.coedge_face).nonzero()[0]
+        keep = np.ones(paths.face.size, dtype=bool)
+        keep[: sel.size] = ~partial.take(b.coedge_face.take(sel)) | new_loop.take(b.coedge_loop.take(sel))
+        at = np.cumsum(keep) - 1
+        paths = _Paths(paths.face[keep], paths.t0[keep], paths.t1[keep], paths.sign[keep], paths.shape[keep],
+                       paths.coef[keep], {int(at[p]): c for p, c in paths.curves.items() if keep[p]},
+                       paths.block[keep])
+    scale = L ** _LENGTH_DEGREE[:_N_VOL_COLS]
+    o = (frame @ (origin - x0)[:, :, None])[:, :, 0]
+    G, Gc = _face_geometry(o, par, np.where(code == _C_PLANE, -o[:, 0], uref),
+                           bool(counts[_C_REV_LINEAR + 1] or counts[_C_REV_CIRCULAR + 1]))
+    local = np.zeros((nf, _N_VOL_COLS))
+    if _analytic_integrals(paths, G, Gc, code, _N_VOL_COLS, rtol, scale, local):
+        out += _to_world(local, frame)
+    if n_nurbs:
+        _nurbs_integrals(b, paths, nurbs, uref, x0, _N_VOL_COLS, rtol, scale, out)
+    return out[:, _VOL]
 
 
 # ============================================================================ face integrals

@@ -935,9 +935,9 @@ def test_faces_passed_found_through_the_last_clean_check_equal_the_per_spec_look
         looked_up.append(len(objs))
         return real_get_many(objs)
 
-    def spy(b, known, t, samples):
+    def spy(b, known, t, samples, found=None):
         looked_up.clear()
-        passed, extends = real(b, known, t, samples)
+        passed, extends = real(b, known, t, samples, found)
         fast = looked_up[0]
         last = check_module._LAST_PASSED[0]
         check_module._LAST_PASSED[0] = None
@@ -1101,3 +1101,179 @@ def test_pool_positions_match_objects_by_identity_and_skip_non_values():
     new = Pools((a, b, m, c))  # b equals a but is another object; m is not a value
     np.testing.assert_array_equal(pool_positions(new, donor, "curves"), [2, -1, -1, 0])
     assert pool_positions(new, Pools(()), "curves").tolist() == [-1, -1, -1, -1]
+
+
+def _cap_with_holes(n_holes: int, moved: bool = False):
+    """An extruded plate with ``n_holes`` holes of radius 0.6 on a 2.0 grid (the last one moved 1.0
+    onto its neighbour when ``moved``), and its cap (the face with the holes)."""
+    from coons.topology.profile import Profile
+    from coons.topology.sweep import extrude
+
+    centres = [(-4.0 + 2.0 * i, -4.0 + 2.0 * k) for i in range(5) for k in range(5)][:n_holes]
+    holes = [Profile.circle(0.6, center=c).outer for c in centres]
+    b = extrude(Profile(Profile.rectangle(12.0, 12.0).outer, holes), 1.0).brep
+    cap = int(np.argmax(np.diff(b.face_loop_ptr)))
+    if moved:
+        hole = int(b.face_loops[b.face_loop_ptr[cap + 1] - 1])  # the last loop: the last hole
+
+        def move(c):
+            for co in b.loop_coedges(hole).tolist():
+                e, side = co >> 1, co & 1
+                pc = c["pcurves"][int(c["edge_pcurve"][e, side])]
+                shift = np.array([-1.0, 0.0]) if b.surfaces[int(b.face_surface[cap])].frame[0, 0] > 0 else np.array([1.0, 0.0])
+                moved_pc = (Trig2D(pc.center + shift, pc.a, pc.b) if isinstance(pc, Trig2D)
+                            else Line2D(pc.origin + shift, pc.direction))
+                c["pcurves"].append(moved_pc)
+                c["edge_pcurve"][e, side] = len(c["pcurves"]) - 1
+
+        b = corrupted(b, move)
+    return b, cap
+
+
+def test_rings_of_a_face_extending_a_passed_one_give_the_segments_and_orientation_of_all_its_rings():
+    """_sampled_rings with ``partial``: the old loops come from their recorded sums (area, scale,
+    stretch, loop boxes), only the old loops near the new ones are made into rings; after
+    _near_new_loops the segments are those of the rings of all loops, the orientation sums agree
+    (the area to round-off), and a new loop crossing an old one is found."""
+    from coons.tolerance import resolve
+
+    t = resolve(None)
+    old_b, old_cap = _cap_with_holes(24)
+    sums_old: dict = {}
+    table = check_module._check_geometry(old_b, t, 9, [])
+    check_module._sampled_rings(old_b, np.array([old_cap]), np.empty(0, dtype=np.int64), table, 9, t, [],
+                                None, sums_old)
+    n = int(np.diff(old_b.face_loop_ptr)[old_cap])
+    rec = sums_old[old_cap]
+    assert rec.lo.shape == rec.hi.shape == (n, 2)
+    for moved in (False, True):
+        b, cap = _cap_with_holes(25, moved)
+        assert int(np.diff(b.face_loop_ptr)[cap]) == n + 1
+        out_full, out_part = [], []
+        full_table = check_module._check_geometry(b, t, 9, [])
+        full = check_module._sampled_rings(b, np.array([cap]), np.empty(0, dtype=np.int64), full_table, 9, t,
+                                           out_full, None, sums_full := {})
+        partial = {cap: (n, rec)}
+        part_table = check_module._check_geometry(b, t, 9, [], None, partial)
+        in_cap = b.coedge_loop[part_table.coedge]
+        assert set(in_cap[b.loop_face[in_cap] == cap].tolist()) == {int(b.face_loops[b.face_loop_ptr[cap + 1] - 1])}
+        part = check_module._sampled_rings(b, np.array([cap]), np.empty(0, dtype=np.int64), part_table, 9, t,
+                                           out_part, partial, sums_part := {})
+        assert part[0].shape[0] < full[0].shape[0] / 4
+        assert out_full == out_part == []
+        a, p = sums_full[cap], sums_part[cap]
+        assert (a.scale, a.stretch) == (p.scale, p.stretch)
+        np.testing.assert_allclose(p.area, a.area, rtol=1e-12)
+        np.testing.assert_array_equal(p.lo, a.lo)
+        np.testing.assert_array_equal(p.hi, a.hi)
+        old_loop = np.zeros(b.n_loops, dtype=bool)
+        old_loop[b.face_loops[b.face_loop_ptr[cap]:b.face_loop_ptr[cap] + n]] = True
+        near_full = check_module._near_new_loops(b, full, old_loop)
+        near_part = check_module._near_new_loops(b, part, old_loop)
+
+        def rows(s):
+            A, B, face, nxt, coedge, eps = s
+            r = np.concatenate([A, B, face[:, None], coedge[:, None], eps[:, None]], axis=1)
+            return r[np.lexsort(r.T[::-1])]
+
+        np.testing.assert_array_equal(rows(near_part), rows(near_full))
+        hits = check_module._crossings([near_part], old_loop[b.coedge_loop])
+        assert (cap in hits) == moved
+        assert hits.keys() == check_module._crossings([near_full], old_loop[b.coedge_loop]).keys()
+
+
+def test_a_face_extending_a_passed_one_is_checked_as_a_whole_would_be(monkeypatch):
+    """Sequential cuts into a plate: from the cut after the top and bottom passed with 16 or more
+    loops, their old loops are neither measured nor made into rings (the recorded sums stand in),
+    and the check reports and records what the whole check does: nothing, the same sums."""
+    from coons.topology.primitives import Cylinder as Cyl
+
+    taken, measured = [], []
+    real_rings, real_geometry = check_module._sampled_rings, check_module._check_geometry
+
+    def geometry(b, t, samples, out, passed=None, partial=None):
+        table = real_geometry(b, t, samples, out, passed, partial)
+        measured.append(table.coedge.size)
+        return table
+
+    def rings(b, cross, sense, table, samples, t, out, partial=None, sums=None):
+        seg = real_rings(b, cross, sense, table, samples, t, out, partial, sums)
+        taken.append(sorted(partial or ()))
+        if partial:  # the whole rings, on a whole table, give the same sums and no more problems
+            whole, mine = {}, []
+            real_rings(b, cross, sense, real_geometry(b, t, samples, [], None), samples, t, mine, None, whole)
+            assert mine == [] and out == []
+            for f in partial:
+                assert (whole[f].scale, whole[f].stretch) == (sums[f].scale, sums[f].stretch)
+                np.testing.assert_allclose(sums[f].area, whole[f].area, rtol=1e-12)
+                np.testing.assert_array_equal(sums[f].lo, whole[f].lo)
+                np.testing.assert_array_equal(sums[f].hi, whole[f].hi)
+        return seg
+
+    monkeypatch.setattr(check_module, "_sampled_rings", rings)
+    monkeypatch.setattr(check_module, "_check_geometry", geometry)
+    plate = Box(60, 50, 4)
+    holes = [(-25.0 + 10 * i, -20.0 + 10 * j, 0.0) for i in range(6) for j in range(4)]
+    sizes = []
+    for k, at in enumerate(holes):
+        taken.clear()
+        measured.clear()
+        plate = plate - Cyl(1.0, 10.0).translate(at)
+        sizes.append(measured[-1])
+        if k >= check_module._PREFIX_LOOPS:
+            assert len(taken[-1]) == 2  # top and bottom
+    # (after k cuts the top has k + 1 loops: recorded from cut _PREFIX_LOOPS - 1 on, extended after)
+    assert sizes[-1] < sizes[check_module._PREFIX_LOOPS - 2] / 4
+    assert check(plate).ok
+    assert math.isclose(plate.volume, 60 * 50 * 4 - len(holes) * math.pi * 4, rel_tol=1e-12)
+
+
+def test_carried_shell_volumes_equal_the_integrated_ones_and_integrate_only_what_changed(monkeypatch):
+    """The orientation check of a sewn B-rep sums face contributions carried from earlier checks
+    (mass.carried_shell_volumes): along a chain of cuts they equal the volumes integrated whole (to
+    round-off), and a late cut integrates only its new faces and the new loops of the faces gaining
+    a hole (the plate's top and bottom)."""
+    from coons.topology import mass
+    from coons.topology.primitives import Cylinder as Cyl
+
+    real, real_part = mass.carried_shell_volumes, mass._face_volumes
+    compared, integrated = [], []
+
+    def carried(b, specs, unchanged, extends, tol=None):
+        vols = real(b, specs, unchanged, extends, tol)
+        ref = mass._reference_point(b)
+        whole = np.bincount(b.face_shell, weights=mass._face_integrals(b, ref[0], ref[1], 2, mass._quadrature_rtol(tol))[:, 1],
+                            minlength=b.n_shells)
+        np.testing.assert_allclose(vols, whole, rtol=1e-12)
+        compared.append(len(extends))
+        return vols
+
+    def part(b, need, new_loop, *args):
+        integrated.append((int(need.sum()), int(new_loop.sum())))
+        return real_part(b, need, new_loop, *args)
+
+    monkeypatch.setattr(mass, "carried_shell_volumes", carried)
+    monkeypatch.setattr(mass, "_face_volumes", part)
+    plate = Box(60, 50, 4)
+    for k in range(20):
+        integrated.clear()
+        plate = plate - Cyl(1.0, 10.0).translate((-25.0 + 10 * (k % 6), -20.0 + 10 * (k // 6), 0.0))
+    assert len(compared) >= 20 and compared[-1] == 2  # the top and bottom extend their specs
+    assert integrated[-1] == (2, 2)  # the hole's two half cylinders, one new loop in the top and the bottom
+    assert check(plate).ok
+    assert math.isclose(plate.volume, 60 * 50 * 4 - 20 * math.pi * 4, rel_tol=1e-12)
+
+
+def test_an_inside_out_shell_sewn_after_its_faces_were_carried_is_still_found():
+    """The faces of a checked B-rep, every one reversed, sew into an inward shell: the carried
+    contributions (of the unreversed specs) do not stand in for the reversed faces."""
+    from coons.topology.primitives import Cylinder as Cyl
+
+    b = (Box(4, 4, 2) - Cyl(1.0, 5.0)).brep
+    specs = face_specs(b)
+    assert check(sew_faces(specs).brep).ok  # records the faces' contributions
+    flipped = [FaceSpec(s.surface, not s.sense,
+                        [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in s.loops])
+               for s in specs]
+    with pytest.raises(TopologyError, match="inward-shell"):
+        sew_faces(flipped)

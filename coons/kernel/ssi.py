@@ -60,7 +60,11 @@ singular and tangential points):
    length); the midpoints of all intervals are corrected by
    Newton in the plane normal to the fitted curve and inserted where any of the three curves misses
    them by more than half of ``tol.linear``, until none does.  The achieved ``tol`` of a branch is the
-   largest distance measured between the three curves and the corrected points.
+   largest distance measured between the three curves and the corrected points.  A parameter
+   undetermined at a piece's end (a sphere's longitude at its pole, a cone's at its apex) is not
+   measured by these distances (the whole pole is one point): at every fit it is extrapolated
+   linearly in ``t`` from the two samples next to it (the limit along the branch, to second
+   order), so the p-curve ends where its neighbourhood points instead of running along the pole.
 
 Limitations: a loop smaller than a grid cell is found when the grid vertex nearest it is a local
 minimum of ``|f|`` (step 1b): true when the surfaces approach each other over more than a cell
@@ -1403,24 +1407,39 @@ def _points_tangents(c: BSpline, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return values, np.stack([values[:, :3], c(s, 1)[:, :3]], axis=1)
 
 
-def _determined(g, f, X: np.ndarray, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> np.ndarray:
-    """Undetermined parameters (at a pole or apex) taken from the neighbouring samples of the piece."""
+def _determined(g, f, X: np.ndarray, bg: np.ndarray, bf: np.ndarray, t: Tolerance
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Undetermined parameters (at a pole or apex) taken from the neighbouring samples of the piece.
+
+    Returns the samples and ``(2, 4)`` bool: the parameters undetermined at the first and the
+    last sample (a piece through a singular point is split there, so it is one of its ends),
+    which :meth:`_Branch.refit` extrapolates again from the refined samples next to it.
+    """
     X = X.copy()
     s = np.arange(X.shape[0], dtype=np.float64)
+    ends = np.zeros((2, 4), bool)
     for off, surface, box in ((0, g, bg), (2, f, bf)):
         free = singular_parameters(surface, X[:, off : off + 2], box, t)
         for k in range(2):
             bad = free[:, k]
             if np.any(bad) and not np.all(bad):
                 X[bad, off + k] = np.interp(s[bad], s[~bad], X[~bad, off + k])
-    return X
+                ends[:, off + k] = bad[[0, -1]]
+    return X, ends
+
+
+#: Largest ratio of the end chord to the next one over which :meth:`_Branch.refit` extrapolates an
+#: undetermined end parameter linearly (beyond it the slope of the next chord says too little).
+_END_EXTRAPOLATION = 4.0
 
 
 class _Branch:
     """Mutable refinement state of one branch piece: samples, their chord parameters and the interpolants."""
 
-    def __init__(self, X: np.ndarray, closed: bool) -> None:
+    def __init__(self, X: np.ndarray, closed: bool, free_ends: np.ndarray | None = None) -> None:
         self.X, self.closed = (np.vstack([X, X[:1]]) if closed else X), closed
+        # (2, 4) bool: parameters undetermined at the first and last sample (a pole or apex there)
+        self.free_ends = None if closed or free_ends is None or not free_ends.any() else free_ends
         self.done = False
         self.fit = None
         self.err = np.zeros(0)
@@ -1439,10 +1458,38 @@ class _Branch:
             return False
         if self.closed:
             P[-1] = P[0]
+        if self.free_ends is not None and X.shape[0] >= 3:
+            X = _extrapolated_ends(X, P, self.free_ends)
         self.X = X
         self.s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
         self.fit = _interp(P, X, self.s)
         return True
+
+
+def _extrapolated_ends(X: np.ndarray, P: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Samples ``X`` (m, 4), m >= 3, with the parameters undetermined at an end (``free`` (2, 4), first
+    and last sample) extrapolated linearly in chord length (``P`` (m, 3)) from the two samples next to it.
+
+    At a sphere's pole the longitude of a branch through it has a limit, the longitude of the
+    branch's tangent there, and the longitude of a sample at distance ``d`` differs from it by
+    O(d): copying the nearest sample's value (:func:`_determined`) leaves an error of the size of
+    the first chord, which the refinement never sees (in space the whole pole is one point) but
+    which makes the p-curve run along the pole in the parameter plane over its last, tiny span
+    (the face split then finds it overlapping the pole's segment and misorders the turn there).
+    The linear extrapolation is second order; the two nearest samples are the refined ones.
+    """
+    X = X.copy()
+    for row, e, n1, n2 in ((0, 0, 1, 2), (1, -1, -2, -3)):
+        cols = np.flatnonzero(free[row])
+        if cols.size == 0:
+            continue
+        d01 = float(np.linalg.norm(P[n1] - P[e]))
+        d12 = float(np.linalg.norm(P[n2] - P[n1]))
+        if d12 > 0.0 and d01 <= _END_EXTRAPOLATION * d12:
+            X[e, cols] = X[n1, cols] + (X[n1, cols] - X[n2, cols]) * (d01 / d12)
+        else:
+            X[e, cols] = X[n1, cols]
+    return X
 
 
 def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) -> list:
@@ -1454,7 +1501,10 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
 
     Returns one ``(curve, pcurve_g, pcurve_f, length, achieved)`` or ``None`` per piece.
     """
-    branches = [_Branch(_determined(g, f, X, bg, bf, t), closed) for X, closed in pieces]
+    branches = []
+    for X, closed in pieces:
+        Xd, ends = _determined(g, f, X, bg, bf, t)
+        branches.append(_Branch(Xd, closed, ends))
     live = [br for br in branches if br.refit(g, f, t)]
     for br in branches:
         br.done = br.fit is None

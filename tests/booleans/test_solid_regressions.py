@@ -556,3 +556,36 @@ def test_a_tessellation_failure_in_classification_is_a_boolean_error(monkeypatch
         S.difference(Sphere(3), Sphere(1))
     assert info.value.stage == "classify" and info.value.diagnostics["operand"] in ("A", "B")
     assert "cannot be triangulated" in str(info.value)
+
+
+def _sphere_on_a_cylinder_wall():
+    """A sphere and a cylinder of equal radius whose wall holds the sphere's axis: their curve passes
+    through the sphere's top pole (seed 2, chain 22 of the random chain fuzzer)."""
+    return Sphere(1.5).translate((0.25, 0.75, -1)), Cylinder(1.5, 4).translate((0.25, -0.75, 0))
+
+
+def test_cylinder_wall_through_a_sphere_pole():
+    """The sphere p-curves of the curve through the pole ended 0.034 off the pole's limit longitude
+    (the seam corners of the half sphere faces) and ran along the pole over their last 2e-5 of
+    length: the split found them overlapping the pole segment, misordered the turn at the corner
+    and dropped the cuts (``a & b`` raised: "bounds the pieces for 0 times its length")."""
+    a, b = _sphere_on_a_cylinder_wall()
+    assert_valid_and_algebraic("sphere on a cylinder wall", a, b,
+                               {"union": a + b, "intersection": a & b, "difference": a - b})
+
+
+@pytest.mark.occt
+def test_cylinder_wall_through_a_sphere_pole_agrees_with_occt():
+    from coons.io.ocp import to_build123d
+    from tests.booleans.test_solid_vs_occt import _occt_ops, occt_volume_area
+
+    a, b = _sphere_on_a_cylinder_wall()
+    ref = _occt_ops(to_build123d(a), to_build123d(b))
+    for op, res in (("union", a + b), ("intersection", a & b), ("difference", a - b)):
+        vo, ao = occt_volume_area(ref[op])
+        assert res.volume == pytest.approx(vo, rel=RTOL_OCCT), op
+        assert res.area == pytest.approx(ao, rel=RTOL_OCCT), op
+    # the fuzzer's chain: the intersection then joined with a larger cylinder
+    c = Cylinder(2, 4).translate((0.25, 0.75, 0))
+    ref2 = _occt_ops(to_build123d(a & b), to_build123d(c))
+    assert ((a & b) + c).volume == pytest.approx(occt_volume_area(ref2["union"])[0], rel=RTOL_OCCT)

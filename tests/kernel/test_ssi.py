@@ -725,3 +725,28 @@ def test_frame_of_a_surface_of_revolution_is_its_derivatives_bit_for_bit(kind, a
     d = s.derivatives(u, v, 1)
     for got, want in zip(_frame(s, u, v), (d[:, 0, 0], d[:, 1, 0], d[:, 0, 1])):
         assert np.array_equal(got, want)
+
+
+def test_branch_through_a_sphere_pole_ends_at_the_limit_longitude():
+    """A cylinder of the sphere's radius whose wall holds the sphere's axis cuts it along a curve
+    through both poles, arriving tangent to the x axis (Viviani-like: ``y = (z² - R²) / 2R``), so its
+    longitude tends to π and 2π there.  The pole's own longitude is undetermined; it was copied from
+    the first coarse sample next to it (0.034 off), and the refined p-curve then ran along the pole
+    over its last 2e-5 of length (a Boolean's face split found it overlapping the pole segment)."""
+    R = 1.5
+    sph = SphericalSurface([0, 0, 0], [0, 0, 1], [1, 0, 0], R)
+    cyl = CylindricalSurface([0, -R, 0], [0, 0, 1], [1, 0, 0], R)
+    r = march_intersection(sph, cyl, ((PI, 2 * PI), (-PI / 2, PI / 2)), ((0, 2 * PI), (-1, 2)))
+    limits = []
+    for c in r.curves:
+        for end, inward in ((c.t0, c.t1), (c.t1, c.t0)):
+            u, v = c.pcurve_a.evaluate(np.array([end]))[0]
+            if abs(abs(v) - PI / 2) > 1e-9:
+                continue
+            limits.append(u)
+            assert abs(u - PI * round(u / PI)) <= 1e-4, u
+            # the last thousandth of the branch moves away from the limit monotonically (no run along the pole)
+            s = end + np.linspace(0.0, 1e-3, 41) * (inward - end)
+            du = np.abs(c.pcurve_a.evaluate(s)[:, 0] - PI * round(u / PI))
+            assert np.all(np.diff(du) >= -1e-9) and du[-1] <= 1e-3 * c.t1 / R
+    assert sorted(round(u / PI) for u in limits) == [1, 2]

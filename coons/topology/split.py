@@ -31,7 +31,10 @@ away in the plane: there ends within ``tol3`` in space and ``tol3 / σ_min`` in 
 most ``100 eps``) are one node too, and a cut end that stops that short of a piece splits the
 piece at its foot (:func:`_snap_cut_ends`).  The regions are the faces of the
 arrangement, walked by turning most clockwise at every node (tangent directions, ties broken
-by curvature); counter-clockwise cycles that lie inside the original face (their boundary
+by curvature; where a p-curve's radius of curvature at the node is below ``eps`` its tangent
+there is a feature below the resolution, as at the hooked end of a branch fitted through a
+point where its two surfaces touch, and the chord to a point ten ``eps`` along it serves);
+counter-clockwise cycles that lie inside the original face (their boundary
 pieces run forward) are outer loops, and each clockwise cycle becomes a hole of the smallest
 outer cycle containing it (de Berg et al., *Computational Geometry*, ch. 2, the doubly
 connected edge list).
@@ -1232,6 +1235,14 @@ def _without_closed_virtual(sub: list["_Sub"], pieces: list[_Piece], plane: _Pla
     return [s for k, s in enumerate(sub) if k not in closed] if closed else sub
 
 
+#: Distance along a half-edge, in eps, from which its direction is taken where the p-curve turns within eps of
+#: the node (:meth:`_Graph._coarse_direction`): far enough that a sub-eps hook tilts the chord by at most about
+#: a tenth of a radian, near enough that a real curvature bends it by ``5 eps κ``.
+_COARSE = 10.0
+#: Parameter fractions ``2^-k`` (k up to this) tried for that point: 2^-52 of a sub-piece is below rounding.
+_COARSE_HALVINGS = 52
+
+
 class _Graph:
     """The planar arrangement of the sub-pieces: nodes, half-edges sorted around nodes, cycles."""
 
@@ -1294,9 +1305,36 @@ class _Graph:
             poly = uv if h % 2 == 0 else uv[::-1]
             D1[h] = poly[1] - poly[0]
         speed = np.linalg.norm(D1, axis=1)
-        angle = np.arctan2(D1[:, 1], D1[:, 0])
         kappa = (D1[:, 0] * D2[:, 1] - D1[:, 1] * D2[:, 0]) / speed**3
+        # A radius of curvature below eps at a node: the p-curve turns within the arrangement's resolution
+        # there, and its derivatives are not the direction it leaves in (a branch fitted through a point
+        # where its two surfaces touch hooks over 1e-8 at the end, its tangent along the boundary it meets
+        # at 35 degrees).  Such half-edges take the chord to the point a few eps along and the curvature there.
+        for h in np.flatnonzero(np.abs(kappa) * self.plane.eps > 1.0).tolist():
+            D1[h], kappa[h] = self._coarse_direction(h)
+        angle = np.arctan2(D1[:, 1], D1[:, 0])
         return angle, kappa
+
+    def _coarse_direction(self, h: int) -> tuple[np.ndarray, float]:
+        """Direction and signed curvature of half-edge ``h`` seen from about :data:`_COARSE` eps along it.
+
+        The chord from its origin to the first of the points at parameter fractions ``2^-k`` of its
+        sub-piece, nearest first, that lies that far off (half-way on a shorter sub-piece: the speed
+        may vanish at a hook, so the fraction is searched, not derived from the length), and the
+        curvature there."""
+        s = self.sub[h >> 1]
+        t0, t1 = (s.a, s.b) if h % 2 == 0 else (s.b, s.a)
+        origin = s.uv[0] if h % 2 == 0 else s.uv[-1]
+        t = t0 + np.ldexp(1.0, -np.arange(_COARSE_HALVINGS, 0, -1)) * (t1 - t0)
+        D = _pc_derivatives(self.pieces[s.piece].pc, t, 2)  # (k, 3, 2)
+        far = np.flatnonzero(np.linalg.norm(D[:, 0] - origin, axis=1) >= _COARSE * self.plane.eps)
+        d = D[int(far[0]) if far.size else -1]
+        chord = d[0] - origin
+        d1 = d[1] if t1 > t0 else -d[1]  # along the travel away from the origin
+        speed = float(np.hypot(*d1))
+        if not (np.hypot(*chord) > 0.0 and speed > 0.0):
+            return d1, 0.0
+        return chord, float((d1[0] * d[2][1] - d1[1] * d[2][0]) / speed**3)
 
     def _tie(self, kappa: float) -> float:
         """Two tangent directions closer than this are one (see :meth:`_break_ties`)."""

@@ -589,3 +589,32 @@ def test_cylinder_wall_through_a_sphere_pole_agrees_with_occt():
     c = Cylinder(2, 4).translate((0.25, 0.75, 0))
     ref2 = _occt_ops(to_build123d(a & b), to_build123d(c))
     assert ((a & b) + c).volume == pytest.approx(occt_volume_area(ref2["union"])[0], rel=RTOL_OCCT)
+
+
+@pytest.mark.occt
+def test_branch_through_a_tangency_point_on_the_boundary_agrees_with_occt():
+    """``((A ∪ B) ∩ C) ∪ D`` (fuzzer seed 9, trial 9): the sphere D touches A's wall where the wall meets
+    a cap plane of C (at (-0.5, -1, -1) both normals are -x), so the sphere–cylinder section crosses
+    itself there and its fitted branches end on the face's boundary with a hook 1e-8 long whose
+    tangent runs along the boundary.  ``split_face`` ordered the node's half-edges by those
+    tangents (curvature 1e7: every direction a tie), lost the two regions beside the node and the
+    split raised; the directions there now come from a few eps along the cuts.  The difference
+    touches itself at that point (the sphere is tangent to the wall from inside): not a manifold."""
+    from coons.io.ocp import to_build123d
+    from tests.booleans.test_solid_vs_occt import _occt_ops, occt_volume_area
+
+    a = Cylinder(1.0, 4.0).translate((0.5, -1.0, -1.0))
+    b = Cylinder(1.5, 4.0).translate((-0.75, 0.25, 1.0))
+    c = Box(2.0, 2.0, 4.0).translate((-0.5, -0.75, 0.0))
+    d = Sphere(1.5).translate((1.0, -1.0, -1.0))
+    x = (a + b) & c
+    r = x + d
+    assert r.check().ok
+    ref = _occt_ops(to_build123d(x), to_build123d(d))
+    for op, res in (("union", r), ("intersection", x & d)):
+        assert res.check().ok, op
+        vol, area = occt_volume_area(ref[op])
+        assert res.volume == pytest.approx(vol, rel=RTOL_OCCT), op
+        assert res.area == pytest.approx(area, rel=RTOL_OCCT), op
+    with pytest.raises(BooleanError, match="not a manifold"):
+        x - d

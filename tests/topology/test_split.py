@@ -1123,3 +1123,27 @@ def test_cut_box_from_its_control_points_contains_the_cut(slant):
             # (the acting control points' box, which curve_box's Bézier pieces would not give)
             P = split._acting(pc, min(a, b), max(a, b))[1]
             np.testing.assert_array_equal(box, [P.min(axis=0), P.max(axis=0)])
+
+
+@pytest.mark.parametrize("node", ["top", "bottom", "right", "left"])
+def test_cuts_hooking_below_eps_at_a_boundary_node_split_by_their_course(node):
+    """Two cubic cuts leave the middle of an edge of a box's top face for the middles of the adjacent
+    edges, each first running 3e-8 along the edge (a hook below the 1e-7 resolution, curvature about
+    4e14 at the node, as a branch fitted through a point where its surfaces touch ends).  Their
+    directions at the node are taken a few eps along them: three regions (the two corner triangles
+    and the rest), each cut used once each way (at the left node the half-edges were ordered by
+    the hooks' tangents and curvatures: one region, the cuts dropped)."""
+    top = next(f for f in face_specs(Box(2, 2, 2)) if np.allclose(getattr(f.surface, "axis", 0), [0, 0, 1]))
+    N, e, n = {"top": ((0, 1), (1, 0), (0, -1)), "bottom": ((0, -1), (1, 0), (0, 1)),
+               "right": ((1, 0), (0, 1), (-1, 0)), "left": ((-1, 0), (0, 1), (1, 0))}[node]
+    N, e, n = (np.array(v, dtype=float) for v in (N, e, n))
+
+    def hooked(side: float) -> EdgeSpec:
+        P = np.array([N, N + side * 3e-8 * e, N + side * 0.5 * e + 0.5 * n, N + side * e + n])
+        return EdgeSpec(NurbsCurve(np.column_stack([P, np.ones(4)]), [0, 0, 0, 0, 1, 1, 1, 1], 3), 0.0, 1.0)
+
+    cuts = [hooked(-1.0), hooked(1.0)]
+    out = split_face(top, cuts)
+    assert sorted(len(p.loops[0]) for p in out) == [3, 3, 5]
+    uses = Counter(id(e.curve) for p in out for loop in p.loops for e in loop)
+    assert [uses[id(c.curve)] for c in cuts] == [2, 2]

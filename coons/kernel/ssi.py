@@ -1436,10 +1436,13 @@ _END_EXTRAPOLATION = 4.0
 class _Branch:
     """Mutable refinement state of one branch piece: samples, their chord parameters and the interpolants."""
 
-    def __init__(self, X: np.ndarray, closed: bool, free_ends: np.ndarray | None = None) -> None:
+    def __init__(self, X: np.ndarray, closed: bool, free_ends: np.ndarray | None = None,
+                 box: np.ndarray | None = None) -> None:
         self.X, self.closed = (np.vstack([X, X[:1]]) if closed else X), closed
         # (2, 4) bool: parameters undetermined at the first and last sample (a pole or apex there)
         self.free_ends = None if closed or free_ends is None or not free_ends.any() else free_ends
+        # (2, 4) the parameter boxes of both surfaces (rows lo, hi), which extrapolated ends keep to
+        self.box = box
         self.done = False
         self.fit = None
         self.err = np.zeros(0)
@@ -1459,14 +1462,14 @@ class _Branch:
         if self.closed:
             P[-1] = P[0]
         if self.free_ends is not None and X.shape[0] >= 3:
-            X = _extrapolated_ends(X, P, self.free_ends)
+            X = _extrapolated_ends(X, P, self.free_ends, self.box)
         self.X = X
         self.s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
         self.fit = _interp(P, X, self.s)
         return True
 
 
-def _extrapolated_ends(X: np.ndarray, P: np.ndarray, free: np.ndarray) -> np.ndarray:
+def _extrapolated_ends(X: np.ndarray, P: np.ndarray, free: np.ndarray, box: np.ndarray | None = None) -> np.ndarray:
     """Samples ``X`` (m, 4), m >= 3, with the parameters undetermined at an end (``free`` (2, 4), first
     and last sample) extrapolated linearly in chord length (``P`` (m, 3)) from the two samples next to it.
 
@@ -1476,7 +1479,9 @@ def _extrapolated_ends(X: np.ndarray, P: np.ndarray, free: np.ndarray) -> np.nda
     the first chord, which the refinement never sees (in space the whole pole is one point) but
     which makes the p-curve run along the pole in the parameter plane over its last, tiny span
     (the face split then finds it overlapping the pole's segment and misorders the turn there).
-    The linear extrapolation is second order; the two nearest samples are the refined ones.
+    The linear extrapolation is second order; the two nearest samples are the refined ones.  Its
+    value is kept in ``box`` (2, 4) (rows lo, hi of both surfaces' parameters, where finite): the limit
+    often lies on the box's edge (a seam corner), and a second-order miss must not cross it.
     """
     X = X.copy()
     for row, e, n1, n2 in ((0, 0, 1, 2), (1, -1, -2, -3)):
@@ -1487,6 +1492,10 @@ def _extrapolated_ends(X: np.ndarray, P: np.ndarray, free: np.ndarray) -> np.nda
         d12 = float(np.linalg.norm(P[n2] - P[n1]))
         if d12 > 0.0 and d01 <= _END_EXTRAPOLATION * d12:
             X[e, cols] = X[n1, cols] + (X[n1, cols] - X[n2, cols]) * (d01 / d12)
+            if box is not None:
+                lo, hi = box[0, cols], box[1, cols]
+                X[e, cols] = np.where(np.isfinite(lo), np.maximum(X[e, cols], lo), X[e, cols])
+                X[e, cols] = np.where(np.isfinite(hi), np.minimum(X[e, cols], hi), X[e, cols])
         else:
             X[e, cols] = X[n1, cols]
     return X
@@ -1502,9 +1511,11 @@ def _fit_branches(g, f, pieces, bg: np.ndarray, bf: np.ndarray, t: Tolerance) ->
     Returns one ``(curve, pcurve_g, pcurve_f, length, achieved)`` or ``None`` per piece.
     """
     branches = []
+    # rows lo, hi of the four parameters (g's u, v, then f's)
+    box = np.array([[bg[0][0], bg[1][0], bf[0][0], bf[1][0]], [bg[0][1], bg[1][1], bf[0][1], bf[1][1]]], dtype=np.float64)
     for X, closed in pieces:
         Xd, ends = _determined(g, f, X, bg, bf, t)
-        branches.append(_Branch(Xd, closed, ends))
+        branches.append(_Branch(Xd, closed, ends, box))
     live = [br for br in branches if br.refit(g, f, t)]
     for br in branches:
         br.done = br.fit is None

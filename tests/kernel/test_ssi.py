@@ -750,3 +750,21 @@ def test_branch_through_a_sphere_pole_ends_at_the_limit_longitude():
             du = np.abs(c.pcurve_a.evaluate(s)[:, 0] - PI * round(u / PI))
             assert np.all(np.diff(du) >= -1e-9) and du[-1] <= 1e-3 * c.t1 / R
     assert sorted(round(u / PI) for u in limits) == [1, 2]
+
+
+def test_extrapolated_end_parameters_stay_in_the_box():
+    """An undetermined end parameter extrapolated past its box's edge (the limit longitude on a seam
+    corner, missed to second order) is kept on the edge; a determined one is left alone."""
+    from coons.kernel.ssi import _extrapolated_ends
+
+    # samples along a straight chord of equal steps: the u of sample 0 extrapolates to -0.1
+    X = np.array([[9.0, 0.5, 0.0, 0.0], [0.1, 0.5, 0.1, 0.0], [0.3, 0.5, 0.2, 0.0], [0.5, 0.5, 0.3, 0.0]])
+    P = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0], [3.0, 0, 0]])
+    free = np.zeros((2, 4), bool)
+    free[0, 0] = True
+    box = np.array([[0.0, -1.0, -5.0, -5.0], [2 * np.pi, 1.0, 5.0, 5.0]])
+    np.testing.assert_allclose(_extrapolated_ends(X, P, free)[0], [-0.1, 0.5, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(_extrapolated_ends(X, P, free, box)[0], [0.0, 0.5, 0.0, 0.0], atol=1e-15)
+    # inside the box: unchanged by it
+    box[0, 0] = -1.0
+    np.testing.assert_allclose(_extrapolated_ends(X, P, free, box)[0], [-0.1, 0.5, 0.0, 0.0], atol=1e-15)

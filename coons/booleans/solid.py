@@ -207,6 +207,16 @@ Status and limitations
   thick one, a double point of their quartic), and nearly equal cylinders (radii and axes off by
   more than a quarter of ``tol.linear``, ``kernel.intersect._EQUAL_CYLINDERS_GAP``, so marched)
   whose axes pass about ``1e-4`` apart (two near-touching branches).
+* Chains of Booleans in special position (cylinders, boxes turned 30° or 45° and spheres on a
+  0.25 grid, many sharing cap planes, compared with OCCT and a Monte Carlo referee; the fixed
+  configurations are tests in ``tests/booleans/test_solid_regressions.py``) still raise a
+  ``BooleanError`` in these found cases: rims of different radii internally tangent to 1e-5
+  beside a seam vertex (the cuts' end tolerance covers the vertex, ``split_face`` splits the rim
+  there and one stretch is used once); two cylinder walls, one through a sphere's seam, whose
+  cap planes touch the sphere at its poles (a self-intersecting trim near the pole at sewing);
+  a short cut (0.05) where two rims cross on a cap plane shared by four cylinders (dropped by
+  ``split_face``).  In the same runs OCCT returned wrong volumes (2–120 % off the referee) in
+  three chains where coons agreed with the referee.
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

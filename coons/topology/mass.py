@@ -739,7 +739,7 @@ class _Tables:
     Surfaces (one more row, last, for implicit planes): face code (``_C_*``) and a row of origin
     (3), frame (9: rows X, Y, Z) and the meridian ``(α, β, γ, δ, ε)`` of ``ρ = α + β v + γ cos v``,
     ``h = δ v + ε sin v`` for surfaces of revolution (module docstring).  Edges: whether the 3-D
-    curve is not a line.  P-curves (one more row, last, for "none"): shape and the coefficients
+    curve is not a line; faces: whether one of their edges is (not polygons).  P-curves (one more row, last, for "none"): shape and the coefficients
     of ``uv(t) = c0 + t l + cos t a + sin t b`` (columns ``c0, l, a, b``).
     """
 

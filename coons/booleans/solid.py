@@ -799,13 +799,17 @@ def _forget_caches() -> None:
     depend on these caches, only the time does.
     """
     from coons.kernel import curve_intersect, intersect, onsurface
-    from coons.topology import _memo, check, mass, split, tessellate
+    from coons.topology import _memo, check, mass, sew, split, tessellate
 
     for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _FACE_DATA, _USE_SAMPLES,
                   curve_intersect._TRIG, curve_intersect._FORMS, curve_intersect._MEMO, onsurface._PERIODS_CACHE,
                   split._FACES, split._MAPPED, intersect._COORDS):
         cache.clear()
     _memo.clear_all()  # every IdentityMemo (sewing, checking, mass, the pipeline's per-use memos)
+    # The weak references to the last B-rep sewn, checked, measured and summed (dead once their
+    # memos are cleared, but then no slot points at anything either).
+    for slot in (mass._LAST_VOLUMES, check._LAST_PASSED, check._LAST_MEASURED, sew._LAST_SEWN):
+        slot[:] = [None] * len(slot)
 
 
 class _LoopData:

@@ -1123,39 +1123,35 @@ def _loop_boxes(b: BRep, c: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.
             np.maximum.reduceat(U.max(axis=0)[o], first, axis=0))
 
 
-def _coedge_samples(b: BRep, c: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _coedge_samples(b: BRep, c: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
     """The p-curve samples of the coedges ``c`` (each with a p-curve on a surface), as
-    :func:`_check_geometry` takes them: ``uv (n, samples, 2)``, ``speed (n, samples)``, ``line
-    (n,)``; from the measurements of an earlier check where there are some (:func:`_cached_samples`),
-    else evaluated.  Nothing is compared with a tolerance here (for coedges checked before)."""
+    :func:`_check_geometry` takes them: ``uv (n, samples, 2)``, ``line (n,)``; from the
+    measurements of an earlier check where there are some (:func:`_cached_samples`), else
+    evaluated.  Nothing is compared with a tolerance here (for coedges checked before)."""
     e, side = c >> 1, c & 1
     pi = b.edge_pcurve[e, side]
     si = b.face_surface[b.edge_face[e, side]]
     hit, H = _cached_samples(b, pi, b.edge_curve[e], si, e, samples)
     uv = np.empty((c.size, samples, 2))
-    speed = np.empty((c.size, samples))
     line = np.empty(c.size, dtype=bool)
-    uv_h, speed_h, _, _, line_h = _unpacked(H, samples)
-    uv[hit], speed[hit], line[hit] = uv_h, speed_h, line_h
+    uv_h, _, _, _, line_h = _unpacked(H, samples)
+    uv[hit], line[hit] = uv_h, line_h
     miss = np.ones(c.size, dtype=bool)
     miss[hit] = False
     miss = np.flatnonzero(miss)
     if miss.size:
         T, _ = _edge_samples(b, samples, e[miss])
-        uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], T)
-        D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), uv_m[..., 0].ravel(),
-                                 uv_m[..., 1].ravel(), 1).reshape(miss.size, samples, 2, 2, 3)
-        uv[miss], line[miss] = uv_m, line_m
-        speed[miss] = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
-    return uv, speed, line
+        uv[miss], line[miss] = _pcurves_at(b.pcurves, pi[miss], T)
+    return uv, line
 
 
-def _ring_points(b: BRep, c: np.ndarray, k: np.ndarray, uv: np.ndarray, speed: np.ndarray, line: np.ndarray,
-                 samples: int, ranks: np.ndarray) -> tuple[np.ndarray, ...]:
+def _ring_points(b: BRep, c: np.ndarray, k: np.ndarray, uv: np.ndarray, line: np.ndarray, samples: int,
+                 ranks: np.ndarray, speed: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """The rings of the loops of the coedges ``c`` (each loop whole; coedge ``c[i]`` sampled in row
-    ``k[i]`` of ``uv, speed, line``, :class:`_PcurveSamples`' columns): points ``(m, 2)`` loop by
-    loop in loop order (both ends of a :class:`Line2D`, every sample of other p-curves, reversed on
-    the right side), and per point its coedge, loop, face and speed.  ``ranks``: :func:`_loop_ranks`."""
+    ``k[i]`` of ``uv, line`` and ``speed``, :class:`_PcurveSamples`' columns): points ``(m, 2)`` loop
+    by loop in loop order (both ends of a :class:`Line2D`, every sample of other p-curves, reversed
+    on the right side), and per point its coedge, loop, face and speed (None without ``speed``).
+    ``ranks``: :func:`_loop_ranks`."""
     o = np.lexsort((ranks[c], b.coedge_loop[c]))  # loops of one face are contiguous: a face owns its loops
     c, k = c[o], k[o]
     loop = b.coedge_loop[c]
@@ -1167,7 +1163,7 @@ def _ring_points(b: BRep, c: np.ndarray, k: np.ndarray, uv: np.ndarray, speed: n
     sidx = np.where((c[rep] & 1) == 1, S - 1 - sidx, sidx)  # the right side runs backwards
     kr = k[rep]
     owner = c[rep]
-    return uv[kr, sidx], owner, loop[rep], b.coedge_face[owner], speed[kr, sidx]
+    return uv[kr, sidx], owner, loop[rep], b.coedge_face[owner], None if speed is None else speed[kr, sidx]
 
 
 def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, table: _PcurveSamples, samples: int,
@@ -1219,7 +1215,7 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     if c.size == 0:
         return None
     ranks = _loop_ranks(b)
-    pts, owner, ring, face, speed = _ring_points(b, c, table.pos[c], table.uv, table.speed, table.line, samples, ranks)
+    pts, owner, ring, face, speed = _ring_points(b, c, table.pos[c], table.uv, table.line, samples, ranks, table.speed)
     m = pts.shape[0]
     starts, nxt = _ring_successors(ring)
     ring_id = np.repeat(np.arange(starts.size), np.diff(np.append(starts, m)))
@@ -1284,8 +1280,8 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
             keep_loop[b.face_loops[ptr[f]:ptr[f] + n][meet[:, 0] & meet[:, 1]]] = True
         c_near = np.flatnonzero(keep_loop[b.coedge_loop])
         if c_near.size:
-            uv2, speed2, line2 = _coedge_samples(b, c_near, samples)
-            P2 = _ring_points(b, c_near, np.arange(c_near.size), uv2, speed2, line2, samples, ranks)
+            uv2, line2 = _coedge_samples(b, c_near, samples)
+            P2 = _ring_points(b, c_near, np.arange(c_near.size), uv2, line2, samples, ranks)
             pts, owner, ring, face = (np.concatenate([u, v]) for u, v in zip((pts, owner, ring, face), P2[:4]))
             m = pts.shape[0]
             starts, nxt = _ring_successors(ring)

@@ -550,8 +550,7 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     else:
         T = _tables(b)
         code = T.surface_code.take(b.face_surface)
-        curved = np.zeros(nf, dtype=bool)
-        curved[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
+        curved = T.curved_face
         new_loop = np.zeros(b.n_loops, dtype=bool)
         for f, (n, old) in extends.items():
             got = _FACE_VOLUMES.get(old)
@@ -565,7 +564,7 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
         if not have.any():
             vol = _columns(b, rtol, False)[:, _VOL].copy()
         elif need.any() or extended:
-            vol += _face_volumes(b, need, new_loop, ref[0], ref[1], rtol)
+            vol += _face_integrals(b, ref[0], ref[1], _N_VOL_COLS, rtol, need, new_loop)[:, _VOL]
     # Recorded for specs whose surface, curves and p-curves are values (nothing can change under
     # the record); an extended face's old loops are its old spec's, recorded under that test.
     old_loops = {f: extends[f][0] for f in extended}
@@ -587,69 +586,6 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     return np.bincount(b.face_shell, weights=vol, minlength=b.n_shells)[: b.n_shells]
 
 
-def _face_volumes(b: BRep, need: np.ndarray, new_loop: np.ndarray, x0: np.ndarray, L: float,
-                  rtol: float) -> np.ndarray:
-    """Volume contributions ``(F,)`` of the faces of ``need`` ``(F,)`` bool and of the loops of
-    ``new_loop`` ``(L,)`` bool (of planar faces with a curved edge, not in ``need``), the rest 0:
-    :func:`_face_integrals`' volume column, its steps restricted to those faces and paths (the
-    Green's-theorem sum of a planar face is one term per boundary path, about a point of its plane)."""
-    nf = b.n_faces
-    out = np.zeros((nf, _N_VOL_COLS))
-    T = _tables(b)
-    fs = b.face_surface
-    code = T.surface_code.take(fs)
-    partial = np.zeros(nf, dtype=bool)
-    partial[b.loop_face[new_loop]] = True
-    face_has_curve = None
-    if T.has_planes:
-        face_has_curve = np.zeros(nf, dtype=bool)
-        face_has_curve[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
-        poly = ((code == _C_PLANE) | ((code == _C_NURBS) & T.flat_nurbs.take(fs))) & ~face_has_curve
-        if (poly & need).any():
-            _polyhedral_integrals(b, poly & need, x0, _N_VOL_COLS, out)
-        code[poly] = _C_NONE
-    code[~(need | partial)] = _C_NONE
-    counts = np.bincount(code + 1, minlength=_C_OTHER + 2)
-    if counts[_C_OTHER + 1]:
-        S = b.surfaces[int(fs[(code == _C_OTHER).nonzero()[0][0]])]
-        raise InvalidInputError(
-            f"cannot integrate over a {type(S).__name__}: supported surfaces are PlanarSurface, CylindricalSurface, "
-            "ConicalSurface, SphericalSurface, ToroidalSurface and NurbsSurface"
-        )
-    green = code >= 0
-    if not green.any():
-        return out[:, _VOL]
-    rows = T.surface_rows.take(fs, axis=0)
-    origin, frame, par = rows[:, 0:3], rows[:, 3:12].reshape(-1, 3, 3), rows[:, 12:17]
-    if T.implicit_curved:
-        for f in ((fs < 0) & face_has_curve & green).nonzero()[0]:
-            P = _implicit_plane(b, int(f))
-            origin[f], frame[f] = P.origin, P.frame
-    n_nurbs = counts[_C_NURBS + 1]
-    nurbs = code == _C_NURBS if n_nurbs else None
-    paths, uref = _gather_paths(b, green, code, origin, frame, nurbs)
-    if partial.any():
-        # Only the new loops' paths of the partial faces (the coedge paths come first, in the
-        # coedge order of _gather_paths; gap paths, of NURBS faces only, after them).
-        sel = green.take(b.coedge_face).nonzero()[0]
-        keep = np.ones(paths.face.size, dtype=bool)
-        keep[: sel.size] = ~partial.take(b.coedge_face.take(sel)) | new_loop.take(b.coedge_loop.take(sel))
-        at = np.cumsum(keep) - 1
-        paths = _Paths(paths.face[keep], paths.t0[keep], paths.t1[keep], paths.sign[keep], paths.shape[keep],
-                       paths.coef[keep], {int(at[p]): c for p, c in paths.curves.items() if keep[p]},
-                       paths.block[keep])
-    scale = L ** _LENGTH_DEGREE[:_N_VOL_COLS]
-    o = (frame @ (origin - x0)[:, :, None])[:, :, 0]
-    G, Gc = _face_geometry(o, par, np.where(code == _C_PLANE, -o[:, 0], uref),
-                           bool(counts[_C_REV_LINEAR + 1] or counts[_C_REV_CIRCULAR + 1]))
-    local = np.zeros((nf, _N_VOL_COLS))
-    if _analytic_integrals(paths, G, Gc, code, _N_VOL_COLS, rtol, scale, local):
-        out += _to_world(local, frame)
-    if n_nurbs:
-        _nurbs_integrals(b, paths, nurbs, uref, x0, _N_VOL_COLS, rtol, scale, out)
-    return out[:, _VOL]
-
-
 # ============================================================================ face integrals
 def _sum_by(idx: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
     """Rows of ``vals`` ``(k, c)`` summed by ``idx`` ``(k,)`` into ``(n, c)`` (one bincount)."""
@@ -658,9 +594,16 @@ def _sum_by(idx: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
     return np.bincount(flat, weights=vals.ravel(), minlength=n * c).reshape(n, c)
 
 
-def _face_integrals(b: BRep, x0: np.ndarray, L: float, ncols: int, rtol: float) -> np.ndarray:
+def _face_integrals(b: BRep, x0: np.ndarray, L: float, ncols: int, rtol: float, faces: np.ndarray | None = None,
+                    new_loop: np.ndarray | None = None) -> np.ndarray:
     """Per-face contributions ``(F, ncols)``: area, volume, first and second moments about ``x0``
-    (``L``: the model's length scale, see :func:`_reference_point`)."""
+    (``L``: the model's length scale, see :func:`_reference_point`).
+
+    With ``faces`` ``(F,)`` bool, only those faces and the loops of ``new_loop`` ``(L,)`` bool
+    (of planar faces with a curved edge, not in ``faces``; :func:`carried_shell_volumes`) are
+    integrated, the other rows 0: the Green's-theorem sum of such a face is one term per boundary
+    path, about a point of its plane, so its new loops' paths add to its old contribution.
+    """
     nf = b.n_faces
     out = np.zeros((nf, ncols))
     if nf == 0:
@@ -670,19 +613,23 @@ def _face_integrals(b: BRep, x0: np.ndarray, L: float, ncols: int, rtol: float) 
     # Face code of the quadrature rules: planes 0, cylinders and cones 1, spheres and tori 2
     # (γ ≠ 0: v enters trigonometrically), NURBS 3, unsupported 4; polygons become -1 (none).
     code = T.surface_code.take(fs)  # the sentinel row (face_surface = -1) is a plane
-    face_has_curve = None
+    face_has_curve = T.curved_face
+    partial = None
+    if faces is not None:
+        partial = np.zeros(nf, dtype=bool)
+        if new_loop is not None:
+            partial[b.loop_face[new_loop]] = True
     if T.has_planes:
         # Planar faces (implicit, PlanarSurface or a flat NURBS net) bounded only by straight
         # edges are polygons: closed forms from their vertices, whatever the face's sense.
-        face_has_curve = np.zeros(nf, dtype=bool)
-        face_has_curve[b.coedge_face.reshape(-1, 2)[T.curved_edge].ravel()] = True
         poly = ((code == _C_PLANE) | ((code == _C_NURBS) & T.flat_nurbs.take(fs))) & ~face_has_curve
-        n_poly = int(np.count_nonzero(poly))
-        if n_poly:
+        if faces is not None:
+            poly &= faces
+        if poly.any():
             _polyhedral_integrals(b, poly, x0, ncols, out)
-            if n_poly == nf:
-                return out
             code[poly] = _C_NONE
+    if faces is not None:
+        code[~(faces | partial)] = _C_NONE
     counts = np.bincount(code + 1, minlength=_C_OTHER + 2)  # none, plane, cyl/cone, sphere/torus, NURBS, other
     if counts[_C_OTHER + 1]:
         S = b.surfaces[int(fs[(code == _C_OTHER).nonzero()[0][0]])]
@@ -691,15 +638,19 @@ def _face_integrals(b: BRep, x0: np.ndarray, L: float, ncols: int, rtol: float) 
             "ConicalSurface, SphericalSurface, ToroidalSurface and NurbsSurface"
         )
     green = code >= 0
+    if not green.any():  # polygons only
+        return out
     rows = T.surface_rows.take(fs, axis=0)
     origin, frame, par = rows[:, 0:3], rows[:, 3:12].reshape(-1, 3, 3), rows[:, 12:17]
     if T.implicit_curved:
-        for f in ((fs < 0) & face_has_curve).nonzero()[0]:
+        for f in ((fs < 0) & face_has_curve & green).nonzero()[0]:
             P = _implicit_plane(b, int(f))
             origin[f], frame[f] = P.origin, P.frame
     n_nurbs = counts[_C_NURBS + 1]
     nurbs = code == _C_NURBS if n_nurbs else None
     paths, uref = _gather_paths(b, green, code, origin, frame, nurbs)
+    if partial is not None and partial.any():
+        paths = _new_loop_paths(b, paths, green, partial, new_loop)
     scale = L ** _LENGTH_DEGREE[:ncols]
     o = (frame @ (origin - x0)[:, :, None])[:, :, 0]
     G, Gc = _face_geometry(o, par, np.where(code == _C_PLANE, -o[:, 0], uref),
@@ -711,6 +662,19 @@ def _face_integrals(b: BRep, x0: np.ndarray, L: float, ncols: int, rtol: float) 
         _nurbs_integrals(b, paths, nurbs, uref, x0, ncols, rtol, scale, out)
     out[green & ~b.face_sense, _AREA] *= -1.0
     return out
+
+
+def _new_loop_paths(b: BRep, paths: _Paths, green: np.ndarray, partial: np.ndarray, new_loop: np.ndarray) -> _Paths:
+    """``paths`` (:func:`_gather_paths` of the faces ``green``) without the paths of the old loops
+    of the faces ``partial`` ``(F,)`` bool: of those, only the paths of the loops ``new_loop`` are kept.
+    The coedge paths come first, in the coedge order of :func:`_gather_paths`; gap paths (of NURBS
+    faces only, never partial) after them."""
+    sel = green.take(b.coedge_face).nonzero()[0]
+    keep = np.ones(paths.face.size, dtype=bool)
+    keep[: sel.size] = ~partial.take(b.coedge_face.take(sel)) | new_loop.take(b.coedge_loop.take(sel))
+    at = np.cumsum(keep) - 1
+    return _Paths(paths.face[keep], paths.t0[keep], paths.t1[keep], paths.sign[keep], paths.shape[keep],
+                  paths.coef[keep], {int(at[p]): c for p, c in paths.curves.items() if keep[p]}, paths.block[keep])
 
 
 def _polyhedral_integrals(b: BRep, poly: np.ndarray, x0: np.ndarray, ncols: int, out: np.ndarray) -> None:
@@ -775,7 +739,7 @@ class _Tables:
     Surfaces (one more row, last, for implicit planes): face code (``_C_*``) and a row of origin
     (3), frame (9: rows X, Y, Z) and the meridian ``(α, β, γ, δ, ε)`` of ``ρ = α + β v + γ cos v``,
     ``h = δ v + ε sin v`` for surfaces of revolution (module docstring).  Edges: whether the 3-D
-    curve is not a line.  P-curves (one more row, last, for "none"): shape and the coefficients
+    curve is not a line; faces: whether one of their edges is (not polygons).  P-curves (one more row, last, for "none"): shape and the coefficients
     of ``uv(t) = c0 + t l + cos t a + sin t b`` (columns ``c0, l, a, b``).
     """
 
@@ -784,6 +748,7 @@ class _Tables:
     flat_nurbs: np.ndarray  # (S + 1,) bool: a NURBS surface lying in a plane (_flat_nets)
     has_planes: bool  # some face is (or may be) planar
     curved_edge: np.ndarray  # (E,) bool
+    curved_face: np.ndarray  # (F,) bool: a face with a curved edge
     implicit_curved: bool  # some implicit plane (face_surface = -1) has a curved edge
     pcurve_shape: np.ndarray  # (P + 1,) int8
     pcurve_coef: np.ndarray  # (P + 1, 8)
@@ -826,9 +791,11 @@ def _tables(b: BRep) -> _Tables:
     if nurbs.size:
         flat[nurbs] = _flat_nets([b.surfaces[i].control_points for i in nurbs])
     has_planes = implicit or bool((code[:-1] == _C_PLANE).any()) or bool(flat.any())
-    implicit_curved = (implicit and bool(curved.any())
-                       and bool((fs.take(b.coedge_face.reshape(-1, 2)[curved]) < 0).any()))
-    T = cache["tables"] = _Tables(code, rows, flat, has_planes, curved, implicit_curved, shape, coef)
+    curved_face = np.zeros(fs.size, dtype=bool)
+    curved_face[b.coedge_face.reshape(-1, 2)[curved].ravel()] = True
+    implicit_curved = implicit and bool((fs[curved_face] < 0).any())
+    T = cache["tables"] = _Tables(code, rows, flat, has_planes, curved, _read_only(curved_face), implicit_curved,
+                                  shape, coef)
     ref = weakref.ref(b)
     _DONOR[:] = [ref if b in _SEWN_FROM else _DONOR[0], ref]
     return T

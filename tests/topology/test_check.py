@@ -1081,8 +1081,8 @@ def test_mass_tables_gathered_from_the_operand_equal_cold_ones():
     mass._DONOR[:] = [None, None]
     cold = mass._tables(two.brep)
     assert warm is not cold
-    for name in ("surface_code", "surface_rows", "flat_nurbs", "has_planes", "curved_edge", "implicit_curved",
-                 "pcurve_shape", "pcurve_coef"):
+    for name in ("surface_code", "surface_rows", "flat_nurbs", "has_planes", "curved_edge", "curved_face",
+                 "implicit_curved", "pcurve_shape", "pcurve_coef"):
         np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
 
 
@@ -1236,7 +1236,7 @@ def test_carried_shell_volumes_equal_the_integrated_ones_and_integrate_only_what
     from coons.topology import mass
     from coons.topology.primitives import Cylinder as Cyl
 
-    real, real_part = mass.carried_shell_volumes, mass._face_volumes
+    real, real_part = mass.carried_shell_volumes, mass._face_integrals
     compared, integrated = [], []
 
     def carried(b, specs, unchanged, extends, tol=None):
@@ -1248,12 +1248,13 @@ def test_carried_shell_volumes_equal_the_integrated_ones_and_integrate_only_what
         compared.append(len(extends))
         return vols
 
-    def part(b, need, new_loop, *args):
-        integrated.append((int(need.sum()), int(new_loop.sum())))
-        return real_part(b, need, new_loop, *args)
+    def part(b, x0, L, ncols, rtol, faces=None, new_loop=None):
+        if faces is not None:
+            integrated.append((int(faces.sum()), int(new_loop.sum())))
+        return real_part(b, x0, L, ncols, rtol, faces, new_loop)
 
     monkeypatch.setattr(mass, "carried_shell_volumes", carried)
-    monkeypatch.setattr(mass, "_face_volumes", part)
+    monkeypatch.setattr(mass, "_face_integrals", part)
     plate = Box(60, 50, 4)
     for k in range(20):
         integrated.clear()
@@ -1264,16 +1265,40 @@ def test_carried_shell_volumes_equal_the_integrated_ones_and_integrate_only_what
     assert math.isclose(plate.volume, 60 * 50 * 4 - 20 * math.pi * 4, rel_tol=1e-12)
 
 
-def test_an_inside_out_shell_sewn_after_its_faces_were_carried_is_still_found():
-    """The faces of a checked B-rep, every one reversed, sew into an inward shell: the carried
-    contributions (of the unreversed specs) do not stand in for the reversed faces."""
-    from coons.topology.primitives import Cylinder as Cyl
+def test_an_inside_out_shell_of_carried_faces_is_still_found(monkeypatch):
+    """The walls of a box drilled along x, y and z (the very specs whose volume contributions its
+    check recorded) closed by caps on the box's faces bound the drilled-out cross from outside: an
+    inward shell with the same vertex box, so the walls' recorded contributions (negative about
+    the centre, as the cross's outward ones are positive) are carried, and only the caps are
+    integrated.  Their sign decides: with it ignored the shell would look outward."""
+    from coons.kernel.analytic import CylindricalSurface, PlanarSurface
+    from coons.topology import mass
 
-    b = (Box(4, 4, 2) - Cyl(1.0, 5.0)).brep
-    specs = face_specs(b)
+    def drill(axis):
+        return Cylinder(1.0, 12.0, direction={"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}[axis])
+
+    specs = face_specs((Box(10, 10, 10) - drill("x") - drill("y") - drill("z")).brep)
     assert check(sew_faces(specs).brep).ok  # records the faces' contributions
-    flipped = [FaceSpec(s.surface, not s.sense,
-                        [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)] for loop in s.loops])
-               for s in specs]
+    walls = [s for s in specs if isinstance(s.surface, CylindricalSurface)]
+    # The holes of the box's faces, the same edge specs used the same way, as faces whose normal
+    # points into the box (the hole loop runs clockwise about the box face's outward normal).
+    caps = [FaceSpec(s.surface, not s.sense, [loop]) for s in specs if isinstance(s.surface, PlanarSurface)
+            for loop in s.loops[1:]]
+    assert len(walls) == 12 and len(caps) == 6
+    real_carried, real_integrals = mass.carried_shell_volumes, mass._face_integrals
+    unchanged, integrated = [], []
+
+    def carried(b, sp, unch, extends, tol=None):
+        unchanged.append(int(np.count_nonzero(unch)))
+        return real_carried(b, sp, unch, extends, tol)
+
+    def integrals(b, x0, L, ncols, rtol, faces=None, new_loop=None):
+        integrated.append(b.n_faces if faces is None else int(np.count_nonzero(faces)))
+        return real_integrals(b, x0, L, ncols, rtol, faces, new_loop)
+
+    monkeypatch.setattr(mass, "carried_shell_volumes", carried)
+    monkeypatch.setattr(mass, "_face_integrals", integrals)
     with pytest.raises(TopologyError, match="inward-shell"):
-        sew_faces(flipped)
+        sew_faces(walls + caps)
+    assert unchanged == [len(walls) + len(caps)]  # every face equal to its spec
+    assert integrated == [len(caps)]  # the walls' contributions carried, the caps' integrated

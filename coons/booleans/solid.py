@@ -788,6 +788,8 @@ class _FaceData:
 #: Completed face spec -> its :class:`_FaceData`.  A spec is immutable (a frozen dataclass over
 #: curves and surfaces that are values), so its data never goes stale; entries die with the spec.
 _FACE_DATA: "weakref.WeakKeyDictionary[FaceSpec, _FaceData]" = weakref.WeakKeyDictionary()
+
+
 def _forget_caches() -> None:
     """Forget everything coons remembers between operations: per-B-rep meshes and mass caches,
     what a Boolean result carries over (specs sewn, face and loop data, use samples and boxes,

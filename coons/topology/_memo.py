@@ -153,6 +153,18 @@ def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return hit
 
 
+def found_by_id(objs: Any, ids: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where each of ``objs`` (a sequence of n objects) sits in a record of objects, found by identity
+    in one pass: ``(positions (n,), found (n,) bool)`` (positions are meaningless where not found).
+
+    ``ids`` are the record's object ids sorted (non-empty), ``order`` their positions in the record.
+    The record must hold its objects (so that an equal id is the same object).
+    """
+    want = np.fromiter(map(id, objs), dtype=np.int64, count=len(objs))
+    j = np.minimum(np.searchsorted(ids, want), ids.size - 1)
+    return order[j], ids[j] == want
+
+
 def pool_values(b: Any, name: str) -> np.ndarray:
     """``(n,)`` bool: which objects of the pool ``name`` of B-rep ``b`` are values (:func:`is_value`)."""
     _, _, order = _pool_ids(b, name)

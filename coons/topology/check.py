@@ -65,7 +65,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, pool_positions, pool_values, read_only as _read_only
+from coons.topology._memo import IdentityMemo, found_by_id, is_value, pool_positions, pool_values, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -799,9 +799,8 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
         # The specs the last clean check recorded: found by id in one pass (it holds them).  What
         # it says is of the spec objects (each marked one is in _TRIMS_PASSED under ``key``), not
         # of the B-rep checked then: it holds for any B-rep on them, ``b`` itself checked again too.
-        ids = np.fromiter(map(id, specs), dtype=np.int64, count=len(specs))
-        j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
-        passed = unchanged & (rec.ids[j] == ids) & rec.passed[rec.order[j]]
+        k, same = found_by_id(specs, rec.ids, rec.order)
+        passed = unchanged & same & rec.passed[k]
         rest = np.flatnonzero(unchanged & ~passed)
     got = _TRIMS_PASSED.get_many([specs[i] for i in rest.tolist()])
     passed[rest] = np.fromiter((g is not None and key in g for g in got), dtype=bool, count=rest.size)

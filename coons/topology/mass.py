@@ -156,7 +156,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, pool_positions, read_only as _read_only
+from coons.topology._memo import IdentityMemo, found_by_id, is_value, pool_positions, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
@@ -531,10 +531,8 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     if last is not None and last.key == key and rest.size and last.ids.size:
         # The specs of the last B-rep recorded, found by id in one pass (it holds them): a Boolean's
         # result carries most of its operand's faces.
-        ids = np.fromiter(map(id, specs), dtype=np.int64, count=len(specs))
-        j = np.minimum(np.searchsorted(last.ids, ids), last.ids.size - 1)
-        k = last.order[j]
-        hit = unchanged & (last.ids[j] == ids) & last.recorded[k]
+        k, same = found_by_id(specs, last.ids, last.order)
+        hit = unchanged & same & last.recorded[k]
         vol[hit] = last.vol[k[hit]]
         have = hit
         rest = np.flatnonzero(unchanged & ~hit)

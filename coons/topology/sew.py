@@ -63,7 +63,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
-from coons.topology._memo import IdentityMemo, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, found_by_id, is_value, read_only as _read_only
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder, assembled_brep
 from coons.topology.check import _SEWN_FROM
@@ -354,10 +354,8 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSp
     rec = _SEWN_USES.get(donor) if donor is not None else None
     hit = np.zeros(n, dtype=bool)
     if rec is not None and n and rec.ids.size:
-        ids = np.fromiter(map(id, faces), dtype=np.int64, count=n)
-        j = np.minimum(np.searchsorted(rec.ids, ids), rec.ids.size - 1)
-        df = rec.order[j]
-        hit = (rec.ids[j] == ids) & rec.values[df]
+        df, same = found_by_id(faces, rec.ids, rec.order)
+        hit = same & rec.values[df]
     miss = np.flatnonzero(~hit)
     mfaces = faces if miss.size == n else [faces[i] for i in miss.tolist()]
     mvalues = [False] * len(mfaces)

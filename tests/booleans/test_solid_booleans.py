@@ -1563,6 +1563,15 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
         assert any(split)  # (the pass changed a face: the comparison above compared real splits)
 
 
+def _t_junction_case(case: str) -> None:
+    """Run the T-junction pass's two cases: a plate minus 3 × 3 holes, a box joined with a sphere."""
+    if case == "plate":
+        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
+                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
+    else:
+        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
+
+
 @pytest.mark.parametrize("case", ["plate", "corner"])
 def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_would(monkeypatch, case):
     """The T-junction pass leaves a face whose open uses have no candidate vertex without walking its uses; the
@@ -1579,11 +1588,7 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
         return real(faces, t, orig, orig_edges)
 
     monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
-    if case == "plate":
-        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
-                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
-    else:
-        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
+    _t_junction_case(case)
     assert calls
     walked = []
 
@@ -1625,11 +1630,7 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
         return out
 
     monkeypatch.setattr(S, "_shared_candidates", spy)
-    if case == "plate":
-        _ok(S.difference(Box(40, 40, 6), *[Cylinder(1.0, 20).translate((8.0 * i, 8.0 * j, 0))
-                                            for i in (-1, 0, 1) for j in (-1, 0, 1)]))
-    else:
-        _ok(S.union(Box(10, 10, 10), Sphere(4).translate((5, 5, 5))))
+    _t_junction_case(case)
     assert calls
     flipped = with_candidates = 0
     for open_uses, starts, start_tol, t, keys, (X_all, cand_all) in calls:

@@ -970,6 +970,19 @@ def test_fitted_pcurve_across_half_cylinder_is_clipped_and_split_in_closed_form(
     np.testing.assert_allclose(sum(_area(p) for p in halves), 2 * math.pi, rtol=RTOL_AREA)
 
 
+def _cut_in_two(face, branches, f: float) -> list:
+    """Each piece of the branches inside ``face`` (longer than 1e-2) as two consecutive cuts, split at
+    fraction ``f`` of its range."""
+    cuts = []
+    for c in branches:
+        for s0, s1, w in clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve):
+            if w != "inside" or s1 - s0 < 1e-2:
+                continue
+            m = s0 + f * (s1 - s0)
+            cuts += [EdgeSpec(c.curve, s0, m, c.pcurve_a, c.tol), EdgeSpec(c.curve, m, s1, c.pcurve_a, c.tol)]
+    return cuts
+
+
 @settings(max_examples=30)
 @given(st.floats(-0.6, 0.6), st.floats(-1.2, 1.2), st.floats(-1.2, 1.2), st.floats(-0.6, 0.6),
        st.floats(-1.2, 1.2), st.floats(-1.2, 1.2), st.floats(0.15, 0.85), st.floats(0.15, 0.85))
@@ -980,14 +993,7 @@ def test_consecutive_and_crossing_fitted_cuts_match_the_general_path(z0, a, b, z
 
     face, first = _slant_branches(z0, a, b)
     _, second = _slant_branches(z1, c, d)
-    cuts = []
-    for br, f in ((first, f0), (second, f1)):
-        for cv in br:
-            for s0, s1, w in clip_to_face(face, cv.pcurve_a, cv.t0, cv.t1, curve=cv.curve):
-                if w != "inside" or s1 - s0 < 1e-2:
-                    continue
-                m = s0 + f * (s1 - s0)
-                cuts += [EdgeSpec(cv.curve, s0, m, cv.pcurve_a, cv.tol), EdgeSpec(cv.curve, m, s1, cv.pcurve_a, cv.tol)]
+    cuts = _cut_in_two(face, first, f0) + _cut_in_two(face, second, f1)
     if not cuts:
         return
     try:
@@ -1015,13 +1021,7 @@ def test_consecutive_fitted_cuts_on_a_hemisphere_skip_the_foot_search(dx, dy, dz
     S2 = face_specs(other)[0].surface
     box = ((-0.05, math.pi + 0.05), (-math.pi / 2, math.pi / 2))
     far = ((-10.0, 10.0), (-math.pi / 2, math.pi / 2))
-    cuts = []
-    for c in intersect_surfaces(face.surface, S2, box, far).curves:
-        for s0, s1, w in clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve):
-            if w != "inside" or s1 - s0 < 1e-2:
-                continue
-            m = s0 + f * (s1 - s0)
-            cuts += [EdgeSpec(c.curve, s0, m, c.pcurve_a, c.tol), EdgeSpec(c.curve, m, s1, c.pcurve_a, c.tol)]
+    cuts = _cut_in_two(face, intersect_surfaces(face.surface, S2, box, far).curves, f)
     if not cuts:
         return
     searched = []

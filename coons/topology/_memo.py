@@ -153,6 +153,14 @@ def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return hit
 
 
+def id_index(objs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The record side of :func:`found_by_id`: the ids of ``objs`` (a sequence) sorted, and their
+    positions in it (stable)."""
+    ids = np.fromiter(map(id, objs), dtype=np.int64, count=len(objs))
+    order = np.argsort(ids, kind="stable")
+    return ids[order], order
+
+
 def found_by_id(objs: Any, ids: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where each of ``objs`` (a sequence of n objects) sits in a record of objects, found by identity
     in one pass: ``(positions (n,), found (n,) bool)`` (positions are meaningless where not found).

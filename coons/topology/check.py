@@ -65,7 +65,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, found_by_id, is_value, pool_positions, pool_values, read_only as _read_only
+from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -459,6 +459,15 @@ def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
 _SAME_PARAMETER = IdentityMemo()
 
 
+def _first_loops(b: BRep, first: dict[int, int]) -> np.ndarray:
+    """``(n_loops,)`` bool: the first ``n`` loops of each face ``f`` of ``first`` (``{f: n}``), the loops a
+    face extending an earlier spec shares with it."""
+    out = np.zeros(b.n_loops, dtype=bool)
+    for f, n in first.items():
+        out[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+    return out
+
+
 def _norms(X: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(X, axis=-1)`` for a last axis of 2 or 3, written out: the same floats (its
     sum of squares runs left to right too), without numpy's row-by-row reduction of a short axis."""
@@ -483,9 +492,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     if partial:
         # Likewise the old loops of a face extending a spec that passed (:func:`_partial_faces`):
         # their uses are the spec's, with their own tolerances as edge tolerances then and now.
-        old_loop = np.zeros(b.n_loops, dtype=bool)
-        for f, (n, _) in partial.items():
-            old_loop[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+        old_loop = _first_loops(b, {f: n for f, (n, _) in partial.items()})
         has_pc &= ~old_loop[b.edge_loop]
     rows = np.flatnonzero((b.edge_curve >= 0) | has_pc.any(axis=1))
     # p-curves: surface(pcurve(t)) == curve(t) within the edge tolerance, every p-curve sample of
@@ -857,9 +864,7 @@ def _remember_passed(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray
     """Keep which faces of ``b`` (its specs ``known[0]``) are recorded as passed, for the next check."""
     rec = _Passed()
     rec.specs = tuple(known[0])
-    ids = np.fromiter(map(id, rec.specs), dtype=np.int64, count=len(rec.specs))
-    rec.order = np.argsort(ids, kind="stable")
-    rec.ids = ids[rec.order]
+    rec.ids, rec.order = id_index(rec.specs)
     rec.passed = passed.copy()
     rec.key = _trims_key(t, samples)
     _PASSED_FACES.clear()
@@ -1004,9 +1009,7 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         return sums
     old_loop = None
     if extends:
-        old_loop = np.zeros(b.n_loops, dtype=bool)
-        for f, n in extends.items():
-            old_loop[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
+        old_loop = _first_loops(b, extends)
         parts = [_near_new_loops(b, p, old_loop) for p in parts]
     hits = _crossings(parts, None if old_loop is None else old_loop[b.coedge_loop])
     # Chords of curved edges cut corners by their sagitta: loops closer than that (an ellipse hole
@@ -1204,9 +1207,7 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
     c = np.flatnonzero(want[b.coedge_face])
     ptr = b.face_loop_ptr
     if partial:
-        old_loop = np.zeros(b.n_loops, dtype=bool)
-        for f, (n, _) in partial.items():
-            old_loop[b.face_loops[ptr[f]:ptr[f] + n]] = True
+        old_loop = _first_loops(b, {f: n for f, (n, _) in partial.items()})
         c = c[~old_loop[b.coedge_loop[c]]]
     missing = np.zeros(b.n_faces, dtype=bool)
     missing[b.coedge_face[c[table.pos[c] < 0]]] = True

@@ -156,7 +156,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, found_by_id, is_value, pool_positions, read_only as _read_only
+from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, pool_positions, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
@@ -543,13 +543,11 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
             have[f] = True
     carried = have.copy()
     extended = []
-    if not have.any() and not extends:  # nothing carried: the B-rep's own integrals (cached, as shell_volumes)
-        vol = _columns(b, rtol, False)[:, _VOL].copy()
-    else:
+    new_loop = np.zeros(b.n_loops, dtype=bool)
+    if extends:
         T = _tables(b)
         code = T.surface_code.take(b.face_surface)
         curved = T.curved_face
-        new_loop = np.zeros(b.n_loops, dtype=bool)
         for f, (n, old) in extends.items():
             got = _FACE_VOLUMES.get(old)
             if (not have[f] and got is not None and key in got and b.face_surface[f] >= 0
@@ -558,11 +556,11 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
                 have[f] = True
                 new_loop[b.face_loops[b.face_loop_ptr[f] + n:b.face_loop_ptr[f + 1]]] = True
                 extended.append(f)
-        need = ~have
-        if not have.any():
-            vol = _columns(b, rtol, False)[:, _VOL].copy()
-        elif need.any() or extended:
-            vol += _face_integrals(b, ref[0], ref[1], _N_VOL_COLS, rtol, need, new_loop)[:, _VOL]
+    need = ~have
+    if not have.any():  # nothing carried: the B-rep's own integrals (cached, as shell_volumes)
+        vol = _columns(b, rtol, False)[:, _VOL].copy()
+    elif need.any() or extended:
+        vol += _face_integrals(b, ref[0], ref[1], _N_VOL_COLS, rtol, need, new_loop)[:, _VOL]
     # Recorded for specs whose surface, curves and p-curves are values (nothing can change under
     # the record); an extended face's old loops are its old spec's, recorded under that test.
     old_loops = {f: extends[f][0] for f in extended}
@@ -575,9 +573,7 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
             recorded[f] = True
     rec = _Volumes()
     rec.specs, rec.key, rec.vol, rec.recorded = tuple(specs), key, vol, recorded
-    ids = np.fromiter(map(id, rec.specs), dtype=np.int64, count=len(rec.specs))
-    rec.order = np.argsort(ids, kind="stable")
-    rec.ids = ids[rec.order]
+    rec.ids, rec.order = id_index(rec.specs)
     _VOLUMES_OF.clear()
     _VOLUMES_OF.set(b, rec)
     _LAST_VOLUMES[0] = weakref.ref(b)

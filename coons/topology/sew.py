@@ -63,10 +63,10 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
-from coons.topology._memo import IdentityMemo, found_by_id, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, read_only as _read_only
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder, assembled_brep
-from coons.topology.check import _SEWN_FROM
+from coons.topology.check import _SEWN_FROM, _norms
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
@@ -328,9 +328,7 @@ def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
     """Keep the use columns of the sewing that made ``b`` for the next sewing (:func:`_gathered_uses`)."""
     rec = _SewnUses()
     rec.faces = tuple(faces)
-    ids = np.fromiter(map(id, faces), dtype=np.int64, count=len(faces))
-    rec.order = np.argsort(ids, kind="stable")
-    rec.ids = ids[rec.order]
+    rec.ids, rec.order = id_index(rec.faces)
     rec.count = uses.counts
     rec.first = np.cumsum(rec.count) - rec.count
     rec.values, rec.columns, rec.spec = uses.values, uses.columns, uses.spec
@@ -648,7 +646,7 @@ def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     mean /= count[:, None]
     d = X - mean[label]
     spread = np.zeros(nv)
-    np.maximum.at(spread, label, np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]))
+    np.maximum.at(spread, label, _norms(d))
     return np.stack([label[:k], label[k:]], axis=1), mean, np.maximum(spread, t.linear)
 
 
@@ -703,7 +701,7 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     two = (stop - start) == 2
     i2, j2 = order[start[two]], order[start[two] + 1]
     D = uses.mid[i2] - uses.mid[j2]
-    fast = ((np.sqrt(D[:, 0] * D[:, 0] + D[:, 1] * D[:, 1] + D[:, 2] * D[:, 2]) <= np.maximum(uses.tol[i2], uses.tol[j2]))
+    fast = ((_norms(D) <= np.maximum(uses.tol[i2], uses.tol[j2]))
             & ~closed[i2] & (vs[i2] == ve[j2]))
     pairs = [np.stack([i2[fast], j2[fast]], axis=1)]
     samples: dict = {}  # first-round samples of _distance_to_curve, shared by the uses of one curve
@@ -758,7 +756,7 @@ def _match_fours(uses: _Uses, vertex: np.ndarray, closed: np.ndarray, G: np.ndar
     D = uses.mid[a] - uses.mid[b]
     # (the sum over the short last axis written out: numpy reduces it row by row, here the same
     # floats, left to right, several times faster)
-    d = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1] + D[..., 2] * D[..., 2])
+    d = _norms(D)
     # A few ulps separate this norm from np.linalg.norm's: 1e-12 relative keeps both on one side.
     same = d <= thr * (1.0 - 1e-12)
     apart = (d > thr * (1.0 + 1e-12)) & (d - np.minimum(radius[a], radius[b]) > thr + 1e-9 * (1.0 + scale[a] + scale[b]))

@@ -252,6 +252,7 @@ from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, E
 from coons.kernel.intersect import _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
+from coons.kernel.polygon import proper_crossings
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
@@ -557,15 +558,7 @@ class _Operand:
                                    stage="input", diagnostics={"operand": name, "face": f}) from exc
             specs[f] = FaceSpec(S, spec.sense, loops)
         self.specs: list[FaceSpec] = specs
-        # The cached data (:func:`_face_data`), the rest computed together (:func:`_new_face_data`).
-        data = [_FACE_DATA.get(spec) for spec in specs]
-        fresh = [k for k, d in enumerate(data) if d is None or d.t != t]
-        if fresh:
-            todo = [specs[k] for k in fresh]
-            _prefill_samples(todo)
-            for k, d in zip(fresh, _new_face_data(todo, t)):
-                data[k] = d
-        self._data: list[_FaceData] = data
+        self._data: list[_FaceData] = _face_data_many(specs, t)
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
         self.segments = [d.seg for d in self._data]
@@ -901,10 +894,20 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
 def _face_data(spec: FaceSpec, t: Tolerance) -> _FaceData:
     """The :class:`_FaceData` of a completed spec (surface set, every use with a p-curve), cached
     per spec and assembled from its loops' :class:`_LoopData` (cached per loop)."""
-    d = _FACE_DATA.get(spec)
-    if d is not None and d.t == t:
-        return d
-    return _new_face_data([spec], t)[0]
+    return _face_data_many([spec], t)[0]
+
+
+def _face_data_many(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
+    """:func:`_face_data` of many specs: the cached ones looked up, the rest computed together
+    (:func:`_new_face_data`, their loop samples first in one pass, :func:`_prefill_samples`)."""
+    data = [_FACE_DATA.get(spec) for spec in specs]
+    fresh = [k for k, d in enumerate(data) if d is None or d.t != t]
+    if fresh:
+        todo = [specs[k] for k in fresh]
+        _prefill_samples(todo)
+        for k, d in zip(fresh, _new_face_data(todo, t)):
+            data[k] = d
+    return data
 
 
 #: Loops from which a face's data is kept for a face that extends it by new loops, on a surface
@@ -2366,25 +2369,6 @@ def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
 _ALONG_FRACTION = 0.1
 
 
-def _length_bound(e: EdgeSpec) -> float:
-    """An upper bound of the length of a cut's curve over its range (inf for curves of other types).
-
-    Arcs: the larger radius times the angle; NURBS curves (weights positive, so knot insertion cuts
-    corners): the length of the whole control polygon."""
-    from coons.kernel.curve import NurbsCurve
-
-    c, dt = e.curve, abs(e.t1 - e.t0)
-    if type(c) is Line:
-        return dt * math.sqrt(float(c.direction @ c.direction))
-    if type(c) is Circle:
-        return dt * c.radius
-    if type(c) is Ellipse:
-        return dt * max(c.major_radius, c.minor_radius)
-    if isinstance(c, NurbsCurve):
-        return float(np.sum(np.linalg.norm(np.diff(c.control_points, axis=0), axis=1)))
-    return math.inf
-
-
 def _resplit_along(cuts: dict[int, list[EdgeSpec]], along: set[int], t: Tolerance) -> set[int]:
     """Split in place the cuts of every face that has two or more cuts along the other operand's
     edges (``along``: their ids) by :func:`_split_overlaps`; the faces whose cuts changed.
@@ -2419,10 +2403,10 @@ def _split_overlaps(groups: list[list[EdgeSpec]], t: Tolerance) -> list[list[lis
     (within both cuts' tolerances) and the ending cut's point a tenth of the way in lies on the
     other's curve too: a cut leaving another across it (a T) does not split it.
 
-    Candidates come from one k-d tree over all cut ends: a point of a cut lies within the ellipse
-    of foci its ends and major axis its length (:func:`_length_bound`), so within the ball around
-    the ends' midpoint of radius half that length; only candidates of the same face, inside that
-    ellipse and away from the cut's ends get closest-point tests.
+    Candidates come from one k-d tree over all cut ends, queried with the balls around the cuts'
+    proven boxes (:func:`_edge_box_array`; a cut without one takes every end); only candidates of
+    the same face, in the cut's box padded by the tolerance and away from its ends get
+    closest-point tests.
     """
     from scipy.spatial import cKDTree
 
@@ -2436,10 +2420,14 @@ def _split_overlaps(groups: list[list[EdgeSpec]], t: Tolerance) -> list[list[lis
     E = _cut_ends(flat)  # (2 n, 3)
     E0, E1 = E[0::2], E[1::2]
     thr = np.array([max(t.linear, c.tol or 0.0) for c in flat])
-    reach = np.array([_length_bound(c) for c in flat]) + 2.0 * thr.max()
+    box, boxed = _edge_box_array(flat)
+    box_lo = np.where(boxed[:, None], box[:, 0], -np.inf) - thr.max()
+    box_hi = np.where(boxed[:, None], box[:, 1], np.inf) + thr.max()
     sizes = np.array([len(g) for g in groups])
     owner = np.repeat(np.arange(len(groups)), sizes)  # face of each cut
-    hits = cKDTree(E).query_ball_point(0.5 * (E0 + E1), np.minimum(0.5 * reach, 1e300), return_sorted=False)
+    centre = np.where(boxed[:, None], 0.5 * (box_lo + box_hi), 0.0)
+    radius = np.where(boxed, 0.5 * np.linalg.norm(np.where(boxed[:, None], box_hi - box_lo, 0.0), axis=1), 1e300)
+    hits = cKDTree(E).query_ball_point(centre, radius, return_sorted=False)
     counts = np.fromiter((len(h) for h in hits), dtype=np.intp, count=n)
     qi = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.intp, count=int(counts.sum()))
     ci = np.repeat(np.arange(n), counts)
@@ -2448,7 +2436,7 @@ def _split_overlaps(groups: list[list[EdgeSpec]], t: Tolerance) -> list[list[lis
     th = np.maximum(thr[ci], thr[qi // 2])
     Q = E[qi]
     d0, d1 = np.linalg.norm(Q - E0[ci], axis=1), np.linalg.norm(Q - E1[ci], axis=1)
-    inside = (d0 + d1 <= reach[ci]) & (d0 > th) & (d1 > th)
+    inside = np.all((Q >= box_lo[ci]) & (Q <= box_hi[ci]), axis=1) & (d0 > th) & (d1 > th)
     if not inside.any():
         return out
     at: dict[int, list[float]] = {}
@@ -2801,7 +2789,7 @@ def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np
     ``rings (n, s, 2)``: each use's samples after its first, in traversal order; cycle ``c``
     is the uses ``c0[c] : c0[c] + size[c]``, its ring (closed polyline) their samples
     concatenated.  All cycles at once, on the flat array of all ring points: a proper crossing
-    of two non-adjacent segments of one ring (:func:`_proper_crossings`), on
+    of two non-adjacent segments of one ring (:func:`~coons.kernel.polygon.proper_crossings`), on
     the pairs whose boxes meet (:func:`_ring_box_pairs`: two segments that cross share a point,
     so no crossing is missed, while testing every pair would cost the square of the ring's
     length); the probes (the first point of each of the face's loops) by the even–odd rule of
@@ -2829,7 +2817,7 @@ def _cycle_tests(rings: np.ndarray, c0: np.ndarray, size: np.ndarray, probes: np
     keep = (J > I + 1) & ~((I == start[ring[I]]) & (J == stop[ring[I]] - 1))
     I, J = I[keep], J[keep]
     ok = np.ones(nc, dtype=bool)
-    ok[ring[I[_proper_crossings(A[I], B[I], A[J], B[J])]]] = False
+    ok[ring[I[proper_crossings(A[I], B[I], A[J], B[J])]]] = False
     if probes.shape[0]:
         seg = np.stack([A, B], axis=1)
         slope = _polygon_slopes(seg)
@@ -3123,24 +3111,12 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
 
 def _self_crossing(seg: np.ndarray) -> bool:
     """Whether two non-adjacent segments of a closed polyline ``(m, 2, 2)`` cross properly (touching is not
-    tested): :func:`_proper_crossings` of every pair, the reference of :func:`_cycle_tests`' boxed pairs."""
+    tested): :func:`~coons.kernel.polygon.proper_crossings` of every pair, the reference of :func:`_cycle_tests`' boxed pairs."""
     m = seg.shape[0]
     i, j = np.triu_indices(m, 2)
     keep = ~((i == 0) & (j == m - 1))
     i, j = i[keep], j[keep]
-    return bool(np.any(_proper_crossings(seg[i, 0], seg[i, 1], seg[j, 0], seg[j, 1])))
-
-
-def _proper_crossings(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """``(k,)`` whether segment ``a b`` properly crosses ``c d`` (rows ``(k, 2)``): strict orientation
-    signs on both sides.  Zero-length segments (repeated samples where cuts join) are adjacent in
-    effect: they never cross."""
-    def orient(p, q, r):
-        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
-
-    d1, d2, d3, d4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    degenerate = np.all(a == b, axis=1) | np.all(c == d, axis=1)
-    return (d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate
+    return bool(np.any(proper_crossings(seg[i, 0], seg[i, 1], seg[j, 0], seg[j, 1])))
 
 
 def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.ndarray:
@@ -3305,7 +3281,7 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
             return
         ok, cos = _local_tests(sub, Y, t)
         for c, good, x in zip(sub, ok.tolist(), cos.tolist()):
-            if good and status[c[0]] < 0:
+            if good:
                 status[c[0]] = IN if x < 0 else OUT
 
 

@@ -1533,6 +1533,7 @@ class _Coord:
         self.periodic = bool(surface.periodic_u if index == 0 else surface.periodic_v)
         self.exact = True
         self.coef = np.asarray(coef, dtype=np.float64)
+        self._crossed = None  # (closed-form crossings are not remembered)
         return self
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
@@ -1603,7 +1604,7 @@ class _Coord:
             k0, k1 = math.floor((t0 - phi) / TWO_PI) - 1, math.ceil((t1 - phi) / TWO_PI) + 1
             out = (base[:, None] + TWO_PI * np.arange(k0, k1 + 1)[None, :]).ravel()
             return np.unique(out[(out > t0) & (out < t1)])
-        memo = getattr(self, "_crossed", None)
+        memo = self._crossed
         key = (bound, t0, t1)
         if memo is not None and key in memo:
             return memo[key]

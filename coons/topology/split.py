@@ -1229,10 +1229,17 @@ def _without_closed_virtual(sub: list["_Sub"], pieces: list[_Piece], plane: _Pla
     if not virtual:
         return sub
     n = len(sub)
-    X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
-    label = _components(2 * n, _node_pairs(X, plane))
+    label = _node_labels(sub, plane)
     closed = {k for k in virtual if label[k] == label[n + k]}
     return [s for k, s in enumerate(sub) if k not in closed] if closed else sub
+
+
+def _node_labels(sub: list["_Sub"], plane: _Plane) -> np.ndarray:
+    """``(2 n,)`` the node of each sub-piece's start (first n) and end (last n): their ends merged within
+    the working-plane tolerance (:func:`_node_pairs`, :func:`_components`)."""
+    n = len(sub)
+    X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
+    return _components(2 * n, _node_pairs(X, plane) if n else np.zeros((0, 2), int))
 
 
 #: Distance along a half-edge, in eps, from which its direction is taken where the p-curve turns within eps of
@@ -1249,9 +1256,7 @@ class _Graph:
     def __init__(self, sub: list[_Sub], pieces: list[_Piece], plane: _Plane) -> None:
         self.sub, self.pieces, self.plane = sub, pieces, plane
         n = len(sub)
-        X = np.concatenate([np.array([s.uv[0] for s in sub]), np.array([s.uv[-1] for s in sub])]).reshape(-1, 2)
-        pairs = _node_pairs(X, plane) if n else np.zeros((0, 2), int)
-        label = _components(2 * n, pairs)
+        label = _node_labels(sub, plane)
         # Half-edge 2k runs sub k forward (node n0 -> n1), 2k + 1 backward.
         self.origin = np.empty(2 * n, dtype=np.int64)
         self.origin[0::2], self.origin[1::2] = label[:n], label[n:]

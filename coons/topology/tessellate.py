@@ -43,9 +43,9 @@ Algorithm (the BRepMesh idea, made watertight by construction)
 2. **Face boundaries** (trimmed faces).  Each loop is walked in order; a coedge contributes
    its edge's samples mapped through its own p-curve (reversed for right sides).  Where
    consecutive p-curves end and start at different parameter points (a sphere's pole, a
-   cone's apex: see ``docs/brep.md``; the surface must be singular there, one first
-   derivative vanishing against the other, else the two ends are one point) both points are
-   kept and joined by a *gap segment*;
+   cone's apex: see ``docs/brep.md``; a parameter must be undetermined there
+   (:func:`~coons.kernel.onsurface.singular_parameters`), else the two ends are one point) both
+   points are kept and joined by a *gap segment*;
    both carry the same mesh vertex, so the one triangle on the gap degenerates and is
    dropped, which is an edge collapse of the parameter-space triangulation onto the pole.
    A loop that would get fewer than three samples (a sliver bounded by an arc and a line
@@ -122,7 +122,7 @@ Algorithm (the BRepMesh idea, made watertight by construction)
    segments of their own).
 8. **Crossing chords.**  Chords of two edges can cross in a face's parameter plane although
    the edges do not: a vertex of one lies within the sagitta of the other's chord (a box
-   corner 0.002 inside a cylinder's rim).  The triangulator refuses such a boundary; the
+   corner 0.0023 inside a cylinder's rim).  The triangulator refuses such a boundary; the
    curved edges of the crossing chords then get half their parameter step and the whole
    tessellation runs again (shared samples: both faces of an edge see its new chords), at most
    ``_MAX_CROSSING_ROUNDS`` times (each quarters the sagitta) before the crossing is reported.
@@ -183,7 +183,9 @@ from coons.kernel.analytic import (
     SphericalSurface,
     ToroidalSurface,
 )
+from coons.kernel.onsurface import singular_parameters
 from coons.kernel.pcurve import Line2D
+from coons.kernel.polygon import proper_crossings
 from coons.tolerance import Tolerance, resolve
 from coons.topology._cdt import ConstrainedDelaunay
 from coons.topology.brep import BRep, same_geometry
@@ -211,9 +213,6 @@ _CURVATURE_SAMPLES = 9
 #: Relative parameter distance below which two p-curve ends are the same point (round-off of
 #: the p-curve evaluation, far below any real pole gap).
 _SAME_UV = 1e-10
-#: A surface is singular at a point (a pole, an apex) where one first derivative is this small against
-#: the other (:meth:`_Builder._pole_gap`).
-_SINGULAR = 1e-3
 #: Fraction of the deflection refinement aims at: its deviation estimate (centroid and edge
 #: midpoints in the quadratic model) is exact to second order only, and third-order terms (a cone
 #: near its apex) put the true worst point of a triangle up to a few tenths of a percent above it.
@@ -330,30 +329,26 @@ def _tessellate(b: BRep, d: float, a: float, t: Tolerance) -> TriangleMesh:
     """:func:`tessellate` with resolved arguments, uncached.
 
     Chords of two edges can cross in a face's parameter plane although the edges do not: a
-    vertex of one within the sagitta of the other's chord (a box corner 0.003 inside a
-    cylinder's rim, whose chords sag 0.013).  The curved edges of crossing chords then get
+    vertex of one within the sagitta of the other's chord (a box corner 0.0023 inside a
+    cylinder's rim, whose chords sag further).  The curved edges of crossing chords then get
     chords of half the parameter step, and the whole tessellation runs again (the samples of
     an edge are shared by its two faces, so both see the finer chords).
     """
     refine: dict[int, int] = {}
-    for _ in range(_MAX_CROSSING_ROUNDS):
+    for r in range(_MAX_CROSSING_ROUNDS + 1):
         try:
             return _tessellate_once(b, d, a, t, refine)
         except _Crossing as exc:
-            if not exc.edges:
+            if not exc.edges or r == _MAX_CROSSING_ROUNDS:
                 raise exc.error from exc.error.__cause__
             for e in exc.edges:
                 refine[e] = refine.get(e, 0) + 1
-    try:
-        return _tessellate_once(b, d, a, t, refine)
-    except _Crossing as exc:
-        raise exc.error from exc.error.__cause__
+    raise AssertionError("unreachable")  # (the last round returns or raises)
 
 
 def _tessellate_once(b: BRep, d: float, a: float, t: Tolerance, refine: dict[int, int]) -> TriangleMesh:
     """One run of :func:`_tessellate`; ``refine``: edge -> how many times to halve its parameter steps."""
-    ctx = _Builder(b, d, a, t)
-    ctx.refine = refine
+    ctx = _Builder(b, d, a, t, refine)
     ctx.plan_revolved_faces()
     ctx.discretise_edges()
     ctx.triangulate_faces()
@@ -938,7 +933,7 @@ class _FaceMesh:
 class _Builder:
     """Accumulates mesh vertices and triangles while tessellating one B-rep."""
 
-    def __init__(self, b: BRep, d: float, a: float, t: Tolerance) -> None:
+    def __init__(self, b: BRep, d: float, a: float, t: Tolerance, refine: dict[int, int] | None = None) -> None:
         self.b, self.d, self.a, self.tol = b, d, a, t
         self.points: list[np.ndarray] = [b.vertex_point]
         self.n_points = b.n_vertices
@@ -958,7 +953,7 @@ class _Builder:
         self.flat, self.flat_frames = _flat_nurbs_planes(b.surfaces, t.linear)
         self._flat_planes: dict[int, PlanarSurface] = {}
         # Edges whose parameter steps are halved this many times (chords crossing, see _tessellate).
-        self.refine: dict[int, int] = {}
+        self.refine: dict[int, int] = refine or {}
 
     def point_array(self) -> np.ndarray:
         """All mesh vertices so far, ``(n, 3)`` (concatenated once, then cached)."""
@@ -1725,13 +1720,16 @@ class _Builder:
         the radius) to much more.
         """
         D = S.derivatives(p[0], p[1], 1)
-        speeds = (float(np.linalg.norm(D[1, 0])), float(np.linalg.norm(D[0, 1])))
+        stretch = max(float(np.linalg.norm(D[1, 0])), float(np.linalg.norm(D[0, 1])))
         et = self.b.edge_tol
         allowed = max(self.tol.linear, float(et[c >> 1]) + float(et[c_next >> 1]))
+        if not float(np.linalg.norm(p - q)) * stretch > allowed:
+            return False
         # Near but not at a pole (a vertex 1° from it) the slow direction makes a fitting mismatch
-        # look long: it is a pole only where the surface is singular, one speed vanishing against the
-        # other; else the two ends are one point and a gap segment there may cross the next chord.
-        return float(np.linalg.norm(p - q)) * max(speeds) > allowed and min(speeds) <= _SINGULAR * max(speeds)
+        # look long: it is a pole only where a parameter is undetermined (moving it over its whole
+        # range moves the point by less than the tolerance); else the two ends are one point and a
+        # gap segment there may cross the next chord.
+        return bool(singular_parameters(S, np.stack([p, q]), None, self.tol).any())
 
     def _grid(self, S, bd: _Boundary, X_b: np.ndarray, scale: np.ndarray, steps: tuple[float, float]) -> np.ndarray:
         """Interior candidate parameters ``(q, 2)`` (unscaled) of a curved face: the grid of ``steps`` inside the box."""
@@ -1783,20 +1781,17 @@ class _Builder:
         """
         seg = bd.segments
         a, c = X[seg[:, 0]], X[seg[:, 1]]
-
-        def orient(p, q, r):
-            return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
-
-        A, C = a[:, None], c[:, None]
-        B, D = a[None], c[None]
-        cross = (orient(A, C, B) * orient(A, C, D) < 0) & (orient(B, D, A) * orient(B, D, C) < 0)
-        hit = np.unique(np.nonzero(cross)[0])
+        i, j = np.triu_indices(seg.shape[0], 1)
+        cross = proper_crossings(a[i], c[i], a[j], c[j])
+        hit = np.unique(np.concatenate([i[cross], j[cross]]))
         if hit.size == 0:
             return set()
+        on_face = set(bd.ids.tolist())
         owner: dict[int, int] = {}
         for e, ids in self.edge_ids.items():
             for i in ids[1:-1].tolist():
-                owner[i] = e
+                if i in on_face:
+                    owner[i] = e
         ends: dict[tuple[int, int], list[int]] = {}
         for e, (v0, v1) in enumerate(self.b.edge_vertex.tolist()):
             ends.setdefault((min(v0, v1), max(v0, v1)), []).append(e)

@@ -618,3 +618,20 @@ def test_branch_through_a_tangency_point_on_the_boundary_agrees_with_occt():
         assert res.area == pytest.approx(area, rel=RTOL_OCCT), op
     with pytest.raises(BooleanError, match="not a manifold"):
         x - d
+
+
+def test_a_tessellation_failure_for_face_boxes_is_a_broad_phase_error(monkeypatch):
+    """The operand's mesh also boxes faces without a proven box (``_Operand._mesh_boxes``): a failing
+    tessellator there reports as the Boolean's broad phase."""
+    import coons.topology.tessellate as tess
+    from coons.errors import TopologyError
+
+    op = S._Operand(Sphere(2), "A", resolve(None))
+
+    def failing(*args, **kwargs):
+        raise TopologyError("face 0: its boundary cannot be triangulated")
+
+    monkeypatch.setattr(tess, "tessellate", failing)
+    with pytest.raises(BooleanError) as info:
+        op._mesh_boxes()
+    assert info.value.stage == "broad_phase" and info.value.diagnostics["operand"] == "A"

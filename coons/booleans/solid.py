@@ -208,8 +208,9 @@ Status and limitations
   more than a quarter of ``tol.linear``, ``kernel.intersect._EQUAL_CYLINDERS_GAP``, so marched)
   whose axes pass about ``1e-4`` apart (two near-touching branches).
 * Chains of Booleans in special position (cylinders, boxes turned 30° or 45° and spheres on a
-  0.25 grid, many sharing cap planes, compared with OCCT and a Monte Carlo referee; the fixed
-  configurations are tests in ``tests/booleans/test_solid_regressions.py``) still raise a
+  0.25 grid, many sharing cap planes, compared with OCCT and a Monte Carlo referee by
+  ``benchmarks/hunt_boolean_chains.py``; the fixed configurations are tests in
+  ``tests/booleans/test_solid_regressions.py``) still raise a
   ``BooleanError`` in these found cases: rims of different radii internally tangent to 1e-5
   beside a seam vertex (the cuts' end tolerance covers the vertex, ``split_face`` splits the rim
   there and one stretch is used once); two cylinder walls, one through a sphere's seam, whose

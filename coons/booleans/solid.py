@@ -801,11 +801,10 @@ def _forget_caches() -> None:
                   curve_intersect._TRIG, curve_intersect._FORMS, curve_intersect._MEMO, onsurface._PERIODS_CACHE,
                   split._FACES, split._MAPPED, intersect._COORDS):
         cache.clear()
-    _memo.clear_all()  # every IdentityMemo (sewing, checking, mass, the pipeline's per-use memos)
-    # The weak references to the last B-rep sewn, checked, measured and summed (dead once their
-    # memos are cleared, but then no slot points at anything either).
-    for slot in (mass._LAST_VOLUMES, check._LAST_PASSED, check._LAST_MEASURED, sew._LAST_SEWN):
-        slot[:] = [None] * len(slot)
+    _memo.clear_all()  # every IdentityMemo and LastRecord (sewing, checking, mass, the pipeline's per-use memos)
+    # The weak reference to the last B-rep measured (dead once its memo is cleared, but then the
+    # slot points at nothing either).
+    check._LAST_MEASURED[:] = [None] * len(check._LAST_MEASURED)
 
 
 class _LoopData:

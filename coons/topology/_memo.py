@@ -126,6 +126,32 @@ class IdentityMemo:
 _MISSING = object()
 
 
+class LastRecord(IdentityMemo):
+    """One record, of the last object given to :meth:`keep` (held weakly): what a sewing, a clean
+    check or a shell-volume sum leaves for the next one, which reads it back by :meth:`last` (a
+    Boolean's result carries most of its operand's faces).  Cleared with the other memos
+    (:func:`clear_all`)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._last: weakref.ref | None = None
+
+    def keep(self, obj: Any, record: Any) -> None:
+        """Make ``record`` the one record, of ``obj`` (a value: :func:`is_value`)."""
+        super().clear()
+        self.set(obj, record)
+        self._last = weakref.ref(obj)
+
+    def last(self) -> Any:
+        """The record kept, None when there is none or its object has died."""
+        obj = self._last() if self._last is not None else None
+        return self.get(obj) if obj is not None else None
+
+    def clear(self) -> None:
+        super().clear()
+        self._last = None
+
+
 #: B-rep -> ``{pool name: (ids in pool order, sorted ids of the value objects, their positions)}`` of
 #: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`).
 _POOL_IDS = IdentityMemo()

@@ -65,7 +65,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
+from coons.topology._memo import IdentityMemo, LastRecord, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -800,8 +800,7 @@ def _trims_passed(b: BRep, known: tuple[list, np.ndarray], t: Tolerance,
     key = _trims_key(t, samples)
     passed = np.zeros(len(specs), dtype=bool)
     rest = np.flatnonzero(unchanged)
-    donor = _LAST_PASSED[0]() if _LAST_PASSED[0] is not None else None
-    rec = _PASSED_FACES.get(donor) if donor is not None else None
+    rec = _PASSED_FACES.last()
     if rec is not None and rec.key == key and rest.size and rec.ids.size:
         # The specs the last clean check recorded: found by id in one pass (it holds them).  What
         # it says is of the spec objects (each marked one is in _TRIMS_PASSED under ``key``), not
@@ -855,8 +854,7 @@ class _Passed:
 #: The last sewn B-rep whose check found nothing -> its :class:`_Passed` (one entry), and a weak
 #: reference to that B-rep: the next check (a Boolean's result on its operand's faces) finds
 #: which of its specs passed in one array pass, not one look-up per face (:func:`_trims_passed`).
-_PASSED_FACES = IdentityMemo()
-_LAST_PASSED: list = [None]
+_PASSED_FACES = LastRecord()
 
 
 def _remember_passed(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance,
@@ -867,9 +865,7 @@ def _remember_passed(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray
     rec.ids, rec.order = id_index(rec.specs)
     rec.passed = passed.copy()
     rec.key = _trims_key(t, samples)
-    _PASSED_FACES.clear()
-    _PASSED_FACES.set(b, rec)
-    _LAST_PASSED[0] = weakref.ref(b)
+    _PASSED_FACES.keep(b, rec)
 
 
 def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray, t: Tolerance, samples: int,

@@ -156,7 +156,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, pool_positions, read_only as _read_only
+from coons.topology._memo import IdentityMemo, LastRecord, found_by_id, id_index, is_value, pool_positions, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
@@ -486,8 +486,7 @@ class _Volumes:
 #: The last B-rep :func:`carried_shell_volumes` summed -> its :class:`_Volumes` (one entry), and a weak
 #: reference to it: the next (a Boolean's result on its operand's faces) finds its carried faces'
 #: contributions in one array pass.
-_VOLUMES_OF = IdentityMemo()
-_LAST_VOLUMES: list = [None]
+_VOLUMES_OF = LastRecord()
 
 
 def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends: dict[int, tuple[int, object]],
@@ -526,8 +525,7 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     vol = np.zeros(nf)
     have = np.zeros(nf, dtype=bool)
     rest = np.flatnonzero(unchanged)
-    donor = _LAST_VOLUMES[0]() if _LAST_VOLUMES[0] is not None else None
-    last = _VOLUMES_OF.get(donor) if donor is not None else None
+    last = _VOLUMES_OF.last()
     if last is not None and last.key == key and rest.size and last.ids.size:
         # The specs of the last B-rep recorded, found by id in one pass (it holds them): a Boolean's
         # result carries most of its operand's faces.
@@ -574,9 +572,7 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     rec = _Volumes()
     rec.specs, rec.key, rec.vol, rec.recorded = tuple(specs), key, vol, recorded
     rec.ids, rec.order = id_index(rec.specs)
-    _VOLUMES_OF.clear()
-    _VOLUMES_OF.set(b, rec)
-    _LAST_VOLUMES[0] = weakref.ref(b)
+    _VOLUMES_OF.keep(b, rec)
     return np.bincount(b.face_shell, weights=vol, minlength=b.n_shells)[: b.n_shells]
 
 

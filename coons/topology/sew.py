@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import math
 import operator
-import weakref
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -63,7 +62,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
-from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, read_only as _read_only
+from coons.topology._memo import IdentityMemo, LastRecord, found_by_id, id_index, is_value, read_only as _read_only
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder, assembled_brep
 from coons.topology.check import _SEWN_FROM, _norms
@@ -319,9 +318,8 @@ class _SewnUses:
     __slots__ = ("faces", "ids", "order", "first", "count", "values", "columns", "spec")
 
 
-#: Sewn B-rep -> its :class:`_SewnUses` (one entry: the last sewing's), and a weak reference to that B-rep.
-_SEWN_USES = IdentityMemo()
-_LAST_SEWN: list = [None]
+#: The last sewing's :class:`_SewnUses`, of the B-rep it made.
+_SEWN_USES = LastRecord()
 
 
 def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
@@ -332,9 +330,7 @@ def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
     rec.count = uses.counts
     rec.first = np.cumsum(rec.count) - rec.count
     rec.values, rec.columns, rec.spec = uses.values, uses.columns, uses.spec
-    _SEWN_USES.clear()
-    _SEWN_USES.set(b, rec)
-    _LAST_SEWN[0] = weakref.ref(b)
+    _SEWN_USES.keep(b, rec)
 
 
 def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSpec], np.ndarray, np.ndarray]:
@@ -348,8 +344,7 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSp
     :func:`_face_uses` gives (its tables are functions of the face spec alone).
     """
     n = len(faces)
-    donor = _LAST_SEWN[0]() if _LAST_SEWN[0] is not None else None
-    rec = _SEWN_USES.get(donor) if donor is not None else None
+    rec = _SEWN_USES.last()
     hit = np.zeros(n, dtype=bool)
     if rec is not None and n and rec.ids.size:
         df, same = found_by_id(faces, rec.ids, rec.order)

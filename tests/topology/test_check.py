@@ -21,6 +21,7 @@ import trimesh
 import coons.topology.check as check_module
 from coons.kernel.analytic import PlanarSurface
 from coons.kernel.pcurve import Line2D, Trig2D
+from coons.topology._memo import LastRecord
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder
 from coons.topology.check import CheckReport, Problem, check
@@ -688,6 +689,28 @@ def test_identity_memo_forgets_dead_objects_and_takes_only_values():
     assert memo.get(other) is None
 
 
+def test_last_record_keeps_one_record_of_a_living_object():
+    import gc
+
+    from coons.topology._memo import clear_all
+
+    rec = LastRecord()
+    a, b = Line2D([0.0, 0.0], [1.0, 0.0]), Line2D([0.0, 1.0], [1.0, 0.0])
+    assert rec.last() is None
+    rec.keep(a, "of a")
+    assert rec.last() == "of a" and rec.get(a) == "of a"
+    rec.keep(b, "of b")  # one record: a's is gone
+    assert rec.last() == "of b" and rec.get(a) is None and len(rec) == 1
+    del b
+    gc.collect()
+    assert rec.last() is None and len(rec) == 0  # died with its object
+    rec.keep(a, "again")
+    clear_all()
+    assert rec.last() is None
+    with pytest.raises(TypeError, match="immutable values"):
+        rec.keep([1.0], "list")
+
+
 def test_segment_pairs_are_the_sweep_pairs_of_loops_that_can_meet():
     """The loop-aware broad phase of the trim check: the pairs of the plain sweep whose loops are one
     or have overlapping boxes, in the sweep's order (so the first crossing of each face is the same)."""
@@ -939,12 +962,12 @@ def test_faces_passed_found_through_the_last_clean_check_equal_the_per_spec_look
         looked_up.clear()
         passed, extends = real(b, known, t, samples, found)
         fast = looked_up[0]
-        last = check_module._LAST_PASSED[0]
-        check_module._LAST_PASSED[0] = None
+        kept = check_module._PASSED_FACES
+        check_module._PASSED_FACES = LastRecord()  # no record: every spec looked up
         try:
             again, extends_again = real(b, known, t, samples)
         finally:
-            check_module._LAST_PASSED[0] = last
+            check_module._PASSED_FACES = kept
         np.testing.assert_array_equal(passed, again)
         assert extends == extends_again
         compared.append((int(passed.sum()), fast, looked_up[1]))

@@ -7,6 +7,7 @@ import numpy as np
 
 from coons.tolerance import resolve
 from coons.topology import sew
+from coons.topology._memo import LastRecord
 from coons.topology.profile import Profile
 from coons.topology.sweep import extrude
 
@@ -449,7 +450,7 @@ def test_uses_gathered_from_the_last_sewing_equal_the_per_face_tables(monkeypatc
     monkeypatch.setattr(sew, "_face_uses", spy)
     fast = _uses_columns(sew._Uses(faces, t))
     assert sorted(asked[-1]) == sorted(id(f) for f in [odd] + others)  # the rest from the record
-    monkeypatch.setattr(sew, "_LAST_SEWN", [None])  # no record: every face from its table
+    monkeypatch.setattr(sew, "_SEWN_USES", LastRecord())  # no record: every face from its table
     slow = _uses_columns(sew._Uses(faces, t))
     assert len(asked[-1]) == len(faces)
     assert fast.keys() == slow.keys()

@@ -876,7 +876,7 @@ class BRepBuilder:
 
         ``caches_from``: an earlier build of this builder that differs from this one only in how
         shells are grouped into solids (:meth:`nest_shells` since); its meshes and mass integrals
-        are shared with the new B-rep before the check (which then reuses them).  ``sewn_from``:
+        and the shells' nesting are shared with the new B-rep before the check (which then reuses them).  ``sewn_from``:
         ``(face specs, unchanged faces)`` of a B-rep sewn from specs, recorded for the check
         (``coons.topology.check._SEWN_FROM``) before it runs.
 
@@ -961,10 +961,12 @@ def _finished(brep: BRep, tol: Tolerance, check: bool, caches_from: BRep | None,
     ``caches_from``, the sewing record, the check."""
     if caches_from is not None:
         from coons.topology.mass import share_mass_caches
+        from coons.topology.nesting import share_nesting
         from coons.topology.tessellate import share_tessellations
 
         share_mass_caches(caches_from, brep)
         share_tessellations(caches_from, brep)
+        share_nesting(caches_from, brep)
     if sewn_from is not None:
         from coons.topology.check import _SEWN_FROM
 

@@ -5,8 +5,10 @@ first): pointer consistency of the winged-edge tables, closed loops, manifold ed
 different faces and opposite senses, manifold vertices, Euler–Poincaré per shell, vertices
 on their edges, p-curves agreeing with 3-D curves, loops closed in parameter space, planar
 polyhedral faces, self-intersecting trim loops, faces lying on the left of their loops
-(the sign of their parameter-plane area agrees with ``face_sense``), and outward orientation of shells (outer
-shells enclose positive volume, voids negative).  It does not repair anything.
+(the sign of their parameter-plane area agrees with ``face_sense``), outward orientation of shells (outer
+shells enclose positive volume, voids negative), and the nesting of shells (every void directly inside its
+solid's outer shell, no outer shell inside another solid's material:
+:func:`~coons.topology.nesting.shell_parents`).  It does not repair anything.
 
 Geometric checks sample each edge at a fixed number of parameters (``samples``); a sampled
 check can miss a deviation between samples, so tolerances are verified, not proven.  What the
@@ -59,7 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coons.errors import CoonsError
+from coons.errors import CoonsError, TopologyError
 from coons.kernel.analytic import CylindricalSurface, Line, PlanarSurface
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -149,6 +151,8 @@ def check(shape, tol: Tolerance | None = None, *, samples: int = 9, geometry: bo
         sums = _check_trims(b, t, samples, problems, table, passed, extends, partial)
         if not problems:
             _check_orientation(b, t, problems, known, {f: (n, found[f]) for f, n in (extends or {}).items()})
+        if not problems and b.n_shells > 1:
+            _check_nesting(b, t, problems)
         if not problems and known is not None:
             _remember_passed(b, known, passed | _remember_trims(b, known, passed, t, samples, table.gapped, sums),
                              t, samples)
@@ -1571,6 +1575,35 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
     i, j = i[keep], j[keep]
     o = np.lexsort((rank[j], rank[i]))
     return i[o], j[o]
+
+
+def _check_nesting(b: BRep, t: Tolerance, out: list[Problem]) -> None:
+    """Every void lies directly inside its solid's outer shell, and no outer shell inside another
+    solid's material (:func:`coons.topology.nesting.shell_parents`: winding numbers proven on cones
+    or a certified mesh).  Runs after the orientation check has passed (outer shells positive,
+    voids negative)."""
+    from coons.topology.nesting import shell_parents
+
+    try:
+        parents = shell_parents(b, t)
+    except TopologyError as exc:
+        out.append(Problem("shells-touch", "brep", 0, str(exc)))
+        return
+    outer_of = np.asarray(b.solid_shells, dtype=np.int64)[np.asarray(b.solid_shell_ptr[:-1], dtype=np.int64)]
+    outer = np.zeros(b.n_shells, dtype=bool)
+    outer[outer_of] = True
+    solid = np.asarray(b.shell_solid, dtype=np.int64)
+    for s in range(b.n_shells):
+        p = int(parents[s])
+        if outer[s] and p >= 0 and outer[p]:
+            out.append(Problem("nested-solids", "shell", s,
+                               f"outer shell of solid {solid[s]} lies inside the outer shell {p} of solid {solid[p]} "
+                               "(overlapping solids; a shell inside material must be a void)"))
+        elif not outer[s] and p != outer_of[solid[s]]:
+            where = "inside no shell" if p < 0 else f"directly inside shell {p}"
+            out.append(Problem("void-outside", "shell", s,
+                               f"void of solid {solid[s]} lies {where}, not directly inside its solid's outer shell "
+                               f"{outer_of[solid[s]]}"))
 
 
 def _check_orientation(b: BRep, t: Tolerance, out: list[Problem], known: tuple | None = None,

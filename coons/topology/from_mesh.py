@@ -654,7 +654,7 @@ def _triangle_distances(point: np.ndarray, tri: np.ndarray) -> np.ndarray:
     lies inside the triangle, else the nearest of the three sides, so that a degenerate (collinear)
     triangle is its sides (cf. Ericson 2005, §5.1.5, whose Voronoi-region form
     :func:`coons.validation.compare.closest_points_on_triangles` gives the points but assumes a
-    proper triangle).  For :func:`coons.topology.sew._nest_voids`'s distance certificate."""
+    proper triangle).  For :mod:`coons.topology.nesting`'s distance certificate."""
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     n = np.cross(b - a, c - a)
     nn = np.einsum("ij,ij->i", n, n)

@@ -30,10 +30,12 @@ meet, which edges are shared — is recovered from geometry:
 5. **Assembly**: one shell (the common case) straight from the arrays of steps 1–4
    (:func:`~coons.topology.builder.assembled_brep`, the B-rep the builder would make, without
    its per-entity lists); several with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
-   (a shell enclosing negative volume becomes a void of the smallest positive shell around
-   it, by the winding number of one of its vertices: with respect to cones over the faces'
-   chords when the vertex lies outside every face box, else to the tessellation, see
-   :func:`_nest_voids`), then ``build()``; both end in :func:`~coons.topology.check.check`.
+   (a shell enclosing negative volume becomes a void of the positive shell directly around it; a
+   positive shell directly inside another positive one, or a void directly inside a void, is
+   refused; which shell lies inside which is the winding number of one of its vertices, with
+   respect to cones over the faces' chords when the vertex lies outside every face box, else to
+   the tessellation: :mod:`coons.topology.nesting`, :func:`_nest_voids`), then ``build()``; both
+   end in :func:`~coons.topology.check.check`.
 
 :func:`face_specs` is the inverse: the face specifications of an existing B-rep (used by the
 round-trip tests and by anything that re-sews modified faces).  It checks each edge once and
@@ -1140,122 +1142,49 @@ def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, 
 
 
 def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:
-    """Make every shell enclosing negative volume a void of the smallest positive shell around it.
+    """Make every shell enclosing negative volume a void of the shell around it, and refuse a
+    shell enclosing positive volume inside another such (two lumps overlapping).
 
-    Containment of a void is decided by the generalised winding number, with respect to each
-    positive shell, of one vertex of the void (the *probe*; shells are disjoint, so the void lies
-    inside a shell iff its probe does), computed from a closed triangle chain of that shell whose
-    answer is proven to be the exact surface's:
-
-    * *Cones* (no tessellation).  For a face, the cone from one of its vertices over the chords of
-      its coedges (straight segments between their end vertices) has the same boundary as the
-      face up to the strips between each edge curve and its chord, which cancel between the two
-      faces of the edge.  So the face minus its cone, minus its strips, is a closed chain inside
-      any convex set holding the face and its edges, and its winding number about a point outside
-      that set is 0: when the probe lies outside every face's box
-      (:func:`coons.topology.mass.face_box_bounds`), the cones' winding number is the shell's.
-    * *Mesh* (a probe inside some face box).  The shell's triangles in the tessellation at the
-      default deflection ``d`` (:func:`coons.topology.tessellate.tessellate`): far faces as above,
-      and faces whose box holds the probe count when the probe is farther than ``2 (d + e)``, ``e``
-      the largest edge tolerance, plus ``10 tol.linear`` from their triangles (the band of
-      :class:`coons.booleans.classify.Classifier`: mesh and face are within ``d`` of each other,
-      so the straight homotopy between them misses the probe).  Where that fails, the
-      deflection is divided by 8, at most three times and while it stays above ``tol.linear``
-      (finer meshes are not cached); a probe within the band's tolerance part, or still within
-      the band at the finest deflection, means the shells touch, and raises.
-
-    The probe is a vertex of the void inside no face box (the cones), else the one farthest from the
-    mesh of the faces whose boxes hold it.  Returns the B-rep built
-    before nesting, whose shell volumes (and, when it was made, default mesh) the final build
+    Which shell lies inside which is :func:`coons.topology.nesting.shell_parents` (winding numbers
+    of one vertex, from cones over the faces' chords where the vertex lies outside every face box
+    of the other shell, else from the default mesh with a distance certificate).  Returns the
+    B-rep built before nesting, whose shell volumes, default mesh and nesting the final build
     shares (the next Boolean on the result tessellates it with the same default).
 
     Raises
     ------
     TopologyError
-        A negative shell inside no positive shell (its faces are oriented inward), or one whose
-        vertices all lie within the mesh band of another shell at the finest deflection tried.
+        A negative shell inside no shell (its faces are oriented inward) or directly inside another
+        negative one; a positive shell directly inside another positive one; two shells touching
+        (every vertex of one within the mesh band of the other at the finest deflection tried).
     """
-    from coons.topology.from_mesh import _triangle_distances, _winding_numbers
-    from coons.topology.mass import face_box_bounds, shell_volumes
-    from coons.topology.tessellate import ANGULAR_DEFLECTION, _resolve_deflection, _tessellate, tessellate
-
-    # Divisions of the deflection by 8 before two shells are declared touching (1/512 of the
-    # default: about 2e-6 of the diagonal, far below any wall a Boolean leaves).
-    refinements = 3
+    from coons.topology.mass import shell_volumes
+    from coons.topology.nesting import shell_parents
 
     brep = b.build(check=False)
     vol = shell_volumes(brep)
-    neg = np.flatnonzero(vol < 0)
-    if neg.size == 0:
-        return brep
-    pos = np.flatnonzero(vol > 0)
-    box = face_box_bounds(brep, t)
-    face_shell = np.asarray(brep.face_shell, dtype=np.int64)
-    on_pos = np.isin(face_shell, pos)
-    # The cone chain of every positive shell: per coedge, its face's apex and its chord.
-    c_face = np.asarray(brep.coedge_face, dtype=np.int64)
-    used = np.flatnonzero((c_face >= 0) & on_pos[np.maximum(c_face, 0)])
-    origin = np.asarray(brep.coedge_origin, dtype=np.int64)
-    apex = np.full(brep.n_faces, -1, dtype=np.int64)
-    apex[c_face[used]] = origin[used]  # any vertex of the face lies in its box
-    V = brep.vertex_point
-    cones = V[np.stack([apex[c_face[used]], origin[used], origin[brep.coedge_next[used]]], axis=1)]
-    cone_shell = face_shell[c_face[used]]
-    for s in neg.tolist():
-        # The void's vertex inside the fewest boxes of positive faces (ties: the first).
-        verts = np.unique(origin[np.isin(c_face, brep.shell_face_ids(s))])
-        P = V[verts]
-        inside = ((P[:, None, :] >= box[None, on_pos, 0]) & (P[:, None, :] <= box[None, on_pos, 1])).all(axis=2)
-        k = int(np.argmin(inside.sum(axis=1)))
-        pos_faces = np.flatnonzero(on_pos)
-        if not inside[k].any():
-            probe = P[k]
-            w = np.array([_winding_numbers(probe[None], cones[cone_shell == o])[0] for o in pos.tolist()])
-        else:
-            w = None
-            d = _resolve_deflection(brep, None, t)
-            etol = float(np.max(brep.edge_tol, initial=0.0))
-            gap_floor = 2.0 * etol + 10.0 * t.linear  # (the band's part no deflection removes)
-            for r in range(refinements + 1):
-                # The default mesh is cached (and shared with the result); finer ones are not kept.
-                mesh = tessellate(brep, deflection=d, tol=t) if r == 0 else _tessellate(brep, d, ANGULAR_DEFLECTION, t)
-                tri = mesh.vertices[mesh.triangles]
-                band = 2.0 * (d + etol) + 10.0 * t.linear
-                # Any vertex of the void serves as the probe (shells are disjoint): the one farthest
-                # from the triangles of the faces whose boxes hold it, before any finer mesh.
-                gaps = np.full(len(verts), np.inf)
-                for i in range(len(verts)):
-                    near = np.zeros(brep.n_faces, dtype=bool)
-                    near[pos_faces[inside[i]]] = True
-                    at_near = near[mesh.face_ids]
-                    if at_near.any():
-                        gaps[i] = _triangle_distances(P[i], tri[at_near]).min()
-                k = int(np.argmax(gaps))
-                probe, gap = P[k], gaps[k]
-                if gap > band:
-                    tri_shell = face_shell[mesh.face_ids]
-                    w = np.array([_winding_numbers(probe[None], tri[tri_shell == o])[0] for o in pos.tolist()])
-                    break
-                # A finer mesh helps only when the gap exceeds the band's fixed part (the tolerances) and
-                # the tessellator accepts the finer deflection (above tol.linear).
-                if gap <= gap_floor or d / 8.0 <= t.linear:
-                    break
-                d /= 8.0
-            if w is None:
+    parents = shell_parents(brep, t, vol)
+    for s in range(brep.n_shells):
+        p = int(parents[s])
+        faces = brep.shell_face_ids(s)[:8].tolist()
+        if vol[s] < 0:
+            if p < 0:
                 raise TopologyError(
-                    f"shell {s} (faces {brep.shell_face_ids(s)[:8].tolist()}) has its vertex {int(verts[k])} "
-                    f"{gap:.3g} from another shell's tessellation at deflection {d:.3g} (band {band:.3g}, "
-                    f"tolerances {gap_floor:.3g}): the shells touch"
+                    f"shell {s} (faces {faces}) encloses volume {vol[s]:.6g} < 0 and lies inside no other shell: "
+                    "its faces are oriented inward (expected outward normals)"
                 )
-        # |w| is 1 inside a closed shell and 0 outside.
-        containers = pos[np.abs(w) > 0.5]
-        if containers.size == 0:
+            if vol[p] < 0:
+                raise TopologyError(
+                    f"shell {s} (faces {faces}) encloses volume {vol[s]:.6g} < 0 and lies directly inside shell {p}, "
+                    f"another void (volume {vol[p]:.6g}): a void must lie in solid material"
+                )
+            b.nest_shells(p, s)
+        elif p >= 0 and vol[p] > 0:
             raise TopologyError(
-                f"shell {s} (faces {brep.shell_face_ids(s)[:8].tolist()}) encloses volume {vol[s]:.6g} < 0 and lies "
-                "inside no other shell: its faces are oriented inward (expected outward normals)"
+                f"shell {s} (faces {faces}) encloses volume {vol[s]:.6g} > 0 and lies inside shell {p} (volume "
+                f"{vol[p]:.6g} > 0): the two solids overlap (a shell inside solid material must be a void, "
+                "oriented inward)"
             )
-        outer = int(containers[np.argmin(vol[containers])])
-        b.nest_shells(outer, s)
     return brep
 
 

@@ -297,6 +297,25 @@ def case_outward_void():
     return assemble_triangles([(outer, CUBE_T), (inner, CUBE_T)], nest=(0, 1)), "shell", 1
 
 
+def case_nested_solids():
+    """A cube inside a cube, both outward and each its own solid: the solids overlap."""
+    outer, inner = cube_points([0, 0, 0], [4, 4, 4]), cube_points([1, 1, 1], [3, 3, 3])
+    return assemble_triangles([(outer, CUBE_T), (inner, CUBE_T)]), "shell", 1
+
+
+def case_void_outside():
+    """An inward cube made a void of a cube it lies beside, not inside."""
+    outer, void = cube_points([0, 0, 0], [4, 4, 4]), cube_points([5, 1, 1], [7, 3, 3])
+    return assemble_triangles([(outer, CUBE_T), (void, [t[::-1] for t in CUBE_T])], nest=(0, 1)), "shell", 1
+
+
+def case_shells_touch():
+    """A slab spanning a cube wall to wall: every vertex of the slab lies on the cube's sides, so on
+    which side of the cube it lies is not proven."""
+    outer, slab = cube_points([0, 0, 0], [4, 4, 4]), cube_points([0, 0, 1], [4, 4, 3])
+    return assemble_triangles([(outer, CUBE_T), (slab, CUBE_T)]), "brep", 0
+
+
 class _OpaquePcurve:
     """A correct p-curve of a type the mass integrator does not know."""
 
@@ -341,6 +360,9 @@ CASES = {
     "outward-void": case_outward_void,
     "face-orientation": case_face_orientation,
     "orientation-unchecked": case_orientation_unchecked,
+    "nested-solids": case_nested_solids,
+    "void-outside": case_void_outside,
+    "shells-touch": case_shells_touch,
 }
 
 
@@ -581,7 +603,7 @@ def test_bulk_assemble_equals_per_vertex_assemble(monkeypatch):
     # and per-coedge paths must give the same tables row for row.
     import coons.topology.builder as builder_module
 
-    shape = sew_faces(face_specs(Box(1, 2, 3)) + face_specs(Sphere(0.3).brep))  # two shells
+    shape = sew_faces(face_specs(Box(1, 2, 3)) + face_specs(Sphere(0.3).translate((3, 0, 0)).brep))  # two lumps
     def tables():
         specs = face_specs(shape)
         return sew_faces(specs).brep

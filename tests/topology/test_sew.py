@@ -277,6 +277,37 @@ def test_a_void_in_a_face_box_but_outside_the_shell_is_refused():
         sew_faces(specs)
 
 
+def test_a_ball_in_a_cavity_is_a_lump_of_its_own():
+    """A lump inside a void is valid: its outer shell lies directly inside the void, not the material."""
+    solid = sew_faces(face_specs(Box(10, 10, 10)) + reversed_specs(face_specs(Box(8, 8, 8))) + face_specs(Sphere(3)))
+    b = solid.brep
+    assert (b.n_shells, b.n_solids) == (3, 2)
+    assert check(solid).ok
+    assert sorted(len(l.shells()) for l in solid.lumps()) == [1, 2]
+    np.testing.assert_allclose(solid.volume, 1000 - 512 + 4 / 3 * math.pi * 27, rtol=1e-9)
+
+
+@pytest.mark.parametrize("inner", [lambda: Box(2, 2, 2), lambda: Sphere(1).translate((0.5, 0, 0)),
+                                   lambda: Box(1, 1, 1).translate((2, 2, 2))])
+def test_a_lump_inside_a_lump_is_refused(inner):
+    """Two outward shells one inside the other overlap: the inner one must be a void (cones and mesh)."""
+    specs = face_specs(Box(6, 6, 6)) + face_specs(inner())
+    with pytest.raises(TopologyError, match=r"shell 1 \(faces .*\) encloses volume .* > 0 and lies inside shell 0 "
+                                            r"\(volume 216 > 0\): the two solids overlap"):
+        sew_faces(specs)
+    # Side by side they are two lumps.
+    solid = sew_faces(face_specs(Box(6, 6, 6)) + face_specs(inner().translate((10, 0, 0))))
+    assert (solid.brep.n_shells, solid.brep.n_solids) == (2, 2) and check(solid).ok
+
+
+def test_a_void_inside_a_void_is_refused():
+    specs = (face_specs(Box(10, 10, 10)) + reversed_specs(face_specs(Box(8, 8, 8)))
+             + reversed_specs(face_specs(Sphere(2))))
+    with pytest.raises(TopologyError, match=r"shell 2 \(faces .*\) encloses volume .* < 0 and lies directly inside "
+                                            r"shell 1, another void \(volume -512\): a void must lie in solid material"):
+        sew_faces(specs)
+
+
 def shifted_face(spec: FaceSpec, delta, tol) -> FaceSpec:
     """A planar face moved by ``delta`` (p-curves kept: they deviate by |delta|), edges of tolerance ``tol``."""
     loops = [[EdgeSpec(Line(e.curve.origin + delta, e.curve.direction), e.t0, e.t1, e.pcurve, tol) for e in l]

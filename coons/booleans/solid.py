@@ -2210,12 +2210,36 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance, nea
             d, sine = _end_sines(e.curve, P, T, lo_t, hi_t, 10.0 * delta, t)
             on = [x for x, y in zip(sine, d) if y <= 10.0 * delta]  # at the ends on this boundary edge
             if on:
-                worst = max(worst, max(delta / x for x in on))
+                w = max(delta / x for x in on)
+                # A cut running along the edge (a circle of an earlier Boolean cut again by the
+                # same plane) ends where another edge crosses it: this one's tangent says nothing.
+                if w <= 10.0 * delta or not _runs_along(c.curve, e.curve, lo_t, hi_t, delta):
+                    worst = max(worst, w)
             if near is not None and type(e.curve) in (Line, Circle, Ellipse):
                 O = (e.curve.origin if type(e.curve) is Line else e.curve._origin).tolist()
                 slack = 1e-12 * (size + max(map(abs, O)))
                 near[side] = [min(x, y + slack) for x, y in zip(near[side], d)]
     return worst
+
+
+def _runs_along(branch, curve, lo_t: float, hi_t: float, delta: float) -> bool:
+    """Whether ``curve`` over ``[lo_t, hi_t]`` lies within ``delta`` of the branch's line or circle (its
+    ends and middle do: three points of a circle on a circle make it that circle, two of a line
+    that line).  Other branch curves: False (the widened tolerance stays)."""
+    kind = type(branch)
+    if kind is not Line and kind is not Circle:
+        return False
+    Q = np.asarray(curve.evaluate(np.array([lo_t, 0.5 * (lo_t + hi_t), hi_t])), dtype=np.float64)
+    if kind is Line:
+        D = branch.direction / np.linalg.norm(branch.direction)
+        R = Q - branch.origin
+        dist = np.linalg.norm(R - np.outer(R @ D, D), axis=1)
+    else:
+        Z = branch.axis / np.linalg.norm(branch.axis)
+        R = Q - branch.center
+        h = R @ Z
+        dist = np.hypot(np.linalg.norm(R - np.outer(h, Z), axis=1) - branch.radius, h)
+    return bool(np.all(dist <= delta))
 
 
 def _near_boxes(points: list, P: np.ndarray, lo: np.ndarray, hi: np.ndarray, reach: np.ndarray) -> list[int]:

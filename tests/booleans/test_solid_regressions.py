@@ -635,3 +635,43 @@ def test_a_tessellation_failure_for_face_boxes_is_a_broad_phase_error(monkeypatc
     with pytest.raises(BooleanError) as info:
         op._mesh_boxes()
     assert info.value.stage == "broad_phase" and info.value.diagnostics["operand"] == "A"
+
+
+def _cyl_chain(lib: str, cyls, ops):
+    """``((c0 op c1) op c2) ...`` of z-axis cylinders ``(radius, height, x, y, z)`` centred at their positions."""
+    if lib == "coons":
+        solids = [Cylinder(r, h).translate((x, y, z)) for r, h, x, y, z in cyls]
+    else:
+        import build123d as bd
+
+        solids = [bd.Pos(x, y, z) * bd.Cylinder(r, h) for r, h, x, y, z in cyls]
+    out = [solids[0]]
+    for op, t in zip(ops, solids[1:]):
+        s = out[-1]
+        out.append(s + t if op == "+" else s - t if op == "-" else s & t)
+    return out
+
+
+#: Hunt seed 10, chain 28 (benchmarks/hunt_boolean_chains.py): a second cylinder's wall crosses the
+#: first one's cap plane in a circle that the third cylinder's cap cuts again, then a fourth cap in
+#: that plane cuts it once more.
+_RIM_AGAIN = ([(1.0, 2.0, 0.75, -0.25, 0.0), (1.0, 4.0, 0.5, 1.0, 0.0), (1.0, 2.0, -1.0, 0.25, 0.0),
+               (1.5, 4.0, -0.5, 0.5, -1.0)], ["+", "-", "-"])
+
+
+def test_a_cut_along_an_earlier_rim_keeps_the_edge_tolerance():
+    """A cut running along a boundary edge (the same circle) meets it at a zero angle; its end is fixed by
+    the edge crossing it, so its tolerance stays the inputs' (it grew 1000-fold per Boolean, 1e-4 then
+    0.1, until a cut of 0.06 lay within its own tolerance and the split dropped it)."""
+    steps = _cyl_chain("coons", *_RIM_AGAIN)
+    for s in steps[1:]:
+        assert s.check().ok
+        assert s.brep.edge_tol.max() < 1e-6
+
+
+@pytest.mark.occt
+def test_a_cut_along_an_earlier_rim_agrees_with_occt():
+    ours, ref = _cyl_chain("coons", *_RIM_AGAIN), _cyl_chain("build123d", *_RIM_AGAIN)
+    for a, b in zip(ours[1:], ref[1:]):
+        assert a.volume == pytest.approx(b.volume, rel=RTOL_OCCT)
+        assert a.area == pytest.approx(b.area, rel=RTOL_OCCT)

@@ -213,11 +213,13 @@ Status and limitations
   ``tests/booleans/test_solid_regressions.py``) still raise a
   ``BooleanError`` in these found cases: rims of different radii internally tangent to 1e-5
   beside a seam vertex (the cuts' end tolerance covers the vertex, ``split_face`` splits the rim
-  there and one stretch is used once); two cylinder walls, one through a sphere's seam, whose
-  cap planes touch the sphere at its poles (a self-intersecting trim near the pole at sewing);
-  a short cut (0.05) where two rims cross on a cap plane shared by four cylinders (dropped by
-  ``split_face``).  In the same runs OCCT returned wrong volumes (2–120 % off the referee) in
-  three chains where coons agreed with the referee.
+  there and one stretch is used once); a cylinder wall whose section with a sphere touches the
+  sphere's seam meridian (tangent to it, near the pole: the fitted p-curve crosses the seam by
+  round-off and the trim self-intersects at sewing).  In the same runs OCCT returned wrong volumes
+  (2–120 % off the referee) in three chains where coons agreed with the referee.  Fixed since: a
+  cut running along a boundary edge of its face (the same circle, from an earlier Boolean with a
+  shared cap plane) widened its end tolerance 1000-fold per Boolean until a short cut was dropped
+  (:func:`_runs_along`).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

@@ -168,15 +168,30 @@ def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         got = {}
         _POOL_IDS.set(b, got)
     hit = got.get(name)
-    if hit is None:
+    if hit is None or len(hit) == 2:
         pool = getattr(b, name)
-        ids = np.fromiter(map(id, pool), dtype=np.uint64, count=len(pool))  # (CPython ids are addresses, >= 0)
-        keep = np.arange(len(pool))
+        if hit is None:
+            ids = np.fromiter(map(id, pool), dtype=np.uint64, count=len(pool))  # (CPython ids are addresses, >= 0)
+            o = np.argsort(ids, kind="stable")
+        else:
+            ids, o = hit  # (seed_pool_ids: the builder sorted them)
         if not all(map(_value_type, set(map(type, pool)))):
-            keep = np.flatnonzero(np.fromiter(map(is_value, pool), dtype=bool, count=len(pool)))
-        o = keep[np.argsort(ids[keep], kind="stable")]
+            # (a stable order filtered is the stable order of the filtered ids)
+            o = o[np.fromiter(map(is_value, pool), dtype=bool, count=len(pool))[o]]
         hit = got[name] = (read_only(ids), read_only(ids[o]), read_only(o))
     return hit
+
+
+def seed_pool_ids(b: Any, name: str, ids: np.ndarray, order: np.ndarray) -> None:
+    """Give :func:`_pool_ids` the ids of the pool ``name`` of the new B-rep ``b`` that its builder
+    had at hand: ``ids (n,)`` uint64 in pool order and ``order (n,)`` the stable order that sorts
+    them (the builder finds a pool's distinct objects by sorting their ids).  The value filter
+    is left to the first read; a B-rep never read as a donor or against one costs nothing more."""
+    got = _POOL_IDS.get(b)
+    if got is None:
+        got = {}
+        _POOL_IDS.set(b, got)
+    got[name] = (ids, order)
 
 
 def id_index(objs: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,9 @@ depend on what is remembered, only the time does; :func:`clear_all` forgets ever
 :func:`pool_positions` carries tables between B-reps as arrays instead: the positions of one
 B-rep's geometry objects in another's pools (a Boolean's result in its operand's), by which rows
 built per object are gathered in one take; :func:`pool_values` says which pool objects are values.
+A B-rep assembled from arrays comes with its pools' ids sorted already (:func:`seed_pool_ids`: the
+builder sorts them to find the distinct objects), so a sequential cut's result is not walked again
+for them.
 """
 
 from __future__ import annotations
@@ -153,7 +156,8 @@ class LastRecord(IdentityMemo):
 
 
 #: B-rep -> ``{pool name: (ids in pool order, sorted ids of the value objects, their positions)}`` of
-#: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`).
+#: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`)
+#: or from ``(ids, order)`` seeded by the builder (:func:`seed_pool_ids`).
 _POOL_IDS = IdentityMemo()
 #: B-rep -> ``{(pool name, id(donor)): (weak reference to the donor, positions)}``: what
 #: :func:`pool_positions` found, shared by the checker and the mass tables of one B-rep.

@@ -29,7 +29,8 @@ meet, which edges are shared — is recovered from geometry:
    (map slope ±1) and 2-D ``NurbsCurve`` p-curves are supported.
 5. **Assembly**: one shell (the common case) straight from the arrays of steps 1–4
    (:func:`~coons.topology.builder.assembled_brep`, the B-rep the builder would make, without
-   its per-entity lists); several with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
+   its per-entity lists; the edges' curves and p-curves, with their ids for the pools, are takes
+   from the uses' object columns, carried from the last sewing like the others); several with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
    (a shell enclosing negative volume becomes a void of the smallest positive shell around
    it, by the winding number of one of its vertices: with respect to cones over the faces'
    chords when the vertex lies outside every face box, else to the tessellation, see

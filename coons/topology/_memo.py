@@ -12,6 +12,9 @@ depend on what is remembered, only the time does; :func:`clear_all` forgets ever
 :func:`pool_positions` carries tables between B-reps as arrays instead: the positions of one
 B-rep's geometry objects in another's pools (a Boolean's result in its operand's), by which rows
 built per object are gathered in one take; :func:`pool_values` says which pool objects are values.
+A B-rep assembled from arrays comes with its pools' ids sorted already (:func:`seed_pool_ids`: the
+builder sorts them to find the distinct objects), so a sequential cut's result is not walked again
+for them.
 """
 
 from __future__ import annotations
@@ -153,7 +156,8 @@ class LastRecord(IdentityMemo):
 
 
 #: B-rep -> ``{pool name: (ids in pool order, sorted ids of the value objects, their positions)}`` of
-#: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`).
+#: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`)
+#: or from ``(ids, order)`` seeded by the builder (:func:`seed_pool_ids`).
 _POOL_IDS = IdentityMemo()
 #: B-rep -> ``{(pool name, id(donor)): (weak reference to the donor, positions)}``: what
 #: :func:`pool_positions` found, shared by the checker and the mass tables of one B-rep.
@@ -168,15 +172,30 @@ def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         got = {}
         _POOL_IDS.set(b, got)
     hit = got.get(name)
-    if hit is None:
+    if hit is None or len(hit) == 2:
         pool = getattr(b, name)
-        ids = np.fromiter(map(id, pool), dtype=np.uint64, count=len(pool))  # (CPython ids are addresses, >= 0)
-        keep = np.arange(len(pool))
+        if hit is None:
+            ids = np.fromiter(map(id, pool), dtype=np.uint64, count=len(pool))  # (CPython ids are addresses, >= 0)
+            o = np.argsort(ids, kind="stable")
+        else:
+            ids, o = hit  # (seed_pool_ids: the builder sorted them)
         if not all(map(_value_type, set(map(type, pool)))):
-            keep = np.flatnonzero(np.fromiter(map(is_value, pool), dtype=bool, count=len(pool)))
-        o = keep[np.argsort(ids[keep], kind="stable")]
+            # (a stable order filtered is the stable order of the filtered ids)
+            o = o[np.fromiter(map(is_value, pool), dtype=bool, count=len(pool))[o]]
         hit = got[name] = (read_only(ids), read_only(ids[o]), read_only(o))
     return hit
+
+
+def seed_pool_ids(b: Any, name: str, ids: np.ndarray, order: np.ndarray) -> None:
+    """Give :func:`_pool_ids` the ids of the pool ``name`` of the new B-rep ``b`` that its builder
+    had at hand: ``ids (n,)`` uint64 in pool order and ``order (n,)`` the stable order that sorts
+    them (the builder finds a pool's distinct objects by sorting their ids).  The value filter
+    is left to the first read; a B-rep never read as a donor or against one costs nothing more."""
+    got = _POOL_IDS.get(b)
+    if got is None:
+        got = {}
+        _POOL_IDS.set(b, got)
+    got[name] = (ids, order)
 
 
 def id_index(objs: Any) -> tuple[np.ndarray, np.ndarray]:

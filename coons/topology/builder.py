@@ -43,6 +43,7 @@ import numpy as np
 from coons.errors import InvalidInputError, TopologyError
 from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
+from coons.topology._memo import seed_pool_ids
 from coons.topology.brep import BRep
 
 __all__ = ["BRepBuilder", "assembled_brep"]
@@ -980,11 +981,15 @@ def _finished(brep: BRep, tol: Tolerance, check: bool, caches_from: BRep | None,
     return brep
 
 
-def _pooled(objs: Sequence[Any]) -> tuple[list[Any], np.ndarray]:
+def _pooled(objs: Sequence[Any], ids: np.ndarray | None = None) -> tuple[list[Any], np.ndarray, np.ndarray, np.ndarray]:
     """The pool an empty :meth:`BRepBuilder._pool_many` makes of ``objs``: the distinct objects (by
-    identity, None left out) in the order first seen, and ``(n,)`` int64 the index of each (-1 for None)."""
+    identity, None left out) in the order first seen, ``(n,)`` int64 the index of each (-1 for None),
+    and the pool's ids ``(p,)`` uint64 in pool order with the order ``(p,)`` that sorts them (for
+    :func:`~coons.topology._memo.seed_pool_ids`).  ``ids (n,)`` int64: the objects' ``id`` when the
+    caller has them (``objs`` holds the objects, so they stay theirs)."""
     n = len(objs)
-    ids = np.fromiter(map(id, objs), dtype=np.int64, count=n)
+    if ids is None:
+        ids = np.fromiter(map(id, objs), dtype=np.int64, count=n)
     some = ids != id(None)
     uniq, first, inv = np.unique(ids[some], return_index=True, return_inverse=True)
     rank = np.empty(uniq.size, dtype=np.int64)
@@ -993,7 +998,9 @@ def _pooled(objs: Sequence[Any]) -> tuple[list[Any], np.ndarray]:
     idx = np.full(n, -1, dtype=np.int64)
     idx[some] = rank[inv.reshape(-1)]
     at = np.flatnonzero(some)[first[by_first]]
-    return [objs[i] for i in at.tolist()], idx
+    # (ids are addresses, >= 0: the same order as uint64; distinct, so the sort is the stable one)
+    pool = objs[at].tolist() if isinstance(objs, np.ndarray) else [objs[i] for i in at.tolist()]
+    return pool, idx, uniq[by_first].view(np.uint64), rank
 
 
 def _bulk_loops(edges: np.ndarray, nv: int, refs: np.ndarray, lens: np.ndarray) -> tuple[np.ndarray, ...] | None:
@@ -1049,7 +1056,8 @@ def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarra
                    loop_lens: np.ndarray, face_loop_counts: np.ndarray, face_surfaces: Sequence[Any],
                    face_senses: Sequence[bool], edge_curves: Sequence[Any], edge_ranges: np.ndarray,
                    edge_tols: np.ndarray, pcurve_coedges: np.ndarray, pcurves: Sequence[Any],
-                   tol: Tolerance, *, check: bool = True, sewn_from: tuple | None = None) -> BRep | None:
+                   tol: Tolerance, *, check: bool = True, sewn_from: tuple | None = None,
+                   curve_ids: np.ndarray | None = None, pcurve_ids: np.ndarray | None = None) -> BRep | None:
     """The B-rep of one shell, built from arrays: what a fresh :class:`BRepBuilder` makes of
 
     ``assemble(points, edges, face_loops, face_surfaces=..., face_senses=...)``,
@@ -1070,6 +1078,8 @@ def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarra
     face_surfaces, face_senses : per face
     edge_curves : per edge; edge_ranges : (E, 2) float64; edge_tols : (E,) float64
     pcurve_coedges : (m,) int64 and pcurves : (m,), the p-curve of each listed coedge (pool order)
+    curve_ids, pcurve_ids : (E,) and (m,) int64, optional: ``id`` of each of ``edge_curves`` and
+        ``pcurves`` (else taken here); the curves may come as object arrays
 
     Raises
     ------
@@ -1102,9 +1112,9 @@ def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarra
     # Each vertex's coedge: the first coedge (in coedge order) leaving it (isolated vertices: -1).
     vcoedge = np.full(nv, -1, dtype=np.int64)
     vcoedge[verts] = at
-    surfaces, fs = _pooled(face_surfaces[:nf])
-    curves, ci = _pooled(edge_curves)
-    pcurves_pool, pi = _pooled(pcurves)
+    surfaces, fs, s_ids, s_order = _pooled(face_surfaces[:nf])
+    curves, ci, c_ids, c_order = _pooled(edge_curves, curve_ids)
+    pcurves_pool, pi, p_ids, p_order = _pooled(pcurves, pcurve_ids)
     epcurve = np.full(2 * ne, -1, dtype=np.int64)
     epcurve[np.asarray(pcurve_coedges, dtype=np.int64)] = pi
     face_loop_ptr = np.zeros(nf + 1, dtype=np.int64)
@@ -1137,4 +1147,9 @@ def assembled_brep(points: np.ndarray, vertex_tols: np.ndarray, edges: np.ndarra
         curves=tuple(curves),
         pcurves=tuple(pcurves_pool),
     )
+    # The pools' ids sorted above serve the next B-rep's gathers from this one (and its own from
+    # its operand): _memo.pool_positions need not take them again.
+    seed_pool_ids(brep, "surfaces", s_ids, s_order)
+    seed_pool_ids(brep, "curves", c_ids, c_order)
+    seed_pool_ids(brep, "pcurves", p_ids, p_order)
     return _finished(brep, tol, check, None, sewn_from)

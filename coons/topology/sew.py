@@ -29,7 +29,9 @@ meet, which edges are shared — is recovered from geometry:
    (map slope ±1) and 2-D ``NurbsCurve`` p-curves are supported.
 5. **Assembly**: one shell (the common case) straight from the arrays of steps 1–4
    (:func:`~coons.topology.builder.assembled_brep`, the B-rep the builder would make, without
-   its per-entity lists); several with :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
+   its per-entity lists; the edges' curves and p-curves, with their ids for the pools, are taken
+   from the uses' object columns, carried from the last sewing like the others); several with
+   :meth:`~coons.topology.builder.BRepBuilder.assemble`, shells nested
    (a shell enclosing negative volume becomes a void of the positive shell directly around it; a
    positive shell directly inside another positive one, or a void directly inside a void, is
    refused; which shell lies inside which is the winding number of one of its vertices, with
@@ -288,8 +290,9 @@ class _Uses:
     """
 
     def __init__(self, faces: list[FaceSpec], t: Tolerance) -> None:
-        self.columns, self.spec, self.values, self.counts = _gathered_uses(faces)
-        w, r, P, self.kind, self.frame, self.curve_id, self.own_tol, self.complete = self.columns
+        self.columns, self.values, self.counts = _gathered_uses(faces)
+        (w, r, P, self.kind, self.frame, self.curve_id, self.own_tol, self.complete, self.spec, self.curve,
+         self.pcurve, self.pcurve_id) = self.columns
         k = len(self.spec)
         self.face = np.repeat(np.arange(len(faces), dtype=np.int64), self.counts)
         self.loop, self.pos, self.loop_len = w[:, 0], w[:, 1], w[:, 2]
@@ -308,16 +311,17 @@ class _Uses:
 
 
 #: The columns of :class:`_FaceUses` gathered per use by :func:`_gathered_uses`, in this order.
-_COLUMNS = ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete")
+_COLUMNS = ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete", "spec", "curve",
+            "pcurve", "pcurve_id")
 
 
 class _SewnUses:
     """The use columns of one sewing, for the next (:func:`_gathered_uses`): ``faces`` (held, so that
     their ids stay theirs), ``ids (F,)`` int64 their ids sorted and ``order (F,)`` the faces in that
     order; ``first, count (F,)`` each face's rows; ``values (F,)`` bool: the face's curves are all
-    values (only those rows are taken again); ``columns`` (:data:`_COLUMNS`) and ``spec`` (the uses)."""
+    values (only those rows are taken again); ``columns`` (:data:`_COLUMNS`)."""
 
-    __slots__ = ("faces", "ids", "order", "first", "count", "values", "columns", "spec")
+    __slots__ = ("faces", "ids", "order", "first", "count", "values", "columns")
 
 
 #: The last sewing's :class:`_SewnUses`, of the B-rep it made.
@@ -331,14 +335,14 @@ def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
     rec.ids, rec.order = id_index(rec.faces)
     rec.count = uses.counts
     rec.first = np.cumsum(rec.count) - rec.count
-    rec.values, rec.columns, rec.spec = uses.values, uses.columns, uses.spec
+    rec.values, rec.columns = uses.values, uses.columns
     _SEWN_USES.keep(b, rec)
 
 
-def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSpec], np.ndarray, np.ndarray]:
+def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """The :data:`_COLUMNS` over all uses of ``faces`` (face, loop, position order), read-only (the
-    next sewing takes its rows from them, :func:`_remember_uses`), the uses, ``(F,)`` bool: which
-    faces' curves are all values, and ``(F,)`` int64 the uses per face.
+    next sewing takes its rows from them, :func:`_remember_uses`), ``(F,)`` bool: which faces'
+    curves are all values, and ``(F,)`` int64 the uses per face.
 
     The faces of the last sewing (:data:`_SEWN_USES`; the very spec objects, matched by id while
     that sewing holds them) whose curves are values take their rows from its columns, all in one
@@ -356,25 +360,22 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], list[EdgeSp
     mvalues = [False] * len(mfaces)
     tables = _face_uses(mfaces, mvalues) if mfaces else []
     mcount = np.array([x.where.shape[0] for x in tables], dtype=np.int64)
-    mspec = [e for f in mfaces for loop in f.loops for e in loop]
     if miss.size == n:  # nothing from the last sewing: the rows are the tables' in turn
         columns = [_read_only(np.concatenate([getattr(x, c) for x in tables])) for c in _COLUMNS]
-        return columns, mspec, np.array(mvalues, dtype=bool), mcount
+        return columns, np.array(mvalues, dtype=bool), mcount
     count = np.empty(n, dtype=np.int64)
     count[hit] = rec.count[df[hit]]
     count[miss] = mcount
     # Each row's source among [the last sewing's rows; the missing faces' rows, in turn].
     src_first = np.empty(n, dtype=np.int64)
     src_first[hit] = rec.first[df[hit]]
-    src_first[miss] = len(rec.spec) + np.cumsum(mcount) - mcount
+    src_first[miss] = rec.columns[0].shape[0] + np.cumsum(mcount) - mcount
     src = np.repeat(src_first - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
     columns = [_read_only(np.concatenate([rc] + [getattr(x, c) for x in tables])[src])
                for rc, c in zip(rec.columns, _COLUMNS)]
-    pool = rec.spec + mspec
-    spec = list(map(pool.__getitem__, src.tolist()))
     values = np.ones(n, dtype=bool)
     values[miss] = mvalues
-    return columns, spec, values, count
+    return columns, values, count
 
 
 #: Curve kinds of :class:`_FaceUses` (others are 0).
@@ -391,10 +392,14 @@ class _FaceUses:
     another curve (0); ``frame (k, 4)``: a line's origin or a circle's centre, and its radius (0
     otherwise), which :func:`_reach` bounds the curves by; ``curve_id (k,)`` int64: ``id`` of each
     use's curve (the spec holds the curve, so the id stays its own); ``own_tol (k,)``: the use's
-    tolerance, NaN for None; ``complete (k,)`` bool: the use has a curve and a p-curve.  All read-only.
+    tolerance, NaN for None; ``complete (k,)`` bool: the use has a curve and a p-curve; ``spec,
+    curve, pcurve (k,)`` object: the use (its :class:`EdgeSpec`), its curve and p-curve (None), and
+    ``pcurve_id (k,)`` int64 the p-curve's ``id``: sewing gathers the uses and the B-rep's geometry
+    from these columns (:func:`_gathered_uses`, :func:`_assemble`), not use by use.  All read-only.
     """
 
-    __slots__ = ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete")
+    __slots__ = ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete", "spec", "curve",
+                 "pcurve", "pcurve_id")
 
 
 #: Face spec -> its :class:`_FaceUses`.  A spec is immutable and so are its curves when they are
@@ -477,11 +482,17 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
     own_tol = _read_only(np.concatenate([c[3] for c in loops]) if loops else np.empty(0))
     complete = _read_only(np.concatenate([c[4] for c in loops]) if loops else np.empty(0, dtype=bool))
     bounds = np.concatenate([[0], np.cumsum([sum(map(len, faces[fi].loops)) for fi in missing])]).tolist()
+    every = [e for fi in missing for loop in faces[fi].loops for e in loop]  # (the rows' order)
+    spec = _read_only(np.fromiter(every, dtype=object, count=n))
+    curve = _read_only(np.fromiter((e.curve for e in every), dtype=object, count=n))
+    pcurve = _read_only(np.fromiter((e.pcurve for e in every), dtype=object, count=n))
+    pcurve_id = _read_only(np.fromiter(map(id, pcurve), dtype=np.int64, count=n))
     for p, fi in enumerate(missing):
         a, b = bounds[p], bounds[p + 1]
         x = _FaceUses()
         x.where, x.points, x.ranges, x.kind = where[a:b], points[a:b], ranges[a:b], kind[a:b]
         x.frame, x.curve_id, x.own_tol, x.complete = frame[a:b], curve_id[a:b], own_tol[a:b], complete[a:b]
+        x.spec, x.curve, x.pcurve, x.pcurve_id = spec[a:b], curve[a:b], pcurve[a:b], pcurve_id[a:b]
         out[fi] = x
         if all(c[5] for c in parts[p]):
             _FACE_USES.set(faces[fi], x)
@@ -1068,22 +1079,26 @@ def _assemble(
     ref = np.where(is_left, edge_of + 1, -(edge_of + 1))
     edges = np.stack([edge_start, edge_end], axis=1)
     spec = uses.spec
-    sp = [spec[p] for p in primary.tolist()]
-    so = [spec[o] for o in other.tolist()]
     thr = np.maximum(uses.tol[primary], uses.tol[other])
-    curves = [e.curve for e in sp]
+    # The geometry in takes from the uses' object columns, with the objects' ids (the pools).
+    curves = uses.curve[primary]
     ranges = np.stack([np.minimum(uses.t0[primary], uses.t1[primary]),
                        np.maximum(uses.t0[primary], uses.t1[primary])], axis=1)
     # The primary use's p-curve, then the other's, edge by edge (the pool order of one call each).
     # One curve object: _pcurve_in returns the p-curve as it is (checked first there too).
     # (uses.curve_id holds id(use.curve) of live uses: equal ids are the same object)
-    pcs: list[Any] = [None] * (2 * E)
-    pcs[0::2] = [a.pcurve for a in sp]
-    pcs[1::2] = [o.pcurve for o in so]
+    pcs = np.empty(2 * E, dtype=object)
+    pcs[0::2] = uses.pcurve[primary]
+    pcs[1::2] = uses.pcurve[other]
+    pc_ids = np.empty(2 * E, dtype=np.int64)
+    pc_ids[0::2] = uses.pcurve_id[primary]
+    pc_ids[1::2] = uses.pcurve_id[other]
     thr_l = thr.tolist()
     for e in np.flatnonzero(uses.curve_id[primary] != uses.curve_id[other]).tolist():
-        pcs[2 * e + 1] = _pcurve_in(sp[e], so[e], thr_l[e],
-                                    f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})")
+        pc = _pcurve_in(spec[int(primary[e])], spec[int(other[e])], thr_l[e],
+                        f"{uses.name(int(other[e]))} (shared with {uses.name(int(primary[e]))})")
+        pcs[2 * e + 1] = pc  # (pcs holds it: its id stays its own)
+        pc_ids[2 * e + 1] = id(pc)
     side_p = np.where(fwd, 0, 1)
     pc_coedges = np.stack([2 * np.arange(E) + side_p, 2 * np.arange(E) + 1 - side_p], axis=1).ravel()
     # Which faces equal their spec, recorded before the check: it skips the checks of those whose
@@ -1096,7 +1111,8 @@ def _assemble(
     first_use = uses.pos == 0
     brep = assembled_brep(vpoint, vtol, edges, ref, uses.loop_len[first_use],
                           np.bincount(uses.face[first_use], minlength=len(faces)), surfaces, senses, curves,
-                          ranges, thr, pc_coedges, pcs, t, sewn_from=(tuple(faces), unchanged))
+                          ranges, thr, pc_coedges, pcs, t, sewn_from=(tuple(faces), unchanged),
+                          curve_ids=uses.curve_id[primary], pcurve_ids=pc_ids)
     if brep is not None:
         return Solid(brep)
     refs = ref.tolist()
@@ -1111,8 +1127,8 @@ def _assemble(
     b = BRepBuilder(t)
     b.assemble(vpoint, edges, face_loops, face_surfaces=surfaces, face_senses=senses)
     b.set_vertex_tols(np.arange(vtol.shape[0]), vtol)
-    b.set_edge_curves(np.arange(E), curves, ranges, thr)
-    b.set_pcurves(pc_coedges, pcs)
+    b.set_edge_curves(np.arange(E), curves.tolist(), ranges, thr)
+    b.set_pcurves(pc_coedges, pcs.tolist())
     pre = _nest_voids(b, t) if len(b.ssolid) > 1 else None
     return Solid(b.build(caches_from=pre, sewn_from=(tuple(faces), unchanged)))
 
@@ -1137,8 +1153,7 @@ def _unchanged_faces(faces: list[FaceSpec], uses: "_Uses", primary: np.ndarray, 
     ok[other] = (has[other] & shared & (own[other] == thr)
                  & (uses.t0[other] == uses.t1[primary]) & (uses.t1[other] == uses.t0[primary]))
     out = np.array([f.surface is not None for f in faces], dtype=bool)  # (an implicit plane never is)
-    np.logical_and.at(out, uses.face, ok)
-    return out
+    return out & (np.bincount(uses.face[~ok], minlength=len(faces)) == 0)
 
 
 def _nest_voids(b: BRepBuilder, t: Tolerance) -> BRep:

@@ -392,8 +392,11 @@ def test_pooled_is_the_builders_pool_order():
         seq = [None if k == 5 else objs[k] for k in rng.integers(0, 6, size=int(rng.integers(0, 12))).tolist()]
         b = builder.BRepBuilder()
         one = [b._pool("curves", x) for x in seq]
-        pool, idx = builder._pooled(seq)
+        pool, idx, ids, order = builder._pooled(seq)
         assert idx.tolist() == one and [id(x) for x in pool] == [id(x) for x in b.curves]
+        # the pool's ids and their stable sorting order (what _memo.seed_pool_ids is given)
+        assert ids.dtype == np.uint64 and ids.tolist() == [id(x) for x in pool]
+        np.testing.assert_array_equal(order, np.argsort(ids, kind="stable"))
         b2 = builder.BRepBuilder()
         assert b2._pool_many("curves", seq) == one and [id(x) for x in b2.curves] == [id(x) for x in b.curves]
         assert b2._pool_many("curves", seq) == one  # (a pool with entries)
@@ -421,7 +424,13 @@ def test_several_shells_are_assembled_by_the_builder(monkeypatch):
 
 def _uses_columns(u) -> dict:
     cols = {c: np.asarray(x) for c, x in zip(sew._COLUMNS, u.columns)}
-    cols["spec"] = np.array([id(e) for e in u.spec], dtype=np.int64)
+    for c in ("spec", "curve", "pcurve"):  # object columns: the very objects (their ids)
+        assert cols[c].dtype == object and not cols[c].flags.writeable
+        cols[c] = np.array([id(e) for e in cols[c]], dtype=np.int64)
+        cols[c].setflags(write=False)
+    assert cols["spec"].tolist() == [id(e) for e in u.spec]
+    assert cols["curve"].tolist() == [id(e.curve) for e in u.spec] == cols["curve_id"].tolist()
+    assert cols["pcurve"].tolist() == [id(e.pcurve) for e in u.spec] == cols["pcurve_id"].tolist()
     cols["values"] = np.asarray(u.values)
     for name in ("face", "loop", "pos", "loop_len", "t0", "t1", "tol", "start", "end", "mid", "next"):
         cols[name] = np.asarray(getattr(u, name))
@@ -462,3 +471,47 @@ def test_uses_gathered_from_the_last_sewing_equal_the_per_face_tables(monkeypatc
     for cols in (fast, slow):
         assert not any(cols[c].flags.writeable for c in sew._COLUMNS)
     assert kept.brep.n_faces == 6
+
+
+
+def test_seeded_pool_ids_are_the_computed_ones():
+    # assembled_brep hands _memo the ids its pools were sorted by (seed_pool_ids); the tables
+    # _pool_ids gives from a seed equal those it computes from the pool, values only.
+    import dataclasses
+
+    from coons import Box, Cylinder
+    from coons.topology import _memo, builder
+
+    b = (Box(10, 10, 10) - Cylinder(3, 20).translate((0, 0, -5))).brep
+    seeded = _memo._POOL_IDS.get(b)
+    assert seeded is not None and all(k in seeded for k in ("surfaces", "curves", "pcurves"))
+    for name in ("surfaces", "curves", "pcurves"):
+        got = _memo._pool_ids(b, name)
+        del _memo._POOL_IDS.get(b)[name]
+        again = _memo._pool_ids(b, name)  # computed from the pool
+        pool, _, ids, order = builder._pooled(getattr(b, name))
+        assert [id(x) for x in pool] == [id(x) for x in getattr(b, name)]
+        del _memo._POOL_IDS.get(b)[name]
+        _memo.seed_pool_ids(b, name, ids, order)
+        for x, y, z in zip(got, again, _memo._pool_ids(b, name)):
+            np.testing.assert_array_equal(x, y)
+            np.testing.assert_array_equal(x, z)
+
+    # A pool with objects that are not values: the seed is filtered as the pool would be.
+    @dataclasses.dataclass
+    class Mutable:
+        x: int
+
+    @dataclasses.dataclass(frozen=True)
+    class Holder:
+        probe: tuple
+
+    values = list(b.curves[:4])
+    objs = [Mutable(k) if k % 2 else values[k // 2] for k in range(8)]
+    pool, _, ids, order = builder._pooled(objs + objs[::-1])
+    seeded_holder, plain_holder = Holder(tuple(pool)), Holder(tuple(pool))
+    _memo.seed_pool_ids(seeded_holder, "probe", ids, order)
+    got, again = _memo._pool_ids(seeded_holder, "probe"), _memo._pool_ids(plain_holder, "probe")
+    assert got[1].size == 4
+    for x, y in zip(got, again):
+        np.testing.assert_array_equal(x, y)

@@ -12,7 +12,11 @@ meet, which edges are shared — is recovered from geometry:
    the last sewing also had are taken from its arrays in one gather, :func:`_gathered_uses`)
    are clustered with a k-d tree (``scipy.spatial.cKDTree.query_pairs``) — two ends within ``max(tol.linear, edge tolerances)``
    are one vertex; clusters are the connected components.  The vertex sits at the cluster mean
-   and records the largest distance to it as its tolerance.
+   and records the largest distance to it as its tolerance.  A use whose two ends are one vertex
+   and whose midpoint lies within its tolerance of it (an edge shorter than its tolerance: two
+   crossings of intersection curves that close) is collapsed into that vertex, its loop running
+   on from the use before to the one after (:func:`_without_uses`; a loop or face left empty
+   goes), and the ends clustered again.
 2. **Loops** must close: each edge use ends at the vertex where the next one starts.
 3. **Edges**: edge uses joining the same two vertices whose 3-D curves agree at their
    midpoints (the parametric midpoint of one within tolerance of the other curve, restricted to
@@ -249,8 +253,7 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     InvalidInputError
         ``faces`` empty or not FaceSpecs.
     TopologyError
-        A loop that does not close, a degenerate edge (its ends merge but it is not a closed
-        curve), an edge matching no other (open shell), more than one other (non-manifold), or
+        A loop that does not close, an edge matching no other (open shell), more than one other (non-manifold), or
         one running the same way (inconsistent orientation), p-curves that cannot be made
         same-parameter, a shell enclosing negative volume outside every other shell, or any
         invariant the checker finds.
@@ -272,6 +275,13 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
             raise InvalidInputError(f"faces[{i}] must be a FaceSpec, got {type(f).__name__}")
     uses = _Uses(faces, t)
     vertex, vpoint, vtol = _merge_vertices(uses, t)
+    short = _degenerate_uses(uses, vertex, vpoint)
+    if short.size:
+        # Edges shorter than their tolerance (two crossings of intersection curves within it)
+        # are collapsed into their vertex: their loops run on from the edge before to the one after.
+        faces = _without_uses(faces, uses, short)
+        uses = _Uses(faces, t)
+        vertex, vpoint, vtol = _merge_vertices(uses, t)
     _check_loops_close(uses, vertex, vpoint)
     pairs = _match_edges(uses, vertex, vpoint, t)
     solid = _assemble(faces, uses, vertex, vpoint, vtol, pairs, t)
@@ -658,6 +668,41 @@ def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     return np.stack([label[:k], label[k:]], axis=1), mean, np.maximum(spread, t.linear)
 
 
+def _degenerate_uses(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray) -> np.ndarray:
+    """Indices of the uses whose ends are one vertex and whose midpoint lies within their tolerance
+    of it: edges shorter than their tolerance (a closed curve's midpoint lies far from its ends)."""
+    closed = np.flatnonzero(vertex[:, 0] == vertex[:, 1])
+    if closed.size == 0:
+        return closed
+    gap = _norms(uses.mid[closed] - vpoint[vertex[closed, 0]])
+    return closed[gap <= uses.tol[closed]]
+
+
+def _without_uses(faces: list[FaceSpec], uses: _Uses, drop: np.ndarray) -> list[FaceSpec]:
+    """The faces with the uses ``drop`` (indices into ``uses``) taken out of their loops; a loop left
+    empty goes, and a face whose outer loop goes goes with its holes (all of it lies within the
+    tolerance of one vertex)."""
+    gone = np.zeros(len(uses), dtype=bool)
+    gone[drop] = True
+    first = np.cumsum(uses.counts) - uses.counts
+    out = []
+    for f, (face, start) in enumerate(zip(faces, first.tolist())):
+        if not gone[start : start + uses.counts[f]].any():
+            out.append(face)
+            continue
+        loops, i = [], start
+        for k, loop in enumerate(face.loops):
+            kept = tuple(e for j, e in enumerate(loop) if not gone[i + j])
+            i += len(loop)
+            if not kept and k == 0:
+                break
+            if kept:
+                loops.append(kept)
+        else:
+            out.append(FaceSpec._trusted(face.surface, face.sense, tuple(loops)))
+    return out
+
+
 def _check_loops_close(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray) -> None:
     """Each use must end at the vertex where the next use of its loop starts.
 
@@ -686,18 +731,11 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     Raises
     ------
     TopologyError
-        A degenerate use, an unmatched use (open shell), a use matched more than once
-        (non-manifold) or a pair running the same way (inconsistent orientation).
+        An unmatched use (open shell), a use matched more than once (non-manifold) or a pair
+        running the same way (inconsistent orientation).
     """
     vs, ve = vertex[:, 0], vertex[:, 1]
-    closed = vs == ve
-    for i in np.flatnonzero(closed):
-        i = int(i)
-        if np.linalg.norm(uses.mid[i] - vpoint[vs[i]]) <= uses.tol[i]:
-            raise TopologyError(
-                f"{uses.name(i)} is degenerate: its ends and its midpoint are within {uses.tol[i]:.3g} of vertex "
-                f"{vpoint[vs[i]].tolist()}; expected an edge longer than the tolerance"
-            )
+    closed = vs == ve  # (closed curves: sew_faces collapsed the uses shorter than their tolerance)
     lo, hi = np.minimum(vs, ve), np.maximum(vs, ve)
     order = np.lexsort((np.arange(len(uses)), hi, lo))
     key = lo[order] * (int(hi.max()) + 1) + hi[order]

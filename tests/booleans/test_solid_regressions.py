@@ -675,3 +675,28 @@ def test_a_cut_along_an_earlier_rim_agrees_with_occt():
     for a, b in zip(ours[1:], ref[1:]):
         assert a.volume == pytest.approx(b.volume, rel=RTOL_OCCT)
         assert a.area == pytest.approx(b.area, rel=RTOL_OCCT)
+
+
+def _triple_point_chain(lib: str):
+    """Hunt seed 13, chain 22: ``(cylinder ∩ box) ∪ sphere`` where the sphere, the cylinder wall and a
+    box side meet at one point: two crossings of section curves 1e-7 apart leave an edge shorter
+    than its tolerance, which sewing collapses into its vertex (it refused the result before)."""
+    if lib == "coons":
+        cyl, box, ball = Cylinder(1.5, 4.0), Box(1.0, 1.0, 4.0), Sphere(1.0)
+    else:
+        import build123d as bd
+
+        cyl, box, ball = bd.Cylinder(1.5, 4.0), bd.Box(1.0, 1.0, 4.0), bd.Sphere(1.0)
+    if lib == "coons":
+        cyl, box, ball = cyl.translate((-0.75, -0.5, 0)), box.translate((0.5, 0.25, 1.0)), ball.translate((0.5, 0, 1.0))
+    else:
+        cyl, box, ball = bd.Pos(-0.75, -0.5, 0) * cyl, bd.Pos(0.5, 0.25, 1.0) * box, bd.Pos(0.5, 0, 1.0) * ball
+    return (cyl & box) + ball
+
+
+@pytest.mark.occt
+def test_three_surfaces_through_one_point_agree_with_occt():
+    r, ref = _triple_point_chain("coons"), _triple_point_chain("build123d")
+    assert r.check().ok
+    assert r.volume == pytest.approx(ref.volume, rel=RTOL_OCCT)
+    assert r.area == pytest.approx(ref.area, rel=RTOL_OCCT)

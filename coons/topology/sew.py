@@ -280,6 +280,11 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
         # Edges shorter than their tolerance (two crossings of intersection curves within it)
         # are collapsed into their vertex: their loops run on from the edge before to the one after.
         faces = _without_uses(faces, uses, short)
+        if not faces:
+            raise TopologyError(
+                f"every face lies within its edges' tolerance (up to {float(uses.tol.max()):.3g}) of one vertex: "
+                "the shell collapses to a point"
+            )
         uses = _Uses(faces, t)
         vertex, vpoint, vtol = _merge_vertices(uses, t)
     _check_loops_close(uses, vertex, vpoint)

@@ -376,6 +376,14 @@ def test_open_loop_is_refused_with_the_gap():
         sew_faces(specs)
 
 
+def test_a_shell_within_its_tolerance_of_a_point_is_refused():
+    specs = [FaceSpec(f.surface, f.sense, [[EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, 10.0) for e in l] for l in f.loops])
+             for f in face_specs(Box(1, 1, 1))]
+    with pytest.raises(TopologyError, match=r"every face lies within its edges' tolerance \(up to 10\) of one vertex: "
+                                            "the shell collapses to a point"):
+        sew_faces(specs)
+
+
 def test_an_edge_shorter_than_its_tolerance_is_collapsed():
     """A tiny edge in one loop (1e-9 long, no partner), and an edge cut 3e-8 from its end in both its
     faces (a tiny edge used twice), collapse into their vertices: the box comes back."""

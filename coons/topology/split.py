@@ -172,6 +172,8 @@ class _FaceData:
         # The loops, not the face: the cache holds its values strongly and the face only weakly.
         self.face_loops, self.t = face.loops, t
         self.loops: list[list[tuple[Any, np.ndarray, np.ndarray, np.ndarray]]] | None = None
+        self.gaps: list[list[tuple[float, np.ndarray, np.ndarray]]] | None = None  # per loop edge, see pieces
+        self.virtual: dict[tuple[int, int], Line2D] = {}  # (loop, edge) -> the virtual segment after the edge
         self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
         self.convex: dict[float, tuple | None] = {}  # per eps: :func:`_convex_sides` of the boundary pieces
 
@@ -187,9 +189,10 @@ class _FaceData:
         eps = tol3 / self.sigma
         return _Plane(self.surface, self.project, self.M, eps, tol3, Tolerance(eps, t.angular, t.solver), t)
 
-    def pieces(self, plane: _Plane) -> tuple[list["_Piece"], "_Inside"]:
+    def pieces(self, plane: _Plane, fresh: bool = True) -> tuple[list["_Piece"], "_Inside"]:
         """Fresh boundary pieces (their splits are the caller's) sharing cached curves and boxes, and the
-        point-in-face test of the face."""
+        point-in-face test of the face.  ``fresh=False``: the cached pieces themselves, for a caller that
+        only reads them (:func:`clip_to_face`; a box it computes is cached on them, the same for every caller)."""
         entry = self.by_eps.get(plane.eps)
         if entry is None:
             if self.loops is None:
@@ -199,16 +202,27 @@ class _FaceData:
                     loops.append([(pc, _uv(pc, e.t0), _uv(pc, e.t1), curve_box(pc, (e.t0, e.t1), plane.t))
                                   for pc, e in zip(pcs, loop)])
                 self.loops = loops
+            if self.gaps is None:
+                # Each edge's gap to the next edge's start: its length and the virtual segment across it, the
+                # same for every eps (which only decides whether the segment is a piece).
+                self.gaps = [[(float(np.linalg.norm(data[(k + 1) % len(data)][1] - q)), q,
+                               data[(k + 1) % len(data)][1]) for k, (_, _, q, _) in enumerate(data)]
+                             for data in self.loops]
             rows = []
-            for li, (loop, data) in enumerate(zip(self.face_loops, self.loops)):
-                for k, (e, (pc, _, q, box)) in enumerate(zip(loop, data)):
+            for li, (loop, data, gaps) in enumerate(zip(self.face_loops, self.loops, self.gaps)):
+                for k, (e, (pc, _, _, box)) in enumerate(zip(loop, data)):
                     rows.append((pc, e.t0, e.t1, "boundary", li, e, box))
-                    p = data[(k + 1) % len(loop)][1]
-                    if np.linalg.norm(p - q) > plane.eps:
-                        rows.append((Line2D(q, p - q), 0.0, 1.0, "virtual", li, None, None))
+                    gap, q, p = gaps[k]
+                    if gap > plane.eps:
+                        line = self.virtual.get((li, k))
+                        if line is None:
+                            line = self.virtual[(li, k)] = Line2D(q, p - q)
+                        rows.append((line, 0.0, 1.0, "virtual", li, None, None))
             pieces = [_Piece(pc, a, b, kind, li, e, [], [], box) for pc, a, b, kind, li, e, box in rows]
             entry = self.by_eps[plane.eps] = (pieces, _Inside(pieces))
         templates, region = entry
+        if not fresh:
+            return templates, region
         out = [_Piece(p.pc, p.a, p.b, p.kind, p.loop, p.spec, [], [], p.box) for p in templates]
         return out, region
 
@@ -405,7 +419,8 @@ class _Inside:
         sag = 0.0
         for p in self.pieces:
             m = 2 if isinstance(p.pc, Line2D) else n
-            t = np.linspace(p.a, p.b, m)
+            # (np.linspace(a, b, 2) is [a, b], without its set-up)
+            t = np.array([p.a, p.b], dtype=np.float64) if m == 2 else np.linspace(p.a, p.b, m)
             P = _uv(p.pc, t)
             if m > 2:
                 mid = _uv(p.pc, 0.5 * (t[1:] + t[:-1]))
@@ -520,7 +535,7 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     plane = data.plane([])
     planar = plane.project or isinstance(plane.surface, PlanarSurface)
     pc = _checked_pc(_to_plane(pcurve, plane.surface, "the clipped curve") if planar else pcurve, plane)
-    pieces, region = data.pieces(plane)
+    pieces, region = data.pieces(plane, fresh=not _FAST)  # (read only here: no splits are recorded)
     lo, hi = min(t0, t1), max(t0, t1)
     if _FAST:
         sides = data.sides(plane, pieces)
@@ -1026,7 +1041,9 @@ def _sub_pieces(pieces: list[_Piece], plane: _Plane) -> list[_Sub]:
     out = []
     for k, p in enumerate(pieces):
         lo, hi = min(p.a, p.b), max(p.a, p.b)
-        s = np.unique(np.clip(np.asarray([lo, hi] + p.splits, dtype=np.float64), lo, hi))
+        # (without splits np.unique(np.clip([lo, hi])) is [lo, hi]: the pieces have lo < hi)
+        s = (np.unique(np.clip(np.asarray([lo, hi] + p.splits, dtype=np.float64), lo, hi)) if p.splits
+             else np.array([lo, hi], dtype=np.float64))
         s, P = _distinct_points(p.pc, s, plane.eps)
         if p.a > p.b:
             s, P = s[::-1], P[::-1]
@@ -1136,15 +1153,20 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     P_all, reach_all = _space_reach(plane, ends_all)
     samples: dict = {}  # dense samples of the pieces, per curve and range (pieces live through the call)
     piece_ends: dict[int, np.ndarray] = {}  # (2, 2) end points of the pieces examined, cuts' from ends_all
+    B = None  # (n, 2, 2) the pieces' boxes, for the box tests of all pieces against one end at once
     for i in range(nb, len(pieces)):
         k = 2 * (i - nb)
         ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
         for q, Pq, r in zip(ends, P, reach):
             if not r > plane.eps:
                 continue
-            box = np.stack([q - r, q + r])
-            for j, o in enumerate(pieces):
-                if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
+            if B is None:
+                B = np.array([_box(o, plane) for o in pieces])
+            # (_boxes_meet of the end's box [q - r, q + r] and every piece's, with no margin)
+            meet = np.all((q - r <= B[:, 1]) & (B[:, 0] <= q + r), axis=1)
+            for j in np.flatnonzero(meet).tolist():
+                o = pieces[j]
+                if j == i:
                     continue
                 if _FAST:
                     # An end of the piece within eps of q bounds the true foot's distance by eps: no split (the
@@ -1299,8 +1321,15 @@ class _Graph:
         for p, ks in by_piece.items():
             ks = np.asarray(ks)
             ab = np.array([[self.sub[k].a, self.sub[k].b] for k in ks])
-            D = _pc_derivatives(self.pieces[p].pc, ab, 2)  # (m, 2, 3, 2)
             sign = np.where(ab[:, 1] > ab[:, 0], 1.0, -1.0)[:, None]
+            pc = self.pieces[p].pc
+            if _FAST and type(pc) is Line2D:
+                # A straight piece's derivatives are its direction and 0 everywhere (Line2D.derivatives'
+                # values), without the evaluation of its points, which this does not read.
+                D1[2 * ks], D1[2 * ks + 1] = sign * pc.direction, -sign * pc.direction
+                D2[2 * ks] = D2[2 * ks + 1] = 0.0
+                continue
+            D = _pc_derivatives(pc, ab, 2)  # (m, 2, 3, 2)
             # Forward half-edge leaves a along the travel, backward leaves b against it.
             D1[2 * ks], D2[2 * ks] = sign * D[:, 0, 1], D[:, 0, 2]
             D1[2 * ks + 1], D2[2 * ks + 1] = -sign * D[:, 1, 1], D[:, 1, 2]

@@ -236,6 +236,8 @@ class _PowerForm:
         self._stacked: np.ndarray | None = None
         self._scalar: tuple | None = None
         self._powers = np.arange(p + 1)
+        self._break_list = vals.tolist()
+        self._lengths = h  # (spans,) the spans' lengths, br[i + 1] - br[i]
         self._binom = [[math.comb(k, i) for i in range(k + 1)] for k in range(p + 3)]
 
     def _stack(self, order: int) -> np.ndarray:
@@ -319,8 +321,14 @@ class _PowerForm:
         """``(k, order + 1, d)`` point and derivatives at ``t (k,)`` (the span to the right at a knot)."""
         t = np.asarray(t, dtype=np.float64).ravel()
         br = self.breaks
-        span = np.minimum(np.maximum(np.searchsorted(br, t, side="right") - 1, 0), br.size - 2)
-        a, h = br[span], br[span + 1] - br[span]
+        if t.size <= _FEW_POINTS:
+            # The spans of a few parameters by bisection on Python floats (np.searchsorted's answer, side
+            # "right", also for nan: past the end), without the array calls' set-up.
+            bl, last = self._break_list, br.size - 2
+            span = np.array([min(max(bisect.bisect_right(bl, x) - 1, 0), last) for x in t.tolist()], dtype=np.intp)
+        else:
+            span = np.minimum(np.maximum(np.searchsorted(br, t, side="right") - 1, 0), br.size - 2)
+        a, h = br[span], self._lengths[span]
         x = (t - a) / h
         X = x[:, None] ** self._powers  # (k, p + 1)
         C = self._stack(order)[span, : order + 1]  # (k, order + 1, p + 1, d + 1)
@@ -338,6 +346,10 @@ class _PowerForm:
                 v -= self._binom[k][i] * w[:, i] * out[:, k - i]
             out[:, k] = v / w[:, 0]
         return out
+
+
+#: Up to this many parameters :meth:`_PowerForm.derivatives` finds their spans by bisection in Python.
+_FEW_POINTS = 8
 
 
 class _SpanLists:

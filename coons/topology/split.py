@@ -233,9 +233,10 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
 
 #: The fast paths on: the per-face cache, the skip of exact crossings in :func:`_in_space`, the
 #: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
-#: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`) and the skip of
-#: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`); tests switch them off to compare
-#: with the general path.
+#: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`), the skip of
+#: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`), the straight pieces' directions
+#: without evaluation (:meth:`_Graph._directions`) and :func:`clip_to_face` reading the cached boundary pieces;
+#: tests switch them off to compare with the general path.
 _FAST = True
 
 

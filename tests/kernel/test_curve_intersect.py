@@ -751,3 +751,24 @@ def test_refine_scalar_distance_is_the_gap_at_the_answer(angle, tilt, ds, dt):
     g = _gap1(_scalar_form(c1), float(s[0]), _scalar_form(c2), float(t[0]))
     assert d[0] == math.sqrt(sum(x * x for x in g))
     assert d[0] <= 1e-9
+
+
+@pytest.mark.parametrize("rational", [False, True])
+def test_span_polynomials_at_a_few_parameters_match_those_in_many(rational):
+    """:meth:`_PowerForm.derivatives` at a few parameters (their spans by bisection in Python) gives the values
+    of the same parameters among many (np.searchsorted), to the bit: at knots (the span to the right), at
+    the ends, outside the domain (clamped to the end spans) and at nan."""
+    from coons.kernel.curve_intersect import _FEW_POINTS, _PowerForm
+
+    rng = np.random.default_rng(11)
+    U = np.concatenate([[0.0] * 4, [0.2, 0.35, 0.35, 0.65, 0.8], [1.0] * 4])
+    w = rng.uniform(0.5, 2.0, 9) if rational else None
+    form = _PowerForm(NurbsCurve(rng.normal(size=(9, 3)), U, 3, w))
+    few = np.array([0.0, 0.35, 0.8, 1.0, -0.1, 1.2, np.nan, 0.5])
+    assert few.size <= _FEW_POINTS
+    many = np.concatenate([few, rng.uniform(0.0, 1.0, 3 * _FEW_POINTS)])
+    for order in range(3):
+        assert np.array_equal(form.derivatives(few, order), form.derivatives(many, order)[:few.size], equal_nan=True)
+        for x in few:
+            assert np.array_equal(form.derivatives(np.array([x]), order)[0], form.derivatives(many, order)[
+                int(np.flatnonzero((many == x) | (np.isnan(many) & np.isnan(x)))[0])], equal_nan=True)

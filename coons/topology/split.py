@@ -84,7 +84,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from coons.errors import InvalidInputError
-from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
+from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
+                                   SphericalSurface, ToroidalSurface)
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.curve_intersect import (_derivs, _point1, _scalar_form, curve_box, intersect_curves,
                                          refine_intersections)
@@ -1091,6 +1092,10 @@ def _check_cuts_inside(sub: list[_Sub], pieces: list[_Piece], region: _Inside, c
 _SLOW_MERGE = 100.0
 
 
+#: The surfaces of revolution (kernel.analytic), whose ``derivatives(u, v)[..., 0, 0]`` are ``evaluate(u, v)``.
+_REVOLVED = (CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface)
+
+
 def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """3-D points ``(m, 3)`` of working-plane points ``X`` (m, 2) on a curved face, and how far
     ``(m,)`` in the plane a point found to ``tol3`` in space may lie from them: ``tol3 / σ_min``
@@ -1099,8 +1104,11 @@ def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Minv = np.diag(1.0 / np.diag(plane.M))
     uv = X @ Minv.T
     S = plane.surface
-    P = np.asarray(S.evaluate(uv[:, 0], uv[:, 1]), dtype=np.float64).reshape(-1, 3)
     D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1), dtype=np.float64)
+    if _FAST and type(S) in _REVOLVED:
+        P = D[:, 0, 0]  # (a surface of revolution's derivatives give evaluate's points bit for bit: the same sums)
+    else:
+        P = np.asarray(S.evaluate(uv[:, 0], uv[:, 1]), dtype=np.float64).reshape(-1, 3)
     J = np.stack([D[:, 1, 0] * Minv[0, 0], D[:, 0, 1] * Minv[1, 1]], axis=2)  # (m, 3, 2)
     smin = np.linalg.svd(J, compute_uv=False)[:, -1]
     reach = np.minimum(_SLOW_MERGE * plane.eps, plane.tol3 / np.maximum(smin, np.finfo(float).tiny))

@@ -587,7 +587,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         img = np.empty(seg.shape[:2] + (3,))
         for si_ in np.unique(s_far).tolist():
             sel = s_far == si_
-            img[sel] = b.surfaces[si_].evaluate(seg[sel, :, 0], seg[sel, :, 1])
+            uv_sel = seg[sel].reshape(-1, 2)
+            img[sel] = np.asarray(b.surfaces[si_].evaluate(uv_sel[:, 0], uv_sel[:, 1])).reshape(-1, samples, 3)
         target = b.coedge_target[c_far]
         gap = np.max(np.linalg.norm(img - b.vertex_point[target][:, None, :], axis=-1), axis=1)
         for k, kn, c, g, limit in zip(ks.tolist(), kns.tolist(), c_far.tolist(), gap.tolist(),

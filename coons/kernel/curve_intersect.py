@@ -236,6 +236,8 @@ class _PowerForm:
         self._stacked: np.ndarray | None = None
         self._scalar: tuple | None = None
         self._powers = np.arange(p + 1)
+        self._break_list = vals.tolist()
+        self._lengths = h  # (spans,) the spans' lengths, br[i + 1] - br[i]
         self._binom = [[math.comb(k, i) for i in range(k + 1)] for k in range(p + 3)]
 
     def _stack(self, order: int) -> np.ndarray:
@@ -319,8 +321,14 @@ class _PowerForm:
         """``(k, order + 1, d)`` point and derivatives at ``t (k,)`` (the span to the right at a knot)."""
         t = np.asarray(t, dtype=np.float64).ravel()
         br = self.breaks
-        span = np.minimum(np.maximum(np.searchsorted(br, t, side="right") - 1, 0), br.size - 2)
-        a, h = br[span], br[span + 1] - br[span]
+        if t.size <= _FEW_POINTS:
+            # The spans of a few parameters by bisection on Python floats (np.searchsorted's answer, side
+            # "right", also for nan: past the end), without the array calls' set-up.
+            bl, last = self._break_list, br.size - 2
+            span = np.array([min(max(bisect.bisect_right(bl, x) - 1, 0), last) for x in t.tolist()], dtype=np.intp)
+        else:
+            span = np.minimum(np.maximum(np.searchsorted(br, t, side="right") - 1, 0), br.size - 2)
+        a, h = br[span], self._lengths[span]
         x = (t - a) / h
         X = x[:, None] ** self._powers  # (k, p + 1)
         C = self._stack(order)[span, : order + 1]  # (k, order + 1, p + 1, d + 1)
@@ -338,6 +346,10 @@ class _PowerForm:
                 v -= self._binom[k][i] * w[:, i] * out[:, k - i]
             out[:, k] = v / w[:, 0]
         return out
+
+
+#: Up to this many parameters :meth:`_PowerForm.derivatives` finds their spans by bisection in Python.
+_FEW_POINTS = 8
 
 
 class _SpanLists:
@@ -683,9 +695,16 @@ def _point1(form: tuple, t: float, order: int) -> list[list[float]]:
         return out
     C, A, B = form[1], form[2], form[3]
     c, s = math.cos(t), math.sin(t)
-    cycle = ((c, s), (-s, c), (-c, -s), (s, -c))  # d^k/dt^k (cos t, sin t), period 4
-    out = [[cycle[k % 4][0] * a + cycle[k % 4][1] * b for a, b in zip(A, B)] for k in range(order + 1)]
-    out[0] = [x + ci for x, ci in zip(out[0], C)]
+    # d^k/dt^k (cos t, sin t) = (c, s), (-s, c), (-c, -s) for k <= 2 (the callers' orders), each sum
+    # (c_k a + s_k b), then + C for the point, in that order.
+    out = [[c * a + s * b + ci for a, b, ci in zip(A, B, C)]]
+    if order:
+        out.append([-s * a + c * b for a, b in zip(A, B)])
+    if order > 1:
+        out.append([-c * a + -s * b for a, b in zip(A, B)])
+    if order > 2:
+        cycle = ((c, s), (-s, c), (-c, -s), (s, -c))  # period 4
+        out += [[cycle[k % 4][0] * a + cycle[k % 4][1] * b for a, b in zip(A, B)] for k in range(3, order + 1)]
     return out
 
 
@@ -724,6 +743,7 @@ def _newton_one(f1: tuple, r1, f2: tuple, r2, s: float, t: float, t_: Tolerance)
     numpy's per-call cost on one-row arrays is most of the array version's time for a few seeds."""
     best, stalled = math.inf, 0
     tiny = np.finfo(float).tiny
+    g = None
     for _ in range(_NEWTON_ITERATIONS):
         A, B = _point1(f1, s, 2), _point1(f2, t, 2)
         r = [a - b for a, b in zip(A[0], B[0])]
@@ -737,16 +757,20 @@ def _newton_one(f1: tuple, r1, f2: tuple, r2, s: float, t: float, t_: Tolerance)
         pd = det > t_.solver * (abs(h11 * h22) + j12 * j12) and h11 > 0
         lam = t_.solver * (j11 + j22) + tiny
         s_new, t_new = _step1(s, t, h11 if pd else j11 + lam, j12, h22 if pd else j22 + lam, g1, g2, r1, r2)
+        g = None  # the gap at (s_new, t_new) where it is known
         if pd and j11 * j22 - j12 * j12 > _TRANSVERSAL * j11 * j22:
             sg, tg = _step1(s, t, j11, j12, j22, g1, g2, r1, r2)
             rh, rg = _gap1(f1, s_new, f2, t_new), _gap1(f1, sg, f2, tg)
+            g = rh
             if _dot(rg, rg) < _dot(rh, rh):
-                s_new, t_new = sg, tg
+                s_new, t_new, g = sg, tg, rg
         moved = abs(s_new - s) + abs(t_new - t)
         s, t = s_new, t_new
         if moved <= t_.solver * (1.0 + abs(s_new) + abs(t_new)) or stalled >= _STALL:
             break
-    g = _gap1(f1, s, f2, t)
+        g = None
+    if g is None:
+        g = _gap1(f1, s, f2, t)
     return s, t, math.sqrt(_dot(g, g))
 
 

@@ -581,17 +581,27 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     far = _norms(e_i - start[j]) > t.solver * (1.0 + np.maximum(np.abs(e_i[:, 0]), np.abs(e_i[:, 1])))
     table = _PcurveSamples(coedge, uv, speed, line, pos,
                            frozenset(b.coedge_face[coedge[i[far]]].tolist()) if far.any() else frozenset())
-    for k, kn in zip(i[far].tolist(), j[far].tolist()):
-        c = int(coedge[k])
-        fc = int(b.coedge_face[c])
-        S = b.surfaces[int(b.face_surface[fc])]
-        seg = end[k][None, :] + np.linspace(0, 1, samples)[:, None] * (start[kn] - end[k])[None, :]
-        img = S.evaluate(seg[:, 0], seg[:, 1])
-        v = b.vertex_point[int(b.coedge_target[c])]
-        if np.max(np.linalg.norm(img - v, axis=-1)) > b.vertex_tol[int(b.coedge_target[c])] + t.linear:
-            out.append(Problem("pcurve-loop-open", "coedge", c,
-                               f"in face {fc} the p-curve ends at {end[k].round(9).tolist()} but the next starts at "
-                               f"{start[kn].round(9).tolist()}"))
+    if far.any():
+        # The gaps' segments (m, samples, 2), each surface evaluated once on all of its gaps (the surfaces'
+        # expressions are point by point: the same points as one segment at a time).
+        ks, kns = i[far], j[far]
+        c_far = coedge[ks]
+        s_far = b.face_surface[b.coedge_face[c_far]]
+        seg = end[ks][:, None, :] + np.linspace(0, 1, samples)[None, :, None] * (start[kns] - end[ks])[:, None, :]
+        img = np.empty(seg.shape[:2] + (3,))
+        for si_ in np.unique(s_far).tolist():
+            sel = s_far == si_
+            uv_sel = seg[sel].reshape(-1, 2)
+            img[sel] = np.asarray(b.surfaces[si_].evaluate(uv_sel[:, 0], uv_sel[:, 1])).reshape(-1, samples, 3)
+        target = b.coedge_target[c_far]
+        gap = np.max(np.linalg.norm(img - b.vertex_point[target][:, None, :], axis=-1), axis=1)
+        for k, kn, c, g, limit in zip(ks.tolist(), kns.tolist(), c_far.tolist(), gap.tolist(),
+                                      (b.vertex_tol[target] + t.linear).tolist()):
+            if g > limit:
+                fc = int(b.coedge_face[c])
+                out.append(Problem("pcurve-loop-open", "coedge", c,
+                                   f"in face {fc} the p-curve ends at {end[k].round(9).tolist()} but the next starts "
+                                   f"at {start[kn].round(9).tolist()}"))
     # Polyhedral faces: vertices on one plane.
     # A face with at most three coedges has at most three vertices, always on one plane.
     n_coedges = np.bincount(b.coedge_face, minlength=b.n_faces)

@@ -84,7 +84,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from coons.errors import InvalidInputError
-from coons.kernel.analytic import Circle, Ellipse, Line, PlanarSurface
+from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
+                                   SphericalSurface, ToroidalSurface)
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.curve_intersect import (_derivs, _point1, _scalar_form, curve_box, intersect_curves,
                                          refine_intersections)
@@ -172,6 +173,8 @@ class _FaceData:
         # The loops, not the face: the cache holds its values strongly and the face only weakly.
         self.face_loops, self.t = face.loops, t
         self.loops: list[list[tuple[Any, np.ndarray, np.ndarray, np.ndarray]]] | None = None
+        self.gaps: list[list[tuple[float, np.ndarray, np.ndarray]]] | None = None  # per loop edge, see pieces
+        self.virtual: dict[tuple[int, int], Line2D] = {}  # (loop, edge) -> the virtual segment after the edge
         self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
         self.convex: dict[float, tuple | None] = {}  # per eps: :func:`_convex_sides` of the boundary pieces
 
@@ -187,9 +190,10 @@ class _FaceData:
         eps = tol3 / self.sigma
         return _Plane(self.surface, self.project, self.M, eps, tol3, Tolerance(eps, t.angular, t.solver), t)
 
-    def pieces(self, plane: _Plane) -> tuple[list["_Piece"], "_Inside"]:
+    def pieces(self, plane: _Plane, fresh: bool = True) -> tuple[list["_Piece"], "_Inside"]:
         """Fresh boundary pieces (their splits are the caller's) sharing cached curves and boxes, and the
-        point-in-face test of the face."""
+        point-in-face test of the face.  ``fresh=False``: the cached pieces themselves, for a caller that
+        only reads them (:func:`clip_to_face`; a box it computes is cached on them, the same for every caller)."""
         entry = self.by_eps.get(plane.eps)
         if entry is None:
             if self.loops is None:
@@ -199,16 +203,27 @@ class _FaceData:
                     loops.append([(pc, _uv(pc, e.t0), _uv(pc, e.t1), curve_box(pc, (e.t0, e.t1), plane.t))
                                   for pc, e in zip(pcs, loop)])
                 self.loops = loops
+            if self.gaps is None:
+                # Each edge's gap to the next edge's start: its length and the virtual segment across it, the
+                # same for every eps (which only decides whether the segment is a piece).
+                self.gaps = [[(float(np.linalg.norm(data[(k + 1) % len(data)][1] - q)), q,
+                               data[(k + 1) % len(data)][1]) for k, (_, _, q, _) in enumerate(data)]
+                             for data in self.loops]
             rows = []
-            for li, (loop, data) in enumerate(zip(self.face_loops, self.loops)):
-                for k, (e, (pc, _, q, box)) in enumerate(zip(loop, data)):
+            for li, (loop, data, gaps) in enumerate(zip(self.face_loops, self.loops, self.gaps)):
+                for k, (e, (pc, _, _, box)) in enumerate(zip(loop, data)):
                     rows.append((pc, e.t0, e.t1, "boundary", li, e, box))
-                    p = data[(k + 1) % len(loop)][1]
-                    if np.linalg.norm(p - q) > plane.eps:
-                        rows.append((Line2D(q, p - q), 0.0, 1.0, "virtual", li, None, None))
+                    gap, q, p = gaps[k]
+                    if gap > plane.eps:
+                        line = self.virtual.get((li, k))
+                        if line is None:
+                            line = self.virtual[(li, k)] = Line2D(q, p - q)
+                        rows.append((line, 0.0, 1.0, "virtual", li, None, None))
             pieces = [_Piece(pc, a, b, kind, li, e, [], [], box) for pc, a, b, kind, li, e, box in rows]
             entry = self.by_eps[plane.eps] = (pieces, _Inside(pieces))
         templates, region = entry
+        if not fresh:
+            return templates, region
         out = [_Piece(p.pc, p.a, p.b, p.kind, p.loop, p.spec, [], [], p.box) for p in templates]
         return out, region
 
@@ -219,9 +234,10 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
 
 #: The fast paths on: the per-face cache, the skip of exact crossings in :func:`_in_space`, the
 #: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
-#: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`) and the skip of
-#: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`); tests switch them off to compare
-#: with the general path.
+#: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`), the skip of
+#: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`), the straight pieces' directions
+#: without evaluation (:meth:`_Graph._directions`) and :func:`clip_to_face` reading the cached boundary pieces;
+#: tests switch them off to compare with the general path.
 _FAST = True
 
 
@@ -405,7 +421,8 @@ class _Inside:
         sag = 0.0
         for p in self.pieces:
             m = 2 if isinstance(p.pc, Line2D) else n
-            t = np.linspace(p.a, p.b, m)
+            # (np.linspace(a, b, 2) is [a, b], without its set-up)
+            t = np.array([p.a, p.b], dtype=np.float64) if m == 2 else np.linspace(p.a, p.b, m)
             P = _uv(p.pc, t)
             if m > 2:
                 mid = _uv(p.pc, 0.5 * (t[1:] + t[:-1]))
@@ -520,7 +537,7 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     plane = data.plane([])
     planar = plane.project or isinstance(plane.surface, PlanarSurface)
     pc = _checked_pc(_to_plane(pcurve, plane.surface, "the clipped curve") if planar else pcurve, plane)
-    pieces, region = data.pieces(plane)
+    pieces, region = data.pieces(plane, fresh=not _FAST)  # (read only here: no splits are recorded)
     lo, hi = min(t0, t1), max(t0, t1)
     if _FAST:
         sides = data.sides(plane, pieces)
@@ -1026,7 +1043,9 @@ def _sub_pieces(pieces: list[_Piece], plane: _Plane) -> list[_Sub]:
     out = []
     for k, p in enumerate(pieces):
         lo, hi = min(p.a, p.b), max(p.a, p.b)
-        s = np.unique(np.clip(np.asarray([lo, hi] + p.splits, dtype=np.float64), lo, hi))
+        # (without splits np.unique(np.clip([lo, hi])) is [lo, hi]: the pieces have lo < hi)
+        s = (np.unique(np.clip(np.asarray([lo, hi] + p.splits, dtype=np.float64), lo, hi)) if p.splits
+             else np.array([lo, hi], dtype=np.float64))
         s, P = _distinct_points(p.pc, s, plane.eps)
         if p.a > p.b:
             s, P = s[::-1], P[::-1]
@@ -1073,6 +1092,10 @@ def _check_cuts_inside(sub: list[_Sub], pieces: list[_Piece], region: _Inside, c
 _SLOW_MERGE = 100.0
 
 
+#: The surfaces of revolution (kernel.analytic), whose ``derivatives(u, v)[..., 0, 0]`` are ``evaluate(u, v)``.
+_REVOLVED = (CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface)
+
+
 def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """3-D points ``(m, 3)`` of working-plane points ``X`` (m, 2) on a curved face, and how far
     ``(m,)`` in the plane a point found to ``tol3`` in space may lie from them: ``tol3 / σ_min``
@@ -1081,8 +1104,11 @@ def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Minv = np.diag(1.0 / np.diag(plane.M))
     uv = X @ Minv.T
     S = plane.surface
-    P = np.asarray(S.evaluate(uv[:, 0], uv[:, 1]), dtype=np.float64).reshape(-1, 3)
     D = np.asarray(S.derivatives(uv[:, 0], uv[:, 1], 1), dtype=np.float64)
+    if _FAST and type(S) in _REVOLVED:
+        P = D[:, 0, 0]  # (a surface of revolution's derivatives give evaluate's points bit for bit: the same sums)
+    else:
+        P = np.asarray(S.evaluate(uv[:, 0], uv[:, 1]), dtype=np.float64).reshape(-1, 3)
     J = np.stack([D[:, 1, 0] * Minv[0, 0], D[:, 0, 1] * Minv[1, 1]], axis=2)  # (m, 3, 2)
     smin = np.linalg.svd(J, compute_uv=False)[:, -1]
     reach = np.minimum(_SLOW_MERGE * plane.eps, plane.tol3 / np.maximum(smin, np.finfo(float).tiny))
@@ -1136,15 +1162,20 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     P_all, reach_all = _space_reach(plane, ends_all)
     samples: dict = {}  # dense samples of the pieces, per curve and range (pieces live through the call)
     piece_ends: dict[int, np.ndarray] = {}  # (2, 2) end points of the pieces examined, cuts' from ends_all
+    B = None  # (n, 2, 2) the pieces' boxes, for the box tests of all pieces against one end at once
     for i in range(nb, len(pieces)):
         k = 2 * (i - nb)
         ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
         for q, Pq, r in zip(ends, P, reach):
             if not r > plane.eps:
                 continue
-            box = np.stack([q - r, q + r])
-            for j, o in enumerate(pieces):
-                if j == i or not _boxes_meet(box, _box(o, plane), 0.0):
+            if B is None:
+                B = np.array([_box(o, plane) for o in pieces])
+            # (_boxes_meet of the end's box [q - r, q + r] and every piece's, with no margin)
+            meet = np.all((q - r <= B[:, 1]) & (B[:, 0] <= q + r), axis=1)
+            for j in np.flatnonzero(meet).tolist():
+                o = pieces[j]
+                if j == i:
                     continue
                 if _FAST:
                     # An end of the piece within eps of q bounds the true foot's distance by eps: no split (the
@@ -1299,8 +1330,15 @@ class _Graph:
         for p, ks in by_piece.items():
             ks = np.asarray(ks)
             ab = np.array([[self.sub[k].a, self.sub[k].b] for k in ks])
-            D = _pc_derivatives(self.pieces[p].pc, ab, 2)  # (m, 2, 3, 2)
             sign = np.where(ab[:, 1] > ab[:, 0], 1.0, -1.0)[:, None]
+            pc = self.pieces[p].pc
+            if _FAST and type(pc) is Line2D:
+                # A straight piece's derivatives are its direction and 0 everywhere (Line2D.derivatives'
+                # values), without the evaluation of its points, which this does not read.
+                D1[2 * ks], D1[2 * ks + 1] = sign * pc.direction, -sign * pc.direction
+                D2[2 * ks] = D2[2 * ks + 1] = 0.0
+                continue
+            D = _pc_derivatives(pc, ab, 2)  # (m, 2, 3, 2)
             # Forward half-edge leaves a along the travel, backward leaves b against it.
             D1[2 * ks], D2[2 * ks] = sign * D[:, 0, 1], D[:, 0, 2]
             D1[2 * ks + 1], D2[2 * ks + 1] = -sign * D[:, 1, 1], D[:, 1, 2]

@@ -721,3 +721,54 @@ def test_polynomial_nurbs_against_line_fast_path_matches_the_general_path(ys, ph
     _assert_consistent(fast, *args[::2], atol=1e-7)
     if case in ("cross", "swap", "short") and abs(T[0] * u[1] - T[1] * u[0]) > 0.1 * np.linalg.norm(T):
         assert len(fast) >= 1  # the line passes through c(at) transversally inside both ranges
+
+
+@settings(max_examples=40)
+@given(st.floats(-20.0, 20.0), st.integers(0, 5), st.sampled_from(["circle", "ellipse", "trig"]))
+def test_scalar_trig_points_match_the_array_derivatives(t, order, kind):
+    """:func:`_point1` of a circle, ellipse or Trig2D (written out for orders up to 2, the period-4 cycle
+    beyond) gives :func:`_derivs`' point and derivatives to round-off."""
+    from coons.kernel.curve_intersect import _derivs, _point1, _scalar_form
+
+    c = {"circle": Circle([0.3, -0.2, 0.1], [0.2, 0.1, 1.0], [1, 0, 0], 1.7),
+         "ellipse": Ellipse([0.3, -0.2, 0.1], [0, 0, 1], [1, 0.4, 0], 2.0, 0.6),
+         "trig": Trig2D([0.3, -0.2], [1.5, 0.1], [0.2, 0.9])}[kind]
+    got = np.array(_point1(_scalar_form(c), t, order))
+    np.testing.assert_allclose(got, _derivs(c, np.array([t]), order)[0], rtol=0, atol=1e-12)
+
+
+@settings(max_examples=40)
+@given(st.floats(0.0, TWO_PI), st.floats(-0.3, 0.3), st.floats(-0.2, 0.2), st.floats(-0.2, 0.2))
+def test_refine_scalar_distance_is_the_gap_at_the_answer(angle, tilt, ds, dt):
+    """The distance the scalar Newton reports (the gap of its last step's chosen point where it has it) is
+    ``|c1(s) - c2(t)|`` at the parameters it returns, evaluated afresh, to the bit."""
+    from coons.kernel.curve_intersect import _gap1, _scalar_form
+
+    c1 = Circle([0.3, -0.2, 0.1], [0, 0, 1], [1, 0, 0], 1.3)
+    P = np.asarray(c1.evaluate(np.array([angle])), dtype=float).reshape(-1, 3)[0]
+    c2 = Circle(P + [0.0, 0.0, 0.8], [1.0, tilt, 0.0], [0.0, 0.0, -1.0], 0.8)
+    s, t, d = refine_intersections(c1, (angle - 1.0, angle + 1.0), c2, (-1.0, 1.0), [angle + ds], [dt])
+    g = _gap1(_scalar_form(c1), float(s[0]), _scalar_form(c2), float(t[0]))
+    assert d[0] == math.sqrt(sum(x * x for x in g))
+    assert d[0] <= 1e-9
+
+
+@pytest.mark.parametrize("rational", [False, True])
+def test_span_polynomials_at_a_few_parameters_match_those_in_many(rational):
+    """:meth:`_PowerForm.derivatives` at a few parameters (their spans by bisection in Python) gives the values
+    of the same parameters among many (np.searchsorted), to the bit: at knots (the span to the right), at
+    the ends, outside the domain (clamped to the end spans) and at nan."""
+    from coons.kernel.curve_intersect import _FEW_POINTS, _PowerForm
+
+    rng = np.random.default_rng(11)
+    U = np.concatenate([[0.0] * 4, [0.2, 0.35, 0.35, 0.65, 0.8], [1.0] * 4])
+    w = rng.uniform(0.5, 2.0, 9) if rational else None
+    form = _PowerForm(NurbsCurve(rng.normal(size=(9, 3)), U, 3, w))
+    few = np.array([0.0, 0.35, 0.8, 1.0, -0.1, 1.2, np.nan, 0.5])
+    assert few.size <= _FEW_POINTS
+    many = np.concatenate([few, rng.uniform(0.0, 1.0, 3 * _FEW_POINTS)])
+    for order in range(3):
+        assert np.array_equal(form.derivatives(few, order), form.derivatives(many, order)[:few.size], equal_nan=True)
+        for x in few:
+            assert np.array_equal(form.derivatives(np.array([x]), order)[0], form.derivatives(many, order)[
+                int(np.flatnonzero((many == x) | (np.isnan(many) & np.isnan(x)))[0])], equal_nan=True)

@@ -1152,3 +1152,25 @@ def test_cuts_hooking_below_eps_at_a_boundary_node_split_by_their_course(node):
     assert sorted(len(p.loops[0]) for p in out) == [3, 3, 5]
     uses = Counter(id(e.curve) for p in out for loop in p.loops for e in loop)
     assert [uses[id(c.curve)] for c in cuts] == [2, 2]
+
+
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1))
+def test_revolved_surfaces_derivatives_give_evaluates_points_to_the_bit(seed):
+    """:func:`_space_reach` takes a surface of revolution's points from its derivatives (one call, not two):
+    they are ``evaluate``'s to the bit, on random frames, sizes and parameters (poles and seams included)."""
+    from coons.kernel.analytic import ConicalSurface, CylindricalSurface, SphericalSurface, ToroidalSurface
+    from coons.topology.split import _REVOLVED
+
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    x = np.cross(axis, rng.normal(size=3))
+    o = rng.uniform(-50, 50, 3)
+    r = float(rng.uniform(0.1, 20))
+    surfaces = [CylindricalSurface(o, axis, x, r), ConicalSurface(o, axis, x, r, float(rng.uniform(0.05, 1.4))),
+                SphericalSurface(o, axis, x, r), ToroidalSurface(o, axis, x, r + 1.0, float(rng.uniform(0.1, 1.0)))]
+    assert {type(s) for s in surfaces} == set(_REVOLVED)
+    u = np.concatenate([rng.uniform(-1.0, 7.0, 20), [0.0, 2 * math.pi]])
+    v = np.concatenate([rng.uniform(-1.5, 1.5, 20), [-math.pi / 2, math.pi / 2]])
+    for S in surfaces:
+        assert np.array_equal(np.asarray(S.derivatives(u, v, 1))[:, 0, 0], np.asarray(S.evaluate(u, v)))

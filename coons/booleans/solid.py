@@ -51,7 +51,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    A face of an earlier Boolean's result that :func:`~coons.topology.sew.sewn_unchanged`
    confirms is exactly the spec it was sewn from (``sew.sewn_from``) is that spec, with its per-face
    data (``_FACE_DATA``, its space box included) already computed.
-2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
+2. ``_broad_phase``: overlapping face boxes, as one overlap table for up to ``_BROAD_TABLE`` face
+   pairs, else by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``
    (plane–cylinder pairs whose plane is perpendicular to the axis — a plate's faces against the
    walls of its holes — all at once first: ``_batched_sections``, the closed-form circles of
@@ -139,7 +140,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    would span a full period of a periodic parameter (coons has no seams, ``docs/brep.md``).
    That full-period test is decided for all candidate pairs on one periodic surface at once
    (``_wrapping_pairs``: the two half walls of every drilled hole), the same expressions as
-   the pair-by-pair test, which runs for the other pairs.
+   the pair-by-pair test, which runs for the other pairs; pairs remembered unmergeable
+   (``_MERGE_FAILED``) are dropped before it.  Two faces on distinct planes are rejected from
+   their boundary points in floats (``_off_plane``: a box's own edges) before ``_moved_to``.
 9. ``_fuse_edges``: at a vertex where exactly two edges meet and continue one curve (the same
    curve object over adjacent ranges, or collinear lines), the two edges become one.
 10. ``_sew`` (stage ``"sew"``): :func:`~coons.topology.sew.sew_faces`, which runs the checker.
@@ -1180,9 +1183,25 @@ def _span_indices(knots: np.ndarray, p: int, n: int, a: float, b: float) -> tupl
 
 # ---------------------------------------------------------------------- broad phase
 def _broad_phase(A: _Operand, B: _Operand) -> tuple[np.ndarray, np.ndarray]:
+    """The face pairs ``(I, J)`` of A and B whose closed space boxes share a point, sorted by ``I``
+    then ``J``: :func:`~coons.booleans._broad_phase.box_pairs`, or for few pairs of faces the whole
+    ``(F_A, F_B)`` overlap table (the same ``<=`` comparisons; :func:`numpy.nonzero` lists it in
+    that order), which costs a few array operations where building two trees costs a few dozen
+    (a box and a cylinder: six faces and three)."""
+    if A.lo.shape[0] * B.lo.shape[0] <= _BROAD_TABLE:
+        ov = None
+        for k in range(3):  # (axis by axis: numpy reduces a short last axis slowly)
+            o = (A.lo[:, None, k] <= B.hi[None, :, k]) & (B.lo[None, :, k] <= A.hi[:, None, k])
+            ov = o if ov is None else ov & o
+        I, J = np.nonzero(ov)
+        return I.astype(np.int64, copy=False), J.astype(np.int64, copy=False)
     I, J = box_pairs(A.lo, A.hi, B.lo, B.hi)
     order = np.lexsort((J, I))
     return I[order], J[order]
+
+
+#: Most face pairs :func:`_broad_phase` tests as one table (a few hundred kB of temporaries).
+_BROAD_TABLE = 1 << 16
 
 
 # ---------------------------------------------------------------------- intersect
@@ -4186,10 +4205,30 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
                 & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
         pairs = pairs[keep]
-        _prefill_uv_extents([faces[f] for f in np.unique(face_of[pairs]).tolist()
-                             if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
         fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
+        # Pairs tried before, in this pass or by an earlier Boolean on the same two face specs,
+        # are dropped before the batched full-period test (a plate cut hole by hole brings every
+        # earlier hole's two wall halves again).
+        live = []
+        for i, ((fp, fq), (up, uq)) in enumerate(zip(fpq, upq)):
+            A, B = faces[fp], faces[fq]
+            up, uq = tuple(up), tuple(uq)
+            if (id(A), up, id(B), uq) in failed:
+                continue
+            known = _MERGE_FAILED.get(A)
+            known = known.get(id(B)) if known is not None else None
+            if known is not None and known[0]() is B and (up, uq, t) in known[1]:
+                continue  # found unmergeable by an earlier Boolean on the same two face specs
+            live.append(i)
+        if not live:
+            break
+        face_first = np.cumsum(counts) - counts  # (each face's first row in P3)
+        pairs = pairs[live]
+        fpq = [fpq[i] for i in live]
+        upq = [upq[i] for i in live]
+        _prefill_uv_extents([faces[f] for f in sorted({f for fg in fpq for f in fg})
+                             if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         wraps = _wrapping_pairs(faces, fpq, upq)
         for (p, q), (fp, fq), (up, uq), wrap in zip(pairs.tolist(), fpq, upq, wraps):
             A, B = faces[fp], faces[fq]
@@ -4198,16 +4237,15 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             if key in failed:
                 continue
             memo = (up, uq, t)
-            known = _MERGE_FAILED.get(A)
-            known = known.get(id(B)) if known is not None else None
-            if known is not None and known[0]() is B and memo in known[1]:
-                continue  # found unmergeable by an earlier Boolean on the same two face specs
             failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
             seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
             ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
             Pa, Pb = P3[p], P3[q]
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
+                continue
+            if not wrap and _off_plane(A, B, P3[face_first[fq] : face_first[fq] + _MOVED_PROBES, 0], t):
+                _merge_failed(A, B, memo)
                 continue
             merged = None if wrap else _merged_pair(A, B, up, uq, t)
             if merged is None:
@@ -4238,6 +4276,34 @@ def _merge_failed(A: FaceSpec, B: FaceSpec, memo: tuple) -> None:
     if got is None or got[0]() is not B:
         got = known[id(B)] = (weakref.ref(B), set())
     got[1].add(memo)
+
+
+def _off_plane(A: FaceSpec, B: FaceSpec, starts: np.ndarray, t: Tolerance) -> bool:
+    """Whether :func:`_merged_pair` is sure to return None for two faces on distinct planes because
+    B's boundary leaves A's plane: :func:`_moved`'s first test in Python floats (two faces of a box
+    meeting at an edge; numpy on the few probes cost more than the test).
+
+    ``starts``: the start points of B's first uses in loop order (its use table,
+    :func:`~coons.topology.sew._face_uses`), at most :data:`_MOVED_PROBES`.  A point counts as off
+    only when its distance to the plane exceeds :func:`_moved`'s threshold by more than a
+    round-off margin (the table's points and the plane's projection may differ from ``_moved``'s
+    in the last bits), so a True here is a None there; False decides nothing.
+    """
+    S = A.surface
+    if type(S) is not PlanarSurface or type(B.surface) is not PlanarSurface or S is B.surface:
+        return False
+    o, n = S.origin.tolist(), S.axis.tolist()
+    scale = 1.0 + max(abs(x) for x in o)
+    ends = itertools.chain.from_iterable(B.loops)
+    off = False
+    for (x, y, z), e in zip(starts.tolist(), ends):
+        d = abs((x - o[0]) * n[0] + (y - o[1]) * n[1] + (z - o[2]) * n[2])
+        # (10x the use's tolerance, as _moved; the margin is far below it: tolerances are > 1e-9 relative)
+        if d > 10.0 * max(t.linear, e.tol or 0.0) + 1e-9 * (scale + abs(x) + abs(y) + abs(z)):
+            off = True
+            break
+    # Two planes that compare close are one surface to _merged_pair, whatever their faces' extent.
+    return off and not _same_surface(S, B.surface, t)
 
 
 def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, int], t: Tolerance) -> FaceSpec | None:

@@ -955,6 +955,24 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     assert again == first and len(calls) == n  # nothing tried again
 
 
+def test_remembered_merge_failures_skip_the_batched_period_test(monkeypatch):
+    """Pairs remembered as unmergeable are dropped before the batched full-period test: a plate
+    cut again brings every earlier hole's two wall halves, which are not tested again."""
+    t = S.resolve(None)
+    halves = S._Operand(Cylinder(1.0, 2.0), "A", t).specs
+    seen = _wrapping_pairs_seen(monkeypatch)
+    first = S._merge_faces(list(halves), t)
+    assert any(w for *_, w in seen)  # the seams, decided by the batch
+    seen.clear()
+    assert S._merge_faces(list(halves), t) == first and not seen
+    # A plate cut hole by hole: the last cut tests only the new hole's seams.
+    plate = Box(40, 40, 4)
+    for k in range(3):
+        seen.clear()
+        plate = _ok(S.difference(plate, Cylinder(2, 10).translate((-10.0 + 10 * k, 0, 0)), method="brep"))
+        assert sum(w for *_, w in seen) == 2
+
+
 def _wrapping_pairs_seen(monkeypatch) -> list:
     """A list that collects ``(A, B, up, uq, wraps)`` of every candidate pair passed to _wrapping_pairs from now
     on (those it does not decide with False)."""
@@ -1005,6 +1023,32 @@ def test_wrapping_pairs_equal_the_pairwise_full_period_test(monkeypatch):
         assert w == S._wraps(A, B, S._whole_periods(A.surface, offset))
         answers.append(w)
     assert True in answers and False in answers
+
+
+def test_broad_phase_table_gives_the_pairs_of_box_pairs(monkeypatch):
+    """The overlap table for few faces gives box_pairs' pairs in the same sorted order (touching boxes
+    count: half-integer corners touch often), and so do the trees past the table's size."""
+    from types import SimpleNamespace
+
+    from coons.booleans._broad_phase import box_pairs
+
+    rng = np.random.default_rng(7)
+
+    def operand(k):
+        lo = np.round(rng.uniform(-5, 5, (k, 3)) * 2) / 2
+        return SimpleNamespace(lo=lo, hi=lo + np.round(rng.uniform(0, 3, (k, 3)) * 2) / 2)
+
+    for n, m in [(0, 3), (6, 3), (1, 1), (17, 40), (40, 17)] * 20:
+        A, B = operand(n), operand(m)
+        I, J = S._broad_phase(A, B)
+        I2, J2 = box_pairs(A.lo, A.hi, B.lo, B.hi)
+        order = np.lexsort((J2, I2))
+        assert I.dtype == J.dtype == np.int64
+        assert I.tolist() == I2[order].tolist() and J.tolist() == J2[order].tolist()
+        monkeypatch.setattr(S, "_BROAD_TABLE", 0)
+        I3, J3 = S._broad_phase(A, B)
+        monkeypatch.undo()
+        assert I3.tolist() == I.tolist() and J3.tolist() == J.tolist()
 
 
 def test_use_box_array_is_the_stacked_edge_boxes():

@@ -834,6 +834,36 @@ def test_operand_takes_carried_faces_with_the_data_a_cold_set_up_computes():
             np.testing.assert_array_equal(x, y)
 
 
+@pytest.mark.parametrize("a, b", [
+    (lambda: Box(10, 10, 10), lambda: Cylinder(3, 20)),
+    (lambda: Sphere(5), lambda: Sphere(5).translate((4.0, 2.0, 0.5))),
+    (lambda: Cylinder(2, 20), lambda: Cylinder(1.5, 10, direction=(1, 0, 0)).translate((5, 0, 0))),
+])
+def test_operands_together_have_the_data_of_each_alone(a, b):
+    """_operands computes both operands' face data in one batch: the same specs and data as one
+    operand at a time (cold each), and a solid against itself computes each face once."""
+    t = S.resolve(None)
+    a, b = a(), b()
+    _forget_carried()
+    A, B = S._operands(a, b, t)
+    _forget_carried()
+    A1 = S._Operand(a, "A", t)
+    _forget_carried()
+    B1 = S._Operand(b, "B", t)
+    for X, Y in ((A, A1), (B, B1)):
+        assert X.name == Y.name and X.uv_box == Y.uv_box
+        for x, y in zip(X.polygons, Y.polygons):
+            for p, q in zip(x, y):
+                np.testing.assert_array_equal(p, q)
+        for name in ("segments", "seg_lo", "seg_hi", "lo", "hi"):
+            for x, y in zip(getattr(X, name), getattr(Y, name)):
+                np.testing.assert_array_equal(x, y)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")  # (its specs carried: one set for both)
+    P, Q = S._operands(r, r, t)
+    assert all(x is y for x, y in zip(P.specs, Q.specs))
+    assert all(x is y for x, y in zip(P._data, Q._data))
+
+
 def test_operand_reads_faces_the_sewing_changed_from_the_brep():
     """A face whose B-rep row differs from the spec it was sewn from (here: a tolerance) is read again."""
     t = S.resolve(None)
@@ -1151,17 +1181,27 @@ def test_clear_uses_is_the_per_use_box_test(points, ptol):
                           st.floats(0, 6), st.floats(0, 0.5)), min_size=1, max_size=8),
        st.floats(0.0, 0.5), st.integers(0, 3))
 def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, stride):
-    """The k-d tree proposal of _foreign_in_boxes loses no point of the padded box test."""
+    """The k-d tree proposal of _foreign_in_boxes loses no point of the padded box test, and the test
+    on every pair (few boxes and points) is that test."""
     P = np.array(points, dtype=np.float64).reshape(-1, 3)
     tol = np.full(P.shape[0], ptol) * (1.0 + np.arange(P.shape[0]) % 3)  # unequal tolerances
     B = np.array(boxes, dtype=np.float64)
     lo, hi = B[:, :3], B[:, :3] + B[:, 3:]  # boxes of any shape, flat ones included
     cand = np.arange(0, P.shape[0], 1 + stride)
-    got = S._foreign_in_boxes(lo, hi, P, tol, cand)
-    for i in range(lo.shape[0]):
-        pad = tol[cand, None]
-        inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
-        np.testing.assert_array_equal(got[i], cand[inside])
+    every = S._foreign_in_boxes(lo, hi, P, tol, cand)
+    small = S._SMALL_BOX_PAIRS
+    try:
+        S._SMALL_BOX_PAIRS = -1  # (the tree, whatever the size)
+        tree = S._foreign_in_boxes(lo, hi, P, tol, cand)
+    finally:
+        S._SMALL_BOX_PAIRS = small
+    for got in (every, tree):
+        assert len(got) == lo.shape[0]
+        for i in range(lo.shape[0]):
+            pad = tol[cand, None]
+            inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
+            np.testing.assert_array_equal(got[i], cand[inside])
+            assert got[i].dtype == cand.dtype
 
 
 def test_cut_ends_are_each_curves_evaluate():
@@ -1276,14 +1316,13 @@ def test_prefilled_samples_are_the_single_ones():
     """_prefill_samples samples Line2D and Trig2D p-curves of many uses at once exactly as _edge_uv does."""
     specs = _pieces(S.difference(Box(20, 20, 5), Cylinder(2, 10).translate((3, 0, 0))), Cylinder(1.5, 10))
     uses = [(e, spec.surface) for spec in specs for loop in spec.loops for e in loop]
-    for e, _ in uses:
-        S._USE_SAMPLES.pop(e, None)
+    S._USE_SAMPLES.clear()
     S._prefill_samples(specs)
     kinds = {type(e.pcurve).__name__ for e, _ in uses}
     assert {"Line2D", "Trig2D"} <= kinds
     for e, surface in uses:
         if type(e.pcurve).__name__ in ("Line2D", "Trig2D"):
-            got = S._USE_SAMPLES[e]
+            got = S._USE_SAMPLES.get(e)
             assert got[0] is surface and not got[1].flags.writeable
             Ue = S._edge_uv(e, surface, S._LOOP_SAMPLES)
             np.testing.assert_array_equal(got[1], Ue)
@@ -1449,8 +1488,8 @@ def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     made = []
     real_operand = S._Operand
 
-    def operand(solid, name, t):
-        made.append(real_operand(solid, name, t))
+    def operand(solid, name, t, *rest):  # (rest: the specs and data _operands computed for both)
+        made.append(real_operand(solid, name, t, *rest))
         return made[-1]
 
     monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
@@ -1752,12 +1791,19 @@ def test_groups_number_equal_rows_as_a_dict_of_key_tuples_would():
     """_groups (one sort) numbers equal rows in the order of their first row, as a dict of key tuples does
     (``0.0 == -0.0`` included): the first rows and every row's group."""
     rng = np.random.default_rng(7)
-    for k in (0, 1, 2, 50, 400):
+    for k in (0, 1, 2, 50, S._GROUPS_BY_DICT, S._GROUPS_BY_DICT + 1, 400):
         ids = rng.integers(0, 6, size=k)
         lo = rng.choice([0.0, -0.0, 1.5, 2.0], size=k)
         hi = rng.choice([3.0, 4.0], size=k)
         index: dict = {}
         of = [index.setdefault((int(i), float(a), float(b)), len(index)) for i, a, b in zip(ids, lo, hi)]
         first = [of.index(g) for g in range(len(index))]
-        got_first, got_of = S._groups(ids, lo, hi)
-        assert got_first.tolist() == first and got_of.tolist() == of
+        by_dict = S._GROUPS_BY_DICT
+        for limit in (by_dict, -1):  # (a few rows by a dict; every size by the sort)
+            S._GROUPS_BY_DICT = limit
+            try:
+                got_first, got_of = S._groups(ids, lo, hi)
+            finally:
+                S._GROUPS_BY_DICT = by_dict
+            assert got_first.tolist() == first and got_of.tolist() == of
+            assert got_first.dtype == got_of.dtype == np.int64

@@ -984,7 +984,7 @@ def _kept_prefix(spec: FaceSpec, t: Tolerance) -> tuple | None:
     return got
 
 
-def _extended_face_data(spec: FaceSpec, t: Tolerance) -> _FaceData | None:
+def _extended_face_data(spec: FaceSpec, t: Tolerance, got: tuple | None = None) -> _FaceData | None:
     """The :class:`_FaceData` of ``spec`` from the kept data of a face whose loops are, use for
     use, the first loops of ``spec`` (:data:`_FACE_PREFIX`), and its new loops alone; None when
     there is no such face.
@@ -992,11 +992,12 @@ def _extended_face_data(spec: FaceSpec, t: Tolerance) -> _FaceData | None:
     Only on surfaces without interior extremes (planes, cylinders, cones: the space box is the
     union of the edge boxes).  Every per-face value of :func:`_new_face_data` is a minimum, a
     maximum or a concatenation over the loops in order, then one expression per face: combining
-    the kept reductions with the new loops' gives the very same floats.
+    the kept reductions with the new loops' gives the very same floats.  ``got``: the entry of
+    :func:`_kept_prefix` when the caller has found it.
     """
     S = spec.surface
     loops = spec.loops
-    got = _kept_prefix(spec, t)
+    got = _kept_prefix(spec, t) if got is None else got
     if got is None:
         return None
     rest0, tail, t_old, parts, raw = got
@@ -1067,10 +1068,27 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
     # A face extending a kept one by new loops (a plate's top gaining a hole) from the kept data.
-    extended: dict[int, _FaceData] = {}
+    kept = {}
     for k, spec in enumerate(specs if extend else ()):
         if len(spec.loops) > _PREFIX_LOOPS and _no_interior_extremes(spec.surface):
-            d = _extended_face_data(spec, t)
+            got = _kept_prefix(spec, t)
+            if got is not None:
+                kept[k] = got
+    extended: dict[int, _FaceData] = {}
+    if kept:
+        # The loops without data, of those faces' new loops and of the other faces, in one
+        # _new_loop_data pass (a plate's top and bottom gaining a hole, and the tool's faces),
+        # which the assembly below then finds cached (each loop's data is that of the loop alone).
+        todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
+        for k, spec in enumerate(specs):
+            S = spec.surface
+            for loop in spec.loops[len(kept[k][1]) + 1 :] if k in kept else spec.loops:
+                if _cached_loop(loop, S, t) is None:
+                    todo.setdefault((id(S),) + tuple(map(id, loop)), (loop, S))
+        if todo:
+            _new_loop_data(list(todo.values()), t)
+        for k, got in kept.items():
+            d = _extended_face_data(specs[k], t, got)
             if d is not None:
                 extended[k] = d
     if extended:
@@ -4333,12 +4351,12 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
         # are dropped before the batched full-period test (a plate cut hole by hole brings every
         # earlier hole's two wall halves again).
         live = []
-        for i, ((fp, fq), (up, uq)) in enumerate(zip(fpq, upq)):
+        memos = _MERGE_FAILED.get_many([faces[fp] for fp, _ in fpq])
+        for i, ((fp, fq), (up, uq), known) in enumerate(zip(fpq, upq, memos)):
             A, B = faces[fp], faces[fq]
             up, uq = tuple(up), tuple(uq)
             if (id(A), up, id(B), uq) in failed:
                 continue
-            known = _MERGE_FAILED.get(A)
             known = known.get(id(B)) if known is not None else None
             if known is not None and known[0]() is B and (up, uq, t) in known[1]:
                 continue  # found unmergeable by an earlier Boolean on the same two face specs

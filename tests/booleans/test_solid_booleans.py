@@ -864,6 +864,36 @@ def test_operands_together_have_the_data_of_each_alone(a, b):
     assert all(x is y for x, y in zip(P._data, Q._data))
 
 
+def test_operands_of_a_plate_cut_again_compute_their_new_loops_in_one_pass(monkeypatch):
+    """A plate whose top and bottom extend kept faces (more than _PREFIX_LOOPS holes) and a new tool:
+    the loops without data, the new holes' and the tool's, are computed in one _new_loop_data pass,
+    and the faces get the data a cold set-up computes."""
+    t = S.resolve(None)
+    r = Box(80, 80, 4)
+    for k in range(S._PREFIX_LOOPS + 2):
+        r = _ok(S.difference(r, Cylinder(1.0, 20).translate((8.0 * (k % 9) - 32, 8.0 * (k // 9) - 32, 0)),
+                             method="brep"))
+    tool = Cylinder(1.0, 20).translate((8.0, 24.0, 0))
+    _ok(S.difference(r, tool, method="brep"))  # (keeps the faces' data for the ones extending them)
+    r = _ok(S.difference(r, Cylinder(1.0, 20).translate((16.0, 24.0, 0)), method="brep"))
+    calls = []
+    real = S._new_loop_data
+    monkeypatch.setattr(S, "_new_loop_data", lambda items, tol: calls.append(len(items)) or real(items, tol))
+    extended = []
+    real_ext = S._extended_face_data
+    monkeypatch.setattr(S, "_extended_face_data", lambda *a: extended.append(a[0]) or real_ext(*a))
+    A, B = S._operands(r, Cylinder(1.0, 20).translate((24.0, 24.0, 0)), t)
+    assert len(extended) == 2 and len(calls) == 1  # the top and the bottom; one pass
+    monkeypatch.undo()
+    _forget_carried()
+    A1, B1 = S._Operand(r, "A", t), S._Operand(Cylinder(1.0, 20).translate((24.0, 24.0, 0)), "B", t)
+    for X, Y in ((A, A1), (B, B1)):
+        assert X.uv_box == Y.uv_box
+        for name in ("segments", "seg_lo", "seg_hi", "lo", "hi"):
+            for x, y in zip(getattr(X, name), getattr(Y, name)):
+                np.testing.assert_array_equal(x, y)
+
+
 def test_operand_reads_faces_the_sewing_changed_from_the_brep():
     """A face whose B-rep row differs from the spec it was sewn from (here: a tolerance) is read again."""
     t = S.resolve(None)
@@ -1516,8 +1546,8 @@ def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeyp
     got = []
     real = S._extended_face_data
 
-    def spy(spec, tol):
-        d = real(spec, tol)
+    def spy(spec, tol, *rest):  # (rest: the kept entry when _new_face_data found it)
+        d = real(spec, tol, *rest)
         if d is not None:
             got.append((spec, d))
         return d
@@ -1532,7 +1562,7 @@ def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeyp
     assert len({len(spec.loops) for spec, _ in got}) >= 3  # taken cut after cut
     # Cold: no kept data and no extension (the cold pass keeps data again, which must not be read).
     monkeypatch.setattr(S, "_FACE_PREFIX", IdentityMemo())
-    monkeypatch.setattr(S, "_extended_face_data", lambda spec, tol: None)
+    monkeypatch.setattr(S, "_extended_face_data", lambda spec, tol, *rest: None)
     for spec, d in got:
         del S._FACE_DATA[spec]
         cold = S._new_face_data([spec], t)[0]

@@ -36,7 +36,7 @@ status
 
 Phases (each a private function; a failure raises ``BooleanError(stage=..., diagnostics=...)``)
 ------------------------------------------------------------------------------------------------
-1. ``_Operand`` (stage ``"input"``): :func:`~coons.topology.sew.face_specs` of each solid, with
+1. ``_operands``, ``_Operand`` (stage ``"input"``): :func:`~coons.topology.sew.face_specs` of each solid, with
    implicit planes given a Newell plane and missing p-curves computed by
    :func:`~coons.kernel.onsurface.pcurve_on`; face boxes in space and in the parameter plane
    (sampled p-curves).  A space box (``_new_face_data``) holds the exact face without tessellating
@@ -50,8 +50,10 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    pipeline tessellates an operand only when its classifier is first needed (``_Operand.mesh``).
    A face of an earlier Boolean's result that :func:`~coons.topology.sew.sewn_unchanged`
    confirms is exactly the spec it was sewn from (``sew.sewn_from``) is that spec, with its per-face
-   data (``_FACE_DATA``, its space box included) already computed.
-2. ``_broad_phase``: overlapping face boxes by the implicit BVHs of :mod:`._broad_phase`.
+   data (``_FACE_DATA``, its space box included) already computed.  The face data missing for
+   either operand is computed in one batch for both (``_operands``).
+2. ``_broad_phase``: overlapping face boxes, as one overlap table for up to ``_BROAD_TABLE`` face
+   pairs, else by the implicit BVHs of :mod:`._broad_phase`.
 3. ``_intersect`` (stage ``"intersect"``): per pair, ``intersect_surfaces(Sx, Sy, box_x, box_y)``
    (plane–cylinder pairs whose plane is perpendicular to the axis — a plate's faces against the
    walls of its holes — all at once first: ``_batched_sections``, the closed-form circles of
@@ -102,7 +104,8 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    ``d = N_X × T`` points into the piece, which is IN when ``d · N_Y < 0``; used only where the
    surfaces cross at an angle (``|sin| >= 1e-2``) and ``q`` is clear of the other face's loops,
    in rounds of one candidate per undecided piece, each round one array pass with curves and surfaces
-   evaluated by type, each piece's candidates found only as its rounds come (``_local_status``).
+   evaluated by type, each piece's candidates found only as its rounds come (``_local_status``);
+   both operands' rounds run together, one pass per round (``_local_both``, before ``_classify``).
    *Far* (first of all): a face whose box lies outside the other operand's box is OUT.
    *Propagated*: a face in no broad-phase pair (it and its edges are away from the other
    boundary) takes the status of a classified piece across one of its edges (``_propagate``).
@@ -139,7 +142,9 @@ Phases (each a private function; a failure raises ``BooleanError(stage=..., diag
    would span a full period of a periodic parameter (coons has no seams, ``docs/brep.md``).
    That full-period test is decided for all candidate pairs on one periodic surface at once
    (``_wrapping_pairs``: the two half walls of every drilled hole), the same expressions as
-   the pair-by-pair test, which runs for the other pairs.
+   the pair-by-pair test, which runs for the other pairs; pairs remembered unmergeable
+   (``_MERGE_FAILED``) are dropped before it.  Two faces on distinct planes are rejected from
+   their boundary points in floats (``_off_plane``: a box's own edges) before ``_moved_to``.
 9. ``_fuse_edges``: at a vertex where exactly two edges meet and continue one curve (the same
    curve object over adjacent ranges, or collinear lines), the two edges become one.
 10. ``_sew`` (stage ``"sew"``): :func:`~coons.topology.sew.sew_faces`, which runs the checker.
@@ -498,15 +503,18 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
         if op == "intersection":
             return Solid.empty()
         return Solid.empty() if a.is_empty else a
-    A = _Operand(a, "A", t)
-    B = _Operand(b, "B", t)
+    A, B = _operands(a, b, t)
     I, J = _broad_phase(A, B)
     links: dict[int, list[_Link]] = {}
     cuts_a, cuts_b = _intersect(A, B, I, J, t, links)
     pieces_a = _split(A, cuts_a, t)
     pieces_b = _split(B, cuts_b, t)
-    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I), cuts=cuts_a, links=links, side=0)
-    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J), cuts=cuts_b, links=links, side=1)
+    # (the local way of both operands in one pass, then each operand's other ways)
+    local_a, local_b = _local_both(pieces_a, pieces_b, A, B, cuts_a, cuts_b, links, t)
+    status_a = _classify(pieces_a, A, B, t, free=_unpaired(len(A.specs), I), cuts=cuts_a, links=links, side=0,
+                         local=local_a)
+    status_b = _classify(pieces_b, B, A, t, free=_unpaired(len(B.specs), J), cuts=cuts_b, links=links, side=1,
+                         local=local_b)
     faces = _select(op, pieces_a, status_a, pieces_b, status_b)
     if not faces:
         return Solid.empty()
@@ -538,30 +546,16 @@ class _Operand:
     uv_box : list of ((u0, u1), (v0, v1)) enlarged parameter boxes
     """
 
-    def __init__(self, solid: Solid, name: str, t: Tolerance) -> None:
-        from coons.booleans.classify import surface_of
-
+    def __init__(self, solid: Solid, name: str, t: Tolerance, specs: list[FaceSpec] | None = None,
+                 data: list["_FaceData"] | None = None) -> None:
+        # (``specs`` and ``data``: :func:`_operands`, which computes both operands' face data together)
         self.solid, self.name, self.t = solid, name, t
         b = solid.brep
         F = b.n_faces
-        # Faces of a Boolean result sewn unchanged from a completed spec are that spec (checked
-        # field by field, :func:`sewn_unchanged`); the others are read from the B-rep.
-        specs: list[FaceSpec | None] = [None] * F
-        sewn = sewn_from(b)
-        if sewn is not None and len(sewn) == F:
-            for f in np.flatnonzero(sewn_unchanged_faces(b, sewn)).tolist():
-                specs[f] = sewn[f]
-        missing = [f for f in range(F) if specs[f] is None]
-        for f, spec in zip(missing, face_specs(solid, rows=missing) if missing else []):
-            S = spec.surface if spec.surface is not None else surface_of(b, f)
-            try:
-                loops = [[_with_pcurve(S, e, t) for e in loop] for loop in spec.loops]
-            except CoonsError as exc:
-                raise BooleanError(f"operand {name}, face {f}: cannot compute the p-curves of its edges: {exc}",
-                                   stage="input", diagnostics={"operand": name, "face": f}) from exc
-            specs[f] = FaceSpec(S, spec.sense, loops)
+        if specs is None:
+            specs = _operand_specs(solid, name, t)
         self.specs: list[FaceSpec] = specs
-        self._data: list[_FaceData] = _face_data_many(specs, t)
+        self._data: list[_FaceData] = _face_data_many(specs, t) if data is None else data
         self.uv_box = [d.uv_box for d in self._data]
         self.polygons = [d.rings for d in self._data]
         self.segments = [d.seg for d in self._data]
@@ -637,6 +631,45 @@ class _Operand:
         return self._classifier
 
 
+def _operands(a: Solid, b: Solid, t: Tolerance) -> tuple[_Operand, _Operand]:
+    """The operands ``A`` of ``a`` and ``B`` of ``b`` (phase 1), their face data computed in one
+    pass (:func:`_face_data_many`: one batch of samples, loop data and edge boxes instead of two;
+    a box minus a cylinder pays the batches' fixed cost once)."""
+    specs_a = _operand_specs(a, "A", t)
+    specs_b = _operand_specs(b, "B", t)
+    data = _face_data_many(specs_a + specs_b, t)
+    n = len(specs_a)
+    return _Operand(a, "A", t, specs_a, data[:n]), _Operand(b, "B", t, specs_b, data[n:])
+
+
+def _operand_specs(solid: Solid, name: str, t: Tolerance) -> list[FaceSpec]:
+    """The completed face specs of an operand (:class:`_Operand`), in face order.
+
+    Faces of a Boolean result sewn unchanged from a completed spec are that spec (checked
+    field by field, :func:`sewn_unchanged`); the others are read from the B-rep, with a
+    surface and every edge use's p-curve.
+    """
+    from coons.booleans.classify import surface_of
+
+    b = solid.brep
+    F = b.n_faces
+    specs: list[FaceSpec | None] = [None] * F
+    sewn = sewn_from(b)
+    if sewn is not None and len(sewn) == F:
+        for f in np.flatnonzero(sewn_unchanged_faces(b, sewn)).tolist():
+            specs[f] = sewn[f]
+    missing = [f for f in range(F) if specs[f] is None]
+    for f, spec in zip(missing, face_specs(solid, rows=missing) if missing else []):
+        S = spec.surface if spec.surface is not None else surface_of(b, f)
+        try:
+            loops = [[_with_pcurve(S, e, t) for e in loop] for loop in spec.loops]
+        except CoonsError as exc:
+            raise BooleanError(f"operand {name}, face {f}: cannot compute the p-curves of its edges: {exc}",
+                               stage="input", diagnostics={"operand": name, "face": f}) from exc
+        specs[f] = FaceSpec(S, spec.sense, loops)
+    return specs  # type: ignore[return-value]
+
+
 def _within_domain(S, ub: tuple, vb: tuple, v_face: tuple) -> tuple[tuple[float, float], tuple[float, float]]:
     """The enlarged parameter box ``(ub, vb)`` clipped to where ``S`` is one-to-one.
 
@@ -702,20 +735,30 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     if got is not None and got[0] is S:
         return got[1]
     Ue = _frozen(_edge_uv(e, S, _LOOP_SAMPLES))
-    _USE_SAMPLES[e] = (S, Ue, None)  # (the pad on demand, :func:`_use_samples_pad`)
+    _USE_SAMPLES.set(e, (S, Ue, None))  # (the pad on demand, :func:`_use_samples_pad`)
     return Ue
 
 
-def _prefill_samples(specs: list[FaceSpec]) -> None:
+def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None) -> None:
     """Fill :func:`_use_samples` (and the pads of :func:`_use_samples_pad`) for the uses of ``specs`` not sampled yet
     whose p-curve is a :class:`Line2D` or :class:`Trig2D`, all in one array pass
     (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own formulas): the pieces of a
-    Boolean bring many new cut edges."""
+    Boolean bring many new cut edges.  With ``t``, the loops whose :class:`_LoopData` is cached are
+    skipped (:func:`_cached_loop`; the kept loops of a face extending a kept one, :func:`_kept_prefix`,
+    without a look-up each): their samples are not read again (a plate's top gaining a hole keeps
+    a hundred loops)."""
     lines: list[tuple[EdgeSpec, object]] = []
     trigs: list[tuple[EdgeSpec, object]] = []
     for spec in specs:
         S = spec.surface
-        for loop in spec.loops:
+        loops = spec.loops
+        if t is not None and len(loops) > _PREFIX_LOOPS:
+            kept = _kept_prefix(spec, t)
+            if kept is not None:
+                loops = loops[len(kept[1]) + 1 :]  # (their data is kept whole: _extended_face_data)
+        for loop in loops:
+            if t is not None and loop and _cached_loop(loop, S, t) is not None:
+                continue
             for e in loop:
                 got = _USE_SAMPLES.get(e)
                 if got is not None and got[0] is S:
@@ -735,7 +778,7 @@ def _prefill_samples(specs: list[FaceSpec]) -> None:
             else:
                 pad = _norms2(np.diff(U, axis=1)).max(axis=1).tolist()
             for (e, S), Ue, p in zip(group, U, pad):
-                _USE_SAMPLES[e] = (S, Ue, p)
+                _USE_SAMPLES.set(e, (S, Ue, p))
 
 
 def _use_samples_pad(e: EdgeSpec, S) -> tuple[np.ndarray, float]:
@@ -745,17 +788,19 @@ def _use_samples_pad(e: EdgeSpec, S) -> tuple[np.ndarray, float]:
     got = _USE_SAMPLES.get(e)
     if got is None or got[0] is not S:
         _use_samples(e, S)
-        got = _USE_SAMPLES[e]
+        got = _USE_SAMPLES.get(e)
     if got[2] is None:
         Ue = got[1]
         pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(_norms2(np.diff(Ue, axis=0))))
-        got = _USE_SAMPLES[e] = (S, Ue, pad)
+        got = (S, Ue, pad)
+        _USE_SAMPLES.set(e, got)
     return got[1], got[2]
 
 
 #: Edge use -> (surface, its :func:`_edge_uv` samples on that surface, their pad (:func:`_use_samples_pad`) or None
-#: until asked for).
-_USE_SAMPLES: "weakref.WeakKeyDictionary[EdgeSpec, tuple]" = weakref.WeakKeyDictionary()
+#: until asked for).  By identity (one dict look-up, where a weak-key dictionary makes a weak
+#: reference per look-up: a Boolean of a hundred tools reads a thousand uses twice).
+_USE_SAMPLES = IdentityMemo()
 
 
 def _loop_rings(spec: FaceSpec, n: int = _LOOP_SAMPLES, samples: list | None = None) -> list[np.ndarray]:
@@ -799,7 +844,7 @@ def _forget_caches() -> None:
     from coons.kernel import curve_intersect, intersect, onsurface
     from coons.topology import _memo, check, mass, sew, split, tessellate
 
-    for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _FACE_DATA, _USE_SAMPLES,
+    for cache in (tessellate._MESHES, mass._CACHE, check._SEWN_FROM, _FACE_DATA,
                   curve_intersect._TRIG, curve_intersect._FORMS, curve_intersect._MEMO, onsurface._PERIODS_CACHE,
                   split._FACES, split._MAPPED, intersect._COORDS):
         cache.clear()
@@ -905,10 +950,12 @@ def _face_data_many(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     data = [_FACE_DATA.get(spec) for spec in specs]
     fresh = [k for k, d in enumerate(data) if d is None or d.t != t]
     if fresh:
-        todo = [specs[k] for k in fresh]
-        _prefill_samples(todo)
-        for k, d in zip(fresh, _new_face_data(todo, t)):
-            data[k] = d
+        # (a spec listed twice, as in both operands of a Boolean of a solid with itself, is computed once)
+        todo = list({id(specs[k]): specs[k] for k in fresh}.values())
+        _prefill_samples(todo, t)
+        made = {id(spec): d for spec, d in zip(todo, _new_face_data(todo, t))}
+        for k in fresh:
+            data[k] = made[id(specs[k])]
     return data
 
 
@@ -923,7 +970,23 @@ _PREFIX_LOOPS = 16
 _FACE_PREFIX = IdentityMemo()
 
 
-def _extended_face_data(spec: FaceSpec, t: Tolerance) -> _FaceData | None:
+def _kept_prefix(spec: FaceSpec, t: Tolerance) -> tuple | None:
+    """The entry of :data:`_FACE_PREFIX` whose loops are, use for use, the first loops of ``spec``
+    (fewer than all of them) on its surface with ``t``, else None."""
+    loops = spec.loops
+    got = _FACE_PREFIX.get(loops[0][0]) if loops and loops[0] else None
+    if got is None:
+        return None
+    rest0, tail, t_old, parts, raw = got
+    n = len(tail) + 1
+    if (t_old != t or n >= len(loops) or parts[0].surface is not spec.surface or len(loops[0]) != len(rest0) + 1
+            or not all(map(operator.is_, rest0, loops[0][1:]))
+            or not all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(tail, loops[1:n]))):
+        return None
+    return got
+
+
+def _extended_face_data(spec: FaceSpec, t: Tolerance, got: tuple | None = None) -> _FaceData | None:
     """The :class:`_FaceData` of ``spec`` from the kept data of a face whose loops are, use for
     use, the first loops of ``spec`` (:data:`_FACE_PREFIX`), and its new loops alone; None when
     there is no such face.
@@ -931,19 +994,16 @@ def _extended_face_data(spec: FaceSpec, t: Tolerance) -> _FaceData | None:
     Only on surfaces without interior extremes (planes, cylinders, cones: the space box is the
     union of the edge boxes).  Every per-face value of :func:`_new_face_data` is a minimum, a
     maximum or a concatenation over the loops in order, then one expression per face: combining
-    the kept reductions with the new loops' gives the very same floats.
+    the kept reductions with the new loops' gives the very same floats.  ``got``: the entry of
+    :func:`_kept_prefix` when the caller has found it.
     """
     S = spec.surface
     loops = spec.loops
-    got = _FACE_PREFIX.get(loops[0][0]) if loops and loops[0] else None
+    got = _kept_prefix(spec, t) if got is None else got
     if got is None:
         return None
     rest0, tail, t_old, parts, raw = got
     n = len(tail) + 1
-    if (t_old != t or n >= len(loops) or parts[0].surface is not S or len(loops[0]) != len(rest0) + 1
-            or not all(map(operator.is_, rest0, loops[0][1:]))
-            or not all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(tail, loops[1:n]))):
-        return None
     new = [(loop, _cached_loop(loop, S, t)) for loop in loops[n:]]
     todo = [(loop, S) for loop, ld in new if ld is None]
     made = iter(_new_loop_data(todo, t) if todo else [])
@@ -1010,10 +1070,27 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
     # A face extending a kept one by new loops (a plate's top gaining a hole) from the kept data.
-    extended: dict[int, _FaceData] = {}
+    kept = {}
     for k, spec in enumerate(specs if extend else ()):
         if len(spec.loops) > _PREFIX_LOOPS and _no_interior_extremes(spec.surface):
-            d = _extended_face_data(spec, t)
+            got = _kept_prefix(spec, t)
+            if got is not None:
+                kept[k] = got
+    extended: dict[int, _FaceData] = {}
+    if kept:
+        # The loops without data, of those faces' new loops and of the other faces, in one
+        # _new_loop_data pass (a plate's top and bottom gaining a hole, and the tool's faces),
+        # which the assembly below then finds cached (each loop's data is that of the loop alone).
+        todo: dict[tuple, tuple[list[EdgeSpec], object]] = {}
+        for k, spec in enumerate(specs):
+            S = spec.surface
+            for loop in spec.loops[len(kept[k][1]) + 1 :] if k in kept else spec.loops:
+                if _cached_loop(loop, S, t) is None:
+                    todo.setdefault((id(S),) + tuple(map(id, loop)), (loop, S))
+        if todo:
+            _new_loop_data(list(todo.values()), t)
+        for k, got in kept.items():
+            d = _extended_face_data(specs[k], t, got)
             if d is not None:
                 extended[k] = d
     if extended:
@@ -1182,9 +1259,25 @@ def _span_indices(knots: np.ndarray, p: int, n: int, a: float, b: float) -> tupl
 
 # ---------------------------------------------------------------------- broad phase
 def _broad_phase(A: _Operand, B: _Operand) -> tuple[np.ndarray, np.ndarray]:
+    """The face pairs ``(I, J)`` of A and B whose closed space boxes share a point, sorted by ``I``
+    then ``J``: :func:`~coons.booleans._broad_phase.box_pairs`, or for few pairs of faces the whole
+    ``(F_A, F_B)`` overlap table (the same ``<=`` comparisons; :func:`numpy.nonzero` lists it in
+    that order), which costs a few array operations where building two trees costs a few dozen
+    (a box and a cylinder: six faces and three)."""
+    if A.lo.shape[0] * B.lo.shape[0] <= _BROAD_TABLE:
+        ov = None
+        for k in range(3):  # (axis by axis: numpy reduces a short last axis slowly)
+            o = (A.lo[:, None, k] <= B.hi[None, :, k]) & (B.lo[None, :, k] <= A.hi[:, None, k])
+            ov = o if ov is None else ov & o
+        I, J = np.nonzero(ov)
+        return I.astype(np.int64, copy=False), J.astype(np.int64, copy=False)
     I, J = box_pairs(A.lo, A.hi, B.lo, B.hi)
     order = np.lexsort((J, I))
     return I[order], J[order]
+
+
+#: Most face pairs :func:`_broad_phase` tests as one table (a few hundred kB of temporaries).
+_BROAD_TABLE = 1 << 16
 
 
 # ---------------------------------------------------------------------- intersect
@@ -3221,8 +3314,13 @@ def _unpaired(n: int, idx: np.ndarray) -> np.ndarray:
 
 def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: Tolerance,
               free: np.ndarray | None = None, cuts: dict[int, list[EdgeSpec]] | None = None,
-              links: dict[int, list[_Link]] | None = None, side: int = 0) -> np.ndarray:
+              links: dict[int, list[_Link]] | None = None, side: int = 0,
+              local: np.ndarray | None = None) -> np.ndarray:
     """Status of every piece of X with respect to solid Y (``(k,)`` int8 of OUT/IN/ON_SAME/ON_OPPOSITE).
+
+    ``local``: the statuses the local way (1 below) gave, -1 where it gave none, when the caller
+    found them already (:func:`_local_both`, both operands in one pass); the local way is then
+    not run again.
 
     Four ways, cheapest first (the module docstring, phase 5):
 
@@ -3244,7 +3342,7 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
         (stage ``"classify"``) no interior point found, or a point on an edge of Y (the piece
         should have been split there).
     """
-    status = np.full(len(pieces), -1, dtype=np.int8)
+    status = np.full(len(pieces), -1, dtype=np.int8) if local is None else local.copy()
     y_boxed = len(Y.specs) and bool(np.all(np.isfinite(Y.lo) & np.isfinite(Y.hi) & (Y.lo <= Y.hi)))
     if free is not None and len(pieces) and y_boxed:
         # A face whose box lies outside Y's box is outside Y: most faces of a large part cut by
@@ -3253,7 +3351,7 @@ def _classify(pieces: list[tuple[int, FaceSpec]], X: _Operand, Y: _Operand, t: T
         valid = np.all(np.isfinite(X.lo) & np.isfinite(X.hi) & (X.lo <= X.hi), axis=1)
         far = np.any((X.lo > Y.hi.max(axis=0)) | (X.hi < Y.lo.min(axis=0)), axis=1) & free & valid
         status[far[np.fromiter((f for f, _ in pieces), dtype=np.int64, count=len(pieces))]] = OUT
-    if links and cuts:
+    if links and cuts and local is None:
         _local_status(pieces, Y, links, side, t, status, cut=cuts)
     if free is not None:
         _propagate(pieces, free, status)
@@ -3290,25 +3388,53 @@ def _local_status(pieces: list[tuple[int, FaceSpec]], Y: _Operand, links: dict[i
     a hundred hole discs is one evaluation).  ``cut``
     (when given) holds the faces that were split: only their pieces have cut edges.
     """
+    _local_status_many([(pieces, Y, side, status, cut)], links, t)
+
+
+def _local_both(pieces_a: list[tuple[int, FaceSpec]], pieces_b: list[tuple[int, FaceSpec]], A: _Operand,
+                B: _Operand, cuts_a: dict, cuts_b: dict, links: dict[int, list[_Link]],
+                t: Tolerance) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The statuses the local way gives the pieces of A (against B) and of B (against A), -1 where it
+    gives none (:func:`_local_status`), both operands' rounds tested together (:func:`_local_tests`:
+    one array pass per round instead of one per operand; a box minus a cylinder has one round of
+    a few candidates on each side).  None for an operand without cuts (or without links), as
+    :func:`_classify` then runs no local way."""
+    jobs = []
+    out: list[np.ndarray | None] = [None, None]
+    for side, (pieces, Y, cuts) in enumerate(((pieces_a, B, cuts_a), (pieces_b, A, cuts_b))):
+        if links and cuts:
+            out[side] = np.full(len(pieces), -1, dtype=np.int8)
+            jobs.append((pieces, Y, side, out[side], cuts))
+    if jobs:
+        _local_status_many(jobs, links, t)
+    return out[0], out[1]
+
+
+def _local_status_many(jobs: list[tuple], links: dict[int, list[_Link]], t: Tolerance) -> None:
+    """:func:`_local_status` of several ``(pieces, Y, side, status, cut)`` at once: each round tests the
+    next candidate of every undecided piece of every job in one :func:`_local_tests` pass."""
     # Each piece takes its first candidate that passes (in the order of its loops and uses): evaluated in
     # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole circles needs one
     # of them, not all; each piece's candidates are found as its rounds come (most pieces need one).
-    gens = {k: _piece_candidates(k, f, spec, links, side) for k, (f, spec) in enumerate(pieces)
-            if cut is None or f in cut}
+    gens = {(j, k): _piece_candidates(k, f, spec, links, side)
+            for j, (pieces, _, side, _, cut) in enumerate(jobs)
+            for k, (f, spec) in enumerate(pieces) if cut is None or f in cut}
     while gens:
-        sub = []
-        for k, gen in list(gens.items()):
-            c = next(gen, None) if status[k] < 0 else None
+        sub, of = [], []
+        for (j, k), gen in list(gens.items()):
+            c = next(gen, None) if jobs[j][3][k] < 0 else None
             if c is None:
-                del gens[k]
+                del gens[(j, k)]
             else:
                 sub.append(c)
+                of.append(j)
         if not sub:
             return
-        ok, cos = _local_tests(sub, Y, t)
-        for c, good, x in zip(sub, ok.tolist(), cos.tolist()):
+        Ys = jobs[0][1] if len(jobs) == 1 else [jobs[j][1] for j in of]
+        ok, cos = _local_tests(sub, Ys, t)
+        for c, j, good, x in zip(sub, of, ok.tolist(), cos.tolist()):
             if good:
-                status[c[0]] = IN if x < 0 else OUT
+                jobs[j][3][c[0]] = IN if x < 0 else OUT
 
 
 def _piece_candidates(k: int, f: int, spec: FaceSpec, links: dict[int, list[_Link]], side: int):
@@ -3327,12 +3453,16 @@ def _piece_candidates(k: int, f: int, spec: FaceSpec, links: dict[int, list[_Lin
                     yield (k, spec, e, 0.5 * (a + b), ln.faces[1 - side], ln.pcurves[1 - side])
 
 
-def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
+def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance) -> tuple[np.ndarray, np.ndarray]:
     """The local test of :func:`_local_status` for candidates ``(piece, spec, use, s, face of Y,
     p-curve on it)``: ``(k,)`` whether it applies and the cosine whose sign decides (IN when
     negative).  All candidates in one pass: lines, arcs, planes and surfaces of revolution in one
-    expression per type, other curves and surfaces one call per object."""
+    expression per type, other curves and surfaces one call per object.  ``Y``: the other operand
+    of every candidate, or a list of each one's (:func:`_local_status_many`: both operands' pieces
+    in one pass); the answers are per candidate, whatever else is in the pass."""
     n = len(cand)
+    Ys = Y if isinstance(Y, list) else [Y] * n
+    ops = {id(y): y for y in Ys}
     s = np.array([c[3] for c in cand])
     ok = np.ones(n, dtype=bool)
     T, uv_x, uv_y = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 2))
@@ -3362,12 +3492,12 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
     batched([c[2].pcurve for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_x)
     batched([c[5] for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_y)
     batched([c[1].surface for c in cand], lambda objs, r: surface_normals(objs, uv_x[r, 0], uv_x[r, 1]), n_x)
-    batched([Y.specs[c[4]].surface for c in cand],
-            lambda objs, r: surface_derivatives(objs, uv_y[r, 0], uv_y[r, 1], 1), frame)
+    face_y = [y.specs[c[4]] for c, y in zip(cand, Ys)]
+    batched([f.surface for f in face_y], lambda objs, r: surface_derivatives(objs, uv_y[r, 0], uv_y[r, 1], 1), frame)
     Su, Sv = frame[:, 1, 0], frame[:, 0, 1]
     forward = np.array([c[2].t1 > c[2].t0 for c in cand])
     sense_x = np.array([1.0 if c[1].sense else -1.0 for c in cand])
-    sense_y = np.array([1.0 if Y.specs[c[4]].sense else -1.0 for c in cand])
+    sense_y = np.array([1.0 if f.sense else -1.0 for f in face_y])
     T = np.where(forward[:, None], T, -T)
     d = np.cross(sense_x[:, None] * n_x, T)
     n_y = np.cross(Su, Sv)
@@ -3380,27 +3510,29 @@ def _local_tests(cand: list[tuple], Y: _Operand, t: Tolerance) -> tuple[np.ndarr
         # Clear of Y_j's loops: outside every padded segment box enlarged by the clearance in the
         # parameter plane (a space distance over the surface's speeds there).
         m = _LOCAL_CLEARANCE * np.array([max(t.linear, c[2].tol or 0.0) for c in cand])[:, None] / speed
-    by_face: dict[int, list[int]] = {}
+    # (the faces of Y by (operand, face))
+    by_face: dict[tuple[int, int], list[int]] = {}
     for i in np.flatnonzero(ok).tolist():
-        by_face.setdefault(cand[i][4], []).append(i)
+        by_face.setdefault((id(Ys[i]), cand[i][4]), []).append(i)
     # Faces of few loops: every candidate against every padded segment box of its face, all such
     # faces in one pass over the (candidate, segment) pairs (a hundred holes' walls).
-    few = [j for j in by_face if len(Y.specs[j].loops) <= _LOOPS_BOXED]
-    few = [j for j in few if Y.seg_lo[j].shape[0]]  # (a face without segments: no box to be near)
+    few = [(y, j) for y, j in by_face if len(ops[y].specs[j].loops) <= _LOOPS_BOXED]
+    few = [(y, j) for y, j in few if ops[y].seg_lo[j].shape[0]]  # (a face without segments: no box to be near)
     if few:
-        r = np.array([i for j in few for i in by_face[j]], dtype=np.int64)
-        nseg = np.array([Y.seg_lo[j].shape[0] for j in few], dtype=np.int64)
-        per_row = np.repeat(nseg, [len(by_face[j]) for j in few])  # each row's face's segment count
-        seg0 = np.repeat(np.cumsum(nseg) - nseg, [len(by_face[j]) for j in few])  # and its first segment
+        r = np.array([i for key in few for i in by_face[key]], dtype=np.int64)
+        nseg = np.array([ops[y].seg_lo[j].shape[0] for y, j in few], dtype=np.int64)
+        per_row = np.repeat(nseg, [len(by_face[key]) for key in few])  # each row's face's segment count
+        seg0 = np.repeat(np.cumsum(nseg) - nseg, [len(by_face[key]) for key in few])  # and its first segment
         pair_start = np.cumsum(per_row) - per_row
         row = np.repeat(np.arange(r.size), per_row)
         seg = np.repeat(seg0 - pair_start, per_row) + np.arange(int(per_row.sum()))
-        lo = np.concatenate([Y.seg_lo[j] for j in few])[seg]
-        hi = np.concatenate([Y.seg_hi[j] for j in few])[seg]
+        lo = np.concatenate([ops[y].seg_lo[j] for y, j in few])[seg]
+        hi = np.concatenate([ops[y].seg_hi[j] for y, j in few])[seg]
         q, mr = uv_y[r][row], m[r][row]
         near = np.all((q >= lo - mr) & (q <= hi + mr), axis=1)
         ok[r[np.logical_or.reduceat(near, pair_start)]] = False
-    for j, rows in by_face.items():
+    for (y, j), rows in by_face.items():
+        Y = ops[y]
         if len(Y.specs[j].loops) <= _LOOPS_BOXED:
             continue  # (above)
         r = np.asarray(rows)
@@ -3990,8 +4122,20 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
 def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rows equal in every column of ``cols`` (``(k,)`` each) as groups numbered in the order of their first
     row: ``first (g,)`` the first row of each group and ``of (k,)`` each row's group.  One sort of the rows
-    (floats compare as Python's do: ``0.0 == -0.0``, as in a dict of key tuples)."""
+    (floats compare as Python's do: ``0.0 == -0.0``, as in a dict of key tuples), or for a few rows
+    that dict itself."""
     k = cols[0].size
+    if k <= _GROUPS_BY_DICT:
+        # (a few rows: a dict of Python key tuples, which compare as the sort below does, costs less)
+        seen: dict[tuple, int] = {}
+        first_l: list[int] = []
+        of_l: list[int] = []
+        for i, key in enumerate(zip(*[c.tolist() for c in cols])):
+            g = seen.setdefault(key, len(first_l))
+            if g == len(first_l):
+                first_l.append(i)
+            of_l.append(g)
+        return np.array(first_l, dtype=np.int64), np.array(of_l, dtype=np.int64)
     order = np.lexsort(cols[::-1])
     same = np.ones(max(k - 1, 0), dtype=bool)  # (each sorted row equal to the one before)
     for col in cols:
@@ -4005,6 +4149,10 @@ def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     renumber = np.empty(rank.size, dtype=np.int64)
     renumber[rank] = np.arange(rank.size)
     return first[rank], renumber[group]
+
+
+#: Up to this many rows :func:`_groups` groups them by a dict.
+_GROUPS_BY_DICT = 64
 
 
 def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:
@@ -4092,7 +4240,8 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     A k-d tree of the candidate points proposes those within a ball around each box's centre
     that holds the whole padded box (half its diagonal plus ``√3`` times the largest tolerance,
     with a margin for round-off); the box test itself decides.  Boxes times points would grow
-    with the square of a part's size: every unchanged face of a plate against every vertex.
+    with the square of a part's size: every unchanged face of a plate against every vertex (up
+    to ``_SMALL_BOX_PAIRS`` pairs, as a box and a cylinder bring, the box test runs on every pair).
     """
     from scipy.spatial import cKDTree
 
@@ -4100,6 +4249,16 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     if cand.size == 0:
         return [cand] * n
     Q, qt = P[cand], ptol[cand]
+    if n * cand.size <= _SMALL_BOX_PAIRS:
+        # (few boxes and points: the box test on every pair costs less than the tree; the same test)
+        pad = qt[None, :, None]
+        rows, cols = np.nonzero(np.all((Q[None] >= lo[:, None] - pad) & (Q[None] <= hi[:, None] + pad), axis=2))
+        out = [cand[:0]] * n  # (most boxes hold none: one empty array for them)
+        if rows.size:
+            ends = np.flatnonzero(np.diff(rows)) + 1
+            for a, b in zip([0] + ends.tolist(), ends.tolist() + [rows.size]):
+                out[int(rows[a])] = cand[cols[a:b]]
+        return out
     centre = 0.5 * (lo + hi)
     half = 0.5 * np.linalg.norm(hi - lo, axis=1)
     scale = np.abs(centre).max(axis=1) + half
@@ -4212,10 +4371,30 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
                 & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
         pairs = pairs[keep]
-        _prefill_uv_extents([faces[f] for f in np.unique(face_of[pairs]).tolist()
-                             if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
         fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
+        # Pairs tried before, in this pass or by an earlier Boolean on the same two face specs,
+        # are dropped before the batched full-period test (a plate cut hole by hole brings every
+        # earlier hole's two wall halves again).
+        live = []
+        memos = _MERGE_FAILED.get_many([faces[fp] for fp, _ in fpq])
+        for i, ((fp, fq), (up, uq), known) in enumerate(zip(fpq, upq, memos)):
+            A, B = faces[fp], faces[fq]
+            up, uq = tuple(up), tuple(uq)
+            if (id(A), up, id(B), uq) in failed:
+                continue
+            known = known.get(id(B)) if known is not None else None
+            if known is not None and known[0]() is B and (up, uq, t) in known[1]:
+                continue  # found unmergeable by an earlier Boolean on the same two face specs
+            live.append(i)
+        if not live:
+            break
+        face_first = np.cumsum(counts) - counts  # (each face's first row in P3)
+        pairs = pairs[live]
+        fpq = [fpq[i] for i in live]
+        upq = [upq[i] for i in live]
+        _prefill_uv_extents([faces[f] for f in sorted({f for fg in fpq for f in fg})
+                             if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
         wraps = _wrapping_pairs(faces, fpq, upq)
         for (p, q), (fp, fq), (up, uq), wrap in zip(pairs.tolist(), fpq, upq, wraps):
             A, B = faces[fp], faces[fq]
@@ -4224,16 +4403,15 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             if key in failed:
                 continue
             memo = (up, uq, t)
-            known = _MERGE_FAILED.get(A)
-            known = known.get(id(B)) if known is not None else None
-            if known is not None and known[0]() is B and memo in known[1]:
-                continue  # found unmergeable by an earlier Boolean on the same two face specs
             failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
             seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
             ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
             Pa, Pb = P3[p], P3[q]
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
+                continue
+            if not wrap and _off_plane(A, B, P3[face_first[fq] : face_first[fq] + _MOVED_PROBES, 0], t):
+                _merge_failed(A, B, memo)
                 continue
             merged = None if wrap else _merged_pair(A, B, up, uq, t)
             if merged is None:
@@ -4264,6 +4442,37 @@ def _merge_failed(A: FaceSpec, B: FaceSpec, memo: tuple) -> None:
     if got is None or got[0]() is not B:
         got = known[id(B)] = (weakref.ref(B), set())
     got[1].add(memo)
+
+
+def _off_plane(A: FaceSpec, B: FaceSpec, starts: np.ndarray, t: Tolerance) -> bool:
+    """Whether :func:`_merged_pair` is sure to return None for two faces on distinct planes because
+    B's boundary leaves A's plane: :func:`_moved`'s first test in Python floats (two faces of a box
+    meeting at an edge; numpy on the few probes cost more than the test).
+
+    ``starts``: the start points of B's first uses in loop order (its use table,
+    :func:`~coons.topology.sew._face_uses`), at most :data:`_MOVED_PROBES`.  A point counts as off
+    only when its distance to the plane exceeds :func:`_moved`'s threshold by more than a
+    round-off margin (the table's points and the plane's projection may differ from ``_moved``'s
+    in the last bits), so a True here is a None there; False decides nothing.
+    """
+    S = A.surface
+    if type(S) is not PlanarSurface or type(B.surface) is not PlanarSurface or S is B.surface:
+        return False
+    o, n = S.origin.tolist(), S.axis.tolist()
+    # Normals farther apart than the angular tolerance (with room for round-off) are not close
+    # (``is_close`` compares the axes within ``t.angular``): no need to ask it.
+    turned = math.dist(n, B.surface.axis.tolist()) > 2.0 * t.angular + 1e-12
+    scale = 1.0 + max(abs(x) for x in o)
+    ends = itertools.chain.from_iterable(B.loops)
+    off = False
+    for (x, y, z), e in zip(starts.tolist(), ends):
+        d = abs((x - o[0]) * n[0] + (y - o[1]) * n[1] + (z - o[2]) * n[2])
+        # (10x the use's tolerance, as _moved; the margin is far below it: tolerances are > 1e-9 relative)
+        if d > 10.0 * max(t.linear, e.tol or 0.0) + 1e-9 * (scale + abs(x) + abs(y) + abs(z)):
+            off = True
+            break
+    # Two planes that compare close are one surface to _merged_pair, whatever their faces' extent.
+    return off and (turned or not _same_surface(S, B.surface, t))
 
 
 def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, int], t: Tolerance) -> FaceSpec | None:

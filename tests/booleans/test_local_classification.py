@@ -115,7 +115,9 @@ def test_local_tests_on_a_face_of_many_loops_look_only_at_nearby_loops(monkeypat
     monkeypatch.setattr(S, "_local_tests", lambda cand, Y, t: calls.append((cand, Y, t)) or real(cand, Y, t))
     # (a hole 0.1 from the one at (0, -10): the clearance test near their loops rejects candidates)
     S.difference(plate, Cylinder(2, 20).translate((0.0, -5.9, 0.0)), method="brep")
-    busy = [c for c in calls if any(len(c[1].specs[k[4]].loops) > S._LOOPS_BOXED for k in c[0])]
+    # (Y: the other operand of every candidate, or a list of each one's: both operands in one pass)
+    busy = [c for c in calls if any(len((c[1][i] if isinstance(c[1], list) else c[1]).specs[k[4]].loops)
+                                    > S._LOOPS_BOXED for i, k in enumerate(c[0]))]
     assert busy
     boxed = S._LOOPS_BOXED
     rejected = 0
@@ -197,3 +199,35 @@ def test_local_candidates_found_round_by_round_as_all_at_once(monkeypatch, case)
     assert any(batches) and read[0] <= total
     if case == "plate-holes":
         assert read[0] < total  # (the plate's face with nine hole circles needs one of them)
+
+
+@pytest.mark.parametrize("case", ["box-cylinder", "plate-holes", "tangent", "spheres"])
+def test_local_way_of_both_operands_in_one_pass_as_each_alone(monkeypatch, case):
+    """_local_both tests both operands' rounds together (one _local_tests pass per round, each candidate
+    with its own other operand): the same statuses as _local_status one operand at a time, in fewer passes."""
+    a, b = {
+        "box-cylinder": lambda: (Box(10, 10, 10), _cyl(3, 20)),
+        "plate-holes": lambda: (Box(40, 40, 10), S._gathered([_cyl(2, 20, (x, y, 0)) for x in (-10, 0, 10)
+                                                              for y in (-10, 0, 10)], resolve(None))),
+        "tangent": lambda: (Box(10, 10, 10), _cyl(2, 20, (0.0, 0.0, 7.0), (1, 0, 0))),
+        "spheres": lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
+    }[case]()
+    t, A, B, I, J, links, cuts, pieces = _phases(a, b)
+    passes = []
+    real = S._local_tests
+    monkeypatch.setattr(S, "_local_tests", lambda cand, Y, tol: passes.append(len(cand)) or real(cand, Y, tol))
+    both = S._local_both(pieces[0], pieces[1], A, B, cuts[0], cuts[1], links, t)
+    joint = len(passes)
+    alone = []
+    for side, Y in enumerate((B, A)):
+        status = np.full(len(pieces[side]), -1, dtype=np.int8)
+        S._local_status(pieces[side], Y, links, side, t, status, cut=cuts[side])
+        alone.append(status)
+    assert sum(passes[joint:]) == sum(passes[:joint])  # the same candidates
+    assert joint <= len(passes) - joint
+    if case != "tangent":  # (there only B's pieces have a transversal cut)
+        assert joint < len(passes) - joint  # fewer passes
+    for got, ref in zip(both, alone):
+        np.testing.assert_array_equal(got, ref)
+    if case != "tangent":  # (there the candidates fail the test: near tangency, decided by points)
+        assert all((ref >= 0).any() for ref in alone)

@@ -834,6 +834,66 @@ def test_operand_takes_carried_faces_with_the_data_a_cold_set_up_computes():
             np.testing.assert_array_equal(x, y)
 
 
+@pytest.mark.parametrize("a, b", [
+    (lambda: Box(10, 10, 10), lambda: Cylinder(3, 20)),
+    (lambda: Sphere(5), lambda: Sphere(5).translate((4.0, 2.0, 0.5))),
+    (lambda: Cylinder(2, 20), lambda: Cylinder(1.5, 10, direction=(1, 0, 0)).translate((5, 0, 0))),
+])
+def test_operands_together_have_the_data_of_each_alone(a, b):
+    """_operands computes both operands' face data in one batch: the same specs and data as one
+    operand at a time (cold each), and a solid against itself computes each face once."""
+    t = S.resolve(None)
+    a, b = a(), b()
+    _forget_carried()
+    A, B = S._operands(a, b, t)
+    _forget_carried()
+    A1 = S._Operand(a, "A", t)
+    _forget_carried()
+    B1 = S._Operand(b, "B", t)
+    for X, Y in ((A, A1), (B, B1)):
+        assert X.name == Y.name and X.uv_box == Y.uv_box
+        for x, y in zip(X.polygons, Y.polygons):
+            for p, q in zip(x, y):
+                np.testing.assert_array_equal(p, q)
+        for name in ("segments", "seg_lo", "seg_hi", "lo", "hi"):
+            for x, y in zip(getattr(X, name), getattr(Y, name)):
+                np.testing.assert_array_equal(x, y)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")  # (its specs carried: one set for both)
+    P, Q = S._operands(r, r, t)
+    assert all(x is y for x, y in zip(P.specs, Q.specs))
+    assert all(x is y for x, y in zip(P._data, Q._data))
+
+
+def test_operands_of_a_plate_cut_again_compute_their_new_loops_in_one_pass(monkeypatch):
+    """A plate whose top and bottom extend kept faces (more than _PREFIX_LOOPS holes) and a new tool:
+    the loops without data, the new holes' and the tool's, are computed in one _new_loop_data pass,
+    and the faces get the data a cold set-up computes."""
+    t = S.resolve(None)
+    r = Box(80, 80, 4)
+    for k in range(S._PREFIX_LOOPS + 2):
+        r = _ok(S.difference(r, Cylinder(1.0, 20).translate((8.0 * (k % 9) - 32, 8.0 * (k // 9) - 32, 0)),
+                             method="brep"))
+    tool = Cylinder(1.0, 20).translate((8.0, 24.0, 0))
+    _ok(S.difference(r, tool, method="brep"))  # (keeps the faces' data for the ones extending them)
+    r = _ok(S.difference(r, Cylinder(1.0, 20).translate((16.0, 24.0, 0)), method="brep"))
+    calls = []
+    real = S._new_loop_data
+    monkeypatch.setattr(S, "_new_loop_data", lambda items, tol: calls.append(len(items)) or real(items, tol))
+    extended = []
+    real_ext = S._extended_face_data
+    monkeypatch.setattr(S, "_extended_face_data", lambda *a: extended.append(a[0]) or real_ext(*a))
+    A, B = S._operands(r, Cylinder(1.0, 20).translate((24.0, 24.0, 0)), t)
+    assert len(extended) == 2 and len(calls) == 1  # the top and the bottom; one pass
+    monkeypatch.undo()
+    _forget_carried()
+    A1, B1 = S._Operand(r, "A", t), S._Operand(Cylinder(1.0, 20).translate((24.0, 24.0, 0)), "B", t)
+    for X, Y in ((A, A1), (B, B1)):
+        assert X.uv_box == Y.uv_box
+        for name in ("segments", "seg_lo", "seg_hi", "lo", "hi"):
+            for x, y in zip(getattr(X, name), getattr(Y, name)):
+                np.testing.assert_array_equal(x, y)
+
+
 def test_operand_reads_faces_the_sewing_changed_from_the_brep():
     """A face whose B-rep row differs from the spec it was sewn from (here: a tolerance) is read again."""
     t = S.resolve(None)
@@ -955,6 +1015,24 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     assert again == first and len(calls) == n  # nothing tried again
 
 
+def test_remembered_merge_failures_skip_the_batched_period_test(monkeypatch):
+    """Pairs remembered as unmergeable are dropped before the batched full-period test: a plate
+    cut again brings every earlier hole's two wall halves, which are not tested again."""
+    t = S.resolve(None)
+    halves = S._Operand(Cylinder(1.0, 2.0), "A", t).specs
+    seen = _wrapping_pairs_seen(monkeypatch)
+    first = S._merge_faces(list(halves), t)
+    assert any(w for *_, w in seen)  # the seams, decided by the batch
+    seen.clear()
+    assert S._merge_faces(list(halves), t) == first and not seen
+    # A plate cut hole by hole: the last cut tests only the new hole's seams.
+    plate = Box(40, 40, 4)
+    for k in range(3):
+        seen.clear()
+        plate = _ok(S.difference(plate, Cylinder(2, 10).translate((-10.0 + 10 * k, 0, 0)), method="brep"))
+        assert sum(w for *_, w in seen) == 2
+
+
 def _wrapping_pairs_seen(monkeypatch) -> list:
     """A list that collects ``(A, B, up, uq, wraps)`` of every candidate pair passed to _wrapping_pairs from now
     on (those it does not decide with False)."""
@@ -1005,6 +1083,32 @@ def test_wrapping_pairs_equal_the_pairwise_full_period_test(monkeypatch):
         assert w == S._wraps(A, B, S._whole_periods(A.surface, offset))
         answers.append(w)
     assert True in answers and False in answers
+
+
+def test_broad_phase_table_gives_the_pairs_of_box_pairs(monkeypatch):
+    """The overlap table for few faces gives box_pairs' pairs in the same sorted order (touching boxes
+    count: half-integer corners touch often), and so do the trees past the table's size."""
+    from types import SimpleNamespace
+
+    from coons.booleans._broad_phase import box_pairs
+
+    rng = np.random.default_rng(7)
+
+    def operand(k):
+        lo = np.round(rng.uniform(-5, 5, (k, 3)) * 2) / 2
+        return SimpleNamespace(lo=lo, hi=lo + np.round(rng.uniform(0, 3, (k, 3)) * 2) / 2)
+
+    for n, m in [(0, 3), (6, 3), (1, 1), (17, 40), (40, 17)] * 20:
+        A, B = operand(n), operand(m)
+        I, J = S._broad_phase(A, B)
+        I2, J2 = box_pairs(A.lo, A.hi, B.lo, B.hi)
+        order = np.lexsort((J2, I2))
+        assert I.dtype == J.dtype == np.int64
+        assert I.tolist() == I2[order].tolist() and J.tolist() == J2[order].tolist()
+        monkeypatch.setattr(S, "_BROAD_TABLE", 0)
+        I3, J3 = S._broad_phase(A, B)
+        monkeypatch.undo()
+        assert I3.tolist() == I.tolist() and J3.tolist() == J.tolist()
 
 
 def test_use_box_array_is_the_stacked_edge_boxes():
@@ -1107,17 +1211,27 @@ def test_clear_uses_is_the_per_use_box_test(points, ptol):
                           st.floats(0, 6), st.floats(0, 0.5)), min_size=1, max_size=8),
        st.floats(0.0, 0.5), st.integers(0, 3))
 def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, stride):
-    """The k-d tree proposal of _foreign_in_boxes loses no point of the padded box test."""
+    """The k-d tree proposal of _foreign_in_boxes loses no point of the padded box test, and the test
+    on every pair (few boxes and points) is that test."""
     P = np.array(points, dtype=np.float64).reshape(-1, 3)
     tol = np.full(P.shape[0], ptol) * (1.0 + np.arange(P.shape[0]) % 3)  # unequal tolerances
     B = np.array(boxes, dtype=np.float64)
     lo, hi = B[:, :3], B[:, :3] + B[:, 3:]  # boxes of any shape, flat ones included
     cand = np.arange(0, P.shape[0], 1 + stride)
-    got = S._foreign_in_boxes(lo, hi, P, tol, cand)
-    for i in range(lo.shape[0]):
-        pad = tol[cand, None]
-        inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
-        np.testing.assert_array_equal(got[i], cand[inside])
+    every = S._foreign_in_boxes(lo, hi, P, tol, cand)
+    small = S._SMALL_BOX_PAIRS
+    try:
+        S._SMALL_BOX_PAIRS = -1  # (the tree, whatever the size)
+        tree = S._foreign_in_boxes(lo, hi, P, tol, cand)
+    finally:
+        S._SMALL_BOX_PAIRS = small
+    for got in (every, tree):
+        assert len(got) == lo.shape[0]
+        for i in range(lo.shape[0]):
+            pad = tol[cand, None]
+            inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
+            np.testing.assert_array_equal(got[i], cand[inside])
+            assert got[i].dtype == cand.dtype
 
 
 def test_cut_ends_are_each_curves_evaluate():
@@ -1232,14 +1346,13 @@ def test_prefilled_samples_are_the_single_ones():
     """_prefill_samples samples Line2D and Trig2D p-curves of many uses at once exactly as _edge_uv does."""
     specs = _pieces(S.difference(Box(20, 20, 5), Cylinder(2, 10).translate((3, 0, 0))), Cylinder(1.5, 10))
     uses = [(e, spec.surface) for spec in specs for loop in spec.loops for e in loop]
-    for e, _ in uses:
-        S._USE_SAMPLES.pop(e, None)
+    S._USE_SAMPLES.clear()
     S._prefill_samples(specs)
     kinds = {type(e.pcurve).__name__ for e, _ in uses}
     assert {"Line2D", "Trig2D"} <= kinds
     for e, surface in uses:
         if type(e.pcurve).__name__ in ("Line2D", "Trig2D"):
-            got = S._USE_SAMPLES[e]
+            got = S._USE_SAMPLES.get(e)
             assert got[0] is surface and not got[1].flags.writeable
             Ue = S._edge_uv(e, surface, S._LOOP_SAMPLES)
             np.testing.assert_array_equal(got[1], Ue)
@@ -1405,8 +1518,8 @@ def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     made = []
     real_operand = S._Operand
 
-    def operand(solid, name, t):
-        made.append(real_operand(solid, name, t))
+    def operand(solid, name, t, *rest):  # (rest: the specs and data _operands computed for both)
+        made.append(real_operand(solid, name, t, *rest))
         return made[-1]
 
     monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
@@ -1433,8 +1546,8 @@ def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeyp
     got = []
     real = S._extended_face_data
 
-    def spy(spec, tol):
-        d = real(spec, tol)
+    def spy(spec, tol, *rest):  # (rest: the kept entry when _new_face_data found it)
+        d = real(spec, tol, *rest)
         if d is not None:
             got.append((spec, d))
         return d
@@ -1449,7 +1562,7 @@ def test_face_data_of_a_face_gaining_holes_extends_the_kept_data_exactly(monkeyp
     assert len({len(spec.loops) for spec, _ in got}) >= 3  # taken cut after cut
     # Cold: no kept data and no extension (the cold pass keeps data again, which must not be read).
     monkeypatch.setattr(S, "_FACE_PREFIX", IdentityMemo())
-    monkeypatch.setattr(S, "_extended_face_data", lambda spec, tol: None)
+    monkeypatch.setattr(S, "_extended_face_data", lambda spec, tol, *rest: None)
     for spec, d in got:
         del S._FACE_DATA[spec]
         cold = S._new_face_data([spec], t)[0]
@@ -1708,12 +1821,19 @@ def test_groups_number_equal_rows_as_a_dict_of_key_tuples_would():
     """_groups (one sort) numbers equal rows in the order of their first row, as a dict of key tuples does
     (``0.0 == -0.0`` included): the first rows and every row's group."""
     rng = np.random.default_rng(7)
-    for k in (0, 1, 2, 50, 400):
+    for k in (0, 1, 2, 50, S._GROUPS_BY_DICT, S._GROUPS_BY_DICT + 1, 400):
         ids = rng.integers(0, 6, size=k)
         lo = rng.choice([0.0, -0.0, 1.5, 2.0], size=k)
         hi = rng.choice([3.0, 4.0], size=k)
         index: dict = {}
         of = [index.setdefault((int(i), float(a), float(b)), len(index)) for i, a, b in zip(ids, lo, hi)]
         first = [of.index(g) for g in range(len(index))]
-        got_first, got_of = S._groups(ids, lo, hi)
-        assert got_first.tolist() == first and got_of.tolist() == of
+        by_dict = S._GROUPS_BY_DICT
+        for limit in (by_dict, -1):  # (a few rows by a dict; every size by the sort)
+            S._GROUPS_BY_DICT = limit
+            try:
+                got_first, got_of = S._groups(ids, lo, hi)
+            finally:
+                S._GROUPS_BY_DICT = by_dict
+            assert got_first.tolist() == first and got_of.tolist() == of
+            assert got_first.dtype == got_of.dtype == np.int64

@@ -297,13 +297,22 @@ def test_coplanar_caps_merge_and_other_planes_are_rejected_before_an_interior_po
     """A cylinder whose caps lie in the box's top and bottom planes: each cap merges with the box
     face (the same plane in another parametrisation, re-expressed by ``_moved_to``); pairs of
     faces on different planes (the box's own edges) are rejected from their boundary points,
-    without an interior point of the face."""
+    without an interior point of the face (most by ``_off_plane`` in floats, before ``_moved_to``)."""
     from coons.kernel.analytic import PlanarSurface
 
     box = Box(10, 10, 10)
     cyl = Cylinder(3, 10).translate((5, 0, 0))
-    real_moved, real_interior = S._moved_to, S._interior_point
-    seen = {"moved": 0, "rejected_with_interior": 0, "interior": 0}
+    real_moved, real_interior, real_off = S._moved_to, S._interior_point, S._off_plane
+    seen = {"moved": 0, "rejected_with_interior": 0, "interior": 0, "off_plane": 0}
+
+    def off_plane(A, B, starts, t):
+        out = real_off(A, B, starts, t)
+        if out:
+            seen["off_plane"] += 1
+            # (what it stands for: the exact path rejects the pair too, from the boundary alone)
+            before = seen["interior"]
+            assert real_moved(B, A.surface, t) is None and seen["interior"] == before
+        return out
 
     def interior(*args, **kw):
         seen["interior"] += 1
@@ -319,6 +328,7 @@ def test_coplanar_caps_merge_and_other_planes_are_rejected_before_an_interior_po
 
     monkeypatch.setattr(S, "_moved_to", moved)
     monkeypatch.setattr(S, "_interior_point", interior)
+    monkeypatch.setattr(S, "_off_plane", off_plane)
     r = box + cyl
     assert r.check().ok
     assert abs(r.volume - (1000 + 0.5 * math.pi * 9 * 10)) <= 1e-9 * r.volume
@@ -328,7 +338,9 @@ def test_coplanar_caps_merge_and_other_planes_are_rejected_before_an_interior_po
             n = np.asarray(spec.surface.normal(0.0, 0.0)).reshape(3)
             flat_z += abs(abs(n[2]) - 1.0) < 1e-12
     assert flat_z == 2  # the top and bottom faces, each merged with a cap
-    assert seen["moved"] > 2 and seen["rejected_with_interior"] == 0
+    assert seen["moved"] + seen["off_plane"] > 2 and seen["rejected_with_interior"] == 0
+    assert seen["off_plane"] > 2  # the box's own edges
+    assert seen["moved"] >= 2  # the caps, re-expressed on the box's planes
 
 
 def test_end_tolerance_examines_every_edge_near_an_end(monkeypatch):

@@ -2318,11 +2318,12 @@ def _end_tolerance(c, ends: tuple[float, float], faces: tuple, t: Tolerance, nea
 
 
 def _runs_along(branch, curve, lo_t: float, hi_t: float, delta: float) -> bool:
-    """Whether ``curve`` over ``[lo_t, hi_t]`` lies within ``delta`` of the branch's line or circle (its
-    ends and middle do: three points of a circle on a circle make it that circle, two of a line
-    that line).  Other branch curves: False (the widened tolerance stays)."""
+    """Whether the line or circle ``curve`` over ``[lo_t, hi_t]`` lies within ``delta`` of the branch's
+    line or circle (its ends and middle do: three points of a circle on a circle make it that
+    circle, two of a line that line).  Other curves, or a curve of another kind than the branch's:
+    False (the widened tolerance stays)."""
     kind = type(branch)
-    if kind is not Line and kind is not Circle:
+    if (kind is not Line and kind is not Circle) or type(curve) is not kind:
         return False
     Q = np.asarray(curve.evaluate(np.array([lo_t, 0.5 * (lo_t + hi_t), hi_t])), dtype=np.float64)
     if kind is Line:
@@ -4410,7 +4411,8 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
             if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
                 continue
-            if not wrap and _off_plane(A, B, P3[face_first[fq] : face_first[fq] + _MOVED_PROBES, 0], t):
+            probes = P3[face_first[fq] : face_first[fq] + min(int(counts[fq]), _MOVED_PROBES), 0]  # (B's own rows)
+            if not wrap and _off_plane(A, B, probes, t):
                 _merge_failed(A, B, memo)
                 continue
             merged = None if wrap else _merged_pair(A, B, up, uq, t)
@@ -4467,7 +4469,8 @@ def _off_plane(A: FaceSpec, B: FaceSpec, starts: np.ndarray, t: Tolerance) -> bo
     off = False
     for (x, y, z), e in zip(starts.tolist(), ends):
         d = abs((x - o[0]) * n[0] + (y - o[1]) * n[1] + (z - o[2]) * n[2])
-        # (10x the use's tolerance, as _moved; the margin is far below it: tolerances are > 1e-9 relative)
+        # (10x the use's tolerance, as _moved, plus a round-off margin; where coordinates are large the
+        # margin may exceed it, which only makes the answer False, deciding nothing)
         if d > 10.0 * max(t.linear, e.tol or 0.0) + 1e-9 * (scale + abs(x) + abs(y) + abs(z)):
             off = True
             break

@@ -768,7 +768,6 @@ def _newton_one(f1: tuple, r1, f2: tuple, r2, s: float, t: float, t_: Tolerance)
         s, t = s_new, t_new
         if moved <= t_.solver * (1.0 + abs(s_new) + abs(t_new)) or stalled >= _STALL:
             break
-        g = None
     if g is None:
         g = _gap1(f1, s, f2, t)
     return s, t, math.sqrt(_dot(g, g))

@@ -159,6 +159,8 @@ class LastRecord(IdentityMemo):
 #: its geometry pools (``surfaces``, ``curves``, ``pcurves``), built on demand (:func:`pool_positions`)
 #: or from ``(ids, order)`` seeded by the builder (:func:`seed_pool_ids`).
 _POOL_IDS = IdentityMemo()
+#: B-rep -> ``{pool name: (ids, order)}`` given by :func:`seed_pool_ids`, taken by the first read.
+_POOL_SEEDS = IdentityMemo()
 #: B-rep -> ``{(pool name, id(donor)): (weak reference to the donor, positions)}``: what
 #: :func:`pool_positions` found, shared by the checker and the mass tables of one B-rep.
 _POSITIONS = IdentityMemo()
@@ -172,13 +174,15 @@ def _pool_ids(b: Any, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         got = {}
         _POOL_IDS.set(b, got)
     hit = got.get(name)
-    if hit is None or len(hit) == 2:
+    if hit is None:
         pool = getattr(b, name)
-        if hit is None:
+        seeds = _POOL_SEEDS.get(b)
+        seed = seeds.pop(name, None) if seeds is not None else None
+        if seed is None:
             ids = np.fromiter(map(id, pool), dtype=np.uint64, count=len(pool))  # (CPython ids are addresses, >= 0)
             o = np.argsort(ids, kind="stable")
         else:
-            ids, o = hit  # (seed_pool_ids: the builder sorted them)
+            ids, o = seed  # (seed_pool_ids: the builder sorted them)
         if not all(map(_value_type, set(map(type, pool)))):
             # (a stable order filtered is the stable order of the filtered ids)
             o = o[np.fromiter(map(is_value, pool), dtype=bool, count=len(pool))[o]]
@@ -191,10 +195,10 @@ def seed_pool_ids(b: Any, name: str, ids: np.ndarray, order: np.ndarray) -> None
     had at hand: ``ids (n,)`` uint64 in pool order and ``order (n,)`` the stable order that sorts
     them (the builder finds a pool's distinct objects by sorting their ids).  The value filter
     is left to the first read; a B-rep never read as a donor or against one costs nothing more."""
-    got = _POOL_IDS.get(b)
+    got = _POOL_SEEDS.get(b)
     if got is None:
         got = {}
-        _POOL_IDS.set(b, got)
+        _POOL_SEEDS.set(b, got)
     got[name] = (ids, order)
 
 

@@ -61,7 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coons.errors import CoonsError, TopologyError
+from coons.errors import CoonsError, InvalidInputError, TopologyError
 from coons.kernel.analytic import CylindricalSurface, Line, PlanarSurface
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -1587,6 +1587,13 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
     return i[o], j[o]
 
 
+def _outer_shells(b: BRep) -> np.ndarray:
+    """``(S,)`` bool: the shells that are their solid's outer shell (the others are voids)."""
+    outer = np.zeros(b.n_shells, dtype=bool)
+    outer[b.solid_shells[b.solid_shell_ptr[:-1]]] = True
+    return outer
+
+
 def _check_nesting(b: BRep, t: Tolerance, out: list[Problem]) -> None:
     """Every void lies directly inside its solid's outer shell, and no outer shell inside another
     solid's material (:func:`coons.topology.nesting.shell_parents`: winding numbers proven on cones
@@ -1596,12 +1603,11 @@ def _check_nesting(b: BRep, t: Tolerance, out: list[Problem]) -> None:
 
     try:
         parents = shell_parents(b, t)
-    except TopologyError as exc:
-        out.append(Problem("shells-touch", "brep", 0, str(exc)))
+    except (TopologyError, InvalidInputError) as exc:  # (touching, or no mesh fine enough at this tolerance)
+        out.append(Problem("shells-touch", "brep", 0, f"which shell lies inside which is not decided: {exc}"))
         return
     outer_of = np.asarray(b.solid_shells, dtype=np.int64)[np.asarray(b.solid_shell_ptr[:-1], dtype=np.int64)]
-    outer = np.zeros(b.n_shells, dtype=bool)
-    outer[outer_of] = True
+    outer = _outer_shells(b)
     solid = np.asarray(b.shell_solid, dtype=np.int64)
     for s in range(b.n_shells):
         p = int(parents[s])
@@ -1633,8 +1639,7 @@ def _check_orientation(b: BRep, t: Tolerance, out: list[Problem], known: tuple |
     except CoonsError as exc:  # geometry the integrator does not know: report, do not crash
         out.append(Problem("orientation-unchecked", "brep", 0, f"shell volumes could not be computed: {exc}"))
         return
-    outer = np.zeros(b.n_shells, dtype=bool)
-    outer[b.solid_shells[b.solid_shell_ptr[:-1]]] = True
+    outer = _outer_shells(b)
     for s in range(b.n_shells):
         if outer[s] and not vols[s] > 0:
             out.append(Problem("inward-shell", "shell", s, f"outer shell encloses volume {vols[s]:.6g} (must be > 0)"))

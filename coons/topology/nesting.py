@@ -32,24 +32,23 @@ another lies inside its box).
 :func:`shell_parents` is used by sewing (:func:`coons.topology.sew._nest_voids`, which makes each
 void a void of the shell around it and refuses a lump inside a lump) and by the checker (a void
 must lie inside its solid's outer shell, an outer shell inside no other outer shell).  The parents
-found for a B-rep are remembered for it (weakly) and shared with a rebuild that differs only in how
+found for a B-rep are remembered for it and its tolerance (weakly) and shared with a rebuild that differs only in how
 shells are grouped into solids (:func:`share_nesting`), so the check after sewing reads them.
 """
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
 from coons.errors import TopologyError
 from coons.tolerance import Tolerance, resolve
+from coons.topology._memo import IdentityMemo
 
 __all__ = ["shell_parents", "share_nesting"]
 
-#: B-rep -> ``(S,)`` parents found by :func:`shell_parents` (a function of the geometry and the
-#: shells' faces only, not of their grouping into solids).
-_PARENTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: B-rep -> ``(tolerance, (S,) parents)`` found by :func:`shell_parents` (a function of the geometry,
+#: the shells' faces and the tolerance, not of the shells' grouping into solids).
+_PARENTS = IdentityMemo()
 
 # Divisions of the deflection by 8 before two shells are declared touching (1/512 of the
 # default: about 2e-6 of the diagonal, far below any wall a Boolean leaves).
@@ -77,16 +76,17 @@ def shell_parents(brep, tol: Tolerance | None = None, volumes: np.ndarray | None
     TopologyError
         Two shells touch: every vertex of one lies within the mesh band of the other at the
         finest deflection tried, so which side it lies on is not proven.
+    InvalidInputError
+        A mesh is needed and the default deflection is not above ``tol.linear``.
     """
-    got = _PARENTS.get(brep)
-    if got is not None:
-        return got.copy()
     t = resolve(tol)
+    got = _PARENTS.get(brep)
+    if got is not None and got[0] == t:
+        return got[1].copy()
     S = brep.n_shells
     parents = np.full(S, -1, dtype=np.int64)
     if S < 2:
-        _PARENTS[brep] = parents
-        return parents.copy()
+        return parents
     from coons.topology.mass import face_box_bounds, shell_volumes
 
     box = face_box_bounds(brep, t)
@@ -116,7 +116,7 @@ def shell_parents(brep, tol: Tolerance | None = None, volumes: np.ndarray | None
         for s in np.flatnonzero(inside.any(axis=1)).tolist():
             holders = np.flatnonzero(inside[s])
             parents[s] = int(holders[np.argmin(np.abs(vol[holders]))])
-    _PARENTS[brep] = parents
+    _PARENTS.set(brep, (t, parents))
     return parents.copy()
 
 
@@ -125,7 +125,7 @@ def share_nesting(src, dst) -> None:
     most in how the shells are grouped into solids)."""
     got = _PARENTS.get(src)
     if got is not None and src.n_shells == dst.n_shells:
-        _PARENTS[dst] = got
+        _PARENTS.set(dst, got)
 
 
 class _Probe:

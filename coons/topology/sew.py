@@ -253,9 +253,12 @@ def sew_faces(faces: Sequence[FaceSpec], tol: Tolerance | None = None) -> Solid:
     InvalidInputError
         ``faces`` empty or not FaceSpecs.
     TopologyError
-        A loop that does not close, an edge matching no other (open shell), more than one other (non-manifold), or
-        one running the same way (inconsistent orientation), p-curves that cannot be made
-        same-parameter, a shell enclosing negative volume outside every other shell, or any
+        A loop that does not close, an edge matching no other (open shell), more than one other
+        (non-manifold), or one running the same way (inconsistent orientation), p-curves that
+        cannot be made same-parameter, every face within its edges' tolerance of one vertex (the
+        shell collapses to a point), a shell enclosing negative volume outside every other shell
+        or directly inside another such, one enclosing positive volume directly inside another
+        such (overlapping lumps), two shells too close to decide which holds the other, or any
         invariant the checker finds.
 
     Examples

@@ -236,8 +236,9 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
 #: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
 #: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`), the skip of
 #: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`), the straight pieces' directions
-#: without evaluation (:meth:`_Graph._directions`) and :func:`clip_to_face` reading the cached boundary pieces;
-#: tests switch them off to compare with the general path.
+#: without evaluation (:meth:`_Graph._directions`), :func:`clip_to_face` reading the cached boundary pieces and
+#: :func:`_space_reach`'s points of surfaces of revolution from their derivatives; tests switch them off to
+#: compare with the general path.
 _FAST = True
 
 
@@ -361,10 +362,6 @@ def _box(p: "_Piece", plane: _Plane) -> np.ndarray:
         else:
             p.box = curve_box(pc, (p.a, p.b), plane.t)
     return p.box
-
-
-def _boxes_meet(a: np.ndarray, b: np.ndarray, eps: float) -> bool:
-    return bool(np.all(a[0] <= b[1] + eps) and np.all(b[0] <= a[1] + eps))
 
 
 def _polyline(pc: Any, a: float, b: float, n: int | None = None) -> np.ndarray:
@@ -1171,7 +1168,7 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
                 continue
             if B is None:
                 B = np.array([_box(o, plane) for o in pieces])
-            # (_boxes_meet of the end's box [q - r, q + r] and every piece's, with no margin)
+            # (the end's box [q - r, q + r] against every piece's, with no margin)
             meet = np.all((q - r <= B[:, 1]) & (B[:, 0] <= q + r), axis=1)
             for j in np.flatnonzero(meet).tolist():
                 o = pieces[j]

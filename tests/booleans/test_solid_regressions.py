@@ -712,3 +712,48 @@ def test_three_surfaces_through_one_point_agree_with_occt():
     assert r.check().ok
     assert r.volume == pytest.approx(ref.volume, rel=RTOL_OCCT)
     assert r.area == pytest.approx(ref.area, rel=RTOL_OCCT)
+
+
+def test_runs_along_holds_only_for_the_same_line_or_circle():
+    from coons.kernel.analytic import Circle, Ellipse, Line
+
+    unit = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    same = Circle([0, 0, 0], [0, 0, -1], [0, 1, 0], 1.0)  # the same point set, another frame
+    assert S._runs_along(unit, same, 0.3, 1.1, 1e-7)
+    assert not S._runs_along(unit, Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0 + 1e-6), 0.3, 1.1, 1e-7)
+    assert not S._runs_along(unit, Circle([0.02, 0, 0], [0, 0, 1], [1, 0, 0], 1.0), 0.3, 1.1, 1e-7)
+    # An ellipse through three points of the circle is not the circle.
+    a = 1.2
+    b = math.sqrt((1 - a * a / 2) / 0.5)  # through (±1/√2, ±1/√2)
+    ellipse = Ellipse([0, 0, 0], [0, 0, 1], [1, 0, 0], a, b)
+    assert np.allclose(np.linalg.norm(ellipse.evaluate(np.array([0.75, 1.25, 1.75]) * np.pi), axis=1), 1.0)
+    assert not S._runs_along(unit, ellipse, 0.75 * np.pi, 1.75 * np.pi, 1e-7)
+    line = Line([0, 0, 0], [1, 1, 0])
+    assert S._runs_along(line, Line([2, 2, 0], [-1, -1, 0]), 0.0, 3.0, 1e-7)
+    assert not S._runs_along(line, Line([2, 2, 1e-6], [-1, -1, 0]), 0.0, 3.0, 1e-7)
+    assert not S._runs_along(unit, line, 0.0, 1.0, 1e-7)
+
+
+def test_end_tolerance_widens_at_a_grazing_crossing_of_another_circle():
+    """An end where the cut crosses a boundary circle at a small angle (sine about 0.02) takes δ / sin φ;
+    the same circle as the cut (running along it) leaves δ."""
+    from coons.kernel.analytic import Circle
+    from coons.topology.sew import EdgeSpec
+    from coons.tolerance import Tolerance
+
+    t = Tolerance()
+    d = 0.02
+    cut_circle = Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)
+    y = math.sqrt(1 - d * d / 4)
+    end = math.atan2(y, d / 2)
+    cut = EdgeSpec(cut_circle, 0.3, end, None, t.linear)  # (a cut carries its tolerance)
+
+    def widened(edge):
+        faces = [([edge], np.full((1, 3), -np.inf), np.full((1, 3), np.inf), np.array([edge.tol or 0.0]))]
+        return S._end_tolerance(cut, (0.3, end), faces, t)
+
+    other = Circle([d, 0, 0], [0, 0, 1], [1, 0, 0], 1.0)  # crosses the cut at (d/2, y), at an angle of about d
+    w = widened(EdgeSpec(other, 1.0, 2.5, None, None))
+    sine = d * y  # |(d/2, y) × (-d/2, y)| for the two unit radii
+    assert w == pytest.approx(t.linear / sine, rel=1e-6)
+    assert widened(EdgeSpec(Circle([0, 0, 0], [0, 0, 1], [1, 0, 0], 1.0), 1.0, 2.5, None, None)) == t.linear

@@ -1347,3 +1347,21 @@ def test_an_inside_out_shell_of_carried_faces_is_still_found(monkeypatch):
         sew_faces(walls + caps)
     assert unchanged == [len(walls) + len(caps)]  # every face equal to its spec
     assert integrated == [len(caps)]  # the walls' contributions carried, the caps' integrated
+
+
+def test_the_nesting_found_at_one_tolerance_is_not_served_at_another():
+    """A box with a void 0.005 inside its walls: nested at the default tolerance (sewing finds and shares
+    it); at a tolerance of 0.01 the void lies within the band of the walls (the shells touch), and at
+    0.02 no mesh is fine enough to decide: both are reported, not served from sewing's answer or raised."""
+    from coons.tolerance import Tolerance
+
+    void = [FaceSpec(f.surface, not f.sense, [[EdgeSpec(e.curve, e.t1, e.t0, e.pcurve, e.tol) for e in reversed(loop)]
+                                              for loop in f.loops]) for f in face_specs(Box(9.99, 9.99, 9.99))]
+    solid = sew_faces(face_specs(Box(10, 10, 10)) + void)
+    assert (solid.brep.n_shells, solid.brep.n_solids) == (2, 1)
+    assert check(solid).ok
+    for linear in (0.01, 0.02):
+        report = check(solid, tol=Tolerance(linear))
+        assert "shells-touch" in report.codes(), (linear, report.summary())
+        assert "not decided" in str([p for p in report.problems if p.code == "shells-touch"][0])
+    assert check(solid).ok  # (and the default's answer is still the default's)

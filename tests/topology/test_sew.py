@@ -376,6 +376,28 @@ def test_open_loop_is_refused_with_the_gap():
         sew_faces(specs)
 
 
+def test_a_hole_and_a_face_shorter_than_the_tolerance_go():
+    """A hole loop of three 1e-9 edges in a box face goes (the face stays, without it); an extra face whose
+    outer loop is three 1e-9 edges goes whole."""
+    box = Box(1, 1, 1)
+    specs = face_specs(box)
+    f = specs[0]
+    P = np.array([e.curve.evaluate(e.t0) for e in f.loops[0]])
+    c, x, y = P.mean(axis=0), P[1] - P[0], P[2] - P[1]  # (in the face's plane)
+    corners = [c, c + 1e-9 * x / np.linalg.norm(x), c + 1e-9 * y / np.linalg.norm(y)]
+
+    def loop(points):
+        return [EdgeSpec(Line(p, q - p), 0.0, float(np.linalg.norm(q - p))) for p, q in zip(points, points[1:] + points[:1])]
+
+    specs[0] = FaceSpec(f.surface, f.sense, [list(f.loops[0]), loop(corners[::-1])])
+    sliver = FaceSpec(None, True, [loop([p + [0, 0, 5] for p in corners])])
+    assert len(specs[0].loops) == 2
+    solid = sew_faces(specs + [sliver])
+    assert counts(solid) == counts(box)
+    assert check(solid).ok
+    assert abs(solid.volume - 1.0) <= 1e-12
+
+
 def test_a_shell_within_its_tolerance_of_a_point_is_refused():
     specs = [FaceSpec(f.surface, f.sense, [[EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, 10.0) for e in l] for l in f.loops])
              for f in face_specs(Box(1, 1, 1))]

@@ -1174,3 +1174,32 @@ def test_revolved_surfaces_derivatives_give_evaluates_points_to_the_bit(seed):
     v = np.concatenate([rng.uniform(-1.5, 1.5, 20), [-math.pi / 2, math.pi / 2]])
     for S in surfaces:
         assert np.array_equal(np.asarray(S.derivatives(u, v, 1))[:, 0, 0], np.asarray(S.evaluate(u, v)))
+
+
+@pytest.mark.parametrize("make", [lambda: Sphere(2.0), lambda: Cone(1.5, 0.5, 2.0), lambda: Torus(3.0, 1.0),
+                                  lambda: Cylinder(1.0, 2.0)])
+def test_space_reach_is_the_general_paths(make):
+    """:func:`_space_reach` on the faces of surfaces of revolution, its fast path (points from the
+    derivatives) against the general one (``evaluate``), at points across each face, poles and seams included."""
+    from coons.tolerance import Tolerance
+    from coons.topology import split
+
+    t = Tolerance()
+    for face in face_specs(make()):
+        if face.surface.surface_type == "plane":
+            continue
+        data = split._face_data(face, t)
+        plane = data.plane([])
+        uv = np.concatenate([np.stack(np.meshgrid(np.linspace(0, 2 * math.pi, 7), np.linspace(-math.pi / 2, math.pi / 2, 5)),
+                                      axis=-1).reshape(-1, 2), [[0.0, 0.0], [math.pi, 1.0]]])
+        X = uv @ plane.M.T
+        fast = split._space_reach(plane, X)
+        old = split._FAST
+        split._FAST = False
+        try:
+            slow = split._space_reach(plane, X)
+        finally:
+            split._FAST = old
+        for a, b in zip(fast, slow):
+            assert np.array_equal(a, b)
+        assert np.allclose(fast[0], np.asarray(face.surface.evaluate(uv[:, 0], uv[:, 1])).reshape(-1, 3), atol=1e-12)

@@ -227,7 +227,8 @@ class _PowerForm:
         # scipy's compiled de Boor evaluation: the same values within round-off as NurbsCurve.derivatives of
         # the homogeneous curve, at a third of the cost of its argument checks and basis rows (the p-curves of
         # a cylinder-cylinder loop have ~50 spans and are built once per Boolean).
-        hom = BSpline(curve.knots, curve.homogeneous, p, extrapolate=False)
+        # (construct_fast: the curve's knots and control points are validated already; the evaluation is the same)
+        hom = BSpline.construct_fast(curve.knots, curve.homogeneous, p, extrapolate=False)
         h = np.diff(vals)
         D = np.stack([hom(vals[:-1], nu=k) for k in range(p + 1)], axis=1)  # (spans, p + 1, d + 1)
         scale = np.array([1.0 / math.factorial(k) for k in range(p + 1)])[None, :] * h[:, None] ** np.arange(p + 1)

@@ -909,14 +909,14 @@ def split_face(face: FaceSpec, cuts: Sequence[EdgeSpec], tol: Tolerance | None =
     _snap_cut_ends(pieces, nb, plane)
     sub = _sub_pieces(pieces, plane)
     _check_cuts_inside(sub, pieces, region, cuts, plane)
-    sub = _without_closed_virtual(sub, pieces, plane)
+    sub, label = _without_closed_virtual(sub, pieces, plane)
     while True:
-        graph = _Graph(sub, pieces, plane)
+        graph = _Graph(sub, pieces, plane, label)
         cycles = graph.cycles()
         dangling = graph.dangling(cycles)
         if not dangling:
             break
-        sub = [s for k, s in enumerate(sub) if k not in dangling]
+        sub, label = [s for k, s in enumerate(sub) if k not in dangling], None
     return graph.faces(cycles, face)
 
 
@@ -1245,8 +1245,11 @@ def _components(m: int, pairs: np.ndarray) -> np.ndarray:
         label = new
 
 
-def _without_closed_virtual(sub: list["_Sub"], pieces: list[_Piece], plane: _Plane) -> list["_Sub"]:
-    """The sub-pieces without the virtual segments whose two ends are one node of the arrangement.
+def _without_closed_virtual(sub: list["_Sub"], pieces: list[_Piece], plane: _Plane
+                            ) -> tuple[list["_Sub"], np.ndarray | None]:
+    """The sub-pieces without the virtual segments whose two ends are one node of the arrangement, and
+    their :func:`_node_labels` where they were computed for sub-pieces that all stay (None otherwise), for
+    the first :class:`_Graph` to reuse.
 
     A virtual segment closes the gap between two p-curve ends of one vertex; near a pole, where the
     node merge reaches further (see the module docstring), the two ends can be merged after all.
@@ -1255,11 +1258,11 @@ def _without_closed_virtual(sub: list["_Sub"], pieces: list[_Piece], plane: _Pla
     with a vertex 3° from its pole, split by a latitude cut, came back as one region)."""
     virtual = [k for k, s in enumerate(sub) if pieces[s.piece].kind == "virtual"]
     if not virtual:
-        return sub
+        return sub, None
     n = len(sub)
     label = _node_labels(sub, plane)
     closed = {k for k in virtual if label[k] == label[n + k]}
-    return [s for k, s in enumerate(sub) if k not in closed] if closed else sub
+    return ([s for k, s in enumerate(sub) if k not in closed], None) if closed else (sub, label)
 
 
 def _node_labels(sub: list["_Sub"], plane: _Plane) -> np.ndarray:
@@ -1281,10 +1284,13 @@ _COARSE_HALVINGS = 52
 class _Graph:
     """The planar arrangement of the sub-pieces: nodes, half-edges sorted around nodes, cycles."""
 
-    def __init__(self, sub: list[_Sub], pieces: list[_Piece], plane: _Plane) -> None:
+    def __init__(self, sub: list[_Sub], pieces: list[_Piece], plane: _Plane, label: np.ndarray | None = None
+                 ) -> None:
+        """``label``: the :func:`_node_labels` of ``sub`` when the caller has them (computed here otherwise)."""
         self.sub, self.pieces, self.plane = sub, pieces, plane
         n = len(sub)
-        label = _node_labels(sub, plane)
+        if label is None or not _FAST:
+            label = _node_labels(sub, plane)
         # Half-edge 2k runs sub k forward (node n0 -> n1), 2k + 1 backward.
         self.origin = np.empty(2 * n, dtype=np.int64)
         self.origin[0::2], self.origin[1::2] = label[:n], label[n:]

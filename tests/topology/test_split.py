@@ -1203,3 +1203,25 @@ def test_space_reach_is_the_general_paths(make):
         for a, b in zip(fast, slow):
             assert np.array_equal(a, b)
         assert np.allclose(fast[0], np.asarray(face.surface.evaluate(uv[:, 0], uv[:, 1])).reshape(-1, 3), atol=1e-12)
+
+
+@pytest.mark.parametrize("v0", [0.4, -1.2])
+def test_graph_reuses_the_node_labels_of_the_pole_segment_check(monkeypatch, v0):
+    """A hemisphere (virtual pole segments that stay open) split by a latitude circle: the arrangement's
+    node labels are computed once, by the check of the pole segments, and the first graph reuses them;
+    the regions are the general path's (which computes them twice)."""
+    from coons.topology import split
+
+    face = face_specs(Sphere(1))[0]
+    lat = Circle([0, 0, math.sin(v0)], [0, 0, 1], [1, 0, 0], math.cos(v0))
+    cut = EdgeSpec(lat, 0.0, math.pi, Line2D([0, v0], [1, 0]))
+    calls = []
+    labels = split._node_labels
+    monkeypatch.setattr(split, "_node_labels", lambda sub, plane: calls.append(len(sub)) or labels(sub, plane))
+    fast = split_face(face, [cut])
+    assert len(calls) == 1
+    calls.clear()
+    general = _general(split_face, face, [cut])
+    assert len(calls) == 2
+    _assert_same_faces(fast, general)
+    assert len(fast) == 2

@@ -636,7 +636,7 @@ def refine_intersections(c1: Any, range1, c2: Any, range2, t1, t2, tol: Toleranc
         raise InvalidInputError(f"t1 and t2 must have the same size, got {s.size} and {t.size}")
     if s.size == 0:
         return s, t, np.zeros(0)
-    s, t = np.clip(s, *r1), np.clip(t, *r2)
+    s, t = _clamp(s, r1), _clamp(t, r2)
     if _FAST and s.size <= _SCALAR_SEEDS:
         f1, f2 = _scalar_form(c1), _scalar_form(c2)
         if f1 is not None and f2 is not None:

@@ -1327,20 +1327,26 @@ class _Graph:
         """
         n = len(self.sub)
         D1, D2 = np.empty((2 * n, 2)), np.empty((2 * n, 2))
+        AB = np.array([[s.a, s.b] for s in self.sub]).reshape(n, 2)
+        SIGN = np.where(AB[:, 1] > AB[:, 0], 1.0, -1.0)[:, None]
         by_piece: dict[int, list[int]] = {}
+        straight: list[int] = []
         for k, s in enumerate(self.sub):
-            by_piece.setdefault(s.piece, []).append(k)
+            if _FAST and type(self.pieces[s.piece].pc) is Line2D:
+                straight.append(k)
+            else:
+                by_piece.setdefault(s.piece, []).append(k)
+        if straight:
+            # A straight piece's derivatives are its direction and 0 everywhere (Line2D.derivatives' values),
+            # without the evaluation of its points, which this does not read: all straight sub-pieces at once.
+            ks = np.asarray(straight)
+            d = np.array([self.pieces[self.sub[k].piece].pc.direction for k in straight])
+            D1[2 * ks], D1[2 * ks + 1] = SIGN[ks] * d, -SIGN[ks] * d
+            D2[2 * ks] = D2[2 * ks + 1] = 0.0
         for p, ks in by_piece.items():
             ks = np.asarray(ks)
-            ab = np.array([[self.sub[k].a, self.sub[k].b] for k in ks])
-            sign = np.where(ab[:, 1] > ab[:, 0], 1.0, -1.0)[:, None]
+            ab, sign = AB[ks], SIGN[ks]
             pc = self.pieces[p].pc
-            if _FAST and type(pc) is Line2D:
-                # A straight piece's derivatives are its direction and 0 everywhere (Line2D.derivatives'
-                # values), without the evaluation of its points, which this does not read.
-                D1[2 * ks], D1[2 * ks + 1] = sign * pc.direction, -sign * pc.direction
-                D2[2 * ks] = D2[2 * ks + 1] = 0.0
-                continue
             D = _pc_derivatives(pc, ab, 2)  # (m, 2, 3, 2)
             # Forward half-edge leaves a along the travel, backward leaves b against it.
             D1[2 * ks], D2[2 * ks] = sign * D[:, 0, 1], D[:, 0, 2]

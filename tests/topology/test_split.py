@@ -1225,3 +1225,36 @@ def test_graph_reuses_the_node_labels_of_the_pole_segment_check(monkeypatch, v0)
     assert len(calls) == 2
     _assert_same_faces(fast, general)
     assert len(fast) == 2
+
+
+@pytest.mark.parametrize("fitted", [False, True])
+def test_straight_directions_at_once_equal_the_general_path(monkeypatch, fitted):
+    """The arrangement's directions of straight sub-pieces, taken from their lines all at once, are the
+    general path's (Line2D.derivatives) exactly; a fitted cut among them keeps its own evaluation."""
+    from coons.topology import split
+
+    face = _square()
+    cuts = [_line_cut([0.5, 0.0], [0.5, 1.0]), _line_cut([0.0, 0.3], [1.0, 0.7])]
+    if fitted:
+        pc = NurbsCurve(np.array([[0.0, 0.8], [0.3, 0.95], [0.7, 0.6], [1.0, 0.9]]), [0, 0, 0, 0, 1, 1, 1, 1], 3)
+        lifted = NurbsCurve(PLANE.evaluate(pc.control_points[:, 0], pc.control_points[:, 1]), pc.knots, 3)
+        cuts.append(EdgeSpec(lifted, 0.0, 1.0, pc))
+    seen = []
+    directions = split._Graph._directions
+
+    def record(self):
+        out = directions(self)
+        seen.append((self, out))
+        return out
+
+    monkeypatch.setattr(split._Graph, "_directions", record)
+    fast = split_face(face, cuts)
+    assert seen
+    for graph, (angle, kappa) in seen:
+        straight = np.array([type(graph.pieces[s.piece].pc) is Line2D for s in graph.sub]).repeat(2)
+        assert straight.any()
+        g_angle, g_kappa = _general(directions, graph)
+        np.testing.assert_array_equal(angle[straight], g_angle[straight])
+        np.testing.assert_array_equal(kappa[straight], g_kappa[straight])
+        np.testing.assert_allclose(angle, g_angle, rtol=0, atol=1e-12)
+    assert len(fast) == (6 if fitted else 4)

@@ -236,7 +236,8 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
 #: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
 #: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`), the skip of
 #: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`), the straight pieces' directions
-#: without evaluation (:meth:`_Graph._directions`), :func:`clip_to_face` reading the cached boundary pieces and
+#: without evaluation (:meth:`_Graph._directions`), the first graph's reuse of the node labels of
+#: :func:`_without_closed_virtual`, :func:`clip_to_face` reading the cached boundary pieces and
 #: :func:`_space_reach`'s points of surfaces of revolution from their derivatives; tests switch them off to
 #: compare with the general path.
 _FAST = True

@@ -265,8 +265,9 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
 from coons.topology.disjoint import meeting_pair, padded_boxes, stacked
-from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, point_clusters, remember_sewn, sew_faces,
-                               sewn_from, sewn_unchanged_faces, use_points)
+from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, face_specs_many, point_clusters,
+                               read_unchanged_faces, remember_sewn, sew_faces, sewn_from, sewn_unchanged_faces,
+                               use_points)
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -437,9 +438,12 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     The union's faces are the members' faces in order, on the very same geometry objects, so
     their face specs are handed on as the specs it was "sewn" from (``sew.sewn_from``): a member's own
     ``sewn_from`` specs when it is an earlier Boolean's result (their per-face data cached), else
-    its :func:`face_specs`; ``_Operand`` takes those :func:`sewn_unchanged_faces` confirms
-    instead of reading the faces again.  A union of polyhedral members hands on nothing (the
-    polyhedral Booleans, which it most likely meets, read no face specs).
+    its :func:`face_specs` (:func:`~coons.topology.sew.face_specs_many`: a drilling pattern's tools
+    are walked once); ``_Operand`` takes those :func:`sewn_unchanged_faces` confirms instead of
+    reading the faces again (recorded here: the read ones by
+    :func:`~coons.topology.sew.read_unchanged_faces`, the carried ones by the walk).  A union of
+    polyhedral members hands on nothing (the polyhedral Booleans, which it most likely meets, read
+    no face specs).
     """
     if len(group) == 1:
         return group[0]
@@ -447,11 +451,25 @@ def _gathered(group: list[Solid], t: Tolerance) -> Solid:
     out = Solid(stacked([s.brep for s in group]))
     if all(is_polyhedral(s) for s in group):
         return out
+    # A member's own sewn_from specs when it has them, else its face_specs, all read in one call
+    # (face_specs_many: a drilling pattern's tools, one primitive placed again and again, walked once).
+    sewn = [sewn_from(s.brep) for s in group]
+    sewn = [x if x is not None and len(x) == s.brep.n_faces else None for x, s in zip(sewn, group)]
+    read = iter(face_specs_many([s.brep for s, x in zip(group, sewn) if x is None]))
     specs: list[FaceSpec] = []
-    for s in group:
-        sewn = sewn_from(s.brep)
-        specs += sewn if sewn is not None and len(sewn) == s.brep.n_faces else face_specs(s)
-    remember_sewn(out.brep, specs)
+    carried: list[int] = []  # (the faces whose specs are a member's own sewn_from specs)
+    for x in sewn:
+        if x is not None:
+            carried += range(len(specs), len(specs) + len(x))
+            specs += x
+        else:
+            specs += next(read)
+    # Which faces equal their spec: those read by face_specs in two array passes over the union
+    # (read_unchanged_faces), the carried ones by the walk (a member's sewing may have changed them).
+    unchanged = read_unchanged_faces(out.brep)
+    if carried:
+        unchanged[carried] = sewn_unchanged_faces(out.brep, [specs[f] for f in carried], rows=carried)
+    remember_sewn(out.brep, specs, unchanged)
     return out
 
 
@@ -777,8 +795,7 @@ def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None) -> None:
                 pad = [0.0] * len(group)
             else:
                 pad = _norms2(np.diff(U, axis=1)).max(axis=1).tolist()
-            for (e, S), Ue, p in zip(group, U, pad):
-                _USE_SAMPLES.set(e, (S, Ue, p))
+            _USE_SAMPLES.set_many([e for e, _ in group], [(S, Ue, p) for (_, S), Ue, p in zip(group, U, pad)])
 
 
 def _use_samples_pad(e: EdgeSpec, S) -> tuple[np.ndarray, float]:
@@ -933,8 +950,8 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         ld.use_lo, ld.use_hi = lo[ua:ub], hi[ua:ub]
         ld.box = None if no_box[k] else loop_box[k]
         ld.tol = tol[k]
-        _LOOP_DATA.set(loop[0], ld)
         out.append(ld)
+    _LOOP_DATA.set_many([loop[0] for loop, _ in items], out)
     return out
 
 
@@ -4297,8 +4314,8 @@ def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
         todo = [k for k, b in enumerate(got) if b is None]
         boxes, boxed = _edge_box_array([edges[k] for k in todo])
         out[todo] = boxes
-        for k, box, ok in zip(todo, boxes, boxed.tolist()):
-            _USE_BOXES.set(edges[k], box if ok else _NO_BOX)
+        _USE_BOXES.set_many([edges[k] for k in todo],
+                            [box if ok else _NO_BOX for box, ok in zip(boxes, boxed.tolist())])
         none[todo] = ~boxed
     out[none] = _NO_BOX_ROW
     return out, none

@@ -77,7 +77,7 @@ from coons.topology.check import _SEWN_FROM, _norms
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
-           "sewn_unchanged_faces", "sewn_from", "remember_sewn", "point_clusters"]
+           "sewn_unchanged_faces", "sewn_from", "remember_sewn", "read_unchanged_faces", "point_clusters"]
 
 #: Parameters (fractions of an edge's range) at which two curves are compared point by point.
 _PROBE = np.linspace(0.0, 1.0, 7)
@@ -470,16 +470,20 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
         curve_id = np.array([id(e.curve) for e in new_spec], dtype=np.int64)
         own_tol = np.array([np.nan if e.tol is None else e.tol for e in new_spec], dtype=np.float64)
         complete = np.array([e.curve is not None and e.pcurve is not None for e in new_spec], dtype=bool)
+        # (read-only once: their slices, each loop's rows, are read-only views)
+        R, curve_id, own_tol, complete = map(_read_only, (R, curve_id, own_tol, complete))
         at = 0
+        keep_keys, keep = [], []
         for p, li in new_slots:
             loop = faces[missing[p]].loops[li]
             sl = slice(at, at + len(loop))
             at += len(loop)
-            c = (tuple(loop[1:]), _read_only(R[sl]), _read_only(curve_id[sl]), _read_only(own_tol[sl]),
-                 _read_only(complete[sl]), all(value[sl]))
+            c = (tuple(loop[1:]), R[sl], curve_id[sl], own_tol[sl], complete[sl], all(value[sl]))
             parts[p][li] = c
             if loop and c[5]:
-                _LOOP_USES.set(loop[0], c)
+                keep_keys.append(loop[0])
+                keep.append(c)
+        _LOOP_USES.set_many(keep_keys, keep)
     # All missing faces in one pass, each face's table a view of the pass's arrays (a cached face
     # keeps that pass's rows alive: a few kB per face sewn together with it).
     loops = [c for got in parts for c in got]
@@ -505,6 +509,7 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
     curve = _read_only(np.fromiter((e.curve for e in every), dtype=object, count=n))
     pcurve = _read_only(np.fromiter((e.pcurve for e in every), dtype=object, count=n))
     pcurve_id = _read_only(np.fromiter(map(id, pcurve), dtype=np.int64, count=n))
+    keep_keys, keep = [], []
     for p, fi in enumerate(missing):
         a, b = bounds[p], bounds[p + 1]
         x = _FaceUses()
@@ -513,9 +518,11 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
         x.spec, x.curve, x.pcurve, x.pcurve_id = spec[a:b], curve[a:b], pcurve[a:b], pcurve_id[a:b]
         out[fi] = x
         if all(c[5] for c in parts[p]):
-            _FACE_USES.set(faces[fi], x)
+            keep_keys.append(faces[fi])
+            keep.append(x)
             if values is not None:
                 values[fi] = True
+    _FACE_USES.set_many(keep_keys, keep)
     return out  # type: ignore[return-value]
 
 
@@ -598,9 +605,10 @@ def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
                 frame[rows, 3] = [float(sub[i].curve.radius) for i in rows.tolist()]
     new = np.concatenate([P.reshape(n, 9), ranges, kind[:, None], frame], axis=1)
     out[need] = new
-    for e, row in zip(sub, new):
-        if is_value(e.curve):
-            _USE_ROWS.set(e, _read_only(row.copy()))
+    # (one read-only copy: its rows are read-only views; a kept row holds the batch, 136 bytes a use)
+    rows = list(_read_only(new))
+    keep = [i for i, e in enumerate(sub) if is_value(e.curve)]
+    _USE_ROWS.set_many([sub[i] for i in keep], [rows[i] for i in keep])
     return out
 
 
@@ -1351,6 +1359,96 @@ def face_specs(shape, rows=None) -> list[FaceSpec]:
     return out
 
 
+#: The tables :func:`face_specs` reads to walk a B-rep's faces (with the pools' objects, all it reads when
+#: every edge has a curve; ``coedge_next`` is made from ``edge_wing``).
+_WALKED = ("edge_curve", "edge_range", "edge_pcurve", "edge_tol", "edge_wing", "loop_coedge", "face_loop_ptr",
+           "face_loops", "face_surface", "face_sense")
+
+
+def face_specs_many(breps: Sequence[BRep]) -> list[list[FaceSpec]]:
+    """:func:`face_specs` of each B-rep, the walk done once per distinct set of tables.
+
+    A B-rep whose walked tables (:data:`_WALKED`, byte for byte) and pool sizes equal an earlier
+    one's (the tools of a drilling pattern: one primitive placed again and again) takes that one's
+    walk with its own surfaces, curves and p-curves put in: the same specs :func:`face_specs` makes,
+    field by field.  Only when every edge of the earlier one has a curve (otherwise
+    :func:`face_specs` makes new lines) and its pools hold distinct objects; the checks
+    :func:`face_specs` makes of each curve and p-curve object are made of the new ones.
+
+    Parameters
+    ----------
+    breps : sequence of BRep
+
+    Returns
+    -------
+    list of list of FaceSpec
+        One list per B-rep, in face order.
+    """
+    plans: dict[tuple, tuple | None] = {}
+    out = []
+    for b in breps:
+        tables = [getattr(b, name) for name in _WALKED]
+        key = (tuple(a.tobytes() for a in tables), tuple((a.dtype.str, a.shape) for a in tables),
+               len(b.surfaces), len(b.curves), len(b.pcurves))
+        plan = plans.get(key, _MISSING_PLAN)
+        if plan is None:
+            out.append(face_specs(b))
+            continue
+        if plan is _MISSING_PLAN:
+            specs = face_specs(b)
+            plans[key] = _walk_plan(b, specs)
+            out.append(specs)
+            continue
+        out.append(_planned_specs(b, *plan))
+    return out
+
+
+_MISSING_PLAN = object()
+
+
+def _walk_plan(b: BRep, specs: list[FaceSpec]) -> tuple | None:
+    """``(faces, curve rows, p-curve rows)``: ``specs`` (:func:`face_specs` of ``b``) as pool positions,
+    per face ``(surface position or -1, sense, loops of (curve position, t0, t1, p-curve position
+    or -1, tol))``, and the positions of the curves and p-curves it uses; None when the specs are
+    not all pool objects (a new line for an edge without curve) or a pool repeats an object (a
+    position would not say which one)."""
+    where = []
+    for pool in (b.surfaces, b.curves, b.pcurves):
+        at = {id(x): i for i, x in enumerate(pool)}
+        if len(at) != len(pool):
+            return None
+        where.append(at)
+    surf, curv, pcur = where
+    faces = []
+    try:
+        for spec in specs:
+            loops = tuple(tuple((curv[id(e.curve)], e.t0, e.t1, -1 if e.pcurve is None else pcur[id(e.pcurve)], e.tol)
+                                for e in loop) for loop in spec.loops)
+            faces.append((-1 if spec.surface is None else surf[id(spec.surface)], spec.sense, loops))
+    except KeyError:
+        return None
+    used_c = sorted({u[0] for f in faces for loop in f[2] for u in loop})
+    used_p = sorted({u[3] for f in faces for loop in f[2] for u in loop if u[3] >= 0})
+    return tuple(faces), used_c, used_p
+
+
+def _planned_specs(b: BRep, faces: tuple, used_c: list[int], used_p: list[int]) -> list[FaceSpec]:
+    """The face specs of ``b`` from another B-rep's :func:`_walk_plan` over the same tables, with the
+    checks :func:`face_specs` makes of each curve and p-curve object."""
+    S, C, P = b.surfaces, b.curves, b.pcurves
+    for i in used_c:
+        if not callable(getattr(C[i], "evaluate", None)):
+            raise InvalidInputError(f"EdgeSpec.curve must have an evaluate(t) method, got {type(C[i]).__name__}")
+    for i in used_p:
+        if not callable(getattr(P[i], "evaluate", None)):
+            raise InvalidInputError(f"EdgeSpec.pcurve must have an evaluate(t) method, got {type(P[i]).__name__}")
+    make = EdgeSpec._trusted
+    return [FaceSpec._trusted(None if si < 0 else S[si], sense,
+                              tuple(tuple(make(C[ci], t0, t1, None if pi < 0 else P[pi], tol)
+                                          for ci, t0, t1, pi, tol in loop) for loop in loops))
+            for si, sense, loops in faces]
+
+
 def sewn_unchanged(b: BRep, f: int, spec: FaceSpec) -> bool:
     """Whether face ``f`` of ``b`` is exactly ``spec``: ``face_specs(b, [f])[0]`` would equal it field by field.
 
@@ -1371,16 +1469,41 @@ def sewn_from(b: BRep) -> tuple[FaceSpec, ...] | None:
     return None if known is None else known[0]
 
 
-def remember_sewn(b: BRep, specs: Sequence[FaceSpec]) -> None:
+def remember_sewn(b: BRep, specs: Sequence[FaceSpec], unchanged: np.ndarray | None = None) -> None:
     """Record that B-rep ``b``'s faces are made from ``specs`` (face order), as :func:`sew_faces`
-    records it while building: which faces equal their spec is found by walking the B-rep
-    (:func:`sewn_unchanged_faces`).  For a B-rep assembled without sewing (a disjoint union of
-    solids on their own geometry objects)."""
+    records it while building: which faces equal their spec is ``unchanged (F,)`` bool when the
+    caller knows it (it must be :func:`sewn_unchanged_faces` of ``b`` and ``specs``: see
+    :func:`read_unchanged_faces`), else found by walking the B-rep.  For a B-rep assembled without
+    sewing (a disjoint union of solids on their own geometry objects)."""
     specs = tuple(specs)
     if len(specs) != b.n_faces:
         raise InvalidInputError(f"remember_sewn needs one spec per face: {len(specs)} specs, {b.n_faces} faces")
+    if unchanged is None:
+        unchanged = sewn_unchanged_faces(b, specs)
+    else:
+        unchanged = np.array(unchanged, dtype=bool)
+        if unchanged.shape != (b.n_faces,):
+            raise InvalidInputError(f"remember_sewn needs one unchanged flag per face: shape {unchanged.shape}, "
+                                    f"{b.n_faces} faces")
     _SEWN_FROM.pop(b, None)
-    _SEWN_FROM[b] = (specs, sewn_unchanged_faces(b, specs))
+    _SEWN_FROM[b] = (specs, unchanged)
+
+
+def read_unchanged_faces(b: BRep) -> np.ndarray:
+    """``(F,)`` bool: :func:`sewn_unchanged_faces` of ``b`` and ``face_specs(b)``, without the walk.
+
+    :func:`face_specs` gives a face exactly as ``b`` holds it (the very surface, curves and
+    p-curves, its ranges and tolerances as floats) unless the face has no surface or one of its
+    uses has no p-curve or no curve (a straight edge without one gets a new :class:`Line`, its
+    p-curves re-expressed), which are the faces the walk finds changed.  A disjoint union of a
+    hundred tools is recorded from its members' face specs (``booleans.solid._gathered``) by two
+    array passes instead of a walk over every use.
+    """
+    ok = b.face_surface >= 0
+    # (a use in no loop, edge_loop -1, belongs to no face)
+    bad = (b.edge_loop >= 0) & ~((b.edge_curve >= 0)[:, None] & (b.edge_pcurve >= 0))
+    ok[b.loop_face[b.edge_loop[bad]]] = False
+    return ok
 
 
 def sewn_unchanged_faces(b: BRep, specs: Sequence[FaceSpec], rows: Sequence[int] | None = None) -> np.ndarray:

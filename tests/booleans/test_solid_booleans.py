@@ -421,6 +421,31 @@ def test_n_ary_difference_gathers_apart_tools():
     assert _types(r) == _types(seq)
 
 
+def test_gathered_records_which_faces_are_unchanged_as_the_walk_finds_them():
+    """_gathered reads the fresh members' faces by face_specs_many and flags them in array passes, the
+    members carrying sewn specs (earlier results) by the walk: the record is the walk's, face by face."""
+    import trimesh
+
+    from coons.tolerance import resolve
+    from coons.topology.check import _SEWN_FROM
+    from coons.topology.from_mesh import from_mesh
+    from coons.topology.sew import face_specs, sewn_unchanged_faces
+
+    t = resolve(None)
+    mesh = from_mesh(trimesh.creation.box(extents=(2, 2, 2))).translate((30, 0, 0))  # (no curves: flagged changed)
+    drilled = Box(10, 10, 10) - Cylinder(2, 20)  # (carries its sewn specs)
+    assert sewn_from(drilled.brep) is not None
+    group = [Cylinder(2, 20).translate((10.0 * i, 30, 0)) for i in range(2)] + [drilled, mesh, Sphere(2).translate(
+        (0, -30, 0)), Cylinder(2, 20).translate((20, 30, 0))]
+    g = S._gathered(group, t)
+    specs, flags = _SEWN_FROM[g.brep]
+    want = [x for s in group for x in (sewn_from(s.brep) if s is drilled else face_specs(s))]
+    assert len(specs) == len(want) == g.brep.n_faces
+    assert all(a.surface is b.surface and len(a.loops) == len(b.loops) for a, b in zip(specs, want))
+    assert np.array_equal(flags, sewn_unchanged_faces(g.brep, specs, rows=range(g.brep.n_faces)))
+    assert not flags.all() and flags.sum() == g.brep.n_faces - mesh.brep.n_faces
+
+
 # ---------------------------------------------------------------------- dispatch and errors
 def test_polyhedral_operands_use_the_polyhedral_booleans(monkeypatch):
     from coons.booleans import polyhedral

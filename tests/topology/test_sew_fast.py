@@ -516,3 +516,100 @@ def test_seeded_pool_ids_are_the_computed_ones():
     assert got[1].size == 4
     for x, y in zip(got, again):
         np.testing.assert_array_equal(x, y)
+
+
+# ---------------------------------------------------------------------- face_specs of many B-reps
+def _same_specs(got: list, want: list, fresh_lines: bool = False) -> None:
+    """Field by field; with ``fresh_lines``, curves made anew (Lines of curve-less edges) by type and parameters."""
+    assert len(got) == len(want)
+    for a, b in zip(got, want, strict=True):
+        fa, fb = _fields(a), _fields(b)
+        assert fa[0] is fb[0] and fa[1] is fb[1]
+        for la, lb in zip(fa[2], fb[2], strict=True):
+            for x, y in zip(la, lb, strict=True):
+                if fresh_lines and isinstance(x[0], Line):
+                    assert type(x[0]) is type(y[0]) and np.array_equal(x[0].origin, y[0].origin)
+                else:
+                    assert x[0] is y[0]
+                assert x[3] is y[3] and x[1:3] + x[4:] == y[1:3] + y[4:]
+                assert [type(v) for v in x[1:3] + x[4:]] == [type(v) for v in y[1:3] + y[4:]]
+
+
+def test_face_specs_many_equals_face_specs_and_walks_a_repeated_primitive_once(monkeypatch):
+    import trimesh
+
+    from coons.topology.from_mesh import from_mesh
+
+    mesh = from_mesh(trimesh.creation.box())  # (edges without curves: a new Line per edge and call)
+    holes = [Cylinder(2, 20).translate((10.0 * i, 3.0 * i, 0)) for i in range(5)]
+    shapes = holes[:2] + [Box(1, 2, 3), Sphere(3), mesh, Torus(5, 1)] + holes[2:] + [
+        Box(10, 10, 10) - Cylinder(3, 20), Cylinder(2.5, 20), mesh, Box(4, 5, 6)]
+    want = [sew.face_specs(s) for s in shapes]
+    walks = []
+    real = sew.face_specs
+    monkeypatch.setattr(sew, "face_specs", lambda b, rows=None: walks.append(b) or real(b, rows))
+    got = sew.face_specs_many([s.brep for s in shapes])
+    for g, w, s in zip(got, want, shapes, strict=True):
+        _same_specs(g, w, fresh_lines=s is mesh)
+    # One walk per distinct set of tables (the five holes, the two boxes of other sizes ... apart);
+    # the mesh's plan is refused (its lines are new per call), so it is walked both times.
+    walked = [id(b) for b in walks]
+    assert walked.count(id(holes[0].brep)) == 1 and all(id(h.brep) not in walked for h in holes[1:])
+    assert walked.count(id(mesh.brep)) == 2 and len(walks) == len(shapes) - 4
+
+
+def test_face_specs_many_checks_the_curves_it_puts_in():
+    import dataclasses
+
+    a, b = Cylinder(1, 2), Cylinder(1, 2).translate((5, 0, 0))
+    bad = dataclasses.replace(b.brep, curves=(object(),) + tuple(b.brep.curves[1:]))
+    with pytest.raises(InvalidInputError, match="evaluate"):
+        sew.face_specs(bad)
+    with pytest.raises(InvalidInputError, match="evaluate"):
+        sew.face_specs_many([a.brep, bad])
+
+
+def test_read_unchanged_faces_is_the_walk_over_face_specs():
+    import trimesh
+
+    from coons.topology.disjoint import stacked
+    from coons.topology.from_mesh import from_mesh
+
+    mesh = from_mesh(trimesh.creation.icosphere(subdivisions=1))
+    cut = Box(10, 10, 10) - Cylinder(3, 20)
+    for b in (Box(1, 2, 3).brep, Cylinder(2, 5).brep, Sphere(3).brep, Torus(5, 1).brep, mesh.brep, cut.brep,
+              stacked([Cylinder(1, 4).brep, mesh.translate((9, 0, 0)).brep, cut.translate((0, 30, 0)).brep])):
+        want = sew.sewn_unchanged_faces(b, sew.face_specs(b), rows=range(b.n_faces))  # (the walk itself)
+        got = sew.read_unchanged_faces(b)
+        assert got.dtype == bool and np.array_equal(got, want)
+    assert not sew.read_unchanged_faces(mesh.brep).any() and sew.read_unchanged_faces(cut.brep).all()
+
+
+def test_remember_sewn_takes_known_flags_of_the_right_shape():
+    from coons.topology.check import _SEWN_FROM
+    from coons.topology.disjoint import stacked
+
+    b = stacked([Cylinder(1, 4).brep, Cylinder(1, 4).translate((5, 0, 0)).brep])
+    specs = sew.face_specs(b)
+    sew.remember_sewn(b, specs, sew.read_unchanged_faces(b))
+    assert sew.sewn_from(b) == tuple(specs) and _SEWN_FROM[b][1].all()
+    with pytest.raises(InvalidInputError, match="flag"):
+        sew.remember_sewn(b, specs, np.ones(b.n_faces - 1, dtype=bool))
+
+
+def test_set_many_is_set_of_each():
+    import gc
+
+    from coons.topology._memo import IdentityMemo
+
+    uses = [sew.EdgeSpec(Line(np.zeros(3), np.ones(3)), 0.0, float(k + 1)) for k in range(5)]
+    one, many = IdentityMemo(), IdentityMemo()
+    for e, v in zip(uses + uses[:1], list(range(5)) + ["last"]):
+        one.set(e, v)
+    many.set_many(uses + uses[:1], list(range(5)) + ["last"])
+    assert [one.get(e) for e in uses] == [many.get(e) for e in uses] == ["last", 1, 2, 3, 4] and len(many) == 5
+    with pytest.raises(TypeError, match="immutable"):
+        many.set_many([uses[0], object()], [0, 1])
+    del e, uses[3:]
+    gc.collect()
+    assert len(many) == 3  # (entries die with their objects)

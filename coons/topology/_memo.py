@@ -119,7 +119,7 @@ class IdentityMemo:
             if not _value_type(kind):
                 raise TypeError(f"IdentityMemo keys must be immutable values (frozen dataclasses), got {kind.__name__}")
         data, forget = self._data, self._forget
-        for obj, value in zip(objs, values):
+        for obj, value in zip(objs, values, strict=True):
             ref = _Ref(obj, forget)
             key = ref.key = id(obj)
             data[key] = (ref, value)

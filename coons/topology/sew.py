@@ -77,7 +77,8 @@ from coons.topology.check import _SEWN_FROM, _norms
 from coons.topology.shape import Solid
 
 __all__ = ["EdgeSpec", "FaceSpec", "bilinear_patch_faces", "sew_faces", "face_specs", "sewn_unchanged",
-           "sewn_unchanged_faces", "sewn_from", "remember_sewn", "read_unchanged_faces", "point_clusters"]
+           "sewn_unchanged_faces", "sewn_from", "remember_sewn", "read_unchanged_faces", "face_specs_many",
+           "point_clusters"]
 
 #: Parameters (fractions of an edge's range) at which two curves are compared point by point.
 _PROBE = np.linspace(0.0, 1.0, 7)
@@ -605,7 +606,7 @@ def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
                 frame[rows, 3] = [float(sub[i].curve.radius) for i in rows.tolist()]
     new = np.concatenate([P.reshape(n, 9), ranges, kind[:, None], frame], axis=1)
     out[need] = new
-    # (one read-only copy: its rows are read-only views; a kept row holds the batch, 136 bytes a use)
+    # (``new`` made read-only in place: its rows are read-only views; a kept row holds the batch, 136 bytes a use)
     rows = list(_read_only(new))
     keep = [i for i, e in enumerate(sub) if is_value(e.curve)]
     _USE_ROWS.set_many([sub[i] for i in keep], [rows[i] for i in keep])
@@ -1473,7 +1474,8 @@ def remember_sewn(b: BRep, specs: Sequence[FaceSpec], unchanged: np.ndarray | No
     """Record that B-rep ``b``'s faces are made from ``specs`` (face order), as :func:`sew_faces`
     records it while building: which faces equal their spec is ``unchanged (F,)`` bool when the
     caller knows it (it must be :func:`sewn_unchanged_faces` of ``b`` and ``specs``: see
-    :func:`read_unchanged_faces`), else found by walking the B-rep.  For a B-rep assembled without
+    :func:`read_unchanged_faces`; it is not verified, and later served as the record's answer),
+    else found by walking the B-rep.  For a B-rep assembled without
     sewing (a disjoint union of solids on their own geometry objects)."""
     specs = tuple(specs)
     if len(specs) != b.n_faces:

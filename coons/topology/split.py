@@ -1292,6 +1292,8 @@ class _Graph:
         n = len(sub)
         if label is None or not _FAST:
             label = _node_labels(sub, plane)
+        elif len(label) != 2 * n:  # (labels of another set of sub-pieces: a caller's bug, never silently used)
+            raise AssertionError(f"_Graph given {len(label)} node labels for {n} sub-pieces")
         # Half-edge 2k runs sub k forward (node n0 -> n1), 2k + 1 backward.
         self.origin = np.empty(2 * n, dtype=np.int64)
         self.origin[0::2], self.origin[1::2] = label[:n], label[n:]
@@ -1328,8 +1330,8 @@ class _Graph:
         """
         n = len(self.sub)
         D1, D2 = np.empty((2 * n, 2)), np.empty((2 * n, 2))
-        AB = np.array([[s.a, s.b] for s in self.sub]).reshape(n, 2)
-        SIGN = np.where(AB[:, 1] > AB[:, 0], 1.0, -1.0)[:, None]
+        ab_all = np.array([[s.a, s.b] for s in self.sub]).reshape(n, 2)
+        sign_all = np.where(ab_all[:, 1] > ab_all[:, 0], 1.0, -1.0)[:, None]
         by_piece: dict[int, list[int]] = {}
         straight: list[int] = []
         for k, s in enumerate(self.sub):
@@ -1342,11 +1344,11 @@ class _Graph:
             # without the evaluation of its points, which this does not read: all straight sub-pieces at once.
             ks = np.asarray(straight)
             d = np.array([self.pieces[self.sub[k].piece].pc.direction for k in straight])
-            D1[2 * ks], D1[2 * ks + 1] = SIGN[ks] * d, -SIGN[ks] * d
+            D1[2 * ks], D1[2 * ks + 1] = sign_all[ks] * d, -sign_all[ks] * d
             D2[2 * ks] = D2[2 * ks + 1] = 0.0
         for p, ks in by_piece.items():
             ks = np.asarray(ks)
-            ab, sign = AB[ks], SIGN[ks]
+            ab, sign = ab_all[ks], sign_all[ks]
             pc = self.pieces[p].pc
             D = _pc_derivatives(pc, ab, 2)  # (m, 2, 3, 2)
             # Forward half-edge leaves a along the travel, backward leaves b against it.

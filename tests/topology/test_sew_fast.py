@@ -569,16 +569,40 @@ def test_face_specs_many_checks_the_curves_it_puts_in():
         sew.face_specs_many([a.brep, bad])
 
 
+def test_face_specs_many_refuses_a_plan_from_a_pool_holding_one_object_twice():
+    """A first B-rep whose curve pool holds one object at two positions cannot lend its walk to a second
+    with the same tables and distinct objects (both uses would take one of them)."""
+    import dataclasses
+
+    first, second = Cylinder(1, 2).brep, Cylinder(1, 2).brep  # (the same tables, distinct objects)
+    assert first.curves[0] is not second.curves[0]
+    c = first.curves
+    twice = dataclasses.replace(first, curves=(c[0], c[0], *c[2:]))
+    got = sew.face_specs_many([twice, second])
+    _same_specs(got[1], sew.face_specs(second))
+    assert any(e.curve is second.curves[1] for f in got[1] for l in f.loops for e in l)
+
+
 def test_read_unchanged_faces_is_the_walk_over_face_specs():
     import trimesh
 
     from coons.topology.disjoint import stacked
     from coons.topology.from_mesh import from_mesh
 
+    import dataclasses
+
     mesh = from_mesh(trimesh.creation.icosphere(subdivisions=1))
     cut = Box(10, 10, 10) - Cylinder(3, 20)
+    box = Box(1, 2, 3).brep
+    # One edge without its curve, one use without its p-curve: only their faces change.
+    no_curve, no_pcurve = box.edge_curve.copy(), box.edge_pcurve.copy()
+    no_curve[0] = -1
+    no_pcurve[5, 1] = -1
+    holed = [dataclasses.replace(box, edge_curve=no_curve), dataclasses.replace(box, edge_pcurve=no_pcurve)]
+    for h in holed:
+        assert 0 < sew.read_unchanged_faces(h).sum() < h.n_faces
     for b in (Box(1, 2, 3).brep, Cylinder(2, 5).brep, Sphere(3).brep, Torus(5, 1).brep, mesh.brep, cut.brep,
-              stacked([Cylinder(1, 4).brep, mesh.translate((9, 0, 0)).brep, cut.translate((0, 30, 0)).brep])):
+              stacked([Cylinder(1, 4).brep, mesh.translate((9, 0, 0)).brep, cut.translate((0, 30, 0)).brep]), *holed):
         want = sew.sewn_unchanged_faces(b, sew.face_specs(b), rows=range(b.n_faces))  # (the walk itself)
         got = sew.read_unchanged_faces(b)
         assert got.dtype == bool and np.array_equal(got, want)

@@ -65,7 +65,8 @@ one boundary point) are proven to meet only there when the line through the end 
 directions keeps each on its side (monotone control-point distances, :func:`_end_contact_only`):
 the end contact is left to the node merge; crossing cuts, and pairs the control points do not
 separate, take the general path.  Likewise a cut end within ``eps`` of a piece's end needs no snap
-to that piece (:func:`_snap_cut_ends` searches no foot there).
+to that piece (:func:`_snap_cut_ends` searches no foot there), and off a cylinder the surface's reach
+at the cut ends is evaluated only for a foot that the widest reach would snap.
 
 The module does not compute intersection curves (:mod:`coons.kernel.intersect`), does not
 classify pieces against another solid, does not re-sew, and does not merge faces.  Its
@@ -235,7 +236,8 @@ _FACES: "weakref.WeakKeyDictionary[FaceSpec, dict[tuple[float, float, float], _F
 #: The fast paths on: the per-face cache, the skip of exact crossings in :func:`_in_space`, the
 #: convex-face clip and contacts (:func:`_convex_clip`, :func:`_convex_contacts`), the shared-end
 #: proof (:func:`_end_contact_only`), the span-polynomial evaluation (:func:`_pc_derivatives`), the skip of
-#: the foot search for a cut end at a piece's end (:func:`_snap_cut_ends`), the straight pieces' directions
+#: the foot search for a cut end at a piece's end and the reach evaluated only for a foot that needs it
+#: (:func:`_snap_cut_ends`), the straight pieces' directions
 #: without evaluation (:meth:`_Graph._directions`), the first graph's reuse of the node labels of
 #: :func:`_without_closed_virtual`, :func:`clip_to_face` reading the cached boundary pieces and
 #: :func:`_space_reach`'s points of surfaces of revolution from their derivatives; tests switch them off to
@@ -1093,6 +1095,10 @@ _SLOW_MERGE = 100.0
 #: The surfaces of revolution (kernel.analytic), whose ``derivatives(u, v)[..., 0, 0]`` are ``evaluate(u, v)``.
 _REVOLVED = (CylindricalSurface, ConicalSurface, SphericalSurface, ToroidalSurface)
 
+#: The surfaces on which :func:`_snap_cut_ends` evaluates the reach of all cut ends first: a cylinder's
+#: ``σ_min`` is ``σ`` everywhere, so the reach test skips (nearly) every end there, before any box or foot.
+_REACH_FIRST = (CylindricalSurface,)
+
 
 def _space_reach(plane: _Plane, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """3-D points ``(m, 3)`` of working-plane points ``X`` (m, 2) on a curved face, and how far
@@ -1152,19 +1158,30 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
     Near a pole the surface is slow along ``u``: a cut ending on a meridian, computed to
     ``tol3`` in space, may stop short of it by many ``eps`` in the working plane, so that
     :func:`intersect_curves` finds no crossing there.  The foot of the end on the piece becomes a
-    split (and :func:`_node_pairs` merges the end with it)."""
+    split (and :func:`_node_pairs` merges the end with it).
+
+    An end is examined only if its reach (:func:`_space_reach`) exceeds ``eps``.  On a cylinder
+    (:data:`_REACH_FIRST`) ``σ_min`` is ``σ`` everywhere, so that test skips (nearly) every end:
+    the reach of all ends comes first, in one evaluation.  Elsewhere (a sphere's ``σ_min < σ`` off
+    its widest latitude) it skips none, and the reach matters only for a foot between ``eps`` and
+    the widest reach :data:`_SLOW_MERGE` ``eps``: with the fast paths on, the pieces are searched
+    within the widest reach and the reach is evaluated (for all ends at once) at the first such
+    foot; the tests of the true reach then follow, so the splits are the same."""
     if plane.project or isinstance(plane.surface, PlanarSurface) or nb == len(pieces):
         return
     # The ends of all cuts at once (the surface is evaluated point by point either way).
     ends_all = np.concatenate([_uv(c.pc, np.array([c.a, c.b])) for c in pieces[nb:]])
-    P_all, reach_all = _space_reach(plane, ends_all)
+    P_all = reach_all = None
+    if not _FAST or type(plane.surface) in _REACH_FIRST:
+        P_all, reach_all = _space_reach(plane, ends_all)
+    widest = _SLOW_MERGE * plane.eps  # _space_reach's bound on every reach
     samples: dict = {}  # dense samples of the pieces, per curve and range (pieces live through the call)
     piece_ends: dict[int, np.ndarray] = {}  # (2, 2) end points of the pieces examined, cuts' from ends_all
     B = None  # (n, 2, 2) the pieces' boxes, for the box tests of all pieces against one end at once
     for i in range(nb, len(pieces)):
-        k = 2 * (i - nb)
-        ends, P, reach = ends_all[k:k + 2], P_all[k:k + 2], reach_all[k:k + 2]
-        for q, Pq, r in zip(ends, P, reach):
+        for k in (2 * (i - nb), 2 * (i - nb) + 1):
+            q = ends_all[k]
+            r = widest if reach_all is None else reach_all[k]
             if not r > plane.eps:
                 continue
             if B is None:
@@ -1189,8 +1206,18 @@ def _snap_cut_ends(pieces: list[_Piece], nb: int, plane: _Plane) -> None:
                 s, d = _foot(o.pc, o.a, o.b, q, samples)
                 if not plane.eps < d <= r:
                     continue
+                if reach_all is None:
+                    P_all, reach_all = _space_reach(plane, ends_all)
+                if r is widest:
+                    # The tests of the end's true reach, which the widest one passed: the general path's.
+                    r = reach_all[k]
+                    if not r > plane.eps:
+                        break
+                    meet = np.all((q - r <= B[:, 1]) & (B[:, 0] <= q + r), axis=1)
+                if not (meet[j] and d <= r):
+                    continue
                 Ps, _ = _space_reach(plane, _uv(o.pc, s)[None])
-                if np.linalg.norm(Ps[0] - Pq) <= plane.tol3:
+                if np.linalg.norm(Ps[0] - P_all[k]) <= plane.tol3:
                     o.splits.append(s)
 
 

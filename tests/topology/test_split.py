@@ -1051,6 +1051,85 @@ def test_consecutive_fitted_cuts_on_a_hemisphere_skip_the_foot_search(dx, dy, dz
     _assert_same_split(fast, general)
 
 
+def _snap_record(fn, reach_first: bool):
+    """``fn()`` with :func:`_snap_cut_ends` spied: per call the splits it added to each piece and how many
+    times it evaluated the reach of the cut ends (one batch of all of them); ``reach_first`` evaluates it
+    first on every surface of revolution, as on a cylinder (the reach test before any box or foot)."""
+    from coons.topology import split
+
+    snap, reach, calls = split._snap_cut_ends, split._space_reach, []
+    inside = [False]
+
+    def counting(plane, X):
+        if inside[0]:
+            calls[-1][1] += X.shape[0] > 1  # (a foot's 3-D point is one row)
+        return reach(plane, X)
+
+    def spy(pieces, nb, plane):
+        before = [len(p.splits) for p in pieces]
+        calls.append([None, 0])
+        inside[0] = True
+        try:
+            snap(pieces, nb, plane)
+        finally:
+            inside[0] = False
+        calls[-1][0] = [p.splits[n:] for p, n in zip(pieces, before)]
+
+    old = split._snap_cut_ends, split._space_reach, split._REACH_FIRST
+    split._snap_cut_ends, split._space_reach = spy, counting
+    if reach_first:
+        split._REACH_FIRST = split._REVOLVED
+    try:
+        out = fn()
+    finally:
+        split._snap_cut_ends, split._space_reach, split._REACH_FIRST = old
+    return out, calls
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-0.8, 0.8), st.floats(-0.8, 0.8), st.floats(-0.8, 0.8), st.floats(0.9, 1.3),
+       st.floats(0.2, 0.8))
+@example(0.3, 0.2, 0.1, 1.1, 0.5)
+def test_snap_on_a_sphere_evaluates_the_reach_only_for_a_foot_that_needs_it(dx, dy, dz, r, f):
+    """A sphere–sphere circle cut into consecutive pieces on a hemisphere, whose cut ends lie on the
+    boundary within eps: :func:`_snap_cut_ends` evaluates no reach there (on a cylinder it would, first),
+    and adds the splits, and the split gives the regions, of the reach evaluated first."""
+    from coons.kernel.intersect import intersect_surfaces
+
+    face = face_specs(Sphere(1))[0]
+    S2 = face_specs(Sphere(r).translate((1.0 + dx, dy, dz)))[0].surface
+    box = ((-0.05, math.pi + 0.05), (-math.pi / 2, math.pi / 2))
+    far = ((-10.0, 10.0), (-math.pi / 2, math.pi / 2))
+    cuts = _cut_in_two(face, intersect_surfaces(face.surface, S2, box, far).curves, f)
+    if not cuts:
+        return
+    lazy, lazy_calls = _snap_record(lambda: split_face(face, cuts), False)
+    first, first_calls = _snap_record(lambda: split_face(face, cuts), True)
+    assert [c[0] for c in lazy_calls] == [c[0] for c in first_calls]
+    assert all(c[1] == 1 for c in first_calls)
+    if not any(s for c in lazy_calls for s in c[0]):
+        assert all(c[1] == 0 for c in lazy_calls)
+    _assert_same_split(lazy, first)
+
+
+def test_snap_near_a_pole_evaluates_the_reach_at_its_foot_and_splits_as_the_reach_first():
+    """The Boolean whose cut end stops 4 eps short of a meridian near a pole (see
+    ``test_cut_ending_on_a_meridian_near_a_pole_splits_the_hemisphere``): the lazy path evaluates the reach
+    there, once per call, and snaps the same ends to the same feet as the reach evaluated first."""
+    from coons.booleans.solid import union
+    from tests.booleans.occt_cases import draw_pair
+
+    A, B = draw_pair("sph", "sph", 3, seed=4242).operands()
+    lazy, lazy_calls = _snap_record(lambda: union(A, B), False)
+    first, first_calls = _snap_record(lambda: union(A, B), True)
+    assert [c[0] for c in lazy_calls] == [c[0] for c in first_calls]
+    snapped = [c for c in lazy_calls if any(c[0])]
+    assert snapped and all(c[1] == 1 for c in snapped)  # the lazy reach, taken where a snap needed it
+    assert all(c[1] <= 1 for c in lazy_calls)
+    assert sum(c[1] for c in lazy_calls) < sum(c[1] for c in first_calls)
+    assert lazy.volume == first.volume and lazy.brep.n_faces == first.brep.n_faces
+
+
 def test_end_contact_only_proves_a_shared_end_and_declines_a_second_meeting():
     """Quadratic Bézier arcs leaving the origin: one climbing above and one dipping below meet only
     there (True, and ``intersect_curves`` agrees); one that dips and climbs across the first also

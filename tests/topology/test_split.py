@@ -1091,9 +1091,9 @@ def _snap_record(fn, reach_first: bool):
        st.floats(0.2, 0.8))
 @example(0.3, 0.2, 0.1, 1.1, 0.5)
 def test_snap_on_a_sphere_evaluates_the_reach_only_for_a_foot_that_needs_it(dx, dy, dz, r, f):
-    """A sphere–sphere circle cut into consecutive pieces on a hemisphere, whose cut ends lie on the
-    boundary within eps: :func:`_snap_cut_ends` evaluates no reach there (on a cylinder it would, first),
-    and adds the splits, and the split gives the regions, of the reach evaluated first."""
+    """A sphere–sphere circle cut into consecutive pieces on a hemisphere: :func:`_snap_cut_ends` evaluates
+    no reach where no foot needs it (on a cylinder it would, first), and adds the splits, and the split
+    gives the regions, of the reach evaluated first."""
     from coons.kernel.intersect import intersect_surfaces
 
     face = face_specs(Sphere(1))[0]
@@ -1337,3 +1337,46 @@ def test_straight_directions_at_once_equal_the_general_path(monkeypatch, fitted)
         np.testing.assert_array_equal(kappa[straight], g_kappa[straight])
         np.testing.assert_allclose(angle, g_angle, rtol=0, atol=1e-12)
     assert len(fast) == (6 if fitted else 4)
+
+
+def test_lazy_snap_applies_the_true_reach_after_the_widest(monkeypatch):
+    """With every end's true reach made 2 eps (so the pole case's foot, 4 eps away, lies beyond it), the lazy
+    path, which searches within the widest reach first, must still snap only what the true reach snaps:
+    the same splits as the reach evaluated first."""
+    from coons.booleans.solid import union
+    from coons.errors import CoonsError
+    from coons.topology import split
+    from tests.booleans.occt_cases import draw_pair
+
+    real = split._space_reach
+
+    def short(plane, X):
+        P, r = real(plane, X)
+        return (P, np.minimum(r, 2.0 * plane.eps)) if X.shape[0] > 1 else (P, r)
+
+    monkeypatch.setattr(split, "_space_reach", short)
+    A, B = draw_pair("sph", "sph", 3, seed=4242).operands()
+
+    def run():
+        try:
+            return union(A, B)
+        except CoonsError:  # (without the snap the split may fail; only the snaps are compared)
+            return None
+
+    _, lazy_calls = _snap_record(run, False)
+    _, first_calls = _snap_record(run, True)
+    assert [c[0] for c in lazy_calls] == [c[0] for c in first_calls]
+
+
+def test_graph_refuses_node_labels_of_the_wrong_length():
+    from coons.topology import split
+
+    face = face_specs(Cylinder(1, 2))[0]
+    data = split._face_data(face, split.resolve(None))
+    plane = data.plane([])
+    pieces, _ = data.pieces(plane)
+    sub = split._sub_pieces(pieces, plane)
+    label = split._node_labels(sub, plane)
+    split._Graph(sub, pieces, plane, label)  # (the right labels are taken)
+    with pytest.raises(AssertionError, match="node labels"):
+        split._Graph(sub, pieces, plane, label[:-1])

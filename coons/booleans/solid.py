@@ -868,8 +868,8 @@ def _forget_caches() -> None:
                   split._FACES, split._MAPPED, intersect._COORDS):
         cache.clear()
     _memo.clear_all()  # every IdentityMemo and LastRecord (sewing, checking, mass, the pipeline's per-use memos)
-    # The weak reference to the last B-rep measured (dead once its memo is cleared, but then the
-    # slot points at nothing either).
+    # The weak references to the last B-reps measured: with check._MEASURED cleared they can no longer
+    # select a record, but a cold run should not hold them either.
     check._LAST_MEASURED[:] = [None] * len(check._LAST_MEASURED)
 
 
@@ -2564,7 +2564,8 @@ def _split_overlaps(groups: list[list[EdgeSpec]], t: Tolerance) -> list[list[lis
     box_hi = np.where(boxed[:, None], box[:, 1], np.inf) + thr.max()
     sizes = np.array([len(g) for g in groups])
     owner = np.repeat(np.arange(len(groups)), sizes)  # face of each cut
-    centre = np.where(boxed[:, None], 0.5 * (box_lo + box_hi), 0.0)
+    with np.errstate(invalid="ignore"):  # (inf - inf of a cut without a box: its centre is not used)
+        centre = np.where(boxed[:, None], 0.5 * (box_lo + box_hi), 0.0)
     radius = np.where(boxed, 0.5 * np.linalg.norm(np.where(boxed[:, None], box_hi - box_lo, 0.0), axis=1), 1e300)
     hits = cKDTree(E).query_ball_point(centre, radius, return_sorted=False)
     counts = np.fromiter((len(h) for h in hits), dtype=np.intp, count=n)

@@ -956,10 +956,8 @@ def _loop_piece(loop: _CylinderLoop, s0: float, s1: float, a, b, boxes, g_first:
     Q = f(t)
     bound = 0.5 * tol.linear
     worst = math.inf
-    first = True
     while len(t) <= _MAX_FIT_SAMPLES:
-        F, ctrl, knots = _fit_round(t, Q, first)
-        first = False
+        F, ctrl, knots = _fit_round(t, Q)
         tq = _quarter_points(t)
         E = loop.evaluate(tq)
         C = F[:, :3]
@@ -1860,13 +1858,14 @@ def _first_round(n: int, p: int, grade: float) -> tuple[np.ndarray, np.ndarray]:
     return _frozen(inverse), _frozen(E @ inverse)
 
 
-def _fit_round(t: np.ndarray, Q: np.ndarray, first: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _fit_round(t: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(at_quarters, control points, knots)`` of the spline of degree :data:`_FIT_DEGREE` interpolating ``Q``
     ``(n, d)`` at ``t`` (n,) on the averaged knots (The NURBS Book A9.1, eq. 9.8): its values ``(3 (n - 1), d)``
-    at :func:`_quarter_points`.  ``first``: ``t`` is :func:`_fit_start`'s (the matrices of
-    :func:`_first_round`); otherwise scipy's banded collocation (``make_interp_spline``)."""
+    at :func:`_quarter_points`.  ``t`` of :data:`_FIT_START` samples is :func:`_fit_start`'s (the first
+    round: later rounds only add samples), solved by the matrices of :func:`_first_round`; otherwise
+    scipy's banded collocation (``make_interp_spline``)."""
     knots = _averaging(t, _FIT_DEGREE)
-    if first and _FAST_FIRST and t.size == _FIT_START:
+    if _FAST_FIRST and t.size == _FIT_START:
         inverse, at_quarters = _first_round(_FIT_START, _FIT_DEGREE, _FIT_GRADE)
         return at_quarters @ Q, inverse @ Q, knots
     spline = make_interp_spline(t, Q, k=_FIT_DEGREE, t=knots)
@@ -1903,11 +1902,9 @@ def _fitted_pcurve(f, s0: float, s1: float, surface, curve, tol: Tolerance, poin
     Q = f(t)
     worst = math.inf
     bound = 0.5 * tol.linear  # half: the other half of tol.linear is the other surface's
-    first = True
     while len(t) <= _MAX_FIT_SAMPLES:
         # Averaged knots (The NURBS Book eq. 9.8, as interpolate_curve), one collocation solve (_fit_round).
-        uv, ctrl, knots = _fit_round(t, Q, first)
-        first = False
+        uv, ctrl, knots = _fit_round(t, Q)
         tm = _quarter_points(t)
         gap = _surface_points(surface, uv[:, 0], uv[:, 1]) - _curve_points(curve, tm)
         e = np.sqrt(np.max(np.add.reduce(gap * gap, axis=-1).reshape(-1, 3), axis=1))

@@ -78,8 +78,8 @@ class Winding(NamedTuple):
 # ---------------------------------------------------------------------- rings
 def proper_crossings(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
     """``(k,)`` whether segment ``a b`` properly crosses ``c d`` (rows ``(k, 2)``): strict orientation
-    signs on both sides.  Zero-length segments (repeated samples where cuts join) are adjacent in
-    effect: they never cross.
+    signs on both sides.  Zero-length segments (repeated samples where cuts join) never cross: their
+    orientation signs are 0.
 
     Floating-point signs, not the exact predicates of this module's ring tests: for callers that
     look for chords to refine or rings to re-test (a crossing missed by round-off is a crossing of
@@ -89,8 +89,7 @@ def proper_crossings(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray)
         return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
 
     d1, d2, d3, d4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    degenerate = np.all(a == b, axis=1) | np.all(c == d, axis=1)
-    return (d1 * d2 < 0) & (d3 * d4 < 0) & ~degenerate
+    return (d1 * d2 < 0) & (d3 * d4 < 0)
 
 
 def as_ring(ring, *, what: str = "ring") -> np.ndarray:

@@ -594,7 +594,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
             uv_sel = seg[sel].reshape(-1, 2)
             img[sel] = np.asarray(b.surfaces[si_].evaluate(uv_sel[:, 0], uv_sel[:, 1])).reshape(-1, samples, 3)
         target = b.coedge_target[c_far]
-        gap = np.max(np.linalg.norm(img - b.vertex_point[target][:, None, :], axis=-1), axis=1)
+        gap = np.max(_norms(img - b.vertex_point[target][:, None, :]), axis=1)
         for k, kn, c, g, limit in zip(ks.tolist(), kns.tolist(), c_far.tolist(), gap.tolist(),
                                       (b.vertex_tol[target] + t.linear).tolist()):
             if g > limit:
@@ -1298,7 +1298,7 @@ def _sampled_rings(b: BRep, cross_faces: np.ndarray, sense_faces: np.ndarray, ta
             ring_id = np.repeat(np.arange(starts.size), np.diff(np.append(starts, m)))
     prv = np.empty(m, dtype=np.int64)
     prv[nxt] = np.arange(m)
-    keep = crossing[face] & (np.linalg.norm(pts - pts[prv], axis=1) > eps_face[face])
+    keep = crossing[face] & (_norms(pts - pts[prv]) > eps_face[face])
     idx = np.flatnonzero(keep)
     if idx.size == 0:
         return None
@@ -1588,10 +1588,8 @@ def _segment_pairs(A: np.ndarray, B: np.ndarray, face: np.ndarray, nxt: np.ndarr
 
 
 def _outer_shells(b: BRep) -> np.ndarray:
-    """``(S,)`` bool: the shells that are their solid's outer shell (the others are voids)."""
-    outer = np.zeros(b.n_shells, dtype=bool)
-    outer[b.solid_shells[b.solid_shell_ptr[:-1]]] = True
-    return outer
+    """``(n_solids,)`` int64: each solid's outer shell (the other shells are voids)."""
+    return np.asarray(b.solid_shells, dtype=np.int64)[np.asarray(b.solid_shell_ptr[:-1], dtype=np.int64)]
 
 
 def _check_nesting(b: BRep, t: Tolerance, out: list[Problem]) -> None:
@@ -1606,8 +1604,9 @@ def _check_nesting(b: BRep, t: Tolerance, out: list[Problem]) -> None:
     except (TopologyError, InvalidInputError) as exc:  # (touching, or no mesh fine enough at this tolerance)
         out.append(Problem("shells-touch", "brep", 0, f"which shell lies inside which is not decided: {exc}"))
         return
-    outer_of = np.asarray(b.solid_shells, dtype=np.int64)[np.asarray(b.solid_shell_ptr[:-1], dtype=np.int64)]
-    outer = _outer_shells(b)
+    outer_of = _outer_shells(b)
+    outer = np.zeros(b.n_shells, dtype=bool)
+    outer[outer_of] = True
     solid = np.asarray(b.shell_solid, dtype=np.int64)
     for s in range(b.n_shells):
         p = int(parents[s])
@@ -1639,7 +1638,8 @@ def _check_orientation(b: BRep, t: Tolerance, out: list[Problem], known: tuple |
     except CoonsError as exc:  # geometry the integrator does not know: report, do not crash
         out.append(Problem("orientation-unchecked", "brep", 0, f"shell volumes could not be computed: {exc}"))
         return
-    outer = _outer_shells(b)
+    outer = np.zeros(b.n_shells, dtype=bool)
+    outer[_outer_shells(b)] = True
     for s in range(b.n_shells):
         if outer[s] and not vols[s] > 0:
             out.append(Problem("inward-shell", "shell", s, f"outer shell encloses volume {vols[s]:.6g} (must be > 0)"))

@@ -159,6 +159,9 @@ class _Probe:
         k = int(np.argmin(held.sum(axis=1)))
         if not held[k].any():
             return abs(_winding_numbers(P[k][None], self.cones[self.cone_shell == o])[0]) > 0.5
+        # (here every vertex lies in some face box of o: else the cones above decided)
+        near = np.zeros((len(verts), brep.n_faces), dtype=bool)  # per vertex, the faces whose boxes hold it
+        near[:, o_faces] = held
         d = _resolve_deflection(brep, None, t)
         etol = float(np.max(brep.edge_tol, initial=0.0))
         gap_floor = 2.0 * etol + 10.0 * t.linear  # (the band's part no deflection removes)
@@ -173,10 +176,8 @@ class _Probe:
             # Any vertex serves as the probe (shells are disjoint): the one farthest from the
             # triangles of the faces whose boxes hold it.
             gaps = np.full(len(verts), np.inf)
-            for i in np.flatnonzero(held.any(axis=1)).tolist():
-                near = np.zeros(brep.n_faces, dtype=bool)
-                near[o_faces[held[i]]] = True
-                at_near = near[mesh.face_ids]
+            for i in range(len(verts)):
+                at_near = near[i][mesh.face_ids]
                 if at_near.any():
                     gaps[i] = _triangle_distances(P[i], tri[at_near]).min()
             k = int(np.argmax(gaps))

@@ -272,3 +272,23 @@ def test_errors_name_the_ring_and_segment():
         winding_number([1, 2, 3], SQUARE)
     with pytest.raises(InvalidInputError, match="points: coordinates must be finite"):
         PolygonSet.coerce(SQUARE).contains([np.nan, 0])
+
+
+def test_proper_crossings_are_strict():
+    """A proper crossing only: touching at an end (T), a shared end, a collinear overlap and a zero-length
+    segment on either side do not cross."""
+    from coons.kernel.polygon import proper_crossings
+
+    S = np.array  # rows: a, b, c, d
+    cases = [
+        ([0, 0], [2, 2], [0, 2], [2, 0], True),    # the diagonals of a square
+        ([0, 0], [2, 0], [1, 0], [1, 1], False),   # T: c on ab
+        ([0, 0], [1, 1], [1, 1], [2, 0], False),   # shared end
+        ([0, 0], [2, 0], [1, 0], [3, 0], False),   # collinear overlap
+        ([1, 1], [1, 1], [0, 2], [2, 0], False),   # zero-length ab on the other diagonal
+        ([0, 2], [2, 0], [1, 1], [1, 1], False),   # zero-length cd on it
+    ]
+    a, b, c, d = (S([row[k] for row in cases], dtype=float) for k in range(4))
+    want = [row[4] for row in cases]
+    assert proper_crossings(a, b, c, d).tolist() == want
+    assert proper_crossings(c, d, a, b).tolist() == want

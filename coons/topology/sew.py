@@ -58,7 +58,9 @@ from __future__ import annotations
 
 import math
 import operator
+import weakref
 from dataclasses import dataclass
+from itertools import chain
 from typing import Any, Sequence
 
 import numpy as np
@@ -430,7 +432,10 @@ _FACE_USES = IdentityMemo()
 
 def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> list[_FaceUses]:
     """The :class:`_FaceUses` of each face, assembled from per-loop tables (:data:`_LOOP_USES`);
-    the loops not cached yet gathered together (:func:`_use_rows`).
+    the loops not cached yet gathered together (:func:`_use_rows`).  A face of many loops whose
+    first loops are, use for use, those of a face cached before (:func:`_kept_uses`: a plate's top
+    gaining a hole) takes that face's rows for them in one piece (a row is a function of its use
+    alone, its loop number of the loops' order) and is assembled from its other loops only.
 
     A face or loop is cached only when all its curves are values (:func:`~coons.topology._memo.is_value`);
     ``values``, a list of ``len(faces)``, is set to which faces are.
@@ -451,9 +456,18 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
     new_spec: list[EdgeSpec] = []
     new_where: list[tuple[int, int, int, int]] = []
     new_slots: list[tuple[int, int]] = []
+    # Per missing face, the number of its first loops taken from a kept face and that face's table.
+    kept: dict[int, tuple[int, _FaceUses]] = {}
     for p, fi in enumerate(missing):
         got: list = []
-        for li, loop in enumerate(faces[fi].loops):
+        loops = faces[fi].loops
+        n0 = 0
+        if len(loops) > _PREFIX_LOOPS:  # (extending a face of _PREFIX_LOOPS or more)
+            prefix = _kept_uses(faces[fi])
+            if prefix is not None:
+                kept[p] = prefix
+                n0 = prefix[0]
+        for li, loop in enumerate(loops[n0:], n0):
             c = _LOOP_USES.get(loop[0]) if loop else None
             if c is not None and len(c[0]) == len(loop) - 1 and all(map(operator.is_, c[0], loop[1:])):
                 got.append(c)
@@ -480,13 +494,14 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
             sl = slice(at, at + len(loop))
             at += len(loop)
             c = (tuple(loop[1:]), R[sl], curve_id[sl], own_tol[sl], complete[sl], all(value[sl]))
-            parts[p][li] = c
+            parts[p][li - (kept[p][0] if p in kept else 0)] = c
             if loop and c[5]:
                 keep_keys.append(loop[0])
                 keep.append(c)
         _LOOP_USES.set_many(keep_keys, keep)
     # All missing faces in one pass, each face's table a view of the pass's arrays (a cached face
     # keeps that pass's rows alive: a few kB per face sewn together with it).
+    own = [faces[fi].loops[kept[p][0]:] if p in kept else faces[fi].loops for p, fi in enumerate(missing)]
     loops = [c for got in parts for c in got]
     per_face = np.array([len(got) for got in parts], dtype=np.int64)
     lens = np.array([c[1].shape[0] for c in loops], dtype=np.int64)
@@ -495,6 +510,8 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
     loop_first = np.cumsum(lens) - lens
     face_first_loop = np.cumsum(per_face) - per_face
     loop_in_face = np.arange(lens.size) - np.repeat(face_first_loop, per_face)
+    if kept:  # (a face's loops after its kept prefix are numbered after it)
+        loop_in_face += np.repeat([kept[p][0] if p in kept else 0 for p in range(len(missing))], per_face)
     where = _read_only(np.stack([np.repeat(loop_in_face, lens), np.arange(n) - np.repeat(loop_first, lens),
                                  np.repeat(lens, lens)], axis=1))
     points = _read_only(R[:, :9].reshape(n, 3, 3))
@@ -504,8 +521,8 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
     curve_id = _read_only(np.concatenate([c[2] for c in loops]) if loops else np.empty(0, dtype=np.int64))
     own_tol = _read_only(np.concatenate([c[3] for c in loops]) if loops else np.empty(0))
     complete = _read_only(np.concatenate([c[4] for c in loops]) if loops else np.empty(0, dtype=bool))
-    bounds = np.concatenate([[0], np.cumsum([sum(map(len, faces[fi].loops)) for fi in missing])]).tolist()
-    every = [e for fi in missing for loop in faces[fi].loops for e in loop]  # (the rows' order)
+    bounds = np.concatenate([[0], np.cumsum([sum(map(len, loops_p)) for loops_p in own])]).tolist()
+    every = [e for loops_p in own for loop in loops_p for e in loop]  # (the rows' order)
     spec = _read_only(np.fromiter(every, dtype=object, count=n))
     curve = _read_only(np.fromiter((e.curve for e in every), dtype=object, count=n))
     pcurve = _read_only(np.fromiter((e.pcurve for e in every), dtype=object, count=n))
@@ -517,6 +534,10 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
         x.where, x.points, x.ranges, x.kind = where[a:b], points[a:b], ranges[a:b], kind[a:b]
         x.frame, x.curve_id, x.own_tol, x.complete = frame[a:b], curve_id[a:b], own_tol[a:b], complete[a:b]
         x.spec, x.curve, x.pcurve, x.pcurve_id = spec[a:b], curve[a:b], pcurve[a:b], pcurve_id[a:b]
+        if p in kept:  # the kept face's rows first, then these
+            old = kept[p][1]
+            for name in _FaceUses.__slots__:
+                setattr(x, name, _read_only(np.concatenate([getattr(old, name), getattr(x, name)])))
         out[fi] = x
         if all(c[5] for c in parts[p]):
             keep_keys.append(faces[fi])
@@ -524,7 +545,44 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
             if values is not None:
                 values[fi] = True
     _FACE_USES.set_many(keep_keys, keep)
+    _remember_kept_uses(keep_keys)
     return out  # type: ignore[return-value]
+
+
+#: Loops from which a face's table is kept for a face that extends it by new loops (:func:`_kept_uses`),
+#: and how many such faces are kept per surface (as the checker's ``_PASSED_ON``).
+_PREFIX_LOOPS, _PREFIX_KEPT = 16, 4
+#: Surface -> weak references to the last few face specs of :data:`_PREFIX_LOOPS` loops or more
+#: on it whose :class:`_FaceUses` are cached (:data:`_FACE_USES`): a plate's top gaining a hole
+#: every cut keeps the very uses of its other loops.
+_KEPT_ON = IdentityMemo()
+
+
+def _kept_uses(spec: FaceSpec) -> tuple[int, _FaceUses] | None:
+    """``(n, table)``: the cached :class:`_FaceUses` of the face with the most loops recorded on
+    ``spec``'s surface (:data:`_KEPT_ON`) whose ``n`` loops (fewer than ``spec``'s) are, use for
+    use, the first loops of ``spec``; None when there is none."""
+    refs = _KEPT_ON.get(spec.surface)
+    if not refs:
+        return None
+    olds = [old for old in (ref() for ref in refs) if old is not None and 0 < len(old.loops) < len(spec.loops)]
+    for old in sorted(olds, key=lambda x: -len(x.loops)):  # (the longest prefix first)
+        n = len(old.loops)
+        if (list(map(len, old.loops)) == list(map(len, spec.loops[:n]))
+                and all(map(operator.is_, chain.from_iterable(old.loops), chain.from_iterable(spec.loops[:n])))):
+            x = _FACE_USES.get(old)
+            if x is not None:
+                return n, x
+    return None
+
+
+def _remember_kept_uses(specs: list[FaceSpec]) -> None:
+    """Record in :data:`_KEPT_ON` the specs of ``specs`` (whose tables :data:`_FACE_USES` holds) of
+    :data:`_PREFIX_LOOPS` loops or more, on their surface (when a value)."""
+    for spec in specs:
+        if len(spec.loops) >= _PREFIX_LOOPS and is_value(spec.surface):
+            refs = [r for r in _KEPT_ON.get(spec.surface, ()) if r() is not None][-(_PREFIX_KEPT - 1):]
+            _KEPT_ON.set(spec.surface, refs + [weakref.ref(spec)])
 
 
 #: First use of a loop -> ``(the other uses, rows (k, 17), curve ids, own tolerances, complete, all

@@ -12,6 +12,7 @@ edges and curves that are not affine copies, naming the face and edge.
 from __future__ import annotations
 
 import math
+import operator
 import random
 
 import numpy as np
@@ -670,6 +671,41 @@ def test_use_tables_are_assembled_from_cached_loops():
     for f in ("where", "ranges", "points", "kind", "frame", "curve_id", "own_tol", "complete"):
         assert np.array_equal(getattr(got, f), getattr(fresh, f), equal_nan=getattr(got, f).dtype.kind == "f"), f
     assert got.where[-len(top.loops[1]):, 0].tolist() == [len(top.loops)] * len(top.loops[1])
+
+
+def test_use_tables_of_a_face_extending_a_kept_face_are_those_from_scratch():
+    """A face of many loops whose first loops are, use for use, those of a face whose table is
+    cached takes that table's rows for them (sewn._kept_uses) and only computes its new loops; every
+    column is the one computed from scratch, and a bad use of a new loop is named by its place in
+    the whole face."""
+    from coons.topology import _memo
+    from coons.topology import sew
+
+    plate = Box(40, 40, 4)
+    for at in [(-10.0, -10.0, 0.0), (10.0, 10.0, 0.0)]:
+        plate = plate - Cylinder(1.0, 10.0).translate(at)
+    top = max(face_specs(plate), key=lambda sp: len(sp.loops))
+    many = FaceSpec(top.surface, top.sense, [list(l) for l in top.loops] + [list(top.loops[1])] * sew._PREFIX_LOOPS)
+    base = sew._face_uses([many])[0]
+    grown = FaceSpec(top.surface, top.sense, [list(l) for l in many.loops] + [list(top.loops[2])])
+    n, kept = sew._kept_uses(grown)
+    assert n == len(many.loops) and kept is base
+    got = sew._face_uses([grown])[0]
+    _memo.clear_all()  # from scratch
+    assert sew._kept_uses(grown) is None
+    fresh = sew._face_uses([FaceSpec(top.surface, top.sense, [list(l) for l in grown.loops])])[0]
+    for f in sew._FaceUses.__slots__:
+        a, b = getattr(got, f), getattr(fresh, f)
+        if a.dtype == object:
+            assert all(map(operator.is_, a, b)) and a.shape == b.shape, f
+        else:
+            assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), f
+        assert not a.flags.writeable, f
+    assert got.where[-len(top.loops[2]):, 0].tolist() == [len(many.loops)] * len(top.loops[2])
+    sew._face_uses([many])  # kept again
+    wrong = FaceSpec(top.surface, top.sense, [list(l) for l in many.loops] + [[EdgeSpec(_Broken(), 0, 1)]])
+    with pytest.raises(InvalidInputError, match=f"face 0, loop {len(many.loops)}, edge 0: its curve evaluates to non-finite"):
+        sew._face_uses([wrong])
 
 
 def test_per_loop_memos_die_with_their_loops():

@@ -257,6 +257,7 @@ from coons.errors import BooleanError, CoonsError, InvalidInputError
 from coons.kernel._common import used_ids
 from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
                                    surface_derivatives, surface_normals)
+from coons.kernel.curve import NurbsCurve
 from coons.kernel.intersect import _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
@@ -2736,7 +2737,7 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
 
     spec = X.specs[f]
     n = len(cuts)
-    if n == 0 or any(c.pcurve is None for c in cuts):
+    if n == 0 or any(c.pcurve is None for c in cuts) or _fitted_end_near_loops(X, f, cuts):
         return None
     Q = _cut_samples(cuts)  # (n, _CLEAR_SAMPLES, 2)
     if Q is None or not np.all(np.isfinite(Q)):
@@ -2830,6 +2831,29 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
         islands.append(FaceSpec._trusted(spec.surface, spec.sense, (tuple(uses),)))
         out_loops.append(tuple(_reversed_use(e) for e in reversed(uses)))
     return [FaceSpec._trusted(spec.surface, spec.sense, tuple(out_loops))] + islands
+
+
+def _fitted_end_near_loops(X: _Operand, f: int, cuts: list[EdgeSpec]) -> bool:
+    """Whether :func:`_split_islands`' box test declines face ``f`` for the ends of its cuts with polynomial NURBS
+    p-curves (fitted branches) alone: a branch crossing the face's boundary is told before the cuts are sampled.
+
+    That test pads each cut's samples by their largest step plus ``1e-9 (1 + max |Q|)``.  The step is at least
+    the chord between the ends over the ``_CLEAR_SAMPLES - 1`` steps, and ``max |Q|`` at least the ends'
+    coordinates, so a box of half that lower bound about either end (the other half covers the round-off
+    between scipy's B-spline, built for :func:`_clip`'s samples, and the samples' evaluation) lies inside the
+    padded box: where it meets the box of a loop segment, so does the test's."""
+    E = [c.pcurve._bspline(np.array([c.t0, c.t1])) for c in cuts
+         if type(c.pcurve) is NurbsCurve and not c.pcurve.is_rational and c.pcurve.dimension == 2]
+    if not E:
+        return False
+    E = np.stack(E)  # (m, 2 ends, 2)
+    if not np.all(np.isfinite(E)):
+        return False
+    D = E[:, 1] - E[:, 0]
+    pad = 0.5 * (_norms2(D) / (_CLEAR_SAMPLES - 1) + 1e-9 * (1.0 + np.max(np.abs(E), axis=(1, 2))))
+    lo = (E - pad[:, None, None]).reshape(-1, 2)
+    hi = (E + pad[:, None, None]).reshape(-1, 2)
+    return _boxes_meet_2d(lo, hi, X.seg_lo[f], X.seg_hi[f])
 
 
 def _norms2(D: np.ndarray) -> np.ndarray:

@@ -59,7 +59,9 @@ straight pieces (the untouched faces of the primitives are their parameter recta
 polynomial NURBS p-curve that nears the sides only close to its ends is clipped, and its
 meetings with the sides as a cut are found, without curve–curve intersection: the control
 points bound its distance to each side's line (convex hull, variation diminishing), and the
-crossing is one scalar root (:func:`_convex_clip`, :func:`_convex_contacts`); anything else takes
+crossing is one scalar root (:func:`_convex_clip`, :func:`_convex_contacts`); a circle on a half of a
+sphere primitive (a branch of sphere–sphere or plane–sphere) is clipped before that in closed form,
+from the 3-D circle and the plane of the half's meridians (:func:`_hemisphere_clip`); anything else takes
 the general path.  Two cuts sharing one end (consecutive pieces of a branch, branches ending at
 one boundary point) are proven to meet only there when the line through the end between their
 directions keeps each on its side (monotone control-point distances, :func:`_end_contact_only`):
@@ -85,8 +87,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from coons.errors import InvalidInputError
-from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
-                                   SphericalSurface, ToroidalSurface)
+from coons.kernel.analytic import (TWO_PI, Circle, ConicalSurface, CylindricalSurface, Ellipse, Line,
+                                   PlanarSurface, SphericalSurface, ToroidalSurface)
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.curve_intersect import (_derivs, _point1, _scalar_form, curve_box, intersect_curves,
                                          refine_intersections)
@@ -178,6 +180,7 @@ class _FaceData:
         self.virtual: dict[tuple[int, int], Line2D] = {}  # (loop, edge) -> the virtual segment after the edge
         self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
         self.convex: dict[float, tuple | None] = {}  # per eps: :func:`_convex_sides` of the boundary pieces
+        self.hemisphere: tuple | None = None  # :func:`_hemisphere` of the face (``()`` for none), when first asked
 
     def sides(self, plane: _Plane, pieces: list["_Piece"]) -> tuple[np.ndarray, np.ndarray] | None:
         """:func:`_convex_sides` of the boundary ``pieces`` (those of :meth:`pieces`), once per ``eps``."""
@@ -542,7 +545,9 @@ def clip_to_face(face: FaceSpec, pcurve: Any, t0: float, t1: float, tol: Toleran
     if _FAST:
         sides = data.sides(plane, pieces)
         if sides is not None:
-            fast = _convex_clip(sides, pieces, plane, pc, lo, hi, curve)
+            fast = _hemisphere_clip(data, face, plane, curve, lo, hi)
+            if fast is None:
+                fast = _convex_clip(sides, pieces, plane, pc, lo, hi, curve)
             if fast is not None:
                 return [fast] if t0 < t1 else [(fast[1], fast[0], fast[2])]
     breaks, along = [lo, hi], []
@@ -694,6 +699,110 @@ def _convex_clip(sides: tuple[np.ndarray, np.ndarray], pieces: list[_Piece], pla
     if not (s0 < s1) or np.linalg.norm(_uv(pc, s1) - _uv(pc, s0)) <= plane.eps:
         return None
     return float(s0), float(s1), "inside"
+
+
+def _hemisphere(face: FaceSpec) -> tuple[float, ...] | None:
+    """``(n, O)`` as six floats when ``face`` is a half sphere between two meridians ``u0`` and ``u0 + π`` (the
+    halves of a sphere primitive): one loop of two edges whose p-curves are the lines ``u = u0`` and
+    ``u = u0 + π`` from pole to pole.  The face is then the points of the sphere with ``n · (P - O) >= 0``,
+    ``O`` the centre and ``n = cos u0 Y - sin u0 X`` the unit normal of the plane of the two meridians
+    (``u ∈ [u0, u0 + π]`` is ``sin(u - u0) >= 0``, and ``u = atan2(y, x)`` in the sphere's frame); None for
+    any other face."""
+    S = face.surface
+    if type(S) is not SphericalSurface or len(face.loops) != 1 or len(face.loops[0]) != 2:
+        return None
+    us = []
+    for e in face.loops[0]:
+        pc = e.pcurve
+        if type(pc) is not Line2D:
+            return None
+        (u, v), (du, dv) = pc.origin.tolist(), pc.direction.tolist()
+        if du != 0.0 or sorted((v + e.t0 * dv, v + e.t1 * dv)) != [-0.5 * math.pi, 0.5 * math.pi]:
+            return None
+        us.append(u)
+    u0, u1 = sorted(us)
+    if u1 - u0 != math.pi:
+        return None
+    X, Y = S._frame[0].tolist(), S._frame[1].tolist()
+    c, s = math.cos(u0), math.sin(u0)
+    return tuple(c * y - s * x for x, y in zip(X, Y)) + tuple(S._origin.tolist())
+
+
+def _hemisphere_clip(data: _FaceData, face: FaceSpec, plane: _Plane, curve: Any, lo: float, hi: float
+                     ) -> tuple[float, float, str] | None:
+    """:func:`clip_to_face` of a branch whose 3-D curve is a circle on a half-sphere face (:func:`_hemisphere`), in
+    closed form: ``(s0, s1, "inside")``, or None where the answer is not one such piece decided with clearance
+    (the convex clip or the general path runs).
+
+    The circle ``P(t) = C + r cos t X + r sin t Y`` lies on the sphere, and the face is the sphere's side
+    ``g = n · (P - O) >= 0`` of the meridians' plane, so the branch is inside exactly where
+    ``g(t) = c + a cos t + b sin t >= 0``: its zeros are ``atan2(b, a) ± acos(-c / hypot(a, b))``, polished by
+    Newton on ``g``.  They are where the 3-D Newton of the general path puts the crossings with the
+    meridians (the branch's crossings with the meridian circles are its crossings with their plane), up to
+    round-off.  Declined: range ends or zeros within :data:`_CONVEX_CLEARANCE` ``tol3`` of each other in
+    space (the general path merges ends within ``eps``), a zero at a sine below :data:`_CONVEX_MIN_SINE`, a
+    zero within the clearance of the sphere's axis (the poles, the face's corners), and any answer other
+    than one inside piece.
+    """
+    if type(curve) is not Circle:
+        return None
+    if data.hemisphere is None:
+        data.hemisphere = _hemisphere(face) or ()
+    if not data.hemisphere:
+        return None
+    nx, ny, nz, ox, oy, oz = data.hemisphere
+    r = float(curve.radius)
+    (cx, cy, cz), X, Y = curve.center.tolist(), curve.frame[0].tolist(), curve.frame[1].tolist()
+    c = nx * (cx - ox) + ny * (cy - oy) + nz * (cz - oz)
+    a = r * (nx * X[0] + ny * X[1] + nz * X[2])
+    b = r * (nx * Y[0] + ny * Y[1] + nz * Y[2])
+    amp = math.hypot(a, b)
+    clear = _CONVEX_CLEARANCE * plane.tol3
+    # the smallest |g'| at a zero: sqrt(amp² - c²); below the sine bound (or no zero) the clip declines
+    if not amp * amp - c * c >= (_CONVEX_MIN_SINE * r) ** 2:
+        return None
+
+    def g(t: float) -> float:
+        return c + a * math.cos(t) + b * math.sin(t)
+
+    def point(t: float) -> tuple[float, float, float]:
+        ct, st = r * math.cos(t), r * math.sin(t)
+        return cx + ct * X[0] + st * Y[0], cy + ct * X[1] + st * Y[1], cz + ct * X[2] + st * Y[2]
+
+    phase, half = math.atan2(b, a), math.acos(-c / amp)
+    zeros = []
+    for base in (phase - half, phase + half):
+        t = base + TWO_PI * math.ceil((lo - base) / TWO_PI)
+        while t < hi:
+            for _ in range(_ZERO_STEPS):  # Newton on g from the closed form (|g'| >= the sine bound here)
+                t -= g(t) / (-a * math.sin(t) + b * math.cos(t))
+            zeros.append(t)
+            t += TWO_PI
+    ts = [lo] + sorted(zeros) + [hi]
+    if not all(x < y for x, y in zip(ts, ts[1:])):
+        return None
+    P = [point(t) for t in ts]
+    if not all(math.dist(p, q) > clear for p, q in zip(P, P[1:])):
+        return None
+    inside = [g(0.5 * (x + y)) > 0.0 for x, y in zip(ts, ts[1:])]  # (alternating: distinct simple zeros)
+    ends = (g(lo), g(hi))
+    if not (abs(ends[0]) > clear and abs(ends[1]) > clear and (ends[0] > 0) == inside[0]
+            and (ends[1] > 0) == inside[-1] and all(x != y for x, y in zip(inside, inside[1:]))
+            and inside.count(True) == 1):
+        return None
+    S = face.surface
+    axis, centre = S._frame[2].tolist(), (ox, oy, oz)
+    for p in P[1:-1]:
+        L = [x - o for x, o in zip(p, centre)]
+        h = sum(x * z for x, z in zip(L, axis))
+        if not math.dist(L, [h * z for z in axis]) > clear:
+            return None  # near a pole: a corner of the face in its parameter plane
+    k = inside.index(True)
+    return ts[k], ts[k + 1], "inside"
+
+
+#: Newton steps polishing a closed-form zero in :func:`_hemisphere_clip`.
+_ZERO_STEPS = 2
 
 
 def _innermost_crossing(items: list[tuple[int, float]], pc: Any, sides: tuple[np.ndarray, np.ndarray], C: np.ndarray,

@@ -179,6 +179,35 @@ def test_island_pieces_equal_validated_specs():
     assert made == 2  # the plate's top and bottom
 
 
+@pytest.mark.parametrize("pair", [
+    lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
+    lambda: (Box(10, 10, 10), Sphere(4).translate((8, 5, 5))),
+    lambda: (Cylinder(3, 12), Cylinder(2, 12).rotate((0, 0, 0), (1, 0, 0), 90)),
+])
+def test_island_split_declines_fitted_cuts_ending_on_the_boundary_by_their_ends(monkeypatch, pair):
+    """_split_islands tells fitted cuts ending on their face's boundary by the cuts' ends alone
+    (_fitted_end_near_loops), before sampling them: only where the samples' box test declines too."""
+    from coons.kernel.curve import NurbsCurve
+
+    t = S.resolve(None)
+    a, b = pair()
+    A, B = S._Operand(a, "A", t), S._Operand(b, "B", t)
+    I, J = S._broad_phase(A, B)
+    cuts_a, cuts_b = S._intersect(A, B, I, J, t)
+    told = fitted = 0
+    for X, cuts in ((A, cuts_a), (B, cuts_b)):
+        for f, cs in cuts.items():
+            early = S._fitted_end_near_loops(X, f, cs)
+            with monkeypatch.context() as m:
+                m.setattr(S, "_fitted_end_near_loops", lambda *args: False)
+                sampled = S._split_islands(X, f, cs, t)
+            assert not early or sampled is None, f
+            assert (S._split_islands(X, f, cs, t) is None) == (sampled is None)
+            told += early
+            fitted += any(type(c.pcurve) is NurbsCurve for c in cs)
+    assert fitted and told  # (each pair's fitted branches cross the faces' edges)
+
+
 def test_cone_minus_box_keeps_a_frustum():
     cone = Cone(3, 0, 6, align=("center", "center", "min"))
     r = _ok(S.difference(cone, Box(20, 20, 6, align=("center", "center", "min")).translate((0, 0, 3))))

@@ -1051,6 +1051,75 @@ def test_consecutive_fitted_cuts_on_a_hemisphere_skip_the_foot_search(dx, dy, dz
     _assert_same_split(fast, general)
 
 
+def _sphere_branches(half: int, dx: float, dy: float, dz: float, r: float, plane: bool):
+    """Half ``half`` of the unit sphere and the circle branches where it meets the sphere of radius ``r``
+    about ``(1 + dx, dy, dz)`` (or, ``plane``, the plane through that point with normal ``(dx, dy, 1)``),
+    over a box a little wider than the half in ``u``: fitted p-curves crossing its meridians."""
+    from coons.kernel.intersect import intersect_surfaces
+
+    face = face_specs(Sphere(1))[half]
+    if plane:
+        other, far = PlanarSurface([1.0 + dx, dy, dz], [dx, dy, 1.0], [1.0, 0.0, -dx]), ((-9.0, 9.0), (-9.0, 9.0))
+    else:
+        other = face_specs(Sphere(r).translate((1.0 + dx, dy, dz)))[0].surface
+        far = ((-10.0, 10.0), (-math.pi / 2, math.pi / 2))
+    u0 = math.pi * half
+    box = ((u0 - 0.05, u0 + math.pi + 0.05), (-math.pi / 2, math.pi / 2))
+    return face, intersect_surfaces(face.surface, other, box, far).curves
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 1), st.floats(-0.9, 0.9), st.floats(-0.9, 0.9), st.floats(-0.9, 0.9), st.floats(0.5, 1.5),
+       st.booleans())
+@example(0, 0.3, 0.2, 0.1, 1.1, False)
+@example(1, -0.2, 0.5, 0.3, 0.8, True)
+def test_circle_clip_on_a_half_sphere_matches_the_general_path(half, dx, dy, dz, r, plane):
+    """Circles (sphere–sphere and plane–sphere sections) on a half of a sphere primitive: the closed-form clip
+    of :func:`~coons.topology.split._hemisphere_clip` and the convex clip give the general path's pieces,
+    where the closed form answers, the convex clip (where it answers) gives the same, and the split by the
+    inside pieces gives the general path's regions."""
+    from coons.topology import split
+
+    face, branches = _sphere_branches(half, dx, dy, dz, r, plane)
+    cuts = []
+    for c in branches:
+        fast = clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+        general = _general(clip_to_face, face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+        assert [w for *_, w in fast] == [w for *_, w in general]
+        np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=1e-9)
+        cuts += [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
+        data = split._face_data(face, split.resolve(None))
+        plane_ = data.plane([])
+        closed = split._hemisphere_clip(data, face, plane_, c.curve, min(c.t0, c.t1), max(c.t0, c.t1))
+        if closed is not None:
+            pieces, _ = data.pieces(plane_, fresh=False)
+            pc = split._checked_pc(c.pcurve_a, plane_)
+            convex = split._convex_clip(data.sides(plane_, pieces), pieces, plane_, pc, min(c.t0, c.t1),
+                                        max(c.t0, c.t1), c.curve)
+            if convex is not None:
+                assert convex[2] == closed[2]
+                np.testing.assert_allclose(convex[:2], closed[:2], rtol=0, atol=1e-12)
+    if cuts:
+        _assert_same_split(split_face(face, cuts), _general(split_face, face, cuts))
+
+
+def test_sphere_union_clips_its_circle_branches_in_closed_form(monkeypatch):
+    """The branches of two overlapping spheres cross the meridians of the spheres' halves: every clip that
+    reaches the convex-face paths is answered in closed form (no convex clip of the fitted p-curve), and
+    the union's volume is the lens formula's."""
+    from coons.booleans.solid import union
+    from coons.topology import split
+
+    calls = []
+    convex = split._convex_clip
+    monkeypatch.setattr(split, "_convex_clip", lambda *a: calls.append(a) or convex(*a))
+    d = math.sqrt(4.0 ** 2 + 2.0 ** 2 + 0.5 ** 2)
+    result = union(Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5)))
+    assert not calls
+    lens = math.pi * (2 * 5 - d) ** 2 * (d * d + 4 * d * 5) / (12 * d)  # two equal caps of the lens
+    np.testing.assert_allclose(result.volume, 2 * 4 / 3 * math.pi * 125 - lens, rtol=1e-6)
+
+
 def _snap_record(fn, reach_first: bool):
     """``fn()`` with :func:`_snap_cut_ends` spied: per call the splits it added to each piece and how many
     times it evaluated the reach of the cut ends (one batch of all of them); ``reach_first`` evaluates it

@@ -767,18 +767,35 @@ _LAST_MEASURED: list = [None, None]
 def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
                       samples: int, R: np.ndarray) -> None:
     """Store the measurements ``R`` (:func:`_packed`, in the order of ``rows``) of the coedges
-    ``rows`` (of the arrays of :func:`_check_geometry`) whose curve, p-curve and surface are values."""
-    pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
-    r = b.edge_range[e[rows]].tolist()
-    for k, (p, c, s) in enumerate(zip(pi[rows].tolist(), ci[rows].tolist(), si[rows].tolist())):
-        if c < 0:
-            continue
-        pcurve, curve, surface = pcurves[p], curves[c], surfaces[s]
-        if not (is_value(pcurve) and is_value(curve) and is_value(surface)):
-            continue
+    ``rows`` (of the arrays of :func:`_check_geometry`) whose curve, p-curve and surface are values.
+
+    One pass over the coedges: the rows kept are views of one read-only copy, the p-curves new to
+    :data:`_SAME_PARAMETER` are given their entries in one call (a Boolean's result brings a
+    thousand new coedges)."""
+    has = np.flatnonzero(ci[rows] >= 0)
+    sel = rows[has]
+    P = [b.pcurves[p] for p in pi[sel].tolist()]
+    C = [b.curves[c] for c in ci[sel].tolist()]
+    S = [b.surfaces[s] for s in si[sel].tolist()]
+    held = _read_only(R[has])
+    r = b.edge_range[e[sel]].tolist()
+    got = _SAME_PARAMETER.get_many(P)
+    todo = zip(P, C, S, held, r, got)
+    objs = P + C + S
+    if not all(map(is_value, dict(zip(map(type, objs), objs)).values())):  # (one object of each type)
+        todo = [t for t in todo if is_value(t[0]) and is_value(t[1]) and is_value(t[2])]
+    fresh: dict[int, tuple] = {}  # id(p-curve) -> (p-curve, its new entry)
+    for pcurve, curve, surface, row, (r0, r1), entries in todo:
+        if entries is None:
+            new = fresh.get(id(pcurve))
+            if new is None:
+                new = fresh[id(pcurve)] = (pcurve, {})
+            entries = new[1]
         h = _Sampled()
-        h.curve, h.surface, h.row = curve, surface, _read_only(R[k].copy())
-        _SAME_PARAMETER.setdefault(pcurve, dict)[(id(curve), id(surface), r[k][0], r[k][1], samples)] = h
+        h.curve, h.surface, h.row = curve, surface, row
+        entries[(id(curve), id(surface), r0, r1, samples)] = h
+    if fresh:
+        _SAME_PARAMETER.set_many([pc for pc, _ in fresh.values()], [entries for _, entries in fresh.values()])
 
 
 # ---------------------------------------------------------------------- trims

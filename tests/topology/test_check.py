@@ -1365,3 +1365,39 @@ def test_the_nesting_found_at_one_tolerance_is_not_served_at_another():
         assert "shells-touch" in report.codes(), (linear, report.summary())
         assert "not decided" in str([p for p in report.problems if p.code == "shells-touch"][0])
     assert check(solid).ok  # (and the default's answer is still the default's)
+
+
+def test_measurements_remembered_per_pcurve_equal_a_cold_check(monkeypatch):
+    """The same-parameter rows remembered per p-curve (``_SAME_PARAMETER``, written for all coedges
+    of a check in one pass) are found for every coedge of a B-rep with the same geometry when no
+    B-rep's array record is there to carry them, and give the cold check's table; p-curves shared
+    by several coedges keep one entry per curve, surface and range."""
+    from coons.topology import _memo
+    from coons.topology.check import _SAME_PARAMETER, _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    _memo.clear_all()
+    shape = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
+    cold = _check_geometry(shape.brep, T, 9, out_cold := [])
+    assert len(_SAME_PARAMETER) > 0
+    for entries in _SAME_PARAMETER._data.values():
+        for h in entries[1].values():
+            assert not h.row.flags.writeable
+    found = []
+    real = check_module._cached_samples
+
+    def spy(b, pi, *args):
+        idx, H = real(b, pi, *args)
+        found.append((int(pi.size), int(idx.size)))
+        return idx, H
+
+    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    check_module._MEASURED.clear()  # only the per-p-curve memo remains
+    check_module._LAST_MEASURED[:] = [None, None]
+    copy = dataclasses.replace(shape.brep)
+    warm = _check_geometry(copy, T, 9, out := [])
+    n, hits = found[-1]
+    assert hits == n
+    assert out == out_cold
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)

@@ -553,8 +553,8 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], Tm)
         D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), uv_m[..., 0].ravel(),
                                  uv_m[..., 1].ravel(), 1).reshape(miss.size, samples, 2, 2, 3)
-        dev_m = np.linalg.norm(D[:, :, 0, 0] - Pm, axis=-1).max(axis=1)
-        speed_m = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
+        dev_m = _norms(D[:, :, 0, 0] - Pm).max(axis=1)
+        speed_m = np.maximum(_norms(D[:, :, 1, 0]), _norms(D[:, :, 0, 1]))
         uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m
         _remember_samples(b, miss, pi, ci, si, e, samples, _packed(uv_m, speed_m, dev_m, Pm[:, [0, -1]], line_m))
     if rows.size:

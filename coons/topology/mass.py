@@ -817,8 +817,11 @@ def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows:
             R = _read_only(R)
             code[miss[new]] = kinds
             rows[miss[new]] = R
-            values = [k for k, o in enumerate(made) if is_value(o)]
-            memo.set_many([made[k] for k in values], zip(kinds[values].tolist(), _read_only(R[values])))
+            if all(map(is_value, dict(zip(map(type, made), made)).values())):  # (one object of each type)
+                memo.set_many(made, zip(kinds.tolist(), R))
+            else:
+                values = [k for k, o in enumerate(made) if is_value(o)]
+                memo.set_many([made[k] for k in values], zip(kinds[values].tolist(), _read_only(R[values])))
     return code, rows
 
 
@@ -855,25 +858,30 @@ def _pcurve_rows(pcurves: list) -> tuple[np.ndarray, np.ndarray]:
     n = len(pcurves)
     shape = np.full(n, _P_BAD, dtype=np.int8)
     coef = np.zeros((n, 8))
-    lines = [k for k, pc in enumerate(pcurves) if isinstance(pc, Line2D)]
+    kind = [_PCURVE_KIND.get(type(pc)) or (1 if isinstance(pc, Line2D) else 2 if isinstance(pc, Trig2D) else 3)
+            for pc in pcurves]
+    lines = [k for k, c in enumerate(kind) if c == 1]
     if lines:
         O = np.array([pcurves[k].origin for k in lines])
         D = np.array([pcurves[k].direction for k in lines])
         coef[lines, 0:2], coef[lines, 2:4] = O, D
         shape[lines] = np.where(D[:, 1] == 0.0, _P_ISO_V, np.where(D[:, 0] == 0.0, _P_CONST_U, _P_LINE))
-    trigs = [k for k, pc in enumerate(pcurves) if isinstance(pc, Trig2D)]
+    trigs = [k for k, c in enumerate(kind) if c == 2]
     if trigs:
         A = np.array([pcurves[k].a for k in trigs])
         B = np.array([pcurves[k].b for k in trigs])
         coef[trigs, 0:2], coef[trigs, 4:6], coef[trigs, 6:8] = np.array([pcurves[k].center for k in trigs]), A, B
         shape[trigs] = np.where((A[:, 1] == 0.0) & (B[:, 1] == 0.0), _P_ISO_V, _P_TRIG)
     if len(lines) + len(trigs) < n:
-        curves = [k for k, pc in enumerate(pcurves) if not isinstance(pc, (Line2D, Trig2D))]
+        curves = [k for k, c in enumerate(kind) if c == 3]
         shape[curves] = [_P_CURVE if isinstance(pcurves[k], NurbsCurve) and pcurves[k].dimension == 2 else _P_BAD
                          for k in curves]
     return shape, coef
 
 
+#: The p-curve types :func:`_pcurve_rows` batches, by exact type (1 lines, 2 ellipses; subclasses
+#: found by ``isinstance`` there, any other type is 3).
+_PCURVE_KIND = {Line2D: 1, Trig2D: 2}
 #: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_rows` (code and row as a read-only
 #: array): the per-object rows of :class:`_Tables`, which a B-rep sewn from the faces of another
 #: (a Boolean's result) shares with it.  Rows are never modified.

@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coons.errors import CoonsError, InvalidInputError, TopologyError
-from coons.kernel.analytic import CylindricalSurface, Line, PlanarSurface
+from coons.kernel.analytic import BATCHED_SURFACES, CylindricalSurface, Line, PlanarSurface, surface_derivatives
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
@@ -551,8 +551,16 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     if miss.size:
         Tm, Pm = Ts[at[rr[miss]]], Ps[at[rr[miss]]]
         uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], Tm)
-        D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), uv_m[..., 0].ravel(),
-                                 uv_m[..., 1].ravel(), 1).reshape(miss.size, samples, 2, 2, 3)
+        sm = np.repeat(si[miss], samples)
+        u_m, v_m = uv_m[..., 0].ravel(), uv_m[..., 1].ravel()
+        if all(isinstance(b.surfaces[s], BATCHED_SURFACES) for s in np.unique(si[miss]).tolist()):
+            # Planes and surfaces of revolution only (a plate and its holes): their one expression per
+            # type straight away, the same rows as derivatives_surfaces gives it after grouping them by
+            # surface (a sort of every sample's surface index).
+            D = surface_derivatives(b.surfaces, u_m, v_m, 1, sm)
+        else:
+            D = derivatives_surfaces(b.surfaces, sm, u_m, v_m, 1)
+        D = D.reshape(miss.size, samples, 2, 2, 3)
         dev_m = _norms(D[:, :, 0, 0] - Pm).max(axis=1)
         speed_m = np.maximum(_norms(D[:, :, 1, 0]), _norms(D[:, :, 0, 1]))
         uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m

@@ -1401,3 +1401,29 @@ def test_measurements_remembered_per_pcurve_equal_a_cold_check(monkeypatch):
     assert out == out_cold
     for name in ("coedge", "uv", "speed", "line", "pos"):
         np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0)),
+    lambda: Sphere(5.0) + Sphere(5.0).translate((4.0, 2.0, 0.5)),
+    lambda: Cone(3.0, 1.0, 6.0) - Torus(4.0, 1.0),
+])
+def test_geometry_check_of_analytic_surfaces_equals_the_grouped_path(make, monkeypatch):
+    """Where every surface measured is a plane or of revolution, _check_geometry evaluates them by
+    ``analytic.surface_derivatives`` directly; ``derivatives_surfaces`` (which groups the rows by
+    surface first) must give the very same table and problems."""
+    from coons.topology import _memo
+    from coons.topology.check import _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    shape = make()
+    _memo.clear_all()
+    check_module._MEASURED.clear()
+    fast = _check_geometry(shape.brep, T, 9, out_fast := [])
+    _memo.clear_all()
+    check_module._MEASURED.clear()
+    monkeypatch.setattr(check_module, "BATCHED_SURFACES", ())  # (no surface qualifies: the grouped path)
+    general = _check_geometry(shape.brep, T, 9, out_general := [])
+    assert [str(p) for p in out_fast] == [str(p) for p in out_general]
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(general, name), err_msg=name)

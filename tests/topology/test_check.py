@@ -1030,6 +1030,20 @@ def test_coedges_of_faces_that_passed_before_are_not_measured_again(monkeypatch)
     assert check(again, samples=17).ok and measured[-1] == first  # another key: measured whole
 
 
+def _spy_cached_samples(monkeypatch) -> list:
+    """Record ``(coedges asked, coedges found)`` of every ``_cached_samples`` call of the check."""
+    found = []
+    real = check_module._cached_samples
+
+    def spy(b, pi, *args):
+        idx, H = real(b, pi, *args)
+        found.append((int(pi.size), int(idx.size)))
+        return idx, H
+
+    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    return found
+
+
 def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monkeypatch):
     """A Boolean's result takes the same-parameter rows of the coedges it shares with the B-rep
     checked last (its operand) in one gather (``_MEASURED``): the same table and problems as a cold
@@ -1042,15 +1056,7 @@ def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monk
     one = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
     two = one - Cylinder(1.0, 10.0).translate((-4.0, 0.0, -3.0))
     _check_geometry(one.brep, T, 9, [])  # one is the B-rep measured last, every coedge of it
-    found = []
-    real = check_module._cached_samples
-
-    def spy(b, pi, *args):
-        idx, H = real(b, pi, *args)
-        found.append((int(pi.size), int(idx.size)))
-        return idx, H
-
-    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    found = _spy_cached_samples(monkeypatch)
     check_module._SAME_PARAMETER.clear()  # only the carried rows remain
     edges = np.flatnonzero(two.brep.edge_curve >= 0)
     evaluated = []
@@ -1383,15 +1389,7 @@ def test_measurements_remembered_per_pcurve_equal_a_cold_check(monkeypatch):
     for entries in _SAME_PARAMETER._data.values():
         for h in entries[1].values():
             assert not h.row.flags.writeable
-    found = []
-    real = check_module._cached_samples
-
-    def spy(b, pi, *args):
-        idx, H = real(b, pi, *args)
-        found.append((int(pi.size), int(idx.size)))
-        return idx, H
-
-    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    found = _spy_cached_samples(monkeypatch)
     check_module._MEASURED.clear()  # only the per-p-curve memo remains
     check_module._LAST_MEASURED[:] = [None, None]
     copy = dataclasses.replace(shape.brep)

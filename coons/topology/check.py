@@ -47,7 +47,8 @@ a sewn B-rep are summed from face contributions, those of faces equal to a spec 
 carried (:func:`~coons.topology.mass.carried_shell_volumes`, for the sign test).  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
-:func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
+:func:`~coons.kernel.surface.derivatives_surfaces`, a model of planes and surfaces of revolution
+alone by :func:`~coons.kernel.analytic.surface_derivatives`) and shared by the trim checks, whose rings,
 orientation areas and segments are built for all faces on surfaces at once: the checker costs a
 few array passes, not a few numpy calls per coedge.
 """

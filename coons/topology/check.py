@@ -552,15 +552,16 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     if miss.size:
         Tm, Pm = Ts[at[rr[miss]]], Ps[at[rr[miss]]]
         uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], Tm)
-        sm = np.repeat(si[miss], samples)
         u_m, v_m = uv_m[..., 0].ravel(), uv_m[..., 1].ravel()
-        if all(isinstance(b.surfaces[s], BATCHED_SURFACES) for s in np.unique(si[miss]).tolist()):
+        ids, inv = np.unique(si[miss], return_inverse=True)
+        used = [b.surfaces[s] for s in ids.tolist()]
+        if all(isinstance(S, BATCHED_SURFACES) for S in used):
             # Planes and surfaces of revolution only (a plate and its holes): their one expression per
-            # type straight away, the same rows as derivatives_surfaces gives it after grouping them by
-            # surface (a sort of every sample's surface index).
-            D = surface_derivatives(b.surfaces, u_m, v_m, 1, sm)
+            # type straight away on the surfaces measured, the same rows as derivatives_surfaces gives
+            # it after grouping them by surface (a sort of every sample's surface index).
+            D = surface_derivatives(used, u_m, v_m, 1, np.repeat(inv.reshape(-1), samples))
         else:
-            D = derivatives_surfaces(b.surfaces, sm, u_m, v_m, 1)
+            D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), u_m, v_m, 1)
         D = D.reshape(miss.size, samples, 2, 2, 3)
         dev_m = _norms(D[:, :, 0, 0] - Pm).max(axis=1)
         speed_m = np.maximum(_norms(D[:, :, 1, 0]), _norms(D[:, :, 0, 1]))

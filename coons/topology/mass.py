@@ -760,14 +760,14 @@ def _tables(b: BRep) -> _Tables:
             break
     if D is not None:
         code, rows = _pool_rows(b.surfaces, pool_positions(b, donor, "surfaces"), D.surface_code, D.surface_rows,
-                                _SURFACE_ROWS, _surface_rows)
+                                _SURFACE_ROWS, _surface_row)
         shape, coef = _pool_rows(b.pcurves, pool_positions(b, donor, "pcurves"), D.pcurve_shape, D.pcurve_coef,
-                                 _PCURVE_ROWS, _pcurve_rows)
+                                 _PCURVE_ROWS, _pcurve_row)
     else:
         none = np.full(len(b.surfaces), -1, dtype=np.int64)
-        code, rows = _pool_rows(b.surfaces, none, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_rows)
+        code, rows = _pool_rows(b.surfaces, none, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_row)
         none = np.full(len(b.pcurves), -1, dtype=np.int64)
-        shape, coef = _pool_rows(b.pcurves, none, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_rows)
+        shape, coef = _pool_rows(b.pcurves, none, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_row)
     code = np.append(code, np.int8(_C_PLANE))
     rows = np.concatenate([rows, _IMPLICIT_PLANE_ROW_2D])
     # (classified as _classify_shapes does)
@@ -792,43 +792,36 @@ def _tables(b: BRep) -> _Tables:
 
 
 def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows: np.ndarray, memo: IdentityMemo,
-               rows_of: Callable) -> tuple[np.ndarray, np.ndarray]:
+               row_of: Callable) -> tuple[np.ndarray, np.ndarray]:
     """The codes ``(n,)`` int8 and rows ``(n, w)`` of :class:`_Tables` for the geometry objects
     ``objs`` of a B-rep's pool (its surfaces or p-curves): those at positions ``pos >= 0`` of a
     donor's pool (:func:`~coons.topology._memo.pool_positions`) gathered from the donor's table
-    in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or, for those not
-    remembered there either, made together by ``rows_of`` (:func:`_surface_rows`,
-    :func:`_pcurve_rows`) and remembered in one call.  A row is a function of its object alone, so
-    it does not matter which table it is read from."""
+    in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A
+    row is a function of its object alone, so it does not matter which table it is read from.
+    The rows made are one array (each object's row a read-only view of it), remembered in one
+    call (a Boolean of a hundred tools brings a thousand new p-curves)."""
     code = donor_code.take(pos)  # (-1, absent from the donor, reads the sentinel and is overwritten)
     rows = donor_rows.take(pos, axis=0)
     miss = np.flatnonzero(pos < 0)
     if miss.size:
         need = [objs[i] for i in miss.tolist()]
         got = memo.get_many(need)
-        new = [k for k, g in enumerate(got) if g is None]
-        if len(new) < len(need):
-            old = [k for k, g in enumerate(got) if g is not None]
+        old = [k for k, g in enumerate(got) if g is not None]
+        if old:
             code[miss[old]] = [got[k][0] for k in old]
             rows[miss[old]] = np.concatenate([got[k][1] for k in old]).reshape(len(old), -1)
-        if new:
+        if len(old) < len(need):
+            new = [k for k, g in enumerate(got) if g is None]
             made = [need[k] for k in new]
-            kinds, R = rows_of(made)
-            R = _read_only(R)
+            kinds, R = zip(*map(row_of, made))
+            R = _read_only(np.array(R, dtype=np.float64))
             code[miss[new]] = kinds
             rows[miss[new]] = R
-            if all(map(is_value, dict(zip(map(type, made), made)).values())):  # (one object of each type)
-                memo.set_many(made, zip(kinds.tolist(), R))
-            else:
-                values = [k for k, o in enumerate(made) if is_value(o)]
-                memo.set_many([made[k] for k in values], zip(kinds[values].tolist(), _read_only(R[values])))
+            if not all(map(is_value, dict(zip(map(type, made), made)).values())):  # (one object of each type)
+                keep = [k for k, o in enumerate(made) if is_value(o)]
+                made, kinds, R = [made[k] for k in keep], [kinds[k] for k in keep], _read_only(R[keep])
+            memo.set_many(made, zip(kinds, R))
     return code, rows
-
-
-def _surface_rows(surfaces: list) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_surface_row` of each surface: codes ``(n,)`` int8 and rows ``(n, 17)``."""
-    made = [_surface_row(S) for S in surfaces]
-    return np.array([k for k, _ in made], dtype=np.int8), np.array([r for _, r in made], dtype=np.float64)
 
 
 #: The last sewn B-rep (``check._SEWN_FROM``) whose :class:`_Tables` were built and the last B-rep
@@ -851,38 +844,18 @@ def _surface_row(S) -> tuple[int, list[float]]:
     return k, org.tolist() + S.frame.ravel().tolist() + list(p)
 
 
-def _pcurve_rows(pcurves: list) -> tuple[np.ndarray, np.ndarray]:
-    """The shapes ``(n,)`` int8 and coefficient rows ``(n, 8)`` of :class:`_Tables` of p-curves (each
-    a function of its p-curve alone): lines and ellipses (most p-curves of a model) by one array
-    expression per type, from their own coefficients."""
-    n = len(pcurves)
-    shape = np.full(n, _P_BAD, dtype=np.int8)
-    coef = np.zeros((n, 8))
-    kind = [_PCURVE_KIND.get(type(pc)) or (1 if isinstance(pc, Line2D) else 2 if isinstance(pc, Trig2D) else 3)
-            for pc in pcurves]
-    lines = [k for k, c in enumerate(kind) if c == 1]
-    if lines:
-        O = np.array([pcurves[k].origin for k in lines])
-        D = np.array([pcurves[k].direction for k in lines])
-        coef[lines, 0:2], coef[lines, 2:4] = O, D
-        shape[lines] = np.where(D[:, 1] == 0.0, _P_ISO_V, np.where(D[:, 0] == 0.0, _P_CONST_U, _P_LINE))
-    trigs = [k for k, c in enumerate(kind) if c == 2]
-    if trigs:
-        A = np.array([pcurves[k].a for k in trigs])
-        B = np.array([pcurves[k].b for k in trigs])
-        coef[trigs, 0:2], coef[trigs, 4:6], coef[trigs, 6:8] = np.array([pcurves[k].center for k in trigs]), A, B
-        shape[trigs] = np.where((A[:, 1] == 0.0) & (B[:, 1] == 0.0), _P_ISO_V, _P_TRIG)
-    if len(lines) + len(trigs) < n:
-        curves = [k for k, c in enumerate(kind) if c == 3]
-        shape[curves] = [_P_CURVE if isinstance(pcurves[k], NurbsCurve) and pcurves[k].dimension == 2 else _P_BAD
-                         for k in curves]
-    return shape, coef
+def _pcurve_row(pc) -> tuple[int, list[float]]:
+    """The shape and the coefficient row of :class:`_Tables` of one p-curve (a function of the p-curve alone)."""
+    if isinstance(pc, Line2D):
+        du, dv = pc.direction.tolist()
+        return (_P_ISO_V if dv == 0.0 else _P_CONST_U if du == 0.0 else _P_LINE), pc.origin.tolist() + [du, dv] + _ZEROS4
+    if isinstance(pc, Trig2D):
+        a, bb = pc.a.tolist(), pc.b.tolist()
+        return (_P_ISO_V if a[1] == 0.0 and bb[1] == 0.0 else _P_TRIG), pc.center.tolist() + _ZEROS2 + a + bb
+    return (_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD), _ZEROS8
 
 
-#: The p-curve types :func:`_pcurve_rows` batches, by exact type (1 lines, 2 ellipses; subclasses
-#: found by ``isinstance`` there, any other type is 3).
-_PCURVE_KIND = {Line2D: 1, Trig2D: 2}
-#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_rows` (code and row as a read-only
+#: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (code and row as a read-only
 #: array): the per-object rows of :class:`_Tables`, which a B-rep sewn from the faces of another
 #: (a Boolean's result) shares with it.  Rows are never modified.
 _SURFACE_ROWS = IdentityMemo()
@@ -913,6 +886,7 @@ def _flat_nets(nets: list) -> np.ndarray:
     return out
 
 
+_ZEROS2, _ZEROS4, _ZEROS8 = [0.0] * 2, [0.0] * 4, [0.0] * 8
 _NO_SURFACE_ROW = [0.0] * 17
 _NO_CODE = np.zeros(1, dtype=np.int8)  # a donor of one sentinel row, for the tables built without one
 _ZEROS8_2D = _read_only(np.zeros((1, 8)))

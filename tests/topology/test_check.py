@@ -1110,21 +1110,21 @@ def test_mass_tables_gathered_from_the_operand_equal_cold_ones():
     mass._SURFACE_ROWS.clear()
     mass._PCURVE_ROWS.clear()
     made = {"surfaces": 0, "pcurves": 0}
-    real_s, real_p = mass._surface_rows, mass._pcurve_rows
+    real_s, real_p = mass._surface_row, mass._pcurve_row
 
-    def surface_rows(objs):
-        made["surfaces"] += len(objs)
-        return real_s(objs)
+    def surface_row(obj):
+        made["surfaces"] += 1
+        return real_s(obj)
 
-    def pcurve_rows(objs):
-        made["pcurves"] += len(objs)
-        return real_p(objs)
+    def pcurve_row(obj):
+        made["pcurves"] += 1
+        return real_p(obj)
 
-    mass._surface_rows, mass._pcurve_rows = surface_rows, pcurve_rows
+    mass._surface_row, mass._pcurve_row = surface_row, pcurve_row
     try:
         warm = mass._tables(two.brep)
     finally:
-        mass._surface_rows, mass._pcurve_rows = real_s, real_p
+        mass._surface_row, mass._pcurve_row = real_s, real_p
     for name, k in zip(("surfaces", "pcurves"), shared):
         assert made[name] <= len(getattr(two.brep, name)) - k, name
     _memo.clear_all()

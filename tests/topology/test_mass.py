@@ -1012,28 +1012,32 @@ def test_bounding_box_skips_only_searches_that_cannot_widen_it(make, monkeypatch
         assert skipping < full
 
 
-def test_pcurve_rows_in_one_pass_equal_each_pcurve_alone():
-    # _pcurve_rows builds the lines' and ellipses' rows by one array expression per type: each row
-    # must be the one of its p-curve alone (shape by its coefficients, coefficients as given), in
-    # any mix and order, the other p-curves keeping zero coefficients.
-    from coons.kernel.pcurve import Trig2D
 
-    line = Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7]))
-    iso_v = Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0]))
-    const_u = Line2D(np.array([-0.3, 4.0]), np.array([-0.0, 1.5]))
-    trig = Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0]))
-    nurbs = NurbsCurve(np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 1.0]]), np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]), 2)
-    expected = {
-        id(line): (mass._P_LINE, [0.5, -1.25, 3.0, 0.7, 0, 0, 0, 0]),
-        id(iso_v): (mass._P_ISO_V, [1.0, 2.0, -2.0, 0.0, 0, 0, 0, 0]),
-        id(const_u): (mass._P_CONST_U, [-0.3, 4.0, -0.0, 1.5, 0, 0, 0, 0]),
-        id(trig): (mass._P_TRIG, [0.1, 0.2, 0, 0, 1.0, 0.5, -0.25, 2.0]),
-        id(nurbs): (mass._P_CURVE, [0.0] * 8),
-    }
-    for pcurves in ([line, iso_v, const_u, trig, nurbs], [nurbs, trig, const_u, line, iso_v, trig], [trig], [nurbs]):
-        shape, coef = mass._pcurve_rows(pcurves)
-        assert shape.dtype == np.int8 and coef.shape == (len(pcurves), 8)
-        for k, pc in enumerate(pcurves):
-            want_shape, want_row = expected[id(pc)]
-            assert shape[k] == want_shape
-            np.testing.assert_array_equal(coef[k], want_row)
+def test_pool_rows_made_together_equal_each_object_alone():
+    # _pool_rows makes the rows of the objects it finds nowhere as one array and remembers them in
+    # one call: each row (and code) must be the one of its object alone, in the table and in the
+    # memo (read-only), objects remembered before taken from there, and objects that are not
+    # values (not frozen dataclasses) never remembered.
+    from coons.kernel.pcurve import Trig2D
+    from coons.topology._memo import IdentityMemo
+
+    class Loose:  # (not a value: a p-curve type the tables do not know)
+        pass
+
+    pcurves = (Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7])), Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0])),
+               Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0])), Loose())
+    memo = IdentityMemo()
+    first = mass._pool_rows(pcurves[:1], np.full(1, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
+    code, rows = mass._pool_rows(pcurves, np.full(4, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
+    for k, pc in enumerate(pcurves):
+        kind, row = mass._pcurve_row(pc)
+        assert code[k] == kind
+        np.testing.assert_array_equal(rows[k], row)
+        got = memo.get(pc)
+        if k == 3:
+            assert got is None
+        else:
+            assert got[0] == kind and not got[1].flags.writeable
+            np.testing.assert_array_equal(got[1], row)
+    np.testing.assert_array_equal(first[1][0], rows[0])
+    assert len(memo) == 3

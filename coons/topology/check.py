@@ -47,7 +47,8 @@ a sewn B-rep are summed from face contributions, those of faces equal to a spec 
 carried (:func:`~coons.topology.mass.carried_shell_volumes`, for the sign test).  The
 p-curve samples of the whole model are evaluated in one batch (lines and ellipses in array
 time, surfaces of one NURBS structure together through
-:func:`~coons.kernel.surface.derivatives_surfaces`) and shared by the trim checks, whose rings,
+:func:`~coons.kernel.surface.derivatives_surfaces`, a model of planes and surfaces of revolution
+alone by :func:`~coons.kernel.analytic.surface_derivatives`) and shared by the trim checks, whose rings,
 orientation areas and segments are built for all faces on surfaces at once: the checker costs a
 few array passes, not a few numpy calls per coedge.
 """
@@ -62,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coons.errors import CoonsError, InvalidInputError, TopologyError
-from coons.kernel.analytic import CylindricalSurface, Line, PlanarSurface
+from coons.kernel.analytic import BATCHED_SURFACES, CylindricalSurface, Line, PlanarSurface, surface_derivatives
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
@@ -551,10 +552,19 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     if miss.size:
         Tm, Pm = Ts[at[rr[miss]]], Ps[at[rr[miss]]]
         uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], Tm)
-        D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), uv_m[..., 0].ravel(),
-                                 uv_m[..., 1].ravel(), 1).reshape(miss.size, samples, 2, 2, 3)
-        dev_m = np.linalg.norm(D[:, :, 0, 0] - Pm, axis=-1).max(axis=1)
-        speed_m = np.maximum(np.linalg.norm(D[:, :, 1, 0], axis=-1), np.linalg.norm(D[:, :, 0, 1], axis=-1))
+        u_m, v_m = uv_m[..., 0].ravel(), uv_m[..., 1].ravel()
+        ids, inv = np.unique(si[miss], return_inverse=True)
+        used = [b.surfaces[s] for s in ids.tolist()]
+        if all(isinstance(S, BATCHED_SURFACES) for S in used):
+            # Planes and surfaces of revolution only (a plate and its holes): their one expression per
+            # type straight away on the surfaces measured, the same rows as derivatives_surfaces gives
+            # it after grouping them by surface (a sort of every sample's surface index).
+            D = surface_derivatives(used, u_m, v_m, 1, np.repeat(inv.reshape(-1), samples))
+        else:
+            D = derivatives_surfaces(b.surfaces, np.repeat(si[miss], samples), u_m, v_m, 1)
+        D = D.reshape(miss.size, samples, 2, 2, 3)
+        dev_m = _norms(D[:, :, 0, 0] - Pm).max(axis=1)
+        speed_m = np.maximum(_norms(D[:, :, 1, 0]), _norms(D[:, :, 0, 1]))
         uv[miss], speed[miss], dev[miss], line[miss] = uv_m, speed_m, dev_m, line_m
         _remember_samples(b, miss, pi, ci, si, e, samples, _packed(uv_m, speed_m, dev_m, Pm[:, [0, -1]], line_m))
     if rows.size:
@@ -767,18 +777,35 @@ _LAST_MEASURED: list = [None, None]
 def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
                       samples: int, R: np.ndarray) -> None:
     """Store the measurements ``R`` (:func:`_packed`, in the order of ``rows``) of the coedges
-    ``rows`` (of the arrays of :func:`_check_geometry`) whose curve, p-curve and surface are values."""
-    pcurves, curves, surfaces = b.pcurves, b.curves, b.surfaces
-    r = b.edge_range[e[rows]].tolist()
-    for k, (p, c, s) in enumerate(zip(pi[rows].tolist(), ci[rows].tolist(), si[rows].tolist())):
-        if c < 0:
-            continue
-        pcurve, curve, surface = pcurves[p], curves[c], surfaces[s]
-        if not (is_value(pcurve) and is_value(curve) and is_value(surface)):
-            continue
+    ``rows`` (of the arrays of :func:`_check_geometry`) whose curve, p-curve and surface are values.
+
+    One pass over the coedges: the rows kept are views of one read-only copy, the p-curves new to
+    :data:`_SAME_PARAMETER` are given their entries in one call (a Boolean's result brings a
+    thousand new coedges)."""
+    has = np.flatnonzero(ci[rows] >= 0)
+    sel = rows[has]
+    P = [b.pcurves[p] for p in pi[sel].tolist()]
+    C = [b.curves[c] for c in ci[sel].tolist()]
+    S = [b.surfaces[s] for s in si[sel].tolist()]
+    held = _read_only(R[has])
+    r = b.edge_range[e[sel]].tolist()
+    got = _SAME_PARAMETER.get_many(P)
+    todo = zip(P, C, S, held, r, got)
+    objs = P + C + S
+    if not all(map(is_value, dict(zip(map(type, objs), objs)).values())):  # (one object of each type)
+        todo = [t for t in todo if is_value(t[0]) and is_value(t[1]) and is_value(t[2])]
+    fresh: dict[int, tuple] = {}  # id(p-curve) -> (p-curve, its new entry)
+    for pcurve, curve, surface, row, (r0, r1), entries in todo:
+        if entries is None:
+            new = fresh.get(id(pcurve))
+            if new is None:
+                new = fresh[id(pcurve)] = (pcurve, {})
+            entries = new[1]
         h = _Sampled()
-        h.curve, h.surface, h.row = curve, surface, _read_only(R[k].copy())
-        _SAME_PARAMETER.setdefault(pcurve, dict)[(id(curve), id(surface), r[k][0], r[k][1], samples)] = h
+        h.curve, h.surface, h.row = curve, surface, row
+        entries[(id(curve), id(surface), r0, r1, samples)] = h
+    if fresh:
+        _SAME_PARAMETER.set_many([pc for pc, _ in fresh.values()], [entries for _, entries in fresh.values()])
 
 
 # ---------------------------------------------------------------------- trims

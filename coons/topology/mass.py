@@ -797,23 +797,30 @@ def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows:
     ``objs`` of a B-rep's pool (its surfaces or p-curves): those at positions ``pos >= 0`` of a
     donor's pool (:func:`~coons.topology._memo.pool_positions`) gathered from the donor's table
     in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A
-    row is a function of its object alone, so it does not matter which table it is read from."""
+    row is a function of its object alone, so it does not matter which table it is read from.
+    The rows made are one array (each object's row a read-only view of it), remembered in one
+    call (a Boolean of a hundred tools brings a thousand new p-curves)."""
     code = donor_code.take(pos)  # (-1, absent from the donor, reads the sentinel and is overwritten)
     rows = donor_rows.take(pos, axis=0)
     miss = np.flatnonzero(pos < 0)
     if miss.size:
         need = [objs[i] for i in miss.tolist()]
-        kinds, found = [], []
-        for o, got in zip(need, memo.get_many(need)):
-            if got is None:
-                kind, row = row_of(o)
-                got = (kind, _read_only(np.array(row, dtype=np.float64)))
-                if is_value(o):
-                    memo.set(o, got)
-            kinds.append(got[0])
-            found.append(got[1])
-        code[miss] = kinds
-        rows[miss] = np.concatenate(found).reshape(miss.size, -1)
+        got = memo.get_many(need)
+        old = [k for k, g in enumerate(got) if g is not None]
+        if old:
+            code[miss[old]] = [got[k][0] for k in old]
+            rows[miss[old]] = np.concatenate([got[k][1] for k in old]).reshape(len(old), -1)
+        if len(old) < len(need):
+            new = [k for k, g in enumerate(got) if g is None]
+            made = [need[k] for k in new]
+            kinds, R = zip(*map(row_of, made))
+            R = _read_only(np.array(R, dtype=np.float64))
+            code[miss[new]] = kinds
+            rows[miss[new]] = R
+            if not all(map(is_value, dict(zip(map(type, made), made)).values())):  # (one object of each type)
+                keep = [k for k, o in enumerate(made) if is_value(o)]
+                made, kinds, R = [made[k] for k in keep], [kinds[k] for k in keep], _read_only(R[keep])
+            memo.set_many(made, zip(kinds, R))
     return code, rows
 
 

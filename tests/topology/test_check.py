@@ -1030,6 +1030,20 @@ def test_coedges_of_faces_that_passed_before_are_not_measured_again(monkeypatch)
     assert check(again, samples=17).ok and measured[-1] == first  # another key: measured whole
 
 
+def _spy_cached_samples(monkeypatch) -> list:
+    """Record ``(coedges asked, coedges found)`` of every ``_cached_samples`` call of the check."""
+    found = []
+    real = check_module._cached_samples
+
+    def spy(b, pi, *args):
+        idx, H = real(b, pi, *args)
+        found.append((int(pi.size), int(idx.size)))
+        return idx, H
+
+    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    return found
+
+
 def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monkeypatch):
     """A Boolean's result takes the same-parameter rows of the coedges it shares with the B-rep
     checked last (its operand) in one gather (``_MEASURED``): the same table and problems as a cold
@@ -1042,15 +1056,7 @@ def test_measurements_carried_from_the_last_checked_brep_equal_a_cold_check(monk
     one = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
     two = one - Cylinder(1.0, 10.0).translate((-4.0, 0.0, -3.0))
     _check_geometry(one.brep, T, 9, [])  # one is the B-rep measured last, every coedge of it
-    found = []
-    real = check_module._cached_samples
-
-    def spy(b, pi, *args):
-        idx, H = real(b, pi, *args)
-        found.append((int(pi.size), int(idx.size)))
-        return idx, H
-
-    monkeypatch.setattr(check_module, "_cached_samples", spy)
+    found = _spy_cached_samples(monkeypatch)
     check_module._SAME_PARAMETER.clear()  # only the carried rows remain
     edges = np.flatnonzero(two.brep.edge_curve >= 0)
     evaluated = []
@@ -1365,3 +1371,57 @@ def test_the_nesting_found_at_one_tolerance_is_not_served_at_another():
         assert "shells-touch" in report.codes(), (linear, report.summary())
         assert "not decided" in str([p for p in report.problems if p.code == "shells-touch"][0])
     assert check(solid).ok  # (and the default's answer is still the default's)
+
+
+def test_measurements_remembered_per_pcurve_equal_a_cold_check(monkeypatch):
+    """The same-parameter rows remembered per p-curve (``_SAME_PARAMETER``, written for all coedges
+    of a check in one pass) are found for every coedge of a B-rep with the same geometry when no
+    B-rep's array record is there to carry them, and give the cold check's table; p-curves shared
+    by several coedges keep one entry per curve, surface and range."""
+    from coons.topology import _memo
+    from coons.topology.check import _SAME_PARAMETER, _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    _memo.clear_all()
+    shape = Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
+    cold = _check_geometry(shape.brep, T, 9, out_cold := [])
+    assert len(_SAME_PARAMETER) > 0
+    for entries in _SAME_PARAMETER._data.values():
+        for h in entries[1].values():
+            assert not h.row.flags.writeable
+    found = _spy_cached_samples(monkeypatch)
+    check_module._MEASURED.clear()  # only the per-p-curve memo remains
+    check_module._LAST_MEASURED[:] = [None, None]
+    copy = dataclasses.replace(shape.brep)
+    warm = _check_geometry(copy, T, 9, out := [])
+    n, hits = found[-1]
+    assert hits == n
+    assert out == out_cold
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name), err_msg=name)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Box(20.0, 20.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0)),
+    lambda: Sphere(5.0) + Sphere(5.0).translate((4.0, 2.0, 0.5)),
+    lambda: Cone(3.0, 1.0, 6.0) - Torus(4.0, 1.0),
+])
+def test_geometry_check_of_analytic_surfaces_equals_the_grouped_path(make, monkeypatch):
+    """Where every surface measured is a plane or of revolution, _check_geometry evaluates them by
+    ``analytic.surface_derivatives`` directly; ``derivatives_surfaces`` (which groups the rows by
+    surface first) must give the very same table and problems."""
+    from coons.topology import _memo
+    from coons.topology.check import _check_geometry
+    from coons.tolerance import DEFAULT_TOLERANCE as T
+
+    shape = make()
+    _memo.clear_all()
+    check_module._MEASURED.clear()
+    fast = _check_geometry(shape.brep, T, 9, out_fast := [])
+    _memo.clear_all()
+    check_module._MEASURED.clear()
+    monkeypatch.setattr(check_module, "BATCHED_SURFACES", ())  # (no surface qualifies: the grouped path)
+    general = _check_geometry(shape.brep, T, 9, out_general := [])
+    assert [str(p) for p in out_fast] == [str(p) for p in out_general]
+    for name in ("coedge", "uv", "speed", "line", "pos"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(general, name), err_msg=name)

@@ -1010,3 +1010,34 @@ def test_bounding_box_skips_only_searches_that_cannot_widen_it(make, monkeypatch
     full = len(searches) - skipping
     if any(isinstance(c, NurbsCurve) for c in b.curves):
         assert skipping < full
+
+
+
+def test_pool_rows_made_together_equal_each_object_alone():
+    # _pool_rows makes the rows of the objects it finds nowhere as one array and remembers them in
+    # one call: each row (and code) must be the one of its object alone, in the table and in the
+    # memo (read-only), objects remembered before taken from there, and objects that are not
+    # values (not frozen dataclasses) never remembered.
+    from coons.kernel.pcurve import Trig2D
+    from coons.topology._memo import IdentityMemo
+
+    class Loose:  # (not a value: a p-curve type the tables do not know)
+        pass
+
+    pcurves = (Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7])), Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0])),
+               Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0])), Loose())
+    memo = IdentityMemo()
+    first = mass._pool_rows(pcurves[:1], np.full(1, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
+    code, rows = mass._pool_rows(pcurves, np.full(4, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
+    for k, pc in enumerate(pcurves):
+        kind, row = mass._pcurve_row(pc)
+        assert code[k] == kind
+        np.testing.assert_array_equal(rows[k], row)
+        got = memo.get(pc)
+        if k == 3:
+            assert got is None
+        else:
+            assert got[0] == kind and not got[1].flags.writeable
+            np.testing.assert_array_equal(got[1], row)
+    np.testing.assert_array_equal(first[1][0], rows[0])
+    assert len(memo) == 3

@@ -207,6 +207,34 @@ def test_affine_pcurve_closed_forms():
         _affine_pcurve("x", 1.0, 1.0)
 
 
+def test_trig_pcurve_of_a_circle_edge_with_merged_ends_takes_the_unit_slope():
+    """Hunt seed 20, chain 7: the two uses of a circle edge (two Circle objects of opposite turning, one
+    circle) end at vertices merged within tolerance, so their ranges' lengths differ by 4e-9 and the
+    parameter map's slope is -1 - 9e-9.  Two angle parametrisations of one conic differ by ±t + c exactly:
+    the other use's Trig2D p-curve is re-expressed with slope -1 and the offset splitting the ends'
+    disagreement (it was refused: a Trig2D re-parametrises only by slope ±1)."""
+    from coons.topology.sew import _pcurve_in
+
+    circle = Circle([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 2.0)
+    against = Circle([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0], 2.0)  # against(s) = circle(-s)
+    pc = Trig2D([0.3, 0.1], [1.0, 0.0], [0.0, 0.5])
+    t0, t1 = 2.677945044588987, math.pi - 4.2e-9  # (t1: the end moved by the vertex merge)
+    primary = EdgeSpec(circle, t0, t1)
+    other = EdgeSpec(against, math.pi, 2 * math.pi - t0, pc)  # back from circle(pi) to circle(t0)
+    a = (other.t0 - other.t1) / (primary.t1 - primary.t0)
+    assert 1e-12 < abs(abs(a) - 1.0) <= 1e-6
+    got = _pcurve_in(primary, other, 1e-7, "edge")
+    assert isinstance(got, Trig2D)
+    # got(t) = pc(c - t) with c = 2 pi less half the ends' disagreement (4.2e-9)
+    t = np.linspace(t0, t1, 7)
+    speed = float(np.hypot(*pc.a)) + float(np.hypot(*pc.b))
+    assert np.max(np.abs(got.evaluate(t) - pc.evaluate(2 * math.pi - t))) <= speed * 2.2e-9
+    # a slope farther from -1 than a vertex merge moves it is not taken for -1 (and the probes refuse it)
+    far = EdgeSpec(against, math.pi, 2 * math.pi - t0 - 1e-3, pc)
+    with pytest.raises(TopologyError, match="not affinely reparametrised"):
+        _pcurve_in(primary, far, 1e-7, "edge")
+
+
 def test_curves_that_are_not_affine_copies_are_refused():
     """The second use of a half-circle is a rational NURBS: same points, another parameter."""
     specs = face_specs(Cylinder(1, 2))

@@ -426,19 +426,6 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.nda
     return out, k == 0
 
 
-class _Sampled:
-    """What the same-parameter check measured along one coedge (:func:`_check_geometry`).
-
-    ``curve`` and ``surface`` are the objects it was measured on (held, so that their ids in the
-    cache key stay theirs); ``row`` packs (:func:`_packed`) the p-curve at the check parameters
-    ``uv (samples, 2)``, ``speed (samples,)`` ``max(|Su|, |Sv|)`` there, ``dev`` the largest
-    distance between ``surface(uv)`` and the curve at those parameters, ``ends (2, 3)`` the curve
-    at the first and last parameter, and whether the p-curve is a :class:`Line2D`.
-    """
-
-    __slots__ = ("curve", "surface", "row")
-
-
 def _packed(uv: np.ndarray, speed: np.ndarray, dev: np.ndarray, ends: np.ndarray, line: np.ndarray) -> np.ndarray:
     """Rows ``(m, 3 samples + 8)`` holding ``uv (m, samples, 2)``, ``speed (m, samples)``, ``dev (m,)``,
     ``ends (m, 2, 3)`` and ``line (m,)`` (as 0 or 1)."""
@@ -454,8 +441,12 @@ def _unpacked(R: np.ndarray, samples: int) -> tuple[np.ndarray, ...]:
             R[:, 3 * S + 7] != 0.0)
 
 
-#: P-curve -> ``{(id(curve), id(surface), t0, t1, samples): _Sampled}``: what the same-parameter
-#: check measured along coedges with that p-curve.  Every measurement of a :class:`_Sampled` is a
+#: P-curve -> ``{(id(curve), id(surface), t0, t1, samples): (curve, surface, rows, k)}``: what the
+#: same-parameter check measured along coedges with that p-curve, row ``rows[k]`` (:func:`_packed`:
+#: the p-curve at the check parameters, ``max(|Su|, |Sv|)`` there, the largest distance between
+#: ``surface(uv)`` and the curve, the curve at the first and last parameter, and whether the p-curve
+#: is a :class:`Line2D`) of the read-only rows of one check (held whole, as a view of them would
+#: hold them: an entry costs a tuple, no object or view of its own).  Every measurement is a
 #: function of the p-curve, the 3-D curve, the surface, the edge range and the number of samples
 #: alone, all immutable values: a coedge of a later B-rep with the same five (a face a Boolean
 #: passes through unchanged keeps its curve, p-curve and surface objects) has the same
@@ -628,7 +619,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
 def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: np.ndarray,
                     samples: int) -> tuple[np.ndarray, np.ndarray]:
     """The coedges (p-curve ``pi``, curve ``ci``, surface ``si``, edge ``e``) measured before:
-    their positions ``(h,)`` and their :class:`_Sampled` rows ``(h, 3 samples + 8)``.
+    their positions ``(h,)`` and their rows ``(h, 3 samples + 8)`` (:func:`_packed`).
 
     First those measured in the donor B-rep (:func:`_donor`: a Boolean's operand for its
     result), found for all coedges at once by their objects' positions in that B-rep's pools
@@ -661,9 +652,9 @@ def _cached_samples(b: BRep, pi: np.ndarray, ci: np.ndarray, si: np.ndarray, e: 
                 continue
             curve, surface = curves[c], surfaces[s]
             h = entries.get((id(curve), id(surface), r0, r1, samples))
-            if h is not None and h.curve is curve and h.surface is surface:
+            if h is not None and h[0] is curve and h[1] is surface:
                 found[k] = True
-                H[k] = h.row
+                H[k] = h[2][h[3]]
     idx = np.flatnonzero(found)
     return idx, H[idx]
 
@@ -779,31 +770,29 @@ def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray,
     """Store the measurements ``R`` (:func:`_packed`, in the order of ``rows``) of the coedges
     ``rows`` (of the arrays of :func:`_check_geometry`) whose curve, p-curve and surface are values.
 
-    One pass over the coedges: the rows kept are views of one read-only copy, the p-curves new to
-    :data:`_SAME_PARAMETER` are given their entries in one call (a Boolean's result brings a
-    thousand new coedges)."""
+    One pass over the coedges: the rows are kept as one read-only copy that every entry indexes,
+    the keys and entries are made by ``zip`` in C, the p-curves new to :data:`_SAME_PARAMETER` are
+    given their entries in one call (a Boolean's result brings a thousand new coedges)."""
     has = np.flatnonzero(ci[rows] >= 0)
     sel = rows[has]
     P = [b.pcurves[p] for p in pi[sel].tolist()]
     C = [b.curves[c] for c in ci[sel].tolist()]
     S = [b.surfaces[s] for s in si[sel].tolist()]
     held = _read_only(R[has])
-    r = b.edge_range[e[sel]].tolist()
-    got = _SAME_PARAMETER.get_many(P)
-    todo = zip(P, C, S, held, r, got)
+    r = b.edge_range[e[sel]]
+    keys = zip(map(id, C), map(id, S), r[:, 0].tolist(), r[:, 1].tolist(), repeat(samples))
+    todo = zip(P, keys, zip(C, S, repeat(held), range(len(P))), _SAME_PARAMETER.get_many(P))
     objs = P + C + S
     if not all(map(is_value, dict(zip(map(type, objs), objs)).values())):  # (one object of each type)
-        todo = [t for t in todo if is_value(t[0]) and is_value(t[1]) and is_value(t[2])]
+        todo = [t for t in todo if is_value(t[0]) and is_value(t[2][0]) and is_value(t[2][1])]
     fresh: dict[int, tuple] = {}  # id(p-curve) -> (p-curve, its new entry)
-    for pcurve, curve, surface, row, (r0, r1), entries in todo:
+    for pcurve, key, entry, entries in todo:
         if entries is None:
             new = fresh.get(id(pcurve))
             if new is None:
                 new = fresh[id(pcurve)] = (pcurve, {})
             entries = new[1]
-        h = _Sampled()
-        h.curve, h.surface, h.row = curve, surface, row
-        entries[(id(curve), id(surface), r0, r1, samples)] = h
+        entries[key] = entry
     if fresh:
         _SAME_PARAMETER.set_many([pc for pc, _ in fresh.values()], [entries for _, entries in fresh.values()])
 

@@ -1388,7 +1388,7 @@ def test_measurements_remembered_per_pcurve_equal_a_cold_check(monkeypatch):
     assert len(_SAME_PARAMETER) > 0
     for entries in _SAME_PARAMETER._data.values():
         for h in entries[1].values():
-            assert not h.row.flags.writeable
+            assert not h[2].flags.writeable
     found = _spy_cached_samples(monkeypatch)
     check_module._MEASURED.clear()  # only the per-p-curve memo remains
     check_module._LAST_MEASURED[:] = [None, None]

@@ -745,43 +745,36 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
         if d != dimension:
             raise InvalidInputError(f"curve {rows[0]} ({type(curves[rows[0]]).__name__}) is not {dimension}-D")
         if len(rows) == k:
-            rows, members, Y = slice(None), curves, X  # (all of one type: written in place)
+            rows, members = slice(None), curves  # (all of one type: views, not copies)
         else:
             members = [curves[i] for i in rows]
-            Y = np.empty((len(rows),) + X.shape[1:])
-        t = T[rows]
-        # Coordinate by coordinate on (k, n) arrays rather than (k, n, d) ones, whose short inner axis
-        # numpy walks slowly; the same expressions in the same order, so the same bits.
+        t = T[rows][..., None]
         if code in (1, 3):  # O + t D
-            O, D = _stacked([c.origin for c in members], d), _stacked([c.direction for c in members], d)
-            for i in range(d):
-                Y[:, :, 0, i] = O[:, i, None] + t * D[:, i, None]
+            O = np.array([c.origin for c in members])[:, None, :]
+            D = np.array([c.direction for c in members])[:, None, :]
+            X[rows, :, 0] = O + t * D
             if order >= 1:
-                Y[:, :, 1] = D[:, None, :]
-                Y[:, :, 2:] = 0.0
-        else:
-            O = _stacked([c.center for c in members], d)
-            if code == 2:  # O + (R cos t) X + (R sin t) Y
-                F = np.concatenate([c.frame for c in members]).reshape(-1, 3, 3)
-                A, B = F[:, 0], F[:, 1]
-                R = np.array([float(c.radius) for c in members])[:, None]
-            else:  # C + cos t a + sin t b
-                A, B = _stacked([c.a for c in members], d), _stacked([c.b for c in members], d)
-            c, sn = np.cos(t), np.sin(t)
-            cycle = ((c, sn), (-sn, c), (-c, -sn), (sn, -c))  # d^j/dt^j (cos t, sin t), period 4
-            if code == 4:  # (Trig2D.evaluate's order of sums: the same points bit for bit)
-                for i in range(d):
-                    Y[:, :, 0, i] = (O[:, i, None] + c * A[:, i, None]) + sn * B[:, i, None]
-            for j in range(0 if code == 2 else 1, order + 1):
-                cj, sj = cycle[j % 4]
-                if code == 2:
-                    cj, sj = R * cj, R * sj
-                for i in range(d):
-                    Y[:, :, j, i] = cj * A[:, i, None] + sj * B[:, i, None]
-            if code == 2:
-                Y[:, :, 0] += O[:, None, :]
-        if Y is not X:
-            X[rows] = Y
+                X[rows, :, 1] = D
+                X[rows, :, 2:] = 0.0
+            continue
+        if code == 2:  # O + (R cos t) X + (R sin t) Y
+            F = np.array([c.frame for c in members])
+            R = np.array([float(c.radius) for c in members])[:, None, None]
+            O, A, B = np.array([c.center for c in members]), F[:, None, 0, :], F[:, None, 1, :]
+        else:  # C + cos t a + sin t b
+            O = np.array([c.center for c in members])
+            A = np.array([c.a for c in members])[:, None, :]
+            B = np.array([c.b for c in members])[:, None, :]
+            R = 1.0
+        c, sn = np.cos(t), np.sin(t)
+        cycle = ((c, sn), (-sn, c), (-c, -sn), (sn, -c))  # d^j/dt^j (cos t, sin t), period 4
+        for j in range(order + 1):
+            cj, sj = cycle[j % 4]
+            X[rows, :, j] = (R * cj) * A + (R * sj) * B
+        if code == 2:
+            X[rows, :, 0] += O[:, None, :]
+        else:  # (Trig2D.evaluate's order of sums: the same points bit for bit)
+            X[rows, :, 0] = O[:, None, :] + c * A + sn * B
     rest = groups.get(0)
     if rest:
         # (polynomial NURBS of one degree as one batch, the same bits as their own derivatives)
@@ -792,11 +785,6 @@ def curve_derivatives(curves: list, T: np.ndarray, order: int = 1, dimension: in
                 raise InvalidInputError(f"curve {i} ({type(curves[i]).__name__}) is not {dimension}-D")
             X[i] = np.moveaxis(D, 0, 1).reshape(X[i].shape)
     return X
-
-
-def _stacked(vectors: list, d: int) -> np.ndarray:
-    """The ``(k, d)`` stack of the length-``d`` field arrays of the batched curve types (one concatenation)."""
-    return np.concatenate(vectors).reshape(-1, d)
 
 
 def _cheap_analytic_many(requests: list, t: Tolerance) -> None:

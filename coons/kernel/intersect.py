@@ -182,6 +182,9 @@ _CHECK_SAMPLES = 65
 #: interior ones off the interpolation nodes of fitted p-curves).
 _CHECK_FRACTIONS = np.concatenate([[0.0], (np.arange(_CHECK_SAMPLES) + _OFFSET) / _CHECK_SAMPLES, [1.0]])
 _CHECK_FRACTIONS.setflags(write=False)
+#: Rows per block of :func:`_plane_cylinder_circles`' deviation pass: its (rows, samples) temporaries of
+#: a few hundred kB each stay in a core's cache.
+_DEVIATION_ROWS = 256
 
 
 # ---------------------------------------------------------------------------- result types
@@ -2336,7 +2339,9 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
 
     Op, Fp = gathered(planes, "_origin", "_frame")
     Oc, Fc, R = gathered(cyls, "_origin", "_frame", "radius")
-    boxes = np.array([[it[2], it[3]] for it in items], dtype=np.float64)  # (K, 2, 2, 2): box_a, box_b
+    # (K, 2, 2, 2): box_a, box_b; from one flat list of their numbers (numpy reads nested tuples slowly)
+    boxes = np.array([x for it in items for box in it[2:4] for side in box for x in side],
+                     dtype=np.float64).reshape(K, 2, 2, 2)
     PB = np.where(first[:, None, None], boxes[:, 0], boxes[:, 1])
     CB = np.where(first[:, None, None], boxes[:, 1], boxes[:, 0])
     fin = np.where(np.isfinite(boxes), np.abs(boxes), 0.0).reshape(K, -1)
@@ -2418,25 +2423,30 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     # The deviation (_finished) of all branches at once.
     C, X, Y, Z, R, o, al, be = C[todo], X[todo], Y[todo], Z[todo], R[todo], o[todo], al[todo], be[todo]
     s0, s1, ou, ov, sg = s0[todo], s1[todo], ou[todo] + du[todo], ov[todo] + 0.0, sg[todo]  # (the shifts: _piece)
-    t = s0[:, None] + (s1 - s0)[:, None] * _CHECK_FRACTIONS[None]
-    cs, sn = np.cos(t), np.sin(t)
-    Rc, Rs = R[:, None] * cs, R[:, None] * sn
-    # The uv points on both surfaces, then the 3-d points coordinate by coordinate: (k, samples) arrays
-    # rather than (k, samples, 3), whose length-3 inner axis numpy walks slowly; the same expressions, in
-    # the same order, so the deviation is bit-identical to the per-pair one.
-    uv = [(o[:, i, None] + cs * al[:, i, None]) + sn * be[:, i, None] for i in (0, 1)]
     Fpt, Opt, Fct, Oct = Fp[todo], Op[todo], Fc[todo], Oc[todo]
-    u = ou[:, None] + sg[:, None] * t
-    cu, su = np.cos(u), np.sin(u)
-    d_pk = d_ck = d_pc = 0.0
-    for j in range(3):
-        pk = (Rc * X[:, j, None] + Rs * Y[:, j, None]) + C[:, j, None]
-        pp = (Opt[:, j, None] + uv[0] * Fpt[:, 0, j, None]) + uv[1] * Fpt[:, 1, j, None]
-        e = cu * Fct[:, 0, j, None] + su * Fct[:, 1, j, None]
-        pc = (R[:, None] * e + ov[:, None] * Fct[:, 2, j, None]) + Oct[:, j, None]  # (the cylinder's radius)
-        d_pk, d_ck, d_pc = d_pk + (pp - pk) ** 2, d_ck + (pc - pk) ** 2, d_pc + (pp - pc) ** 2
-    # (the largest squared gap, then its root: sqrt is monotone and correctly rounded)
-    dev = np.sqrt(np.maximum(np.maximum(d_pk, d_ck), d_pc).max(axis=1))
+    dev = np.empty(todo.size)
+    # In blocks of rows, whose dozen (rows, samples) temporaries stay in the cache (a quarter faster than
+    # all rows at once on a 20x20 plate's 1600 pairs).
+    for b in range(0, todo.size, _DEVIATION_ROWS):
+        r = slice(b, b + _DEVIATION_ROWS)
+        t = s0[r, None] + (s1[r] - s0[r])[:, None] * _CHECK_FRACTIONS[None]
+        cs, sn = np.cos(t), np.sin(t)
+        Rc, Rs = R[r, None] * cs, R[r, None] * sn
+        # The uv points on both surfaces, then the 3-d points coordinate by coordinate: (k, samples) arrays
+        # rather than (k, samples, 3), whose length-3 inner axis numpy walks slowly; the same expressions, in
+        # the same order, so the deviation is bit-identical to the per-pair one.
+        uv = [(o[r, i, None] + cs * al[r, i, None]) + sn * be[r, i, None] for i in (0, 1)]
+        u = ou[r, None] + sg[r, None] * t
+        cu, su = np.cos(u), np.sin(u)
+        d_pk = d_ck = d_pc = 0.0
+        for j in range(3):
+            pk = (Rc * X[r, j, None] + Rs * Y[r, j, None]) + C[r, j, None]
+            pp = (Opt[r, j, None] + uv[0] * Fpt[r, 0, j, None]) + uv[1] * Fpt[r, 1, j, None]
+            e = cu * Fct[r, 0, j, None] + su * Fct[r, 1, j, None]
+            pc = (R[r, None] * e + ov[r, None] * Fct[r, 2, j, None]) + Oct[r, j, None]  # (the cylinder's radius)
+            d_pk, d_ck, d_pc = d_pk + (pp - pk) ** 2, d_ck + (pc - pk) ** 2, d_pc + (pp - pc) ** 2
+        # (the largest squared gap, then its root: sqrt is monotone and correctly rounded)
+        dev[r] = np.sqrt(np.maximum(np.maximum(d_pk, d_ck), d_pc).max(axis=1))
     circles = Circle.many(C, np.stack([X, Y, Z], axis=1), R)
     on_plane = Trig2D.many(o, al, be)
     on_cylinder = Line2D.many(np.stack([ou, ov], axis=1), np.stack([sg, np.zeros_like(sg)], axis=1))

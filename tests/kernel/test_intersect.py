@@ -1343,6 +1343,30 @@ def test_batched_plane_cylinder_circles_take_the_plate_pairs():
                                    rtol=0, atol=1e-13)
 
 
+def test_batched_plane_cylinder_circles_blocks_do_not_change_the_deviation(monkeypatch):
+    """The deviation pass of ``_plane_cylinder_circles`` runs in blocks of rows: blocks of any size (a
+    partial last one included) give the same branches, bit for bit, as all rows in one block."""
+    import coons.kernel.intersect as I
+
+    top = PlanarSurface([0, 0, 5], [0, 0, 1], [1, 0, 0])
+    walls = [CylindricalSurface([x, y, -10], [0, 0, 1], [1, 0, 0], 2.0 + 0.05 * x + 0.02 * y)
+             for x in (-10.0, 0.0, 10.0) for y in (-5.0, 5.0)]
+    halves = [((-0.0314, 3.1730), (-0.2, 20.2)), ((3.1102, 6.3146), (-0.2, 20.2))]
+    pairs = [(top, w, ((-20.2, 20.2), (-20.2, 20.2)), h) for w in walls for h in halves]
+    pairs += [(w, top, h, b) for _, w, b, h in pairs]
+
+    def answers():
+        return [[(g.t0, g.t1, g.tol, g.curve.center.tobytes(), g.curve.frame.tobytes(), g.curve.radius)
+                 for g in got] for got in I._plane_cylinder_circles(pairs, DEFAULT_TOLERANCE)]
+
+    monkeypatch.setattr(I, "_DEVIATION_ROWS", len(pairs))
+    whole = answers()
+    assert all(len(g) == 1 for g in whole)
+    for rows in (1, 5, 7):
+        monkeypatch.setattr(I, "_DEVIATION_ROWS", rows)
+        assert answers() == whole
+
+
 @pytest.mark.parametrize("offset", [(4.0, 2.0, 0.5), (1.0, -3.0, 2.5)])
 def test_sphere_fit_deviation_measured_on_the_splines_matches_the_curves(offset, monkeypatch):
     """Fitted p-curves of oblique circles on spheres are measured by scipy's B-spline (``spline_points``,

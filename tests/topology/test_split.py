@@ -932,6 +932,16 @@ def _slant_branches(z0: float, a: float, b: float):
 
 
 @settings(max_examples=30)
+def _clipped_as_the_general_path(face, c) -> list[EdgeSpec]:
+    """The inside pieces (longer than 1e-3) of branch ``c`` clipped to ``face``, after asserting that the
+    fast paths of ``clip_to_face`` give the general path's pieces."""
+    fast = clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+    general = _general(clip_to_face, face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
+    assert [w for *_, w in fast] == [w for *_, w in general]
+    np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=1e-9)
+    return [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
+
+
 @given(st.booleans(), st.floats(-0.9, 0.9), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
 def test_clip_and_split_of_fitted_pcurves_on_half_cylinder_match_the_general_path(sense, z0, a, b):
     """Plane sections of a half cylinder (fitted NURBS p-curves crossing its sides, the rectangle's
@@ -942,11 +952,7 @@ def test_clip_and_split_of_fitted_pcurves_on_half_cylinder_match_the_general_pat
         face = _cyl_face(False)
     cuts = []
     for c in branches:
-        fast = clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
-        general = _general(clip_to_face, face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
-        assert [w for *_, w in fast] == [w for *_, w in general]
-        np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=1e-9)
-        cuts += [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
+        cuts += _clipped_as_the_general_path(face, c)
     if cuts:
         _assert_same_split(split_face(face, cuts), _general(split_face, face, cuts))
 
@@ -1083,11 +1089,7 @@ def test_circle_clip_on_a_half_sphere_matches_the_general_path(half, dx, dy, dz,
     face, branches = _sphere_branches(half, dx, dy, dz, r, plane)
     cuts = []
     for c in branches:
-        fast = clip_to_face(face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
-        general = _general(clip_to_face, face, c.pcurve_a, c.t0, c.t1, curve=c.curve)
-        assert [w for *_, w in fast] == [w for *_, w in general]
-        np.testing.assert_allclose([x[:2] for x in fast], [x[:2] for x in general], rtol=0, atol=1e-9)
-        cuts += [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
+        cuts += _clipped_as_the_general_path(face, c)
         data = split._face_data(face, split.resolve(None))
         plane_ = data.plane([])
         closed = split._hemisphere_clip(data, face, plane_, c.curve, min(c.t0, c.t1), max(c.t0, c.t1))

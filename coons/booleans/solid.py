@@ -872,7 +872,6 @@ def _forget_caches() -> None:
     # The weak references to the last B-reps measured: with check._MEASURED cleared they can no longer
     # select a record, but a cold run should not hold them either.
     check._LAST_MEASURED[:] = [None] * len(check._LAST_MEASURED)
-    _LAST_UNMERGEABLE[0] = None
 
 
 class _LoopData:
@@ -4393,11 +4392,6 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
     failed: set[tuple] = set()  # pairs of uses already tried (their faces are kept alive in ``seen``)
     seen: list[tuple[FaceSpec, FaceSpec]] = []
     kinds: dict[type, int] = {}
-    # The use pairs the last call found unmergeable with this tolerance (_LAST_UNMERGEABLE), and
-    # those this call finds (known to _MERGE_FAILED or tried), for the next call.
-    rec = _LAST_UNMERGEABLE[0]
-    last = rec[1] if rec is not None and rec[0] == t else {}
-    now: dict[tuple, tuple[FaceSpec, FaceSpec]] = {}
     # The uses' points come from the per-face tables (:func:`~coons.topology.sew.use_points`):
     # faces carried over from an operand are not evaluated again, a merged face once.
     changed = True
@@ -4426,27 +4420,16 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
         fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
         # Pairs tried before, in this pass or by an earlier Boolean on the same two face specs,
         # are dropped before the batched full-period test (a plate cut hole by hole brings every
-        # earlier hole's two wall halves again).  Those the last call found unmergeable first, by
-        # key alone (its faces are held, so their ids are theirs): the rest by _MERGE_FAILED.
-        ids = [id(f) for f in faces]
-        keys = [(ids[fp], *up, ids[fq], *uq) for (fp, fq), (up, uq) in zip(fpq, upq)]
-        rest = []
-        for i, key in enumerate(keys):
-            if key in last:
-                now[key] = last[key]
-            else:
-                rest.append(i)
+        # earlier hole's two wall halves again).
         live = []
-        memos = _MERGE_FAILED.get_many([faces[fpq[i][0]] for i in rest])
-        for i, known in zip(rest, memos):
-            (fp, fq), (up, uq) = fpq[i], upq[i]
+        memos = _MERGE_FAILED.get_many([faces[fp] for fp, _ in fpq])
+        for i, ((fp, fq), (up, uq), known) in enumerate(zip(fpq, upq, memos)):
             A, B = faces[fp], faces[fq]
             up, uq = tuple(up), tuple(uq)
             if (id(A), up, id(B), uq) in failed:
                 continue
             known = known.get(id(B)) if known is not None else None
             if known is not None and known[0]() is B and (up, uq, t) in known[1]:
-                now[keys[i]] = (A, B)
                 continue  # found unmergeable by an earlier Boolean on the same two face specs
             live.append(i)
         if not live:
@@ -4474,25 +4457,16 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
                 continue
             probes = P3[face_first[fq] : face_first[fq] + min(int(counts[fq]), _MOVED_PROBES), 0]  # (B's own rows)
             if not wrap and _off_plane(A, B, probes, t):
-                merged = None
-            else:
-                merged = None if wrap else _merged_pair(A, B, up, uq, t)
+                _merge_failed(A, B, memo)
+                continue
+            merged = None if wrap else _merged_pair(A, B, up, uq, t)
             if merged is None:
                 _merge_failed(A, B, memo)
-                now[(id(A), *up, id(B), *uq)] = (A, B)
                 continue
             faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
             changed = True
             break
-    _LAST_UNMERGEABLE[0] = (t, now)
     return faces
-
-
-#: ``(tolerance, {(id(A), loop, position, id(B), loop, position): (A, B)})``: the use pairs
-#: the last :func:`_merge_faces` found unmergeable (each also in :data:`_MERGE_FAILED`), with their
-#: faces held (so that the ids in the keys stay theirs).  The next call (a sequential cut's,
-#: whose faces are mostly the last result's) drops them by key in one pass.
-_LAST_UNMERGEABLE: list = [None]
 
 
 #: ``A -> B -> {(loop, position in A, loop, position in B, tol)}``: pairs of shared uses of two

@@ -50,6 +50,12 @@ def is_value(obj: Any) -> bool:
     return _value_type(type(obj))
 
 
+def all_values(objs) -> bool:
+    """Whether every object of ``objs`` is a value (:func:`is_value`), tested once per type (a value is
+    one by its type alone): a Boolean's result brings a thousand new p-curves of two or three types."""
+    return all(map(_value_type, set(map(type, objs))))
+
+
 def _value_type(kind: type) -> bool:
     """Whether instances of ``kind`` are values (:func:`is_value`)."""
     got = _VALUE_TYPES.get(kind)

@@ -68,7 +68,7 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, LastRecord, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
+from coons.topology._memo import IdentityMemo, LastRecord, all_values, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -783,7 +783,7 @@ def _remember_samples(b: BRep, rows: np.ndarray, pi: np.ndarray, ci: np.ndarray,
     keys = zip(map(id, C), map(id, S), r[:, 0].tolist(), r[:, 1].tolist(), repeat(samples))
     todo = zip(P, keys, zip(C, S, repeat(held), range(len(P))), _SAME_PARAMETER.get_many(P))
     objs = P + C + S
-    if not all(map(is_value, dict(zip(map(type, objs), objs)).values())):  # (one object of each type)
+    if not all_values(objs):
         todo = [t for t in todo if is_value(t[0]) and is_value(t[2][0]) and is_value(t[2][1])]
     fresh: dict[int, tuple] = {}  # id(p-curve) -> (p-curve, its new entry)
     for pcurve, key, entry, entries in todo:

@@ -156,7 +156,7 @@ from coons.kernel.curve import NurbsCurve
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import NurbsSurface, NurbsSurfaceStack
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, LastRecord, found_by_id, id_index, is_value, pool_positions, read_only as _read_only
+from coons.topology._memo import IdentityMemo, LastRecord, all_values, found_by_id, id_index, is_value, pool_positions, read_only as _read_only
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep, same_geometry
 
@@ -817,7 +817,7 @@ def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows:
             R = _read_only(np.array(R, dtype=np.float64))
             code[miss[new]] = kinds
             rows[miss[new]] = R
-            if not all(map(is_value, dict(zip(map(type, made), made)).values())):  # (one object of each type)
+            if not all_values(made):
                 keep = [k for k, o in enumerate(made) if is_value(o)]
                 made, kinds, R = [made[k] for k in keep], [kinds[k] for k in keep], _read_only(R[keep])
             memo.set_many(made, zip(kinds, R))

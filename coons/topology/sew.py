@@ -1118,12 +1118,10 @@ def _pcurve_in(primary: EdgeSpec, other: EdgeSpec, thr: float, what: str) -> Any
     # other runs opposite to primary: other.t1 <-> primary.t0 and other.t0 <-> primary.t1.
     a = (other.t0 - other.t1) / (primary.t1 - primary.t0)
     c = other.t1 - a * primary.t0
-    if (type(pc) is Trig2D and 1e-12 < abs(abs(a) - 1.0) <= _CONIC_SLOPE
-            and isinstance(primary.curve, (Circle, Ellipse)) and isinstance(other.curve, (Circle, Ellipse))):
+    if isinstance(primary.curve, (Circle, Ellipse)) and isinstance(other.curve, (Circle, Ellipse)):
         # Two angle parametrisations of one conic differ by t -> ±t + c exactly: a slope off ±1 comes
         # from range ends merged into vertices within tolerance (each computed on its own face).  The
-        # slope is ±1 and the offset splits the ends' disagreement (within 1e-12 the ends differ by
-        # round-off and _affine_pcurve rounds the slope itself); the probes below still decide.
+        # slope is ±1 and the offset splits the ends' disagreement; the probes below still decide.
         a = math.copysign(1.0, a)
         c = 0.5 * ((other.t1 - a * primary.t0) + (other.t0 - a * primary.t1))
     if other.curve is primary.curve:
@@ -1144,11 +1142,6 @@ def _pcurve_in(primary: EdgeSpec, other: EdgeSpec, thr: float, what: str) -> Any
         return _affine_pcurve(pc, a, c)
     except InvalidInputError as exc:
         raise TopologyError(f"{what}: {exc}") from None
-
-
-#: Largest ``| |a| - 1 |`` of the parameter map of two conics' uses of one edge that :func:`_pcurve_in`
-#: takes for ±1 (range ends merged into vertices move a slope by their tolerance over the range's length).
-_CONIC_SLOPE = 1e-6
 
 
 def _affine_pcurve(pc: Any, a: float, c: float) -> Any:

@@ -861,32 +861,6 @@ def test_chain_of_unions_merging_faces_is_the_same_with_and_without_carried_data
     assert _types(warm) == _types(cold)
 
 
-def test_merge_drops_the_pairs_the_last_call_found_unmergeable_by_key(monkeypatch):
-    """_merge_faces drops the use pairs its last call found unmergeable (_LAST_UNMERGEABLE, every one
-    also in _MERGE_FAILED) without looking them up, and returns what it returns without that record."""
-    t = S.resolve(None)
-    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
-    r = S.difference(r, Cylinder(1, 10).translate((5, 5, 0)), method="brep")
-    specs = list(S._Operand(r, "A", t).specs)
-    first = S._merge_faces(specs, t)
-    tol, known = S._LAST_UNMERGEABLE[0]
-    assert tol == t and known
-    for (ia, la, pa, ib, lb, pb), (A, B) in known.items():
-        assert (id(A), id(B)) == (ia, ib)
-        assert ((la, pa), (lb, pb), t) in S._MERGE_FAILED.get(A)[id(B)][1]
-    looked = []
-    real = S._MERGE_FAILED.get_many
-    monkeypatch.setattr(S._MERGE_FAILED, "get_many", lambda objs: looked.extend(objs) or real(objs))
-    again = S._merge_faces(specs, t)
-    assert not looked  # every candidate pair known by key
-    assert len(again) == len(first) and all(a is b for a, b in zip(again, first))
-    monkeypatch.undo()
-    S._LAST_UNMERGEABLE[0] = None
-    S._MERGE_FAILED.clear()
-    cold = S._merge_faces(specs, t)
-    assert len(cold) == len(first) and all(a is b for a, b in zip(cold, first))
-
-
 def test_operand_takes_carried_faces_with_the_data_a_cold_set_up_computes():
     t = S.resolve(None)
     r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
@@ -1087,7 +1061,6 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     assert first == list(halves) and any(S._MERGE_FAILED.get(f) for f in halves)
     assert S._merge_faces(list(halves), t) == first and not calls
     S._MERGE_FAILED.clear()
-    S._LAST_UNMERGEABLE[0] = None  # (the last call's pairs, each also in _MERGE_FAILED)
     monkeypatch.setattr(S, "_wrapping_pairs", lambda faces, fpq, upq: [False] * len(fpq))
     first = S._merge_faces(list(halves), t)
     n = len(calls)

@@ -114,7 +114,8 @@ def referee(specs: list[Spec], ops: list[str], points: int = 40_000_000, seed: i
 
 
 def run_chain(specs: list[Spec], ops: list[str]) -> tuple[str, str]:
-    """``(verdict, detail)``: verdict "ok", "skipped", "non-manifold", "raised", "invalid" or "differs"."""
+    """``(verdict, detail)``: verdict "ok", "skipped", "non-manifold", "raised", "crashed" (an exception
+    that is not a coons error), "invalid" or "differs"."""
     c, o = _coons(specs[0]), _occt(specs[0])
     try:
         for op, spec in zip(ops, specs[1:]):
@@ -124,6 +125,8 @@ def run_chain(specs: list[Spec], ops: list[str]) -> tuple[str, str]:
         if "shared by 4 edges" in text or "not a manifold" in text:
             return "non-manifold", text[:160]
         return "raised", f"{type(exc).__name__}: {text[:300]}"
+    except Exception as exc:  # not a coons error: a bug (the hunt goes on and names the chain)
+        return "crashed", f"{type(exc).__name__}: {str(exc)[:300]}"
     try:
         for op, spec in zip(ops, specs[1:]):
             o = _apply(op, o, _occt(spec))
@@ -157,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
         if verdict != "ok" or args.chain is not None:
             print(f"seed {args.seed} chain {k} {verdict}: ops {ops} solids {specs}\n    {detail}")
     print(", ".join(f"{v} {n}" for v, n in sorted(counts.items())))
-    return 1 if counts.get("raised") or counts.get("invalid") else 0
+    return 1 if counts.get("raised") or counts.get("invalid") or counts.get("crashed") else 0
 
 
 if __name__ == "__main__":

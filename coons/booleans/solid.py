@@ -728,9 +728,10 @@ def _with_pcurve(S, e: EdgeSpec, t: Tolerance) -> EdgeSpec:
     return EdgeSpec(e.curve, e.t0, e.t1, pc, max(dev, e.tol or 0.0))
 
 
-def _edge_uv(e: EdgeSpec, S, n: int) -> np.ndarray:
-    """Parameter-plane samples ``(k, 2)`` of an edge use in its direction of travel."""
-    straight = isinstance(e.pcurve, Line2D)
+def _edge_uv(e: EdgeSpec, S, n: int, *, all_n: bool = False) -> np.ndarray:
+    """Parameter-plane samples ``(k, 2)`` of an edge use in its direction of travel: its two ends
+    when its p-curve is straight (unless ``all_n``), else ``n``."""
+    straight = isinstance(e.pcurve, Line2D) and not all_n
     tt = np.linspace(e.t0, e.t1, 2 if straight else n)
     if e.pcurve is not None:
         return np.asarray(e.pcurve.evaluate(tt), dtype=np.float64)
@@ -4539,7 +4540,10 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     # The shared edge must have the same parameter-plane image on both: shift B by whole
     # periods when they differ by one (a face pair across u = 0 of a cylinder).
     ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
-    ua, ub = _edge_uv(ea, A.surface, 3), _edge_uv(eb, A.surface, 3)[::-1]
+    # (three samples each unless both p-curves are straight: one straight and one curved image of
+    # the shared edge are compared at the same three points)
+    mixed = isinstance(ea.pcurve, Line2D) != isinstance(eb.pcurve, Line2D)
+    ua, ub = _edge_uv(ea, A.surface, 3, all_n=mixed), _edge_uv(eb, A.surface, 3, all_n=mixed)[::-1]
     offset = np.mean(ua - ub, axis=0)
     # (_wrapping_pairs mirrors this test for many pairs at once: keep the two in step)
     if _wraps(A, B, _whole_periods(A.surface, offset)):
@@ -4548,7 +4552,7 @@ def _merged_pair(A: FaceSpec, B: FaceSpec, up: tuple[int, int], uq: tuple[int, i
     if B is None:
         return None
     eb = B.loops[uq[0]][uq[1]]
-    ub = _edge_uv(eb, A.surface, 3)[::-1]
+    ub = _edge_uv(eb, A.surface, 3, all_n=mixed)[::-1]
     if np.max(np.abs(ua - ub)) > 1e-9 * (1.0 + np.max(np.abs(ua))):
         return None
     return _fuse(A, B, up, uq, t)

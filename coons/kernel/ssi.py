@@ -832,9 +832,9 @@ def _contacts(g, f, U, V, P: np.ndarray, seeds, fbox: _FieldBox, singular: np.nd
     seeds_g = np.stack([U[i, j], V[i, j]], axis=1)
     seeds_f, _ = _project(f, Q[i, j], t)
     xs = _singular_points(g, f, np.concatenate([seeds_g, seeds_f], axis=1), t)
-    if xs.shape[0] == 0:
-        return xs
     xs = xs[fbox.inside(xs[:, 2:])]
+    if xs.shape[0] == 0:  # (none found, or none inside the boxes)
+        return xs
     pts = _frame(g, xs[:, 0], xs[:, 1])[0]
     # Points closer than tol.linear are one point.
     d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)

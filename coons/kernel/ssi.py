@@ -766,6 +766,17 @@ def _grid_chains(g, f, us: np.ndarray, vs: np.ndarray, P: np.ndarray, dist: np.n
             step = np.linalg.norm(np.diff(Pc_, axis=0), axis=1)
             distinct = np.concatenate([[True], step > t.linear])
             Xc, Pc_, okc, inside = Xc[distinct], Pc_[distinct], okc[distinct], inside[distinct]
+        # A sample at the point of the sample two before it: the chain went there and back.  Near a
+        # branch's extreme in one parameter a grid line meets it twice within a cell, and Newton may
+        # correct both crossings onto one root; the fit would then run the curve back and forth
+        # (a trim loop that doubles on itself).  The repeat goes; the extreme's sample between stays.
+        while Xc.shape[0] > 2:
+            back = np.flatnonzero(np.linalg.norm(Pc_[2:] - Pc_[:-2], axis=1) <= t.linear)
+            if back.size == 0:
+                break
+            keep = np.ones(Xc.shape[0], bool)
+            keep[back[0] + 2] = False
+            Xc, Pc_, okc, inside = Xc[keep], Pc_[keep], okc[keep], inside[keep]
         if loop and Xc.shape[0] > 2 and np.linalg.norm(Pc_[0] - Pc_[-1]) <= t.linear:
             Xc, Pc_, okc, inside = Xc[:-1], Pc_[:-1], okc[:-1], inside[:-1]
         if Xc.shape[0] > 1 and not np.all(inside):

@@ -411,13 +411,33 @@ class Classifier:
 
     def _edge_rule(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact decision near edges: ``(cls, decided)`` for points ``(k, 3)`` (see the module docstring)."""
+        k = P.shape[0]
+        best, best_e, best_t, best_interior = self._nearest_edges(P, self.band)
+        # Edges were searched within the band of the points' box only; a point whose nearest edge
+        # lies farther (its foot in a hole of a face, far from the hole's rim) searches again
+        # within that distance, so that no nearer edge is left out.
+        far = np.flatnonzero(best > self.band)
+        if far.size:
+            got = self._nearest_edges(P[far], float(best[far].max()))
+            best[far], best_e[far], best_t[far], best_interior[far] = got
+        cls = np.zeros(k, dtype=np.int8)
+        ok = best <= self.t.linear
+        for e in np.unique(best_e[~ok & best_interior & (best_e >= 0)]):
+            sel = np.flatnonzero(~ok & best_interior & (best_e == e))
+            cls[sel] = self._wedge(int(e), P[sel], best_t[sel])
+            ok[sel] = True
+        return cls, ok
+
+    def _nearest_edges(self, P: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The nearest edge to each point ``(k, 3)`` among the edges that come within ``reach`` of the
+        points' box: ``(distance, edge, parameter, interior)``, each ``(k,)`` (inf / -1 where none)."""
         b = self.b
         k = P.shape[0]
         best = np.full(k, np.inf)
         best_e = np.full(k, -1, dtype=np.int64)
         best_t = np.zeros(k)
         best_interior = np.zeros(k, dtype=bool)
-        lo, hi = P.min(axis=0) - self.band, P.max(axis=0) + self.band
+        lo, hi = P.min(axis=0) - reach, P.max(axis=0) + reach
         for e in range(b.n_edges):
             tt, X, ch = edge_samples(b, e)
             if np.any(X.max(axis=0) + ch < lo) or np.any(X.min(axis=0) - ch > hi):
@@ -427,13 +447,7 @@ class Classifier:
             better = d < best
             best[better], best_e[better], best_t[better] = d[better], e, te[better]
             best_interior[better] = interior[better]
-        cls = np.zeros(k, dtype=np.int8)
-        ok = best <= self.t.linear
-        for e in np.unique(best_e[~ok & best_interior & (best_e >= 0)]):
-            sel = np.flatnonzero(~ok & best_interior & (best_e == e))
-            cls[sel] = self._wedge(int(e), P[sel], best_t[sel])
-            ok[sel] = True
-        return cls, ok
+        return best, best_e, best_t, best_interior
 
     def _wedge(self, e: int, P: np.ndarray, te: np.ndarray) -> np.ndarray:
         """The wedge rule at edge ``e`` for points ``P`` whose nearest edge points are at ``te``."""

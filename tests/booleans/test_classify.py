@@ -90,6 +90,20 @@ def test_points_near_the_cylinder_rim_use_the_wedge_rule():
         np.testing.assert_array_equal(classify_points(cyl, P), _expected(_sd_cylinder(P)), err_msg=str(r))
 
 
+def test_points_in_the_plane_of_a_face_with_a_hole_are_decided_by_the_nearest_edge():
+    # A disc with a square hole where a post rises through it: points in the disc's plane inside the
+    # hole lie on the disc's surface but off the face, far from every edge (the nearest, the hole's
+    # rim, lies 0.1–0.5 away: well beyond the band in which edges were first searched).
+    part = Cylinder(2.0, 2.0) + Box(1.0, 1.0, 4.0).translate((0, 0, 1))
+    rng = np.random.default_rng(7)
+    P = np.column_stack([rng.uniform(-0.4, 0.4, (300, 2)), np.full(300, 1.0)])
+    P = np.concatenate([P, P + [0, 0, 1e-3], P - [0, 0, 1e-3]])
+    np.testing.assert_array_equal(classify_points(part, P), np.full(P.shape[0], INSIDE))
+    # and beside the post above the disc, outside
+    Q = np.column_stack([rng.uniform(0.6, 1.2, (300, 2)) * rng.choice([-1, 1], (300, 2)), np.full(300, 1.2)])
+    np.testing.assert_array_equal(classify_points(part, Q), np.full(300, OUTSIDE))
+
+
 def test_points_near_box_edges_and_corners():
     rng = np.random.default_rng(3)
     n = 4000

@@ -29,7 +29,9 @@ Method
    at the nearest boundary point ``q`` (the foot is in the face when it lies on the face's side
    of the edge's tangent there, ``(x − q)·(n × T) >= 0``), which makes the point *on*.  A point
    that no face claims, or that lies nearer to a surface whose foot is outside or ambiguous than
-   to its claiming face, is decided at its nearest edge: the exact distance to each nearby edge
+   to its claiming face, is decided at its nearest edge (searched among the edges within
+   ``band`` of the points, then, for a point whose nearest edge lies farther — its foot in a hole
+   of a face, far from the rim — among those within that distance): the exact distance to each edge
    curve (closed-form projections for lines, circles and ellipses,
    :func:`~coons.kernel.projection.curve_closest_parameters` otherwise) ``<= tol.linear`` is
    *on*; otherwise, when the nearest edge point ``q`` lies inside the edge's range, the *wedge

@@ -254,11 +254,11 @@ import numpy as np
 
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
-from coons.kernel._common import used_ids
+from coons.kernel._common import linspace_rows, row_norms, used_ids
 from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
                                    surface_derivatives, surface_normals)
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.intersect import _pcurve_points
+from coons.kernel.intersect import _cross, _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.polygon import proper_crossings
@@ -1502,7 +1502,7 @@ def _long_enough_many(curves: list, s0: list[float], s1: list[float], t: Toleran
     out = [None] * len(curves)
     rows = [k for k, c in enumerate(curves) if type(c) is Circle and math.isfinite(s0[k]) and math.isfinite(s1[k])]
     if rows:
-        tt = np.linspace([s0[k] for k in rows], [s1[k] for k in rows], 5, axis=1)
+        tt = linspace_rows([s0[k] for k in rows], [s1[k] for k in rows], 5)
         P = curve_derivatives([curves[k] for k in rows], tt, 0, 3)[:, :, 0]
         D = P - P[:, :1]
         far = np.sqrt(np.max(np.add.reduce(D * D, axis=2), axis=1)) > t.linear
@@ -1594,9 +1594,10 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             hi_t = np.array([max(e.t0, e.t1) for e in le])[at][:, None]
             Q = P[ent[lr]]  # (n, 2, 3)
             te = np.clip(np.einsum("nej,nj->ne", Q - O[:, None], D), lo_t, hi_t)
-            d[line] = np.linalg.norm(O[:, None] + te[..., None] * D[:, None] - Q, axis=2)
-            U = D / np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
-            sine[line] = np.maximum(np.linalg.norm(np.cross(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
+            # (np.linalg.norm and np.cross written out: the same floats, see _local_tests)
+            d[line] = row_norms(O[:, None] + te[..., None] * D[:, None] - Q)
+            U = D / np.maximum(row_norms(D), 1e-300)[:, None]
+            sine[line] = np.maximum(row_norms(_cross(T[ent[lr]], U[:, None])), _MIN_SINE)
         for q in np.flatnonzero(~line).tolist():
             e, k = E[hinv[q]], int(ent[rows[q]])
             dq, sq = _end_sines(e.curve, P[k], T[k], min(e.t0, e.t1), max(e.t0, e.t1), 10.0 * float(delta[q]), t)
@@ -1734,7 +1735,7 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
 
 def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) -> list:
     """The sampled test of :func:`_clip` for many branches: ``[(t0, t1, "inside")]``, ``[]`` or None (undecided)."""
-    T = np.linspace([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES, axis=1)
+    T = linspace_rows([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES)
     Q = curve_derivatives(pcurves, T, 0, 2)[:, :, 0]
     finite = np.isfinite(Q).all(axis=(1, 2))  # (as _clip: non-finite samples leave the branch undecided)
     Q = np.where(finite[:, None, None], Q, 0.0)
@@ -2879,7 +2880,7 @@ def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:
     array pass (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own expressions);
     others one by one.
     """
-    T = np.linspace([c.t0 for c in cuts], [c.t1 for c in cuts], _CLEAR_SAMPLES, axis=-1)
+    T = linspace_rows([c.t0 for c in cuts], [c.t1 for c in cuts], _CLEAR_SAMPLES)
     try:
         return curve_derivatives([c.pcurve for c in cuts], T, 0, 2)[:, :, 0]
     except (CoonsError, ValueError, TypeError, AttributeError):
@@ -3544,10 +3545,12 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
     sense_x = np.array([1.0 if c[1].sense else -1.0 for c in cand])
     sense_y = np.array([1.0 if f.sense else -1.0 for f in face_y])
     T = np.where(forward[:, None], T, -T)
-    d = np.cross(sense_x[:, None] * n_x, T)
-    n_y = np.cross(Su, Sv)
-    sd, sn = np.linalg.norm(d, axis=1), np.linalg.norm(n_y, axis=1)
-    speed = np.stack([np.linalg.norm(Su, axis=1), np.linalg.norm(Sv, axis=1)], axis=1)
+    # (np.cross's products and np.linalg.norm's sums written out: the same floats, without the set-up of
+    # either or numpy's row-by-row reduction of a short axis)
+    d = _cross(sense_x[:, None] * n_x, T)
+    n_y = _cross(Su, Sv)
+    sd, sn = row_norms(d), row_norms(n_y)
+    speed = np.stack([row_norms(Su), row_norms(Sv)], axis=1)
     ok &= (sd > 0) & (sn > 0) & np.all(speed > 0, axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(sn)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = sense_y * np.einsum("ij,ij->i", d, n_y) / (sd * sn)

@@ -69,6 +69,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, LastRecord, all_values, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
+from coons.kernel._common import row_norms as _norms
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -462,15 +463,6 @@ def _first_loops(b: BRep, first: dict[int, int]) -> np.ndarray:
     for f, n in first.items():
         out[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
     return out
-
-
-def _norms(X: np.ndarray) -> np.ndarray:
-    """``np.linalg.norm(X, axis=-1)`` for a last axis of 2 or 3, written out: the same floats (its
-    sum of squares runs left to right too), without numpy's row-by-row reduction of a short axis."""
-    S = X[..., 0] * X[..., 0] + X[..., 1] * X[..., 1]
-    if X.shape[-1] == 3:
-        S += X[..., 2] * X[..., 2]
-    return np.sqrt(S)
 
 
 def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],

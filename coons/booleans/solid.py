@@ -1793,7 +1793,7 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
         col = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
         pad[at, 0, col], pad[at, 1, col], pad[at, 2, col] = seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1]
         pad[at, 3, col] = _polygon_slopes(seg)
-        rows = np.flatnonzero(np.isin(inv, small))
+        rows = np.arange(len(Q)) if len(small) == len(sizes) else np.flatnonzero(np.isin(inv, small))
         ax, ay, cy, m = np.moveaxis(pad[inv[rows]], 1, 0)
         x, y = Q[rows, 0:1], Q[rows, 1:2]
         with np.errstate(invalid="ignore"):
@@ -3180,7 +3180,7 @@ def _chord_group(X: _Operand, faces: list[int], cuts: dict[int, list[EdgeSpec]],
         d_end = _segment_distances(P, segs)  # (F, 2n, n)
         d_end[:, np.arange(2 * n), np.repeat(np.arange(n), 2)] = np.inf  # (a chord's own ends)
         good &= ~np.any(d_end <= mg[:, :, None], axis=(1, 2))
-        i, j = np.triu_indices(n, 1)
+        i, j = _index_pairs(n)
         c = CE[:, i, 0] * CE[:, j, 1] - CE[:, i, 1] * CE[:, j, 0]
         Dc = ca[:, j] - ca[:, i]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -3190,6 +3190,16 @@ def _chord_group(X: _Operand, faces: list[int], cuts: dict[int, list[EdgeSpec]],
             good &= ~np.any((c != 0.0) & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0), axis=1)
     g = good.tolist()
     return ([ends[k] if g[k] else None for k in range(F)], list(tau), list(SL), margin.tolist())
+
+
+@functools.lru_cache(maxsize=64)
+def _index_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)`` (read-only): the pairs ``i < j`` of ``n`` chords, made once per ``n`` (numpy
+    builds them through a mask, several times the cost of the few chords' tests)."""
+    i, j = np.triu_indices(n, 1)
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return i, j
 
 
 def _segment_distances(Q: np.ndarray, seg: np.ndarray) -> np.ndarray:

@@ -150,13 +150,15 @@ def _angle(y, x) -> np.ndarray:
 
 
 def _cos_d(c: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
-    """k-th derivative of cos, from cos and sin (exact signs, no phase round-off)."""
-    return (c, -s, -c, s)[k % 4]
+    """k-th derivative of cos, from cos and sin (exact signs, no phase round-off; only the one asked is negated)."""
+    k %= 4
+    return c if k == 0 else -s if k == 1 else -c if k == 2 else s
 
 
 def _sin_d(c: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
     """k-th derivative of sin."""
-    return (s, c, -s, -c)[k % 4]
+    k %= 4
+    return s if k == 0 else c if k == 1 else -s if k == 2 else -c
 
 
 def _is_close(a, b, tol: Tolerance | None) -> bool:

@@ -55,6 +55,7 @@ few array passes, not a few numpy calls per coedge.
 
 from __future__ import annotations
 
+import functools
 import operator
 import weakref
 from itertools import chain, repeat
@@ -348,10 +349,19 @@ def _check_euler(b: BRep, out: list[Problem]) -> None:
 
 
 # ---------------------------------------------------------------------- geometry
+@functools.lru_cache(maxsize=16)
+def _unit_samples(samples: int) -> np.ndarray:
+    """``np.linspace(0.0, 1.0, samples)``, read-only, made once per count (the check asks it a few times a
+    B-rep; numpy's set-up costs more than the few values)."""
+    s = np.linspace(0.0, 1.0, samples)
+    s.setflags(write=False)
+    return s
+
+
 def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Parameters ``(k, samples)`` and 3-D points ``(k, samples, 3)`` along the given edges (default: all)."""
     edges = np.arange(b.n_edges) if edges is None else np.asarray(edges, dtype=np.int64)
-    s = np.linspace(0.0, 1.0, samples)
+    s = _unit_samples(samples)
     r = b.edge_range[edges]
     T = r[:, :1] + (r[:, 1:] - r[:, :1]) * s
     P = np.empty(T.shape + (3,))
@@ -369,10 +379,12 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
     if rows.size and np.isfinite(T[rows]).all():
         P[rows] = evaluate_curves([b.curves[int(ci)] for ci in curve[rows].tolist()], T[rows])
         curved = curved[~batched]
+    if not curved.size:
+        return T, P
     # (one stable sort groups the rows by curve, as mass._Paths.evaluate: not a mask per curve)
     curved = curved[np.argsort(curve[curved], kind="stable")]
     ids, starts = np.unique(curve[curved], return_index=True)
-    groups = np.split(curved, starts[1:]) if curved.size else []
+    groups = np.split(curved, starts[1:])
     for rows, D in zip(groups, derivatives_many([b.curves[int(ci)] for ci in ids], [T[r].ravel() for r in groups], 0)):
         P[rows] = D[0].reshape(rows.size, samples, 3)
     return T, P
@@ -422,8 +434,9 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.nda
         tt = T[rows][..., None]
         out[rows] = C[:, None, :] + np.cos(tt) * A[:, None, :] + np.sin(tt) * B[:, None, :]
     rows = np.flatnonzero(k == 2)
-    for r, D in zip(rows, derivatives_many([pcurves[int(i)] for i in which[rows]], [T[r] for r in rows], 0)):
-        out[r] = D[0]
+    if rows.size:
+        for r, D in zip(rows, derivatives_many([pcurves[int(i)] for i in which[rows]], [T[r] for r in rows], 0)):
+            out[r] = D[0]
     return out, k == 0
 
 
@@ -580,7 +593,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         ks, kns = i[far], j[far]
         c_far = coedge[ks]
         s_far = b.face_surface[b.coedge_face[c_far]]
-        seg = end[ks][:, None, :] + np.linspace(0, 1, samples)[None, :, None] * (start[kns] - end[ks])[:, None, :]
+        seg = end[ks][:, None, :] + _unit_samples(samples)[None, :, None] * (start[kns] - end[ks])[:, None, :]
         img = np.empty(seg.shape[:2] + (3,))
         for si_ in np.unique(s_far).tolist():
             sel = s_far == si_

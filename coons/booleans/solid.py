@@ -4466,7 +4466,10 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
             Pa, Pb = P3[p], P3[q]
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
-            if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
+            d0, d1 = Pa[0] - Pb[1], Pa[1] - Pb[0]
+            # (np.linalg.norm of a vector is the root of its dot product with itself: the same floats, without
+            # its set-up)
+            if not (math.sqrt(d0.dot(d0)) <= thr and math.sqrt(d1.dot(d1)) <= thr):
                 continue
             probes = P3[face_first[fq] : face_first[fq] + min(int(counts[fq]), _MOVED_PROBES), 0]  # (B's own rows)
             if not wrap and _off_plane(A, B, probes, t):

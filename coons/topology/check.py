@@ -1349,7 +1349,7 @@ def _crossings(parts: list[tuple[np.ndarray, ...]],
     keep = (nxt[i] != j) & (nxt[j] != i)
     i, j = i[keep], j[keep]
     di, dj = B[i] - A[i], B[j] - A[j]
-    li, lj = np.linalg.norm(di, axis=1), np.linalg.norm(dj, axis=1)
+    li, lj = _norms(di), _norms(dj)
     ok = (li > 0) & (lj > 0)
     i, j, di, dj, li, lj = i[ok], j[ok], di[ok], dj[ok], li[ok], lj[ok]
 
@@ -1362,6 +1362,8 @@ def _crossings(parts: list[tuple[np.ndarray, ...]],
     s3, s4 = side(dj, lj, A[j], A[i]), side(dj, lj, A[j], B[i])
     cross = (((s1 > e) & (s2 < -e)) | ((s1 < -e) & (s2 > e))) & (((s3 > e) & (s4 < -e)) | ((s3 < -e) & (s4 > e)))
     hits = np.flatnonzero(cross)
+    if hits.size == 0:
+        return {}
     _, first = np.unique(face[i[hits]], return_index=True)
     found: dict[int, tuple[int, int, np.ndarray]] = {}
     for k in hits[first]:  # one per face

@@ -1738,12 +1738,15 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
     T = linspace_rows([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES)
     Q = curve_derivatives(pcurves, T, 0, 2)[:, :, 0]
     finite = np.isfinite(Q).all(axis=(1, 2))  # (as _clip: non-finite samples leave the branch undecided)
-    Q = np.where(finite[:, None, None], Q, 0.0)
-    dQ = Q[:, 1:] - Q[:, :-1]
-    step = np.sqrt(np.max(np.add.reduce(dQ * dQ, axis=2), axis=1))[:, None]
+    if not finite.all():
+        Q = np.where(finite[:, None, None], Q, 0.0)
+    # (the largest step's root as the largest root, and the extremes per coordinate: the same floats, without
+    # numpy's row-by-row reductions of a short axis)
+    step = np.max(_norms2(Q[:, 1:] - Q[:, :-1]), axis=1)[:, None]
     scale = 1.0 + np.max(np.abs(Q), axis=(1, 2))[:, None]
-    lo = Q.min(axis=1) - step - 1e-9 * scale  # rounding margin of parameter values
-    hi = Q.max(axis=1) + step + 1e-9 * scale
+    Q_lo, Q_hi = _middle_extremes(Q)
+    lo = Q_lo - step - 1e-9 * scale  # rounding margin of parameter values
+    hi = Q_hi + step + 1e-9 * scale
     fa = np.array(faces)
     meet = np.zeros(len(faces), dtype=bool)
     for f in np.unique(fa).tolist():
@@ -3273,7 +3276,7 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     Pe[good] = evaluate_curves([sides[r] for r in good], x[good][:, None])[:, 0]
     span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
     thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
-    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
+    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (row_norms(Pe - Pc) > thr)
     for r in np.flatnonzero(bad).tolist():
         ok[rows[r][0]] = False
     r = 0

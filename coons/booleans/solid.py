@@ -254,11 +254,11 @@ import numpy as np
 
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
-from coons.kernel._common import used_ids
+from coons.kernel._common import linspace_rows, row_norms, used_ids
 from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
                                    surface_derivatives, surface_normals)
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.intersect import _pcurve_points
+from coons.kernel.intersect import _cross, _pcurve_points
 from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.polygon import proper_crossings
@@ -1503,7 +1503,7 @@ def _long_enough_many(curves: list, s0: list[float], s1: list[float], t: Toleran
     out = [None] * len(curves)
     rows = [k for k, c in enumerate(curves) if type(c) is Circle and math.isfinite(s0[k]) and math.isfinite(s1[k])]
     if rows:
-        tt = np.linspace([s0[k] for k in rows], [s1[k] for k in rows], 5, axis=1)
+        tt = linspace_rows([s0[k] for k in rows], [s1[k] for k in rows], 5)
         P = curve_derivatives([curves[k] for k in rows], tt, 0, 3)[:, :, 0]
         D = P - P[:, :1]
         far = np.sqrt(np.max(np.add.reduce(D * D, axis=2), axis=1)) > t.linear
@@ -1595,9 +1595,10 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             hi_t = np.array([max(e.t0, e.t1) for e in le])[at][:, None]
             Q = P[ent[lr]]  # (n, 2, 3)
             te = np.clip(np.einsum("nej,nj->ne", Q - O[:, None], D), lo_t, hi_t)
-            d[line] = np.linalg.norm(O[:, None] + te[..., None] * D[:, None] - Q, axis=2)
-            U = D / np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-300)
-            sine[line] = np.maximum(np.linalg.norm(np.cross(T[ent[lr]], U[:, None]), axis=2), _MIN_SINE)
+            # (np.linalg.norm and np.cross written out: the same floats, see _local_tests)
+            d[line] = row_norms(O[:, None] + te[..., None] * D[:, None] - Q)
+            U = D / np.maximum(row_norms(D), 1e-300)[:, None]
+            sine[line] = np.maximum(row_norms(_cross(T[ent[lr]], U[:, None])), _MIN_SINE)
         for q in np.flatnonzero(~line).tolist():
             e, k = E[hinv[q]], int(ent[rows[q]])
             dq, sq = _end_sines(e.curve, P[k], T[k], min(e.t0, e.t1), max(e.t0, e.t1), 10.0 * float(delta[q]), t)
@@ -1735,15 +1736,18 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
 
 def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) -> list:
     """The sampled test of :func:`_clip` for many branches: ``[(t0, t1, "inside")]``, ``[]`` or None (undecided)."""
-    T = np.linspace([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES, axis=1)
+    T = linspace_rows([c.t0 for c in branches], [c.t1 for c in branches], _CLEAR_SAMPLES)
     Q = curve_derivatives(pcurves, T, 0, 2)[:, :, 0]
     finite = np.isfinite(Q).all(axis=(1, 2))  # (as _clip: non-finite samples leave the branch undecided)
-    Q = np.where(finite[:, None, None], Q, 0.0)
-    dQ = Q[:, 1:] - Q[:, :-1]
-    step = np.sqrt(np.max(np.add.reduce(dQ * dQ, axis=2), axis=1))[:, None]
+    if not finite.all():
+        Q = np.where(finite[:, None, None], Q, 0.0)
+    # (the largest step's root as the largest root, and the extremes per coordinate: the same floats, without
+    # numpy's row-by-row reductions of a short axis)
+    step = np.max(_norms2(Q[:, 1:] - Q[:, :-1]), axis=1)[:, None]
     scale = 1.0 + np.max(np.abs(Q), axis=(1, 2))[:, None]
-    lo = Q.min(axis=1) - step - 1e-9 * scale  # rounding margin of parameter values
-    hi = Q.max(axis=1) + step + 1e-9 * scale
+    Q_lo, Q_hi = _middle_extremes(Q)
+    lo = Q_lo - step - 1e-9 * scale  # rounding margin of parameter values
+    hi = Q_hi + step + 1e-9 * scale
     fa = np.array(faces)
     meet = np.zeros(len(faces), dtype=bool)
     for f in np.unique(fa).tolist():
@@ -1793,7 +1797,7 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
         col = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
         pad[at, 0, col], pad[at, 1, col], pad[at, 2, col] = seg[:, 0, 0], seg[:, 0, 1], seg[:, 1, 1]
         pad[at, 3, col] = _polygon_slopes(seg)
-        rows = np.flatnonzero(np.isin(inv, small))
+        rows = np.arange(len(Q)) if len(small) == len(sizes) else np.flatnonzero(np.isin(inv, small))
         ax, ay, cy, m = np.moveaxis(pad[inv[rows]], 1, 0)
         x, y = Q[rows, 0:1], Q[rows, 1:2]
         with np.errstate(invalid="ignore"):
@@ -2880,7 +2884,7 @@ def _cut_samples(cuts: list[EdgeSpec]) -> np.ndarray | None:
     array pass (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own expressions);
     others one by one.
     """
-    T = np.linspace([c.t0 for c in cuts], [c.t1 for c in cuts], _CLEAR_SAMPLES, axis=-1)
+    T = linspace_rows([c.t0 for c in cuts], [c.t1 for c in cuts], _CLEAR_SAMPLES)
     try:
         return curve_derivatives([c.pcurve for c in cuts], T, 0, 2)[:, :, 0]
     except (CoonsError, ValueError, TypeError, AttributeError):
@@ -3180,7 +3184,7 @@ def _chord_group(X: _Operand, faces: list[int], cuts: dict[int, list[EdgeSpec]],
         d_end = _segment_distances(P, segs)  # (F, 2n, n)
         d_end[:, np.arange(2 * n), np.repeat(np.arange(n), 2)] = np.inf  # (a chord's own ends)
         good &= ~np.any(d_end <= mg[:, :, None], axis=(1, 2))
-        i, j = np.triu_indices(n, 1)
+        i, j = _index_pairs(n)
         c = CE[:, i, 0] * CE[:, j, 1] - CE[:, i, 1] * CE[:, j, 0]
         Dc = ca[:, j] - ca[:, i]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -3190,6 +3194,16 @@ def _chord_group(X: _Operand, faces: list[int], cuts: dict[int, list[EdgeSpec]],
             good &= ~np.any((c != 0.0) & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0), axis=1)
     g = good.tolist()
     return ([ends[k] if g[k] else None for k in range(F)], list(tau), list(SL), margin.tolist())
+
+
+@functools.lru_cache(maxsize=64)
+def _index_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)`` (read-only): the pairs ``i < j`` of ``n`` chords, made once per ``n`` (numpy
+    builds them through a mask, several times the cost of the few chords' tests)."""
+    i, j = np.triu_indices(n, 1)
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return i, j
 
 
 def _segment_distances(Q: np.ndarray, seg: np.ndarray) -> np.ndarray:
@@ -3263,7 +3277,7 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     Pe[good] = evaluate_curves([sides[r] for r in good], x[good][:, None])[:, 0]
     span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
     thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
-    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (np.linalg.norm(Pe - Pc, axis=1) > thr)
+    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (row_norms(Pe - Pc) > thr)
     for r in np.flatnonzero(bad).tolist():
         ok[rows[r][0]] = False
     r = 0
@@ -3545,10 +3559,12 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
     sense_x = np.array([1.0 if c[1].sense else -1.0 for c in cand])
     sense_y = np.array([1.0 if f.sense else -1.0 for f in face_y])
     T = np.where(forward[:, None], T, -T)
-    d = np.cross(sense_x[:, None] * n_x, T)
-    n_y = np.cross(Su, Sv)
-    sd, sn = np.linalg.norm(d, axis=1), np.linalg.norm(n_y, axis=1)
-    speed = np.stack([np.linalg.norm(Su, axis=1), np.linalg.norm(Sv, axis=1)], axis=1)
+    # (np.cross's products and np.linalg.norm's sums written out: the same floats, without the set-up of
+    # either or numpy's row-by-row reduction of a short axis)
+    d = _cross(sense_x[:, None] * n_x, T)
+    n_y = _cross(Su, Sv)
+    sd, sn = row_norms(d), row_norms(n_y)
+    speed = np.stack([row_norms(Su), row_norms(Sv)], axis=1)
     ok &= (sd > 0) & (sn > 0) & np.all(speed > 0, axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(sn)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = sense_y * np.einsum("ij,ij->i", d, n_y) / (sd * sn)
@@ -4454,7 +4470,10 @@ def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
             ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
             Pa, Pb = P3[p], P3[q]
             thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
-            if not (np.linalg.norm(Pa[0] - Pb[1]) <= thr and np.linalg.norm(Pa[1] - Pb[0]) <= thr):
+            d0, d1 = Pa[0] - Pb[1], Pa[1] - Pb[0]
+            # (np.linalg.norm of a vector is the root of its dot product with itself: the same floats, without
+            # its set-up)
+            if not (math.sqrt(d0.dot(d0)) <= thr and math.sqrt(d1.dot(d1)) <= thr):
                 continue
             probes = P3[face_first[fq] : face_first[fq] + min(int(counts[fq]), _MOVED_PROBES), 0]  # (B's own rows)
             if not wrap and _off_plane(A, B, probes, t):

@@ -150,13 +150,15 @@ def _angle(y, x) -> np.ndarray:
 
 
 def _cos_d(c: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
-    """k-th derivative of cos, from cos and sin (exact signs, no phase round-off)."""
-    return (c, -s, -c, s)[k % 4]
+    """k-th derivative of cos, from cos and sin (exact signs, no phase round-off; only the one asked is negated)."""
+    k %= 4
+    return c if k == 0 else -s if k == 1 else -c if k == 2 else s
 
 
 def _sin_d(c: np.ndarray, s: np.ndarray, k: int) -> np.ndarray:
     """k-th derivative of sin."""
-    return (s, c, -s, -c)[k % 4]
+    k %= 4
+    return s if k == 0 else c if k == 1 else -s if k == 2 else -c
 
 
 def _is_close(a, b, tol: Tolerance | None) -> bool:
@@ -461,7 +463,12 @@ class Circle(_Conic):
                                        f"{C.shape}, {F.shape} and {R.shape}")
         # Orthonormal rows and Z = X × Y, to round-off (1e3 ulps is far below any tolerance).
         G = np.einsum("kij,klj->kil", F, F) - np.eye(3)
-        det = np.einsum("kj,kj->k", np.cross(F[:, 0], F[:, 1]), F[:, 2])
+        # X × Y by np.cross's products and differences, without its axis handling (most of its cost on a
+        # few frames)
+        (x0, x1, x2), (y0, y1, y2) = F[:, 0].T, F[:, 1].T
+        XY = np.empty((k, 3))
+        XY[:, 0], XY[:, 1], XY[:, 2] = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
+        det = np.einsum("kj,kj->k", XY, F[:, 2])
         bad = np.flatnonzero(~np.isfinite(C).all(axis=1) | ~np.isfinite(R) | ~(R > 0.0)
                              | ~(np.abs(G).max(axis=(1, 2), initial=0.0) <= 1e3 * np.finfo(np.float64).eps)
                              | ~(np.abs(det - 1.0) <= 1e3 * np.finfo(np.float64).eps))
@@ -474,9 +481,8 @@ class Circle(_Conic):
         out = []
         for c, f, r in zip(C, F, R.tolist()):
             circle = object.__new__(cls)
-            for name, value in (("center", c), ("_origin", c), ("axis", f[2]), ("x_dir", f[0]), ("_frame", f),
-                                ("radius", r)):
-                object.__setattr__(circle, name, value)
+            # (the frozen dataclass forbids setattr; its instance dict is the one the constructor fills)
+            circle.__dict__.update(center=c, _origin=c, axis=f[2], x_dir=f[0], _frame=f, radius=r)
             out.append(circle)
         return out
 

@@ -118,7 +118,7 @@ from coons.kernel.analytic import (
     ToroidalSurface,
     _angle,
 )
-from coons.kernel._common import interval_cuts
+from coons.kernel._common import interval_cuts, row_norms
 from coons.kernel.conics import nurbs_conic_arc, perpendicular_direction
 from coons.kernel.curve import NurbsCurve, spline_points
 from coons.kernel.fitting import _averaging
@@ -2351,7 +2351,7 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     # The coaxial case of _plane_cylinder and _common_axis (sine <= tol.angular) and a circle, not a
     # contact point (radius > tol.linear), each with a factor 2 of margin: a pair near either threshold
     # is decided by the per-pair expressions.
-    ok = np.linalg.norm(_cross(N, Z), axis=1) <= 0.5 * tol.angular
+    ok = row_norms(_cross(N, Z)) <= 0.5 * tol.angular
     ok &= R > 2.0 * tol.linear
     # The circle (_coaxial): centre on the axis at the plane's height, X perpendicular_direction(Z).
     h = np.einsum("kj,kj->k", Op - Oc, Z)
@@ -2365,12 +2365,12 @@ def _plane_cylinder_circles(items: list[tuple], tol: Tolerance) -> list[list[Int
     T = R[:, None] * (c * Y - s * X)
     w = P - Oc
     w = w - np.einsum("kj,kj->k", w, Z)[:, None] * Z
-    nc = w / np.linalg.norm(w, axis=1)[:, None]
+    nc = w / row_norms(w)[:, None]
     fl = first[:, None]
     value = np.einsum("kj,kj->k", _cross(np.where(fl, N, nc), np.where(fl, nc, N)), T)
     scale = np.maximum(1.0 + np.abs(P).max(axis=1), 1.0 + np.abs(Oc).max(axis=1))
     bound = _UNIFORM_MIN_SINE + _UNIFORM_SLACK * (tol.angular + (tol.linear + _EPS * scale) / R)
-    ok &= np.abs(value) > 2.0 * bound * np.linalg.norm(T, axis=1)  # (a factor 2 of margin, as above)
+    ok &= np.abs(value) > 2.0 * bound * row_norms(T)  # (a factor 2 of margin, as above)
     sg = np.where(value > 0.0, 1.0, -1.0)
     Y = sg[:, None] * Y
     Z = sg[:, None] * Z
@@ -2469,11 +2469,12 @@ def _perpendicular_rows(Z: np.ndarray) -> np.ndarray:
     zero = np.zeros_like(a)
     by_y = (B <= A) & (B <= Cm)
     by_x = ~by_y & (A <= B) & (A <= Cm)
-    d = np.where(by_y[:, None], np.where((A > Cm)[:, None], np.stack([-c, zero, a], 1), np.stack([c, zero, -a], 1)),
-                 np.where(by_x[:, None],
-                          np.where((B > Cm)[:, None], np.stack([zero, -c, b], 1), np.stack([zero, c, -b], 1)),
-                          np.where((A > B)[:, None], np.stack([-b, a, zero], 1), np.stack([b, -a, zero], 1))))
-    return d / np.linalg.norm(d, axis=1)[:, None]
+    # The six candidates (rows of one table), each row's by index: one gather, not nested selections.
+    which = np.where(by_y, np.where(A > Cm, 0, 1), np.where(by_x, np.where(B > Cm, 2, 3), np.where(A > B, 4, 5)))
+    na, nb, nc = -a, -b, -c
+    table = np.array([[nc, zero, a], [c, zero, na], [zero, nc, b], [zero, c, nb], [nb, a, zero], [b, na, zero]])
+    d = table[which, :, np.arange(a.size)]
+    return d / row_norms(d)[:, None]
 
 
 # ---------------------------------------------------------------------------- dispatcher

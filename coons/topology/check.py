@@ -55,6 +55,7 @@ few array passes, not a few numpy calls per coedge.
 
 from __future__ import annotations
 
+import functools
 import operator
 import weakref
 from itertools import chain, repeat
@@ -69,6 +70,7 @@ from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.surface import derivatives_surfaces
 from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, LastRecord, all_values, found_by_id, id_index, is_value, pool_positions, pool_values, read_only as _read_only
+from coons.kernel._common import row_norms as _norms
 from coons.kernel._stacked import derivatives_many
 from coons.topology.brep import BRep
 
@@ -347,10 +349,19 @@ def _check_euler(b: BRep, out: list[Problem]) -> None:
 
 
 # ---------------------------------------------------------------------- geometry
+@functools.lru_cache(maxsize=16)
+def _unit_samples(samples: int) -> np.ndarray:
+    """``np.linspace(0.0, 1.0, samples)``, read-only, made once per count (the check asks it a few times a
+    B-rep; numpy's set-up costs more than the few values)."""
+    s = np.linspace(0.0, 1.0, samples)
+    s.setflags(write=False)
+    return s
+
+
 def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Parameters ``(k, samples)`` and 3-D points ``(k, samples, 3)`` along the given edges (default: all)."""
     edges = np.arange(b.n_edges) if edges is None else np.asarray(edges, dtype=np.int64)
-    s = np.linspace(0.0, 1.0, samples)
+    s = _unit_samples(samples)
     r = b.edge_range[edges]
     T = r[:, :1] + (r[:, 1:] - r[:, :1]) * s
     P = np.empty(T.shape + (3,))
@@ -368,10 +379,12 @@ def _edge_samples(b: BRep, samples: int, edges: np.ndarray | None = None) -> tup
     if rows.size and np.isfinite(T[rows]).all():
         P[rows] = evaluate_curves([b.curves[int(ci)] for ci in curve[rows].tolist()], T[rows])
         curved = curved[~batched]
+    if not curved.size:
+        return T, P
     # (one stable sort groups the rows by curve, as mass._Paths.evaluate: not a mask per curve)
     curved = curved[np.argsort(curve[curved], kind="stable")]
     ids, starts = np.unique(curve[curved], return_index=True)
-    groups = np.split(curved, starts[1:]) if curved.size else []
+    groups = np.split(curved, starts[1:])
     for rows, D in zip(groups, derivatives_many([b.curves[int(ci)] for ci in ids], [T[r].ravel() for r in groups], 0)):
         P[rows] = D[0].reshape(rows.size, samples, 3)
     return T, P
@@ -421,8 +434,9 @@ def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.nda
         tt = T[rows][..., None]
         out[rows] = C[:, None, :] + np.cos(tt) * A[:, None, :] + np.sin(tt) * B[:, None, :]
     rows = np.flatnonzero(k == 2)
-    for r, D in zip(rows, derivatives_many([pcurves[int(i)] for i in which[rows]], [T[r] for r in rows], 0)):
-        out[r] = D[0]
+    if rows.size:
+        for r, D in zip(rows, derivatives_many([pcurves[int(i)] for i in which[rows]], [T[r] for r in rows], 0)):
+            out[r] = D[0]
     return out, k == 0
 
 
@@ -462,15 +476,6 @@ def _first_loops(b: BRep, first: dict[int, int]) -> np.ndarray:
     for f, n in first.items():
         out[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f] + n]] = True
     return out
-
-
-def _norms(X: np.ndarray) -> np.ndarray:
-    """``np.linalg.norm(X, axis=-1)`` for a last axis of 2 or 3, written out: the same floats (its
-    sum of squares runs left to right too), without numpy's row-by-row reduction of a short axis."""
-    S = X[..., 0] * X[..., 0] + X[..., 1] * X[..., 1]
-    if X.shape[-1] == 3:
-        S += X[..., 2] * X[..., 2]
-    return np.sqrt(S)
 
 
 def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
@@ -588,7 +593,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
         ks, kns = i[far], j[far]
         c_far = coedge[ks]
         s_far = b.face_surface[b.coedge_face[c_far]]
-        seg = end[ks][:, None, :] + np.linspace(0, 1, samples)[None, :, None] * (start[kns] - end[ks])[:, None, :]
+        seg = end[ks][:, None, :] + _unit_samples(samples)[None, :, None] * (start[kns] - end[ks])[:, None, :]
         img = np.empty(seg.shape[:2] + (3,))
         for si_ in np.unique(s_far).tolist():
             sel = s_far == si_
@@ -1344,7 +1349,7 @@ def _crossings(parts: list[tuple[np.ndarray, ...]],
     keep = (nxt[i] != j) & (nxt[j] != i)
     i, j = i[keep], j[keep]
     di, dj = B[i] - A[i], B[j] - A[j]
-    li, lj = np.linalg.norm(di, axis=1), np.linalg.norm(dj, axis=1)
+    li, lj = _norms(di), _norms(dj)
     ok = (li > 0) & (lj > 0)
     i, j, di, dj, li, lj = i[ok], j[ok], di[ok], dj[ok], li[ok], lj[ok]
 
@@ -1357,6 +1362,8 @@ def _crossings(parts: list[tuple[np.ndarray, ...]],
     s3, s4 = side(dj, lj, A[j], A[i]), side(dj, lj, A[j], B[i])
     cross = (((s1 > e) & (s2 < -e)) | ((s1 < -e) & (s2 > e))) & (((s3 > e) & (s4 < -e)) | ((s3 < -e) & (s4 > e)))
     hits = np.flatnonzero(cross)
+    if hits.size == 0:
+        return {}
     _, first = np.unique(face[i[hits]], return_index=True)
     found: dict[int, tuple[int, int, np.ndarray]] = {}
     for k in hits[first]:  # one per face

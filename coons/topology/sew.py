@@ -1380,8 +1380,11 @@ def face_specs(shape, rows=None) -> list[FaceSpec]:
                 length = float(np.linalg.norm(q - p))
                 got = (Line(p, q - p), 0.0, length, (r1 - r0) / length, r0)
             tol = float(e_tol[e])
-            # The checks of EdgeSpec.__post_init__, which the trusted constructor skips.
-            EdgeSpec(got[0], got[1], got[2], None, tol)
+            # The checks of EdgeSpec.__post_init__, which the trusted constructor skips, in place; on a
+            # failure the constructor itself raises its message.
+            if not (callable(getattr(got[0], "evaluate", None)) and math.isfinite(got[1]) and math.isfinite(got[2])
+                    and got[1] != got[2] and math.isfinite(tol) and tol >= 0.0):
+                EdgeSpec(got[0], got[1], got[2], None, tol)
             got = curves[e] = got + (tol,)
         return got
 

@@ -483,6 +483,30 @@ def test_curve_derivatives_are_each_curves_own():
         curve_derivatives(plane, np.full((3, 1), np.nan))
 
 
+@pytest.mark.parametrize("order", [0, 1, 2, 5])
+def test_curve_derivatives_by_coordinate_is_the_broadcast_form(monkeypatch, order):
+    """Large batches are evaluated coordinate by coordinate, small ones broadcast over ``(k, n, d)``:
+    the same floats bit for bit, for every batched type, in batches of one type and mixed."""
+    from coons.kernel import onsurface
+
+    rng = np.random.default_rng(11)
+    space, plane = [], []
+    for _ in range(6):
+        o, d, x = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        space += [Line(o, d), Circle(o, d, x, rng.uniform(0.5, 3.0))]
+        plane += [Line2D(rng.normal(size=2), rng.normal(size=2)),
+                  Trig2D(rng.normal(size=2), [2.0, rng.uniform(-1, 1)], [rng.uniform(-1, 1), 1.5])]
+    for curves in (space, space[1::2], plane, plane[1::2], space[:5]):
+        T = rng.uniform(-7.0, 7.0, (len(curves), 9))
+        monkeypatch.setattr(onsurface, "_COORDINATE_POINTS", 1 << 30)
+        broadcast = onsurface.curve_derivatives(curves, T, order)
+        monkeypatch.setattr(onsurface, "_COORDINATE_POINTS", 1)
+        by_coordinate = onsurface.curve_derivatives(curves, T, order)
+        assert np.array_equal(broadcast, by_coordinate)
+        for c, t, got in zip(curves, T, broadcast):  # (and each curve's own points, bit for bit)
+            assert np.array_equal(got[:, 0], c.evaluate(t))
+
+
 def test_trig2d_many_is_the_constructor_row_by_row():
     from coons.kernel.pcurve import Trig2D
 

@@ -335,6 +335,18 @@ def test_face_specs_still_rejects_a_degenerate_edge_range():
         sew.face_specs(bad)
 
 
+@pytest.mark.parametrize("bad", [-1e-9, math.nan, math.inf])
+def test_face_specs_still_rejects_a_bad_edge_tolerance(bad):
+    """face_specs checks each edge in place of EdgeSpec's constructor; a failure raises the constructor's message."""
+    import dataclasses
+
+    b = Cylinder(1, 2).brep
+    tol = b.edge_tol.copy()
+    tol[1] = bad
+    with pytest.raises(InvalidInputError, match="EdgeSpec.tol must be a finite number >= 0"):
+        sew.face_specs(dataclasses.replace(b, edge_tol=tol))
+
+
 def _brep_tables(b) -> dict:
     """Every table of a B-rep, and its pools as object identities (pool order included)."""
     out = {k: np.asarray(v) for k, v in vars(b).items() if isinstance(v, np.ndarray)}

@@ -236,16 +236,19 @@ class _PowerForm:
         self.coef = D * scale[:, :, None]
         self._stacked: np.ndarray | None = None
         self._scalar: tuple | None = None
+        self._ends: dict[bytes, np.ndarray] = {}  # t bytes -> derivatives at two parameters (see derivatives)
         self._powers = np.arange(p + 1)
         self._break_list = vals.tolist()
         self._lengths = h  # (spans,) the spans' lengths, br[i + 1] - br[i]
         self._binom = [[math.comb(k, i) for i in range(k + 1)] for k in range(p + 3)]
 
     def _stack(self, order: int) -> np.ndarray:
-        """``(spans, order + 1, p + 1, d + 1)``: power coefficients of the x-derivatives of orders 0..order."""
+        """``(spans, k + 1, p + 1, d + 1)``, ``k >= order``: power coefficients of the x-derivatives of orders
+        0..k, built once up to at least :data:`_STACKED_ORDER` (the face split reads a cut's points, tangents
+        and curvatures: building the orders one call at a time built the array twice per curve)."""
         if self._stacked is None or self._stacked.shape[1] <= order:
             c = [self.coef]
-            for _ in range(order):
+            for _ in range(max(order, _STACKED_ORDER)):
                 nxt = np.zeros_like(c[-1])
                 nxt[:, :-1] = c[-1][:, 1:] * np.arange(1, self.p + 1)[None, :, None]
                 c.append(nxt)
@@ -319,8 +322,24 @@ class _PowerForm:
         return np.maximum(a, lo), np.minimum(b, hi), P.min(axis=1), P.max(axis=1)
 
     def derivatives(self, t: np.ndarray, order: int) -> np.ndarray:
-        """``(k, order + 1, d)`` point and derivatives at ``t (k,)`` (the span to the right at a knot)."""
+        """``(k, order + 1, d)`` point and derivatives at ``t (k,)`` (the span to the right at a knot).
+
+        The answer at two parameters (a piece's two ends, which several steps of the face split read at
+        orders 0 to 2) is remembered per ``t`` at the highest order asked: a call asking that order or a
+        lower one gets a copy of its leading rows.  The same bits as computed: each row of a derivative
+        order is its own sum over the span's powers, whatever the orders computed with it (the tests
+        compare)."""
         t = np.asarray(t, dtype=np.float64).ravel()
+        if t.size != 2:
+            return self._derivatives(t, order)
+        key = t.tobytes()
+        out = self._ends.get(key)
+        if out is None or out.shape[1] <= order:
+            out = self._ends[key] = self._derivatives(t, order)
+        return out[:, : order + 1].copy()
+
+    def _derivatives(self, t: np.ndarray, order: int) -> np.ndarray:
+        """:meth:`derivatives` of flat parameters ``t`` ``(k,)``, computed."""
         br = self.breaks
         if t.size <= _FEW_POINTS:
             # The spans of a few parameters by bisection on Python floats (np.searchsorted's answer, side
@@ -349,6 +368,8 @@ class _PowerForm:
         return out
 
 
+#: Orders of x-derivatives :meth:`_PowerForm._stack` builds at least (curvature, for the face split's directions).
+_STACKED_ORDER = 2
 #: Up to this many parameters :meth:`_PowerForm.derivatives` finds their spans by bisection in Python.
 _FEW_POINTS = 8
 

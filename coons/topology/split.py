@@ -180,6 +180,7 @@ class _FaceData:
         self.virtual: dict[tuple[int, int], Line2D] = {}  # (loop, edge) -> the virtual segment after the edge
         self.by_eps: dict[float, tuple[list[tuple], _Inside]] = {}
         self.convex: dict[float, tuple | None] = {}  # per eps: :func:`_convex_sides` of the boundary pieces
+        self.regions: dict[tuple, _Inside] = {}  # (id(curve), a, b, loop) of the pieces -> their point-in-face test
         self.hemisphere: tuple | None = None  # :func:`_hemisphere` of the face (``()`` for none), when first asked
 
     def sides(self, plane: _Plane, pieces: list["_Piece"]) -> tuple[np.ndarray, np.ndarray] | None:
@@ -224,7 +225,13 @@ class _FaceData:
                             line = self.virtual[(li, k)] = Line2D(q, p - q)
                         rows.append((line, 0.0, 1.0, "virtual", li, None, None))
             pieces = [_Piece(pc, a, b, kind, li, e, [], [], box) for pc, a, b, kind, li, e, box in rows]
-            entry = self.by_eps[plane.eps] = (pieces, _Inside(pieces))
+            # The point-in-face test reads only the pieces' curves, ranges and loops: another eps with the
+            # same virtual segments (the clip's and the split's) shares it, and the polylines it has built.
+            key = tuple((id(pc), a, b, li) for pc, a, b, _, li, _, _ in rows)
+            region = self.regions.get(key)
+            if region is None:
+                region = self.regions[key] = _Inside(pieces)
+            entry = self.by_eps[plane.eps] = (pieces, region)
         templates, region = entry
         if not fresh:
             return templates, region
@@ -1644,4 +1651,9 @@ class _Graph:
                 out[-1][2] = it[2]
             else:
                 out.append([it[0], it[1], it[2]])
-        return [EdgeSpec(p.spec.curve, a, b, p.spec.pcurve, p.spec.tol) for p, a, b in out]
+        # The pieces' specs are validated and a sub-piece's ends are Python floats: the trusted constructor
+        # where they are finite and distinct (else the public one, which raises as before).
+        return [EdgeSpec._trusted(p.spec.curve, a, b, p.spec.pcurve, p.spec.tol)
+                if a != b and math.isfinite(a) and math.isfinite(b) else EdgeSpec(p.spec.curve, a, b, p.spec.pcurve,
+                                                                                   p.spec.tol)
+                for p, a, b in out]

@@ -754,6 +754,42 @@ def test_refine_scalar_distance_is_the_gap_at_the_answer(angle, tilt, ds, dt):
 
 
 @pytest.mark.parametrize("rational", [False, True])
+def test_span_polynomials_remembered_at_two_parameters_and_stacked_ahead_give_the_same_bits(rational, monkeypatch):
+    """:meth:`_PowerForm.derivatives` at two parameters remembers its answer per ``t`` at the highest order
+    asked (lower orders read its leading rows) and builds the derivative coefficients up to order 2 at once:
+    the answers equal, to the bit, those of a fresh form that builds only the orders asked
+    (``_STACKED_ORDER = 0``), and a caller writing into an answer does not change the next one."""
+    from coons.kernel import curve_intersect
+    from coons.kernel.curve_intersect import _PowerForm
+
+    rng = np.random.default_rng(5)
+    U = np.concatenate([[0.0] * 6, [0.3, 0.3, 0.55, 0.7], [1.0] * 6])
+    w = rng.uniform(0.5, 2.0, 10) if rational else None
+    curve = NurbsCurve(rng.normal(size=(10, 2)), U, 5, w)
+    form = _PowerForm(curve)
+    ends, three = np.array([0.3, 0.9]), np.array([0.3, 0.55, 0.9])
+    got = [(order, form.derivatives(ends, order), form.derivatives(three, order)) for order in (1, 0, 2, 1, 0)]
+    got[0][1][...] = np.nan  # a caller's own copy
+    again = form.derivatives(ends, 1)
+    monkeypatch.setattr(curve_intersect, "_STACKED_ORDER", 0)
+    for order, two, more in got[1:]:
+        assert np.array_equal(two, _PowerForm(curve).derivatives(ends, order))
+        assert np.array_equal(more, _PowerForm(curve).derivatives(three, order))
+    assert np.array_equal(again, _PowerForm(curve).derivatives(ends, 1))
+    # The leading rows of a higher order's answer are the lower orders' bits, on curves of several kinds.
+    for k in range(200):
+        p = int(rng.choice([2, 3, 5]))
+        n = int(rng.integers(p + 1, 40))
+        knots = np.concatenate([[0.0] * (p + 1), np.sort(rng.uniform(0.0, 3.0, n - p - 1)), [3.0] * (p + 1)])
+        weights = rng.uniform(0.5, 2.0, n) if rational else None
+        c = NurbsCurve(rng.normal(size=(n, 2 + k % 2)) * 10.0 ** rng.uniform(-3, 3), knots, p, weights)
+        t = rng.uniform(0.0, 3.0, 2)
+        high = _PowerForm(c).derivatives(t, 2)
+        for order in (0, 1):
+            assert np.array_equal(_PowerForm(c).derivatives(t, order), high[:, : order + 1])
+
+
+@pytest.mark.parametrize("rational", [False, True])
 def test_span_polynomials_at_a_few_parameters_match_those_in_many(rational):
     """:meth:`_PowerForm.derivatives` at a few parameters (their spans by bisection in Python) gives the values
     of the same parameters among many (np.searchsorted), to the bit: at knots (the span to the right), at

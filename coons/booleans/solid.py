@@ -220,11 +220,19 @@ Status and limitations
   beside a seam vertex (the cuts' end tolerance covers the vertex, ``split_face`` splits the rim
   there and one stretch is used once); a cylinder wall whose section with a sphere touches the
   sphere's seam meridian (tangent to it, near the pole: the fitted p-curve crosses the seam by
-  round-off and the trim self-intersects at sewing).  In the same runs OCCT returned wrong volumes
-  (2–120 % off the referee) in three chains where coons agreed with the referee.  Fixed since: a
-  cut running along a boundary edge of its face (the same circle, from an earlier Boolean with a
-  shared cap plane) widened its end tolerance 1000-fold per Boolean until a short cut was dropped
-  (:func:`_runs_along`).
+  round-off and the trim self-intersects at sewing); a box side tangent to a cylinder wall along a
+  line that meets another cylinder's cap plane; a sphere–cylinder section osculating the sphere
+  face's bounding meridian to fourth order (``split_face`` runs its first stretch along the
+  boundary); a cylinder inside another, tangent to its wall along a line that meets the outer one's
+  cap (the cap becomes a crescent pinched at a vertex; a 1e-6 edge is used four times).  In the same
+  runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
+  referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
+  earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a
+  short cut was dropped (:func:`_runs_along`); a straight and a curved p-curve of one shared edge
+  compared at two and three points in the merge (a ``ValueError``); a marching grid crossing a
+  branch twice in one cell near its extreme, both crossings corrected onto one root (the fitted
+  section ran back and forth: ``kernel.ssi``); the classifier's edge rule taking a farther edge for
+  a point in the plane of a face, in its hole (an open result).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

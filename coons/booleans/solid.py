@@ -266,9 +266,9 @@ from coons.tolerance import Tolerance, resolve
 from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
 from coons.topology.brep import BRep
 from coons.topology.disjoint import meeting_pair, padded_boxes, stacked
-from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, face_specs_many, point_clusters,
-                               read_unchanged_faces, remember_sewn, sew_faces, sewn_from, sewn_unchanged_faces,
-                               use_points)
+from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, _gathered_uses, face_specs, face_specs_many,
+                               point_clusters, read_unchanged_faces, remember_sewn, sew_faces, sewn_from,
+                               sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -4012,17 +4012,18 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     orig_edges = orig_edges or {}
     if not faces:
         return faces
-    tables = _face_uses(faces)  # the uses' points and tolerances, cached per face spec
-    starts = np.concatenate([x.points[:, 0] for x in tables])
+    # The uses' points, ranges and curve ids (per face spec, cached; a result's faces from its sewing's
+    # columns in one take: sew._gathered_uses).
+    (points, ranges, curve_id), _, count = _gathered_uses(faces, ("points", "ranges", "curve_id"))
+    starts = points[:, 0]
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
-    use_tol = np.maximum(np.concatenate([x.ranges[:, 2] for x in tables]), t.linear)
+    use_tol = np.maximum(ranges[:, 2], t.linear)
     start_tol = _cluster_max(starts, use_tol)
-    first = np.cumsum([0] + [len(x.where) for x in tables])
+    first = np.concatenate([[0], np.cumsum(count)])
     # An unchanged face or edge use of an operand can only meet vertices not of that operand
     # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.  Every use of
     # an unchanged face is an unchanged use of its operand.
     info_of = [orig.get(id(f)) for f in faces]
-    count = np.diff(first)
     group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), count)
     # (the uses of the other faces looked up one by one, their rows written in one assignment)
     other = np.repeat(np.array([i is None for i in info_of], dtype=bool), count)
@@ -4069,8 +4070,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     is_open = np.zeros(int(first[-1]), dtype=bool)
     is_open[np.repeat(of_todo, count)] = open_flag
     open_rows = np.flatnonzero(is_open)
-    open_ranges = np.concatenate([x.ranges for x in tables])[open_rows]
-    keys = (np.concatenate([x.curve_id for x in tables])[open_rows], *open_ranges.T)
+    keys = (curve_id[open_rows], *ranges[open_rows].T)
     X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t, keys)
     # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
     # faces' open uses have none); each face's open uses are a run of open_uses (at least one).
@@ -4217,7 +4217,28 @@ def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) ->
     # Coordinate-wise (a norm over the short last axis is several times slower; same sums in the same order).
     rad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1] + D[..., 2] * D[..., 2]).max(axis=1)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
-    return X, cKDTree(starts).query_ball_point(c, rad * 1.05 + thr)
+    r = rad * 1.05 + thr
+    if len(uses) * starts.shape[0] > _BALL_PAIRS:
+        return X, cKDTree(starts).query_ball_point(c, r)
+    return X, _in_balls(c, r, starts)
+
+
+#: Up to this many ball–point pairs :func:`_split_candidates` tests every pair (a sequential cut's few
+#: open uses against all of a plate's vertices: building the tree cost more than the whole test).
+_BALL_PAIRS = 1 << 15
+
+
+def _in_balls(c: np.ndarray, r: np.ndarray, P: np.ndarray) -> list[np.ndarray]:
+    """Per ball ``c[i] (3,), r[i]``, the indices of the points ``P (n, 3)`` within it, ascending: what
+    ``cKDTree(P).query_ball_point(c, r)`` gives, by the test its leaves make (the squared distance
+    summed over the coordinates in order, against ``r²``) on every pair."""
+    d2 = P[None, :, 0] - c[:, 0, None]
+    d2 *= d2
+    for j in (1, 2):
+        dj = P[None, :, j] - c[:, j, None]
+        d2 += dj * dj
+    rows, cols = np.nonzero(d2 <= (r * r)[:, None])
+    return np.split(cols, np.searchsorted(rows, np.arange(1, c.shape[0])))
 
 
 def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
@@ -4262,13 +4283,14 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
         P, ptol = face_foreign if key == -1 else foreign_of[key]
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
         for s0 in range(0, idx.size, step):
-            pad = ptol[None, :] + thr[idx[s0 : s0 + step], None]  # (n, m)
+            pad = ptol[:, None] + thr[None, idx[s0 : s0 + step]]  # (m vertices, n uses)
             Bs = B[s0 : s0 + step]
-            # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
+            # (coordinate by coordinate, and reduced over the vertices, the first axis: numpy reduces a
+            # short last axis row by row)
             near = np.ones(pad.shape, dtype=bool)
             for j in range(3):
-                near &= (P[None, :, j] >= Bs[:, 0, j, None] - pad) & (P[None, :, j] <= Bs[:, 1, j, None] + pad)
-            clear[idx[s0 : s0 + step]] = ~near.any(axis=1)
+                near &= (P[:, j, None] >= Bs[None, :, 0, j] - pad) & (P[:, j, None] <= Bs[None, :, 1, j] + pad)
+            clear[idx[s0 : s0 + step]] = ~near.any(axis=0)
     return clear
 
 
@@ -4875,25 +4897,30 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
     or two collinear :class:`Line` edges whose p-curves are :class:`Line2D` on one line.  Closed
     edges are never created (the vertex stays when the fused edge would end where it starts).
     """
-    tables = _face_uses(faces)  # the uses' points of the faces as they come, cached per face spec
+    # The uses' points of the faces as they come (per face spec, cached; a result's faces from its
+    # sewing's columns in one take: sew._gathered_uses).
+    (P, W), _, per_face = _gathered_uses(faces, ("points", "where"))
     loops: dict[int, list[list[EdgeSpec]]] = {}  # the loops of the faces changed so far, as lists
     points = points if points is not None else _UsePoints()  # only a fused use is new in a round
     for _ in range(64):  # each round removes at least one vertex; a bound against surprises
-        starts, where = [], []
-        for fi, x in enumerate(tables):
-            fl = loops.get(fi)
-            if fl is None:
-                starts.append(x.points[:, 0])
-                where.append(x.where[:, :2])
-            else:
-                uses = [e for loop in fl for e in loop]
-                starts.append(points.get(uses)[:, 0])
-                where.append(np.array([(li, pi) for li, loop in enumerate(fl) for pi in range(len(loop))],
-                                      dtype=np.int64).reshape(-1, 2))
-        counts = [w.shape[0] for w in where]
+        if not loops:
+            counts, where_a, starts_a = per_face, W[:, :2], P[:, 0]
+        else:  # (the changed faces' uses as they are now, the others' rows as they came)
+            starts, where = [], []
+            for fi, (a, b) in enumerate(itertools.pairwise(np.concatenate([[0], np.cumsum(per_face)]).tolist())):
+                fl = loops.get(fi)
+                if fl is None:
+                    starts.append(P[a:b, 0])
+                    where.append(W[a:b, :2])
+                else:
+                    uses = [e for loop in fl for e in loop]
+                    starts.append(points.get(uses)[:, 0])
+                    where.append(np.array([(li, pi) for li, loop in enumerate(fl) for pi in range(len(loop))],
+                                          dtype=np.int64).reshape(-1, 2))
+            counts = [w.shape[0] for w in where]
+            where_a = np.concatenate(where)
+            starts_a = np.concatenate(starts)
         face_of = np.repeat(np.arange(len(faces)), counts)
-        where_a = np.concatenate(where)
-        starts_a = np.concatenate(starts)
         label = point_clusters(starts_a, np.full(starts_a.shape[0], t.linear))
         count = np.bincount(label)
         order = np.argsort(label, kind="stable")  # the uses leaving each vertex, ascending

@@ -1288,6 +1288,46 @@ def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, st
             assert got[i].dtype == cand.dtype
 
 
+@settings(max_examples=30)
+@given(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10), st.floats(-10, 10)), min_size=1, max_size=60),
+       st.lists(st.tuples(st.integers(0, 59), st.floats(-1, 1), st.floats(0, 4)), min_size=1, max_size=12))
+def test_in_balls_is_the_tree_query(points, balls):
+    """_in_balls (every pair) gives what the k-d tree's ball query gives, points on a ball's sphere included."""
+    from scipy.spatial import cKDTree
+
+    P = np.array(points, dtype=np.float64).reshape(-1, 3)
+    at = np.array([b[0] % P.shape[0] for b in balls])
+    c = P[at] + np.array([b[1] for b in balls])[:, None]
+    r = np.array([b[2] for b in balls])
+    # (a point exactly on each ball's sphere along x, where the two tests must agree to the last bit)
+    P = np.concatenate([P, c + np.stack([r, np.zeros_like(r), np.zeros_like(r)], axis=1)])
+    want = cKDTree(P).query_ball_point(c, r)
+    got = S._in_balls(c, r, P)
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g.tolist() == w
+
+
+def test_split_candidates_without_the_tree_are_the_trees():
+    """The T-junction candidates of a cut plate's uses, each ball tested against every vertex (few pairs)
+    and by the k-d tree (many), are the same."""
+    t = S.resolve(None)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
+    specs = S._Operand(r, "A", t).specs
+    uses = [e for spec in specs for loop in spec.loops for e in loop]
+    starts = S.use_points(specs)[:, 0]
+    X, every = S._split_candidates(uses, starts, t)
+    small = S._BALL_PAIRS
+    try:
+        S._BALL_PAIRS = -1  # (the tree, whatever the size)
+        X2, tree = S._split_candidates(uses, starts, t)
+    finally:
+        S._BALL_PAIRS = small
+    np.testing.assert_array_equal(X, X2)
+    assert [c.tolist() for c in every] == [list(c) for c in tree]
+    assert sum(map(len, tree)) > len(uses)  # (each use meets at least its own ends)
+
+
 def test_cut_ends_are_each_curves_evaluate():
     """The cut ends of the pipeline (evaluate_curves: lines and circles stacked, ellipses and a NURBS curve
     one by one) are each curve's own ``evaluate`` bit for bit."""

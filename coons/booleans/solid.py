@@ -4056,7 +4056,10 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 continue  # no foreign vertex near this face
             near = starts[inside], start_tol[inside]
         sl = slice(int(first[k]), int(first[k + 1]))
-        clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of)
+        edges = [e for loop in f.loops for e in loop]
+        # (a face of many loops, as a plate's top gaining a hole, boxes only the uses after the last one's)
+        boxes = _face_use_boxes(edges) if len(f.loops) > _PREFIX_LOOPS else None
+        clear = _clear_uses(edges, group[sl], use_tol[sl], near, foreign_of, boxes)
         if not clear.all():
             todo[k] = clear
     if not todo:
@@ -4258,7 +4261,8 @@ def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.nd
     return [kept[first[i]:first[i + 1]] for i in range(len(cand))]
 
 
-def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict) -> np.ndarray:
+def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict,
+                boxes: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """``(k,)`` bool: which of a face's edge uses no vertex can split (see :func:`_split_edges_at_vertices`).
 
     ``group (k,)``: the operand of each use (0 for a new one), ``thr (k,)`` its tolerance
@@ -4267,7 +4271,8 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     ``foreign_of[operand of the use]``; a new use has none and is never clear): a use is clear
     when no such vertex lies in its box (:func:`_use_box_array`) padded by both tolerances.  All uses
     of one group against all their foreign vertices in one array test (a plate face with many
-    holes has many edges).
+    holes has many edges).  ``boxes``: :func:`_use_box_array` of ``edges`` when the caller has it
+    (:func:`_face_use_boxes`).
     """
     clear = np.zeros(len(edges), dtype=bool)
     keys = np.full(len(edges), -1, dtype=np.int64) if face_foreign is not None else group
@@ -4276,7 +4281,7 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
         if key != -1 and key not in foreign_of:
             continue
         rows = np.flatnonzero(keys == key)
-        B, none = _use_box_array([edges[i] for i in rows.tolist()])
+        B, none = _use_box_array([edges[i] for i in rows.tolist()]) if boxes is None else (boxes[0][rows], boxes[1][rows])
         idx, B = rows[~none], B[~none]
         if idx.size == 0:
             continue
@@ -4296,6 +4301,33 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
 
 #: Use–vertex pairs held at once by :func:`_clear_uses` (memory bound).
 _CLEAR_CHUNK = 1 << 18
+
+
+def _face_use_boxes(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_use_box_array` of a face's uses ``edges`` (in loop order), the boxes of the uses that the last
+    face boxed here with the same first use had (:data:`_FACE_USE_BOXES`; a prefix of ``edges``, use for use)
+    taken in one piece: a plate's top gaining a hole every cut keeps its other loops' uses, first."""
+    got = _FACE_USE_BOXES.get(edges[0]) if edges else None
+    n = 0
+    if got is not None:
+        rest, B, none = got
+        n = len(rest) + 1
+        if n > len(edges) or not all(map(operator.is_, rest, edges[1:n])):
+            n = 0
+    if n:
+        B1, none1 = _use_box_array(edges[n:])
+        B, none = np.concatenate([B, B1]), np.concatenate([none, none1])
+    else:
+        B, none = _use_box_array(edges)
+    if edges:
+        _FACE_USE_BOXES.set(edges[0], (tuple(edges[1:]), _frozen(B), _frozen(none)))
+    return B, none
+
+
+#: First use of a face -> ``(its other uses, the boxes of :func:`_use_box_array` of all its uses, where there
+#: is none)`` of the last face of many loops boxed with that first use (:func:`_face_use_boxes`).  The value
+#: never holds the key (the first use is stored without it).
+_FACE_USE_BOXES = IdentityMemo()
 
 
 def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.ndarray,
@@ -4318,8 +4350,12 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     Q, qt = P[cand], ptol[cand]
     if n * cand.size <= _SMALL_BOX_PAIRS:
         # (few boxes and points: the box test on every pair costs less than the tree; the same test)
-        pad = qt[None, :, None]
-        rows, cols = np.nonzero(np.all((Q[None] >= lo[:, None] - pad) & (Q[None] <= hi[:, None] + pad), axis=2))
+        # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
+        pad = qt[None, :]
+        inside = np.ones((n, cand.size), dtype=bool)
+        for j in range(3):
+            inside &= (Q[None, :, j] >= lo[:, j, None] - pad) & (Q[None, :, j] <= hi[:, j, None] + pad)
+        rows, cols = np.nonzero(inside)
         out = [cand[:0]] * n  # (most boxes hold none: one empty array for them)
         if rows.size:
             ends = np.flatnonzero(np.diff(rows)) + 1

@@ -1206,6 +1206,24 @@ def test_use_box_array_is_the_stacked_edge_boxes():
     assert none3.tolist() == none.tolist()
 
 
+def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
+    """The boxes of a plate's top gaining a hole (the kept face's uses' boxes in one piece, the new loop's
+    alone) are _use_box_array's of all its uses; a face whose uses are not a prefix's boxes them all."""
+    t = S.resolve(None)
+    plate = Box(40, 40, 5)
+    tops = []
+    for x in (-10.0, 0.0, 10.0):
+        plate = S.difference(plate, Cylinder(2, 10).translate((x, 0.0, 0.0)), method="brep")
+        top = max(S._Operand(plate, "A", t).specs, key=lambda f: len(f.loops))
+        tops.append([e for loop in top.loops for e in loop])
+    S._FACE_USE_BOXES.clear()
+    for edges in tops + tops[::-1] + [tops[0][:1] + tops[2][1:]]:
+        B, none = S._face_use_boxes(edges)
+        B0, none0 = S._use_box_array(edges)
+        np.testing.assert_array_equal(B, B0)
+        np.testing.assert_array_equal(none, none0)
+
+
 def test_fuse_edges_keeps_untouched_faces():
     t = S.resolve(None)
     specs = S._Operand(Box(1, 2, 3), "A", t).specs

@@ -263,7 +263,7 @@ from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.polygon import proper_crossings
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
+from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, read_only as _frozen
 from coons.topology.brep import BRep
 from coons.topology.disjoint import meeting_pair, padded_boxes, stacked
 from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, _gathered_uses, face_specs, face_specs_many,
@@ -537,19 +537,21 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     faces = _select(op, pieces_a, status_a, pieces_b, status_b)
     if not faces:
         return Solid.empty()
-    # Faces passed through unchanged: their operand (1 for A, 2 for B) and padded space box.
-    orig = {id(spec): (1, A.lo[f], A.hi[f]) for f, spec in enumerate(A.specs)}
-    orig.update({id(spec): (2, B.lo[f], B.hi[f]) for f, spec in enumerate(B.specs)})
+    # Faces passed through unchanged: their operand (1 for A, 2 for B) and index there (the padded
+    # space boxes are the operands' rows).
+    orig = {id(spec): (1, f) for f, spec in enumerate(A.specs)}
+    orig.update({id(spec): (2, f) for f, spec in enumerate(B.specs)})
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
     # edges): their operand.  Only uses of faces that are not passed through whole are looked up,
-    # and those come from split faces (a piece keeps uses of its own face only): A's split faces,
-    # then all of B's (B's entry wins for a use in both, as in a map over all uses; B is the tool,
-    # and A, a part cut many times, has thousands of uses on faces no cut touched).
+    # and those come from split faces (a piece keeps uses of its own face only): all of B's, then
+    # A's split faces (B's entry wins for a use in both, the first found by id; B is the tool, and
+    # A, a part cut many times, has thousands of uses on faces no cut touched).
     split_a = {f for f, spec in pieces_a if spec is not A.specs[f]}
-    orig_edges = {id(e): 1 for f in split_a for loop in A.specs[f].loops for e in loop}
-    orig_edges.update({id(e): 2 for spec in B.specs for loop in spec.loops for e in loop})
+    uses_b = [e for spec in B.specs for loop in spec.loops for e in loop]
+    uses_a = [e for f in split_a for loop in A.specs[f].loops for e in loop]
+    orig_edges = (*id_index(uses_b + uses_a), np.repeat([2, 1], [len(uses_b), len(uses_a)]))
     # (the uses' end and mid points: per face spec, sew.use_points, read by the three passes and sewing)
-    faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
+    faces = _split_edges_at_vertices(faces, t, orig, orig_edges, {1: (A.lo, A.hi), 2: (B.lo, B.hi)})
     faces = _merge(faces, t)
     faces = _fuse_edges(faces, t)
     return _sew(faces, t)  # (which records the specs the result was sewn from: sew.sewn_from)
@@ -3989,7 +3991,7 @@ def _reversed_use(e: EdgeSpec) -> EdgeSpec:
 
 # ---------------------------------------------------------------------- T-junctions
 def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None,
-                             orig_edges: dict | None = None) -> list[FaceSpec]:
+                             orig_edges: tuple | None = None, boxes: dict | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -3998,9 +4000,11 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     to have the same vertices, so every vertex of the selected faces that lies on the interior
     of an edge use (within the edges' tolerance, parameter strictly inside) splits it.
 
-    ``orig`` maps ``id(face)`` of faces passed through unchanged to ``(operand 1 or 2, lo, hi)``
-    (their padded space box), ``orig_edges`` maps ``id(edge use)`` of edge uses passed through
-    unchanged (also inside split faces) to their operand.  A vertex belongs to the operand of the
+    ``orig`` maps ``id(face)`` of faces passed through unchanged to ``(operand 1 or 2, index)`` and
+    ``boxes`` (given with ``orig``) each operand to its faces' padded space boxes ``(lo, hi)``, ``(F, 3)``
+    each; ``orig_edges`` gives the operand of edge uses passed through unchanged (also inside split
+    faces): ``(ids, order, operand)``, :func:`~coons.topology._memo.id_index` of those uses and the
+    operand of each (the first found of a use listed twice).  A vertex belongs to the operand of the
     edge use it starts (0 for new ones); an unchanged face or edge use is only tested against the
     vertices of the other operand and new ones (a valid solid has no vertex inside its own
     edges), and skipped when none lies in its box: after many cuts a plate's faces keep hundreds
@@ -4009,12 +4013,11 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     from coons.booleans.classify import _curve_closest
 
     orig = orig or {}
-    orig_edges = orig_edges or {}
     if not faces:
         return faces
     # The uses' points, ranges and curve ids (per face spec, cached; a result's faces from its sewing's
     # columns in one take: sew._gathered_uses).
-    (points, ranges, curve_id), _, count = _gathered_uses(faces, ("points", "ranges", "curve_id"))
+    (points, ranges, curve_id, spec), _, count = _gathered_uses(faces, ("points", "ranges", "curve_id", "spec"))
     starts = points[:, 0]
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
     use_tol = np.maximum(ranges[:, 2], t.linear)
@@ -4025,24 +4028,24 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     # an unchanged face is an unchanged use of its operand.
     info_of = [orig.get(id(f)) for f in faces]
     group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), count)
-    # (the uses of the other faces looked up one by one, their rows written in one assignment)
+    # (the uses of the other faces found by id, all at once)
     other = np.repeat(np.array([i is None for i in info_of], dtype=bool), count)
-    group[other] = [orig_edges.get(id(e), 0) for f, i in zip(faces, info_of) if i is None for loop in f.loops for e in loop]
+    if orig_edges is not None and orig_edges[0].size and other.any():
+        at, found = found_by_id(spec[other], orig_edges[0], orig_edges[1])
+        group[other] = np.where(found, orig_edges[2][at], 0)
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     # The foreign vertices in the box of each unchanged face (after many cuts most faces of a
     # plate are unchanged and far from the new vertices; :func:`_foreign_in_boxes`).
     kept = [k for k, i in enumerate(info_of) if i is not None]
     face_foreign: dict[int, np.ndarray] = {}
     if kept:
-        info = [info_of[k] for k in kept]
-        g_of = np.array([i[0] for i in info], dtype=np.int64)
-        LO = np.array([i[1] for i in info], dtype=np.float64).reshape(-1, 3)
-        HI = np.array([i[2] for i in info], dtype=np.float64).reshape(-1, 3)
+        g_of, f_of = np.array([info_of[k] for k in kept], dtype=np.int64).reshape(-1, 2).T
         for g in (1, 2):
             sel = np.flatnonzero(g_of == g)
             foreign = np.flatnonzero(group != g)
             if sel.size and foreign.size:
-                for k, inside in zip(sel.tolist(), _foreign_in_boxes(LO[sel], HI[sel], starts, start_tol, foreign)):
+                lo, hi = boxes[g][0][f_of[sel]], boxes[g][1][f_of[sel]]
+                for k, inside in zip(sel.tolist(), _foreign_in_boxes(lo, hi, starts, start_tol, foreign)):
                     if inside.size:
                         face_foreign[kept[k]] = inside
     # Which uses of which faces a vertex may split (:func:`_clear_uses`), then the candidate

@@ -1616,6 +1616,24 @@ def test_collector_paused_over_an_n_ary_call(monkeypatch):
     assert abs(r.volume - (1600 - 3 * np.pi * 4)) < 1e-9
 
 
+def _operand_map(orig_edges) -> dict:
+    """The T-junction pass's operands of edge uses, ``(ids, order, operand)``, as a dict ``id -> operand``
+    (the first found of an id listed twice)."""
+    out: dict = {}
+    if orig_edges is not None:
+        ids, order, operand = orig_edges
+        for k, g in zip(ids.tolist(), operand[order].tolist()):
+            out.setdefault(k, g)
+    return out
+
+
+def _operand_table(m: dict) -> tuple:
+    """:func:`_operand_map`'s inverse: a dict ``id -> operand`` as the pass's ``(ids, order, operand)``."""
+    keys = np.array(list(m), dtype=np.int64)
+    order = np.argsort(keys, kind="stable")
+    return keys[order], order, np.array(list(m.values()), dtype=np.int64)
+
+
 def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     """_boolean maps to their operand only the uses of A's split faces and of B; every use the
     T-junction pass looks up (those of faces not passed through whole) gets the operand a map
@@ -1623,9 +1641,9 @@ def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     seen = []
     real = S._split_edges_at_vertices
 
-    def spy(faces, t, orig=None, orig_edges=None):
-        seen.append((list(faces), dict(orig), dict(orig_edges)))
-        return real(faces, t, orig, orig_edges)
+    def spy(faces, t, orig=None, orig_edges=None, boxes=None):
+        seen.append((list(faces), dict(orig), _operand_map(orig_edges)))
+        return real(faces, t, orig, orig_edges, boxes)
 
     made = []
     real_operand = S._Operand
@@ -1736,9 +1754,9 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
     calls, sizes = [], []
     real, real_cand = S._split_edges_at_vertices, S._split_candidates
 
-    def spy(faces, t, orig=None, orig_edges=None):
-        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
-        return real(faces, t, orig, orig_edges)
+    def spy(faces, t, orig=None, orig_edges=None, boxes=None):
+        calls.append((list(faces), t, dict(orig or {}), _operand_map(orig_edges), boxes))
+        return real(faces, t, orig, orig_edges, boxes)
 
     def spy_cand(uses, starts, t):
         sizes.append(len(uses))
@@ -1756,9 +1774,9 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
     assert calls
     monkeypatch.setattr(S, "_split_candidates", spy_cand)
     pairs, split = [], []
-    for faces, t, orig, orig_edges in calls:
+    for faces, t, orig, orig_edges, boxes in calls:
         before = len(sizes)
-        shared = real(faces, t, orig, orig_edges)
+        shared = real(faces, t, orig, _operand_table(orig_edges), boxes)
         n_shared = sizes[-1] if len(sizes) > before else 0
         # Each use on its own copy of its curve (the operand maps re-keyed): no two uses share a key.
         alone, edges_alone = [], {}
@@ -1776,7 +1794,7 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
             if id(f) in orig:
                 orig[id(g)] = orig[id(f)]
         before = len(sizes)
-        single = real(alone, t, orig, edges_alone)
+        single = real(alone, t, orig, _operand_table(edges_alone), boxes)
         n_single = sizes[-1] if len(sizes) > before else 0
         assert [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in shared] == \
             [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in single]
@@ -1808,9 +1826,9 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
     calls = []
     real, real_shared, real_closest = S._split_edges_at_vertices, S._shared_candidates, classify._curve_closest
 
-    def spy(faces, t, orig=None, orig_edges=None):
-        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
-        return real(faces, t, orig, orig_edges)
+    def spy(faces, t, orig=None, orig_edges=None, boxes=None):
+        calls.append((list(faces), t, dict(orig or {}), orig_edges, boxes))
+        return real(faces, t, orig, orig_edges, boxes)
 
     monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
     _t_junction_case(case)
@@ -1827,13 +1845,13 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
 
     monkeypatch.setattr(classify, "_curve_closest", closest)
     changed = False
-    for faces, t, orig, orig_edges in calls:
+    for faces, t, orig, orig_edges, boxes in calls:
         walked.append(0)
-        fast = real(faces, t, orig, orig_edges)
+        fast = real(faces, t, orig, orig_edges, boxes)
         with monkeypatch.context() as m:
             m.setattr(S, "_shared_candidates", every_use)
             walked.append(0)
-            full = real(faces, t, orig, orig_edges)
+            full = real(faces, t, orig, orig_edges, boxes)
         assert walked[-2] < walked[-1]  # (the fast pass walked fewer uses)
         assert [a is b for a, b in zip(fast, faces)] == [a is b for a, b in zip(full, faces)]
         assert [[[(e.curve, e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in fast] == \

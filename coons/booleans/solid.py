@@ -4059,10 +4059,9 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 continue  # no foreign vertex near this face
             near = starts[inside], start_tol[inside]
         sl = slice(int(first[k]), int(first[k + 1]))
-        edges = [e for loop in f.loops for e in loop]
-        # (a face of many loops, as a plate's top gaining a hole, boxes only the uses after the last one's)
-        boxes = _face_use_boxes(edges) if len(f.loops) > _PREFIX_LOOPS else None
-        clear = _clear_uses(edges, group[sl], use_tol[sl], near, foreign_of, boxes)
+        # (a face of many loops, as a plate's top gaining a hole, boxes only the uses the last one had not)
+        clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of,
+                            kept=len(f.loops) > _PREFIX_LOOPS)
         if not clear.all():
             todo[k] = clear
     if not todo:
@@ -4265,7 +4264,7 @@ def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.nd
 
 
 def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict,
-                boxes: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                kept: bool = False) -> np.ndarray:
     """``(k,)`` bool: which of a face's edge uses no vertex can split (see :func:`_split_edges_at_vertices`).
 
     ``group (k,)``: the operand of each use (0 for a new one), ``thr (k,)`` its tolerance
@@ -4274,17 +4273,18 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     ``foreign_of[operand of the use]``; a new use has none and is never clear): a use is clear
     when no such vertex lies in its box (:func:`_use_box_array`) padded by both tolerances.  All uses
     of one group against all their foreign vertices in one array test (a plate face with many
-    holes has many edges).  ``boxes``: :func:`_use_box_array` of ``edges`` when the caller has it
-    (:func:`_face_use_boxes`).
+    holes has many edges).  ``kept``: the boxes through :func:`_face_use_boxes` (those of the last
+    face extended by this one kept).
     """
     clear = np.zeros(len(edges), dtype=bool)
     keys = np.full(len(edges), -1, dtype=np.int64) if face_foreign is not None else group
     # (the distinct keys, ascending, of a face's few uses by a set: np.unique's sort costs more)
-    for key in ([-1] if face_foreign is not None else sorted(set(group.tolist()))):
-        if key != -1 and key not in foreign_of:
-            continue
+    tested = [-1] if face_foreign is not None else [k for k in sorted(set(group.tolist())) if k in foreign_of]
+    if kept and tested:
+        face_boxes = _face_use_boxes(edges, np.isin(keys, tested))
+    for key in tested:
         rows = np.flatnonzero(keys == key)
-        B, none = _use_box_array([edges[i] for i in rows.tolist()]) if boxes is None else (boxes[0][rows], boxes[1][rows])
+        B, none = (face_boxes[0][rows], face_boxes[1][rows]) if kept else _use_box_array([edges[i] for i in rows.tolist()])
         idx, B = rows[~none], B[~none]
         if idx.size == 0:
             continue
@@ -4306,30 +4306,35 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
 _CLEAR_CHUNK = 1 << 18
 
 
-def _face_use_boxes(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_use_box_array` of a face's uses ``edges`` (in loop order), the boxes of the uses that the last
-    face boxed here with the same first use had (:data:`_FACE_USE_BOXES`; a prefix of ``edges``, use for use)
-    taken in one piece: a plate's top gaining a hole every cut keeps its other loops' uses, first."""
+def _face_use_boxes(edges: list[EdgeSpec], need: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_use_box_array` of the uses ``edges`` of a face (in loop order) in the rows ``need`` (``(k,)``
+    bool; the other rows are left unset), ``(k, 2, 3)`` and ``(k,)``.  The rows that the last face boxed here
+    with the same first use had boxed (:data:`_FACE_USE_BOXES`; its uses a prefix of ``edges``, use for use)
+    are taken in one piece, only the others are boxed: a plate's top gaining a hole every cut keeps its
+    other loops' uses first and boxes the last cut's new loop (the new one is not tested, a new use has no
+    foreign vertex)."""
+    k = len(edges)
+    B = np.empty((k, 2, 3))
+    none = np.zeros(k, dtype=bool)
+    known = np.zeros(k, dtype=bool)
     got = _FACE_USE_BOXES.get(edges[0]) if edges else None
-    n = 0
     if got is not None:
-        rest, B, none = got
+        rest, B0, none0, known0 = got
         n = len(rest) + 1
-        if n > len(edges) or not all(map(operator.is_, rest, edges[1:n])):
-            n = 0
-    if n:
-        B1, none1 = _use_box_array(edges[n:])
-        B, none = np.concatenate([B, B1]), np.concatenate([none, none1])
-    else:
-        B, none = _use_box_array(edges)
+        if n <= k and all(map(operator.is_, rest, edges[1:n])):
+            B[:n], none[:n], known[:n] = B0, none0, known0
+    todo = np.flatnonzero(need & ~known)
+    if todo.size:
+        B[todo], none[todo] = _use_box_array([edges[i] for i in todo.tolist()])
+        known[todo] = True
     if edges:
-        _FACE_USE_BOXES.set(edges[0], (tuple(edges[1:]), _frozen(B), _frozen(none)))
+        _FACE_USE_BOXES.set(edges[0], (tuple(edges[1:]), _frozen(B), _frozen(none), _frozen(known)))
     return B, none
 
 
-#: First use of a face -> ``(its other uses, the boxes of :func:`_use_box_array` of all its uses, where there
-#: is none)`` of the last face of many loops boxed with that first use (:func:`_face_use_boxes`).  The value
-#: never holds the key (the first use is stored without it).
+#: First use of a face -> ``(its other uses, the boxes of :func:`_use_box_array` of its uses, where there is
+#: none, which rows are boxed)`` of the last face of many loops boxed with that first use
+#: (:func:`_face_use_boxes`).  The value never holds the key (the first use is stored without it).
 _FACE_USE_BOXES = IdentityMemo()
 
 

@@ -1207,8 +1207,8 @@ def test_use_box_array_is_the_stacked_edge_boxes():
 
 
 def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
-    """The boxes of a plate's top gaining a hole (the kept face's uses' boxes in one piece, the new loop's
-    alone) are _use_box_array's of all its uses; a face whose uses are not a prefix's boxes them all."""
+    """The boxes of a plate's top gaining a hole (the rows the kept face boxed in one piece, the others
+    alone) are _use_box_array's in every row asked for; a face whose uses are not a prefix's boxes them."""
     t = S.resolve(None)
     plate = Box(40, 40, 5)
     tops = []
@@ -1217,11 +1217,13 @@ def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
         top = max(S._Operand(plate, "A", t).specs, key=lambda f: len(f.loops))
         tops.append([e for loop in top.loops for e in loop])
     S._FACE_USE_BOXES.clear()
+    rng = np.random.default_rng(3)
     for edges in tops + tops[::-1] + [tops[0][:1] + tops[2][1:]]:
-        B, none = S._face_use_boxes(edges)
-        B0, none0 = S._use_box_array(edges)
-        np.testing.assert_array_equal(B, B0)
-        np.testing.assert_array_equal(none, none0)
+        for need in (np.ones(len(edges), dtype=bool), rng.random(len(edges)) < 0.5):
+            B, none = S._face_use_boxes(edges, need)
+            B0, none0 = S._use_box_array(edges)
+            np.testing.assert_array_equal(B[need], B0[need])
+            np.testing.assert_array_equal(none[need], none0[need])
 
 
 def test_fuse_edges_keeps_untouched_faces():

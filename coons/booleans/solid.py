@@ -271,12 +271,12 @@ from coons.kernel.onsurface import curve_derivatives, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.kernel.polygon import proper_crossings
 from coons.tolerance import Tolerance, resolve
-from coons.topology._memo import IdentityMemo, is_value, read_only as _frozen
+from coons.topology._memo import IdentityMemo, found_by_id, id_index, is_value, read_only as _frozen
 from coons.topology.brep import BRep
 from coons.topology.disjoint import meeting_pair, padded_boxes, stacked
-from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, face_specs, face_specs_many, point_clusters,
-                               read_unchanged_faces, remember_sewn, sew_faces, sewn_from, sewn_unchanged_faces,
-                               use_points)
+from coons.topology.sew import (EdgeSpec, FaceSpec, _face_uses, _gathered_uses, face_specs, face_specs_many,
+                               point_clusters, read_unchanged_faces, remember_sewn, sew_faces, sewn_from,
+                               sewn_unchanged_faces, use_points)
 from coons.topology.shape import Solid
 
 __all__ = ["union", "difference", "intersection", "boolean", "is_polyhedral", "reversed_face",
@@ -545,19 +545,21 @@ def _boolean(a: Solid, b: Solid, op: str, t: Tolerance) -> Solid:
     faces = _select(op, pieces_a, status_a, pieces_b, status_b)
     if not faces:
         return Solid.empty()
-    # Faces passed through unchanged: their operand (1 for A, 2 for B) and padded space box.
-    orig = {id(spec): (1, A.lo[f], A.hi[f]) for f, spec in enumerate(A.specs)}
-    orig.update({id(spec): (2, B.lo[f], B.hi[f]) for f, spec in enumerate(B.specs)})
+    # Faces passed through unchanged: their operand (1 for A, 2 for B) and index there (the padded
+    # space boxes are the operands' rows).
+    orig = {id(spec): (1, f) for f, spec in enumerate(A.specs)}
+    orig.update({id(spec): (2, f) for f, spec in enumerate(B.specs)})
     # Edge uses passed through unchanged (split faces keep the EdgeSpec objects of their untouched
     # edges): their operand.  Only uses of faces that are not passed through whole are looked up,
-    # and those come from split faces (a piece keeps uses of its own face only): A's split faces,
-    # then all of B's (B's entry wins for a use in both, as in a map over all uses; B is the tool,
-    # and A, a part cut many times, has thousands of uses on faces no cut touched).
+    # and those come from split faces (a piece keeps uses of its own face only): all of B's, then
+    # A's split faces (B's entry wins for a use in both, the first found by id; B is the tool, and
+    # A, a part cut many times, has thousands of uses on faces no cut touched).
     split_a = {f for f, spec in pieces_a if spec is not A.specs[f]}
-    orig_edges = {id(e): 1 for f in split_a for loop in A.specs[f].loops for e in loop}
-    orig_edges.update({id(e): 2 for spec in B.specs for loop in spec.loops for e in loop})
+    uses_b = [e for spec in B.specs for loop in spec.loops for e in loop]
+    uses_a = [e for f in split_a for loop in A.specs[f].loops for e in loop]
+    orig_edges = (*id_index(uses_b + uses_a), np.repeat([2, 1], [len(uses_b), len(uses_a)]))
     # (the uses' end and mid points: per face spec, sew.use_points, read by the three passes and sewing)
-    faces = _split_edges_at_vertices(faces, t, orig, orig_edges)
+    faces = _split_edges_at_vertices(faces, t, orig, orig_edges, {1: (A.lo, A.hi), 2: (B.lo, B.hi)})
     faces = _merge(faces, t)
     faces = _fuse_edges(faces, t)
     return _sew(faces, t)  # (which records the specs the result was sewn from: sew.sewn_from)
@@ -4014,7 +4016,7 @@ def _reversed_use(e: EdgeSpec) -> EdgeSpec:
 
 # ---------------------------------------------------------------------- T-junctions
 def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | None = None,
-                             orig_edges: dict | None = None) -> list[FaceSpec]:
+                             orig_edges: tuple | None = None, boxes: dict | None = None) -> list[FaceSpec]:
     """Split every edge use at the end points of other uses lying inside it (T-junctions).
 
     A cut ending on a boundary edge of one face splits that edge there (``split_face``), but the
@@ -4023,9 +4025,11 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     to have the same vertices, so every vertex of the selected faces that lies on the interior
     of an edge use (within the edges' tolerance, parameter strictly inside) splits it.
 
-    ``orig`` maps ``id(face)`` of faces passed through unchanged to ``(operand 1 or 2, lo, hi)``
-    (their padded space box), ``orig_edges`` maps ``id(edge use)`` of edge uses passed through
-    unchanged (also inside split faces) to their operand.  A vertex belongs to the operand of the
+    ``orig`` maps ``id(face)`` of faces passed through unchanged to ``(operand 1 or 2, index)`` and
+    ``boxes`` (given with ``orig``) each operand to its faces' padded space boxes ``(lo, hi)``, ``(F, 3)``
+    each; ``orig_edges`` gives the operand of edge uses passed through unchanged (also inside split
+    faces): ``(ids, order, operand)``, :func:`~coons.topology._memo.id_index` of those uses and the
+    operand of each (the first found of a use listed twice).  A vertex belongs to the operand of the
     edge use it starts (0 for new ones); an unchanged face or edge use is only tested against the
     vertices of the other operand and new ones (a valid solid has no vertex inside its own
     edges), and skipped when none lies in its box: after many cuts a plate's faces keep hundreds
@@ -4034,39 +4038,39 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     from coons.booleans.classify import _curve_closest
 
     orig = orig or {}
-    orig_edges = orig_edges or {}
     if not faces:
         return faces
-    tables = _face_uses(faces)  # the uses' points and tolerances, cached per face spec
-    starts = np.concatenate([x.points[:, 0] for x in tables])
+    # The uses' points, ranges and curve ids (per face spec, cached; a result's faces from its sewing's
+    # columns in one take: sew._gathered_uses).
+    (points, ranges, curve_id, spec), _, count = _gathered_uses(faces, ("points", "ranges", "curve_id", "spec"))
+    starts = points[:, 0]
     # A vertex is as uncertain as the widest tolerance of the uses meeting there.
-    use_tol = np.maximum(np.concatenate([x.ranges[:, 2] for x in tables]), t.linear)
+    use_tol = np.maximum(ranges[:, 2], t.linear)
     start_tol = _cluster_max(starts, use_tol)
-    first = np.cumsum([0] + [len(x.where) for x in tables])
+    first = np.concatenate([[0], np.cumsum(count)])
     # An unchanged face or edge use of an operand can only meet vertices not of that operand
     # (a valid solid has no vertex inside its own edges): 0 new, 1 of A, 2 of B.  Every use of
     # an unchanged face is an unchanged use of its operand.
     info_of = [orig.get(id(f)) for f in faces]
-    count = np.diff(first)
     group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), count)
-    # (the uses of the other faces looked up one by one, their rows written in one assignment)
+    # (the uses of the other faces found by id, all at once)
     other = np.repeat(np.array([i is None for i in info_of], dtype=bool), count)
-    group[other] = [orig_edges.get(id(e), 0) for f, i in zip(faces, info_of) if i is None for loop in f.loops for e in loop]
+    if orig_edges is not None and orig_edges[0].size and other.any():
+        at, found = found_by_id(spec[other], orig_edges[0], orig_edges[1])
+        group[other] = np.where(found, orig_edges[2][at], 0)
     foreign_of = {g: (starts[group != g], start_tol[group != g]) for g in (1, 2)}
     # The foreign vertices in the box of each unchanged face (after many cuts most faces of a
     # plate are unchanged and far from the new vertices; :func:`_foreign_in_boxes`).
     kept = [k for k, i in enumerate(info_of) if i is not None]
     face_foreign: dict[int, np.ndarray] = {}
     if kept:
-        info = [info_of[k] for k in kept]
-        g_of = np.array([i[0] for i in info], dtype=np.int64)
-        LO = np.array([i[1] for i in info], dtype=np.float64).reshape(-1, 3)
-        HI = np.array([i[2] for i in info], dtype=np.float64).reshape(-1, 3)
+        g_of, f_of = np.array([info_of[k] for k in kept], dtype=np.int64).reshape(-1, 2).T
         for g in (1, 2):
             sel = np.flatnonzero(g_of == g)
             foreign = np.flatnonzero(group != g)
             if sel.size and foreign.size:
-                for k, inside in zip(sel.tolist(), _foreign_in_boxes(LO[sel], HI[sel], starts, start_tol, foreign)):
+                lo, hi = boxes[g][0][f_of[sel]], boxes[g][1][f_of[sel]]
+                for k, inside in zip(sel.tolist(), _foreign_in_boxes(lo, hi, starts, start_tol, foreign)):
                     if inside.size:
                         face_foreign[kept[k]] = inside
     # Which uses of which faces a vertex may split (:func:`_clear_uses`), then the candidate
@@ -4080,7 +4084,9 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                 continue  # no foreign vertex near this face
             near = starts[inside], start_tol[inside]
         sl = slice(int(first[k]), int(first[k + 1]))
-        clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of)
+        # (a face of many loops, as a plate's top gaining a hole, boxes only the uses the last one had not)
+        clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of,
+                            kept=len(f.loops) > _PREFIX_LOOPS)
         if not clear.all():
             todo[k] = clear
     if not todo:
@@ -4094,8 +4100,7 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     is_open = np.zeros(int(first[-1]), dtype=bool)
     is_open[np.repeat(of_todo, count)] = open_flag
     open_rows = np.flatnonzero(is_open)
-    open_ranges = np.concatenate([x.ranges for x in tables])[open_rows]
-    keys = (np.concatenate([x.curve_id for x in tables])[open_rows], *open_ranges.T)
+    keys = (curve_id[open_rows], *ranges[open_rows].T)
     X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t, keys)
     # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
     # faces' open uses have none); each face's open uses are a run of open_uses (at least one).
@@ -4242,7 +4247,28 @@ def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) ->
     # Coordinate-wise (a norm over the short last axis is several times slower; same sums in the same order).
     rad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1] + D[..., 2] * D[..., 2]).max(axis=1)
     thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
-    return X, cKDTree(starts).query_ball_point(c, rad * 1.05 + thr)
+    r = rad * 1.05 + thr
+    if len(uses) * starts.shape[0] > _BALL_PAIRS:
+        return X, cKDTree(starts).query_ball_point(c, r)
+    return X, _in_balls(c, r, starts)
+
+
+#: Up to this many ball–point pairs :func:`_split_candidates` tests every pair (a sequential cut's few
+#: open uses against all of a plate's vertices: building the tree cost more than the whole test).
+_BALL_PAIRS = 1 << 15
+
+
+def _in_balls(c: np.ndarray, r: np.ndarray, P: np.ndarray) -> list[np.ndarray]:
+    """Per ball ``c[i] (3,), r[i]``, the indices of the points ``P (n, 3)`` within it, ascending: what
+    ``cKDTree(P).query_ball_point(c, r)`` gives, by the test its leaves make (the squared distance
+    summed over the coordinates in order, against ``r²``) on every pair."""
+    d2 = P[None, :, 0] - c[:, 0, None]
+    d2 *= d2
+    for j in (1, 2):
+        dj = P[None, :, j] - c[:, j, None]
+        d2 += dj * dj
+    rows, cols = np.nonzero(d2 <= (r * r)[:, None])
+    return np.split(cols, np.searchsorted(rows, np.arange(1, c.shape[0])))
 
 
 def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
@@ -4262,7 +4288,8 @@ def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.nd
     return [kept[first[i]:first[i + 1]] for i in range(len(cand))]
 
 
-def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict) -> np.ndarray:
+def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict,
+                kept: bool = False) -> np.ndarray:
     """``(k,)`` bool: which of a face's edge uses no vertex can split (see :func:`_split_edges_at_vertices`).
 
     ``group (k,)``: the operand of each use (0 for a new one), ``thr (k,)`` its tolerance
@@ -4271,34 +4298,69 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     ``foreign_of[operand of the use]``; a new use has none and is never clear): a use is clear
     when no such vertex lies in its box (:func:`_use_box_array`) padded by both tolerances.  All uses
     of one group against all their foreign vertices in one array test (a plate face with many
-    holes has many edges).
+    holes has many edges).  ``kept``: the boxes through :func:`_face_use_boxes` (those of the last
+    face extended by this one kept).
     """
     clear = np.zeros(len(edges), dtype=bool)
     keys = np.full(len(edges), -1, dtype=np.int64) if face_foreign is not None else group
     # (the distinct keys, ascending, of a face's few uses by a set: np.unique's sort costs more)
-    for key in ([-1] if face_foreign is not None else sorted(set(group.tolist()))):
-        if key != -1 and key not in foreign_of:
-            continue
+    tested = [-1] if face_foreign is not None else [k for k in sorted(set(group.tolist())) if k in foreign_of]
+    if kept and tested:
+        face_boxes = _face_use_boxes(edges, np.isin(keys, tested))
+    for key in tested:
         rows = np.flatnonzero(keys == key)
-        B, none = _use_box_array([edges[i] for i in rows.tolist()])
+        B, none = (face_boxes[0][rows], face_boxes[1][rows]) if kept else _use_box_array([edges[i] for i in rows.tolist()])
         idx, B = rows[~none], B[~none]
         if idx.size == 0:
             continue
         P, ptol = face_foreign if key == -1 else foreign_of[key]
         step = max(1, _CLEAR_CHUNK // max(1, P.shape[0]))
         for s0 in range(0, idx.size, step):
-            pad = ptol[None, :] + thr[idx[s0 : s0 + step], None]  # (n, m)
+            pad = ptol[:, None] + thr[None, idx[s0 : s0 + step]]  # (m vertices, n uses)
             Bs = B[s0 : s0 + step]
-            # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
+            # (coordinate by coordinate, and reduced over the vertices, the first axis: numpy reduces a
+            # short last axis row by row)
             near = np.ones(pad.shape, dtype=bool)
             for j in range(3):
-                near &= (P[None, :, j] >= Bs[:, 0, j, None] - pad) & (P[None, :, j] <= Bs[:, 1, j, None] + pad)
-            clear[idx[s0 : s0 + step]] = ~near.any(axis=1)
+                near &= (P[:, j, None] >= Bs[None, :, 0, j] - pad) & (P[:, j, None] <= Bs[None, :, 1, j] + pad)
+            clear[idx[s0 : s0 + step]] = ~near.any(axis=0)
     return clear
 
 
 #: Use–vertex pairs held at once by :func:`_clear_uses` (memory bound).
 _CLEAR_CHUNK = 1 << 18
+
+
+def _face_use_boxes(edges: list[EdgeSpec], need: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_use_box_array` of the uses ``edges`` of a face (in loop order) in the rows ``need`` (``(k,)``
+    bool; the other rows are left unset), ``(k, 2, 3)`` and ``(k,)``.  The rows that the last face boxed here
+    with the same first use had boxed (:data:`_FACE_USE_BOXES`; its uses a prefix of ``edges``, use for use)
+    are taken in one piece, only the others are boxed: a plate's top gaining a hole every cut keeps its
+    other loops' uses first and boxes the last cut's new loop (the new one is not tested, a new use has no
+    foreign vertex)."""
+    k = len(edges)
+    B = np.empty((k, 2, 3))
+    none = np.zeros(k, dtype=bool)
+    known = np.zeros(k, dtype=bool)
+    got = _FACE_USE_BOXES.get(edges[0]) if edges else None
+    if got is not None:
+        rest, B0, none0, known0 = got
+        n = len(rest) + 1
+        if n <= k and all(map(operator.is_, rest, edges[1:n])):
+            B[:n], none[:n], known[:n] = B0, none0, known0
+    todo = np.flatnonzero(need & ~known)
+    if todo.size:
+        B[todo], none[todo] = _use_box_array([edges[i] for i in todo.tolist()])
+        known[todo] = True
+    if edges:
+        _FACE_USE_BOXES.set(edges[0], (tuple(edges[1:]), _frozen(B), _frozen(none), _frozen(known)))
+    return B, none
+
+
+#: First use of a face -> ``(its other uses, the boxes of :func:`_use_box_array` of its uses, where there is
+#: none, which rows are boxed)`` of the last face of many loops boxed with that first use
+#: (:func:`_face_use_boxes`).  The value never holds the key (the first use is stored without it).
+_FACE_USE_BOXES = IdentityMemo()
 
 
 def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.ndarray,
@@ -4321,8 +4383,12 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     Q, qt = P[cand], ptol[cand]
     if n * cand.size <= _SMALL_BOX_PAIRS:
         # (few boxes and points: the box test on every pair costs less than the tree; the same test)
-        pad = qt[None, :, None]
-        rows, cols = np.nonzero(np.all((Q[None] >= lo[:, None] - pad) & (Q[None] <= hi[:, None] + pad), axis=2))
+        # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
+        pad = qt[None, :]
+        inside = np.ones((n, cand.size), dtype=bool)
+        for j in range(3):
+            inside &= (Q[None, :, j] >= lo[:, j, None] - pad) & (Q[None, :, j] <= hi[:, j, None] + pad)
+        rows, cols = np.nonzero(inside)
         out = [cand[:0]] * n  # (most boxes hold none: one empty array for them)
         if rows.size:
             ends = np.flatnonzero(np.diff(rows)) + 1
@@ -4906,25 +4972,30 @@ def _fuse_edges(faces: list[FaceSpec], t: Tolerance, points: _UsePoints | None =
     or two collinear :class:`Line` edges whose p-curves are :class:`Line2D` on one line.  Closed
     edges are never created (the vertex stays when the fused edge would end where it starts).
     """
-    tables = _face_uses(faces)  # the uses' points of the faces as they come, cached per face spec
+    # The uses' points of the faces as they come (per face spec, cached; a result's faces from its
+    # sewing's columns in one take: sew._gathered_uses).
+    (P, W), _, per_face = _gathered_uses(faces, ("points", "where"))
     loops: dict[int, list[list[EdgeSpec]]] = {}  # the loops of the faces changed so far, as lists
     points = points if points is not None else _UsePoints()  # only a fused use is new in a round
     for _ in range(64):  # each round removes at least one vertex; a bound against surprises
-        starts, where = [], []
-        for fi, x in enumerate(tables):
-            fl = loops.get(fi)
-            if fl is None:
-                starts.append(x.points[:, 0])
-                where.append(x.where[:, :2])
-            else:
-                uses = [e for loop in fl for e in loop]
-                starts.append(points.get(uses)[:, 0])
-                where.append(np.array([(li, pi) for li, loop in enumerate(fl) for pi in range(len(loop))],
-                                      dtype=np.int64).reshape(-1, 2))
-        counts = [w.shape[0] for w in where]
+        if not loops:
+            counts, where_a, starts_a = per_face, W[:, :2], P[:, 0]
+        else:  # (the changed faces' uses as they are now, the others' rows as they came)
+            starts, where = [], []
+            for fi, (a, b) in enumerate(itertools.pairwise(np.concatenate([[0], np.cumsum(per_face)]).tolist())):
+                fl = loops.get(fi)
+                if fl is None:
+                    starts.append(P[a:b, 0])
+                    where.append(W[a:b, :2])
+                else:
+                    uses = [e for loop in fl for e in loop]
+                    starts.append(points.get(uses)[:, 0])
+                    where.append(np.array([(li, pi) for li, loop in enumerate(fl) for pi in range(len(loop))],
+                                          dtype=np.int64).reshape(-1, 2))
+            counts = [w.shape[0] for w in where]
+            where_a = np.concatenate(where)
+            starts_a = np.concatenate(starts)
         face_of = np.repeat(np.arange(len(faces)), counts)
-        where_a = np.concatenate(where)
-        starts_a = np.concatenate(starts)
         label = point_clusters(starts_a, np.full(starts_a.shape[0], t.linear))
         count = np.bincount(label)
         order = np.argsort(label, kind="stable")  # the uses leaving each vertex, ascending

@@ -360,15 +360,18 @@ def _remember_uses(b: BRep, faces: list[FaceSpec], uses: _Uses) -> None:
     _SEWN_USES.keep(b, rec)
 
 
-def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """The :data:`_COLUMNS` over all uses of ``faces`` (face, loop, position order), read-only (the
-    next sewing takes its rows from them, :func:`_remember_uses`), ``(F,)`` bool: which faces'
-    curves are all values, and ``(F,)`` int64 the uses per face.
+def _gathered_uses(faces: list[FaceSpec], names: Sequence[str] = _COLUMNS
+                   ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The columns ``names`` (of :data:`_COLUMNS`, all by default) over all uses of ``faces`` (face, loop,
+    position order), read-only (the next sewing takes its rows from them, :func:`_remember_uses`), ``(F,)``
+    bool: which faces' curves are all values, and ``(F,)`` int64 the uses per face.
 
     The faces of the last sewing (:data:`_SEWN_USES`; the very spec objects, matched by id while
     that sewing holds them) whose curves are values take their rows from its columns, all in one
     take; the others come from :func:`_face_uses`.  Either way the rows are those
-    :func:`_face_uses` gives (its tables are functions of the face spec alone).
+    :func:`_face_uses` gives (its tables are functions of the face spec alone).  The Booleans' passes
+    before sewing read their few columns of a result's faces so (the faces of its operand's sewing),
+    not face by face.
     """
     n = len(faces)
     rec = _SEWN_USES.last()
@@ -382,7 +385,7 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], np.ndarray,
     tables = _face_uses(mfaces, mvalues) if mfaces else []
     mcount = np.array([x.where.shape[0] for x in tables], dtype=np.int64)
     if miss.size == n:  # nothing from the last sewing: the rows are the tables' in turn
-        columns = [_read_only(np.concatenate([getattr(x, c) for x in tables])) for c in _COLUMNS]
+        columns = [_read_only(np.concatenate([getattr(x, c) for x in tables])) for c in names]
         return columns, np.array(mvalues, dtype=bool), mcount
     count = np.empty(n, dtype=np.int64)
     count[hit] = rec.count[df[hit]]
@@ -392,8 +395,9 @@ def _gathered_uses(faces: list[FaceSpec]) -> tuple[list[np.ndarray], np.ndarray,
     src_first[hit] = rec.first[df[hit]]
     src_first[miss] = rec.columns[0].shape[0] + np.cumsum(mcount) - mcount
     src = np.repeat(src_first - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
-    columns = [_read_only(np.concatenate([rc] + [getattr(x, c) for x in tables])[src])
-               for rc, c in zip(rec.columns, _COLUMNS)]
+    # (np.take along the rows: numpy's fancy index of the rows of a 2-D array costs several times more)
+    columns = [_read_only(np.take(np.concatenate([rec.columns[_COLUMNS.index(c)]] + [getattr(x, c) for x in tables]),
+                                  src, axis=0)) for c in names]
     values = np.ones(n, dtype=bool)
     values[miss] = mvalues
     return columns, values, count

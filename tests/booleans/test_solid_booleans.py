@@ -1206,6 +1206,26 @@ def test_use_box_array_is_the_stacked_edge_boxes():
     assert none3.tolist() == none.tolist()
 
 
+def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
+    """The boxes of a plate's top gaining a hole (the rows the kept face boxed in one piece, the others
+    alone) are _use_box_array's in every row asked for; a face whose uses are not a prefix's boxes them."""
+    t = S.resolve(None)
+    plate = Box(40, 40, 5)
+    tops = []
+    for x in (-10.0, 0.0, 10.0):
+        plate = S.difference(plate, Cylinder(2, 10).translate((x, 0.0, 0.0)), method="brep")
+        top = max(S._Operand(plate, "A", t).specs, key=lambda f: len(f.loops))
+        tops.append([e for loop in top.loops for e in loop])
+    S._FACE_USE_BOXES.clear()
+    rng = np.random.default_rng(3)
+    for edges in tops + tops[::-1] + [tops[0][:1] + tops[2][1:]]:
+        for need in (np.ones(len(edges), dtype=bool), rng.random(len(edges)) < 0.5):
+            B, none = S._face_use_boxes(edges, need)
+            B0, none0 = S._use_box_array(edges)
+            np.testing.assert_array_equal(B[need], B0[need])
+            np.testing.assert_array_equal(none[need], none0[need])
+
+
 def test_fuse_edges_keeps_untouched_faces():
     t = S.resolve(None)
     specs = S._Operand(Box(1, 2, 3), "A", t).specs
@@ -1286,6 +1306,46 @@ def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, st
             inside = np.all((P[cand] >= lo[i] - pad) & (P[cand] <= hi[i] + pad), axis=1)
             np.testing.assert_array_equal(got[i], cand[inside])
             assert got[i].dtype == cand.dtype
+
+
+@settings(max_examples=30)
+@given(st.lists(st.tuples(st.floats(-10, 10), st.floats(-10, 10), st.floats(-10, 10)), min_size=1, max_size=60),
+       st.lists(st.tuples(st.integers(0, 59), st.floats(-1, 1), st.floats(0, 4)), min_size=1, max_size=12))
+def test_in_balls_is_the_tree_query(points, balls):
+    """_in_balls (every pair) gives what the k-d tree's ball query gives, points on a ball's sphere included."""
+    from scipy.spatial import cKDTree
+
+    P = np.array(points, dtype=np.float64).reshape(-1, 3)
+    at = np.array([b[0] % P.shape[0] for b in balls])
+    c = P[at] + np.array([b[1] for b in balls])[:, None]
+    r = np.array([b[2] for b in balls])
+    # (a point exactly on each ball's sphere along x, where the two tests must agree to the last bit)
+    P = np.concatenate([P, c + np.stack([r, np.zeros_like(r), np.zeros_like(r)], axis=1)])
+    want = cKDTree(P).query_ball_point(c, r)
+    got = S._in_balls(c, r, P)
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g.tolist() == w
+
+
+def test_split_candidates_without_the_tree_are_the_trees():
+    """The T-junction candidates of a cut plate's uses, each ball tested against every vertex (few pairs)
+    and by the k-d tree (many), are the same."""
+    t = S.resolve(None)
+    r = S.difference(Box(20, 20, 5), Cylinder(2, 10), method="brep")
+    specs = S._Operand(r, "A", t).specs
+    uses = [e for spec in specs for loop in spec.loops for e in loop]
+    starts = S.use_points(specs)[:, 0]
+    X, every = S._split_candidates(uses, starts, t)
+    small = S._BALL_PAIRS
+    try:
+        S._BALL_PAIRS = -1  # (the tree, whatever the size)
+        X2, tree = S._split_candidates(uses, starts, t)
+    finally:
+        S._BALL_PAIRS = small
+    np.testing.assert_array_equal(X, X2)
+    assert [c.tolist() for c in every] == [list(c) for c in tree]
+    assert sum(map(len, tree)) > len(uses)  # (each use meets at least its own ends)
 
 
 def test_cut_ends_are_each_curves_evaluate():
@@ -1558,6 +1618,24 @@ def test_collector_paused_over_an_n_ary_call(monkeypatch):
     assert abs(r.volume - (1600 - 3 * np.pi * 4)) < 1e-9
 
 
+def _operand_map(orig_edges) -> dict:
+    """The T-junction pass's operands of edge uses, ``(ids, order, operand)``, as a dict ``id -> operand``
+    (the first found of an id listed twice)."""
+    out: dict = {}
+    if orig_edges is not None:
+        ids, order, operand = orig_edges
+        for k, g in zip(ids.tolist(), operand[order].tolist()):
+            out.setdefault(k, g)
+    return out
+
+
+def _operand_table(m: dict) -> tuple:
+    """:func:`_operand_map`'s inverse: a dict ``id -> operand`` as the pass's ``(ids, order, operand)``."""
+    keys = np.array(list(m), dtype=np.int64)
+    order = np.argsort(keys, kind="stable")
+    return keys[order], order, np.array(list(m.values()), dtype=np.int64)
+
+
 def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     """_boolean maps to their operand only the uses of A's split faces and of B; every use the
     T-junction pass looks up (those of faces not passed through whole) gets the operand a map
@@ -1565,9 +1643,9 @@ def test_t_junction_operand_map_agrees_with_a_map_over_all_uses(monkeypatch):
     seen = []
     real = S._split_edges_at_vertices
 
-    def spy(faces, t, orig=None, orig_edges=None):
-        seen.append((list(faces), dict(orig), dict(orig_edges)))
-        return real(faces, t, orig, orig_edges)
+    def spy(faces, t, orig=None, orig_edges=None, boxes=None):
+        seen.append((list(faces), dict(orig), _operand_map(orig_edges)))
+        return real(faces, t, orig, orig_edges, boxes)
 
     made = []
     real_operand = S._Operand
@@ -1678,9 +1756,9 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
     calls, sizes = [], []
     real, real_cand = S._split_edges_at_vertices, S._split_candidates
 
-    def spy(faces, t, orig=None, orig_edges=None):
-        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
-        return real(faces, t, orig, orig_edges)
+    def spy(faces, t, orig=None, orig_edges=None, boxes=None):
+        calls.append((list(faces), t, dict(orig or {}), _operand_map(orig_edges), boxes))
+        return real(faces, t, orig, orig_edges, boxes)
 
     def spy_cand(uses, starts, t):
         sizes.append(len(uses))
@@ -1698,9 +1776,9 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
     assert calls
     monkeypatch.setattr(S, "_split_candidates", spy_cand)
     pairs, split = [], []
-    for faces, t, orig, orig_edges in calls:
+    for faces, t, orig, orig_edges, boxes in calls:
         before = len(sizes)
-        shared = real(faces, t, orig, orig_edges)
+        shared = real(faces, t, orig, _operand_table(orig_edges), boxes)
         n_shared = sizes[-1] if len(sizes) > before else 0
         # Each use on its own copy of its curve (the operand maps re-keyed): no two uses share a key.
         alone, edges_alone = [], {}
@@ -1718,7 +1796,7 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
             if id(f) in orig:
                 orig[id(g)] = orig[id(f)]
         before = len(sizes)
-        single = real(alone, t, orig, edges_alone)
+        single = real(alone, t, orig, _operand_table(edges_alone), boxes)
         n_single = sizes[-1] if len(sizes) > before else 0
         assert [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in shared] == \
             [[[(e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in single]
@@ -1750,9 +1828,9 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
     calls = []
     real, real_shared, real_closest = S._split_edges_at_vertices, S._shared_candidates, classify._curve_closest
 
-    def spy(faces, t, orig=None, orig_edges=None):
-        calls.append((list(faces), t, dict(orig or {}), dict(orig_edges or {})))
-        return real(faces, t, orig, orig_edges)
+    def spy(faces, t, orig=None, orig_edges=None, boxes=None):
+        calls.append((list(faces), t, dict(orig or {}), orig_edges, boxes))
+        return real(faces, t, orig, orig_edges, boxes)
 
     monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
     _t_junction_case(case)
@@ -1769,13 +1847,13 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
 
     monkeypatch.setattr(classify, "_curve_closest", closest)
     changed = False
-    for faces, t, orig, orig_edges in calls:
+    for faces, t, orig, orig_edges, boxes in calls:
         walked.append(0)
-        fast = real(faces, t, orig, orig_edges)
+        fast = real(faces, t, orig, orig_edges, boxes)
         with monkeypatch.context() as m:
             m.setattr(S, "_shared_candidates", every_use)
             walked.append(0)
-            full = real(faces, t, orig, orig_edges)
+            full = real(faces, t, orig, orig_edges, boxes)
         assert walked[-2] < walked[-1]  # (the fast pass walked fewer uses)
         assert [a is b for a, b in zip(fast, faces)] == [a is b for a, b in zip(full, faces)]
         assert [[[(e.curve, e.t0, e.t1, e.tol) for e in loop] for loop in f.loops] for f in fast] == \

@@ -224,7 +224,9 @@ Status and limitations
   line that meets another cylinder's cap plane; a sphere–cylinder section osculating the sphere
   face's bounding meridian to fourth order (``split_face`` runs its first stretch along the
   boundary); a cylinder inside another, tangent to its wall along a line that meets the outer one's
-  cap (the cap becomes a crescent pinched at a vertex; a 1e-6 edge is used four times).  In the same
+  cap (the cap becomes a crescent pinched at a vertex; a 1e-6 edge is used four times); a cylinder
+  wall tangent to the plane of a sphere's bounding meridians at the sphere (the section loop touches
+  the half sphere's boundary at one point and ``split_face`` drops the disc inside it).  In the same
   runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
   referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
   earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a

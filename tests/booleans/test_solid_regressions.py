@@ -771,6 +771,11 @@ _HUNT_RAISING = {
     # straight and a curved p-curve of the shared edge sampled at two and three points)
     "seed24-chain31": ([("cyl", 1.5, 4.0, (0.5, -0.5, 0.0)), ("cyl", 2.0, 4.0, (0.75, 0.75, 1.0)),
                         ("cyl", 2.0, 2.0, (0.5, -1.0, 0.0))], ["&", "+"]),
+    # seed 35, chain 0 (one Boolean): a cylinder whose wall is tangent to the plane of a sphere's
+    # bounding meridians (y = -1 through the centre), at the sphere: the section loop touches the
+    # half sphere's boundary at one point, and split_face keeps the loop as a hole of one piece
+    # without the disc inside it (coverage 1)
+    "seed35-chain0": ([("cyl", 2.0, 2.0, (1.0, 1.0, 0.0)), ("sph", 1.0, 2.0, (0.0, -1.0, 0.0))], ["-"]),
 }
 
 

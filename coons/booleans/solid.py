@@ -224,9 +224,7 @@ Status and limitations
   line that meets another cylinder's cap plane; a sphere–cylinder section osculating the sphere
   face's bounding meridian to fourth order (``split_face`` runs its first stretch along the
   boundary); a cylinder inside another, tangent to its wall along a line that meets the outer one's
-  cap (the cap becomes a crescent pinched at a vertex; a 1e-6 edge is used four times); a cylinder
-  wall tangent to the plane of a sphere's bounding meridians at the sphere (the section loop touches
-  the half sphere's boundary at one point and ``split_face`` drops the disc inside it).  In the same
+  cap (the cap becomes a crescent pinched at a vertex; a 1e-6 edge is used four times).  In the same
   runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
   referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
   earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a
@@ -234,7 +232,10 @@ Status and limitations
   compared at two and three points in the merge (a ``ValueError``); a marching grid crossing a
   branch twice in one cell near its extreme, both crossings corrected onto one root (the fitted
   section ran back and forth: ``kernel.ssi``); the classifier's edge rule taking a farther edge for
-  a point in the plane of a face, in its hole (an open result).
+  a point in the plane of a face, in its hole (an open result); a section loop touching a half
+  sphere's bounding meridian to fourth order, ordered against it at the node by a curvature below
+  the fit's accuracy (``split_face`` now asks on which side of a straight boundary the curve lies a
+  little farther along).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

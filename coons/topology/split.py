@@ -31,7 +31,9 @@ away in the plane: there ends within ``tol3`` in space and ``tol3 / σ_min`` in 
 most ``100 eps``) are one node too, and a cut end that stops that short of a piece splits the
 piece at its foot (:func:`_snap_cut_ends`).  The regions are the faces of the
 arrangement, walked by turning most clockwise at every node (tangent directions, ties broken
-by curvature; where a p-curve's radius of curvature at the node is below ``eps`` its tangent
+by curvature, or, between a curve and a straight piece, by the side of the line on which the curve
+lies ten ``eps`` off it: a curve in high-order contact with a straight boundary has a curvature at the
+node below what its fit gets right; where a p-curve's radius of curvature at the node is below ``eps`` its tangent
 there is a feature below the resolution, as at the hooked end of a branch fitted through a
 point where its two surfaces touch, and the chord to a point ten ``eps`` along it serves);
 counter-clockwise cycles that lie inside the original face (their boundary
@@ -1556,10 +1558,42 @@ class _Graph:
             for q in range(len(out) - 1):
                 h, g = out[q], out[q + 1]
                 thr = self._tie(max(abs(kappa[h]), abs(kappa[g])))
-                if abs(angle[g] - angle[h]) <= thr and kappa[g] < kappa[h]:
+                if abs(angle[g] - angle[h]) <= thr and self._turn(g, h, kappa) < self._turn(h, g, kappa):
                     out[q], out[q + 1] = g, h
                     changed = True
         return out
+
+    def _straight(self, h: int) -> bool:
+        return type(self.pieces[self.sub[h >> 1].piece].pc) is Line2D
+
+    def _turn(self, h: int, other: int, kappa: np.ndarray) -> float:
+        """The curvature by which half-edge ``h`` is ordered against ``other`` leaving its node in the same
+        direction: its own, or, when ``other`` is straight and ``h`` is not, the side of ``other``'s line on
+        which ``h`` lies where it first leaves it by more than :data:`_COARSE` eps (``±1``: left, right).
+
+        A curve in contact of high order with a straight boundary (a section osculating a sphere's bounding
+        meridian: ``u ≈ v⁴ / 16``) has a curvature near the node far below what a fitted p-curve gets right,
+        and its sign may be the wrong one; the side at a distance is exact."""
+        k = float(kappa[h])
+        if not self._straight(other) or self._straight(h):
+            return k
+        side = self._side_of_line(h, other)
+        return k if side == 0.0 else side
+
+    def _side_of_line(self, h: int, line: int) -> float:
+        """``+1`` / ``-1`` where half-edge ``h`` first lies more than :data:`_COARSE` eps to the left / right
+        of straight half-edge ``line`` leaving the same node (points at parameter fractions ``2^-k`` of
+        ``h``'s sub-piece, nearest first), ``0.0`` where it never does."""
+        s, sl = self.sub[h >> 1], self.sub[line >> 1]
+        t0, t1 = (s.a, s.b) if h % 2 == 0 else (s.b, s.a)
+        origin = sl.uv[0] if line % 2 == 0 else sl.uv[-1]
+        d = np.asarray(self.pieces[sl.piece].pc.direction, dtype=np.float64)
+        d = d if (sl.b > sl.a) == (line % 2 == 0) else -d
+        t = t0 + np.ldexp(1.0, -np.arange(_COARSE_HALVINGS, -1, -1)) * (t1 - t0)
+        Q = _pc_derivatives(self.pieces[s.piece].pc, t, 0)[:, 0] - origin
+        n = (d[0] * Q[:, 1] - d[1] * Q[:, 0]) / math.hypot(*d)
+        off = np.flatnonzero(np.abs(n) > _COARSE * self.plane.eps)
+        return float(np.sign(n[off[0]])) if off.size else 0.0
 
     def cycles(self) -> list[list[int]]:
         seen = np.zeros(self.next.size, dtype=bool)

@@ -738,6 +738,13 @@ _HUNT_FIXED = {
     # out for a farther one (the open result raised in sewing).
     "seed24-chain0": ([("cyl", 2.0, 2.0, (0.75, 0.25, 0.0)), ("box", 1.5, 4.0, (0.25, 0.25, 1.0), 30.0),
                        ("cyl", 1.0, 4.0, (0.5, 0.0, -1.0))], ["+", "&"]),
+    # One Boolean: a cylinder whose wall is tangent to the plane of a sphere's bounding meridians at the
+    # sphere, so the section loop touches the half sphere's boundary at one point, to fourth order
+    # (u ≈ v⁴/16): within eps of it for |v| < 0.03, its curvature there far below what the fitted p-curve
+    # gets right.  The face split ordered the loop against the boundary by that curvature's sign, wrongly,
+    # and dropped the disc inside the loop (coverage 1); the side of the straight boundary on which the
+    # loop lies a little farther along decides now.
+    "seed35-chain0": ([("cyl", 2.0, 2.0, (1.0, 1.0, 0.0)), ("sph", 1.0, 2.0, (0.0, -1.0, 0.0))], ["-"]),
 }
 
 
@@ -771,11 +778,6 @@ _HUNT_RAISING = {
     # straight and a curved p-curve of the shared edge sampled at two and three points)
     "seed24-chain31": ([("cyl", 1.5, 4.0, (0.5, -0.5, 0.0)), ("cyl", 2.0, 4.0, (0.75, 0.75, 1.0)),
                         ("cyl", 2.0, 2.0, (0.5, -1.0, 0.0))], ["&", "+"]),
-    # seed 35, chain 0 (one Boolean): a cylinder whose wall is tangent to the plane of a sphere's
-    # bounding meridians (y = -1 through the centre), at the sphere: the section loop touches the
-    # half sphere's boundary at one point, and split_face keeps the loop as a hole of one piece
-    # without the disc inside it (coverage 1)
-    "seed35-chain0": ([("cyl", 2.0, 2.0, (1.0, 1.0, 0.0)), ("sph", 1.0, 2.0, (0.0, -1.0, 0.0))], ["-"]),
 }
 
 

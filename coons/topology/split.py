@@ -1552,9 +1552,13 @@ class _Graph:
         """
         angle = dict(zip(ids.tolist(), ang.tolist()))
         out = list(ring)
+        # (each swap by curvatures alone removes one inversion of them, so at most m(m - 1)/2 passes change
+        # anything; the side of a line replaces a curvature pair by pair, which could cycle: the bound ends it)
+        passes = len(out) * (len(out) - 1) // 2 + 1
         changed = True
-        while changed:
+        while changed and passes:
             changed = False
+            passes -= 1
             for q in range(len(out) - 1):
                 h, g = out[q], out[q + 1]
                 thr = self._tie(max(abs(kappa[h]), abs(kappa[g])))

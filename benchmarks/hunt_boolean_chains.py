@@ -110,7 +110,8 @@ def referee(specs: list[Spec], ops: list[str], points: int = 40_000_000, seed: i
         hits += int(m.sum())
         done += batch
     box, p = float(np.prod(hi - lo)), hits / done
-    return box * p, box * math.sqrt(p * (1 - p) / done)
+    # (no hit, or all: the standard error is below one point's volume, which stands in for it)
+    return box * p, max(box * math.sqrt(p * (1 - p) / done), box / done)
 
 
 def run_chain(specs: list[Spec], ops: list[str]) -> tuple[str, str]:

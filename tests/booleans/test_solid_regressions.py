@@ -751,14 +751,7 @@ _HUNT_FIXED = {
 @pytest.mark.occt
 @pytest.mark.parametrize("name", list(_HUNT_FIXED))
 def test_fixed_hunt_chains_agree_with_occt(name):
-    from tests.booleans.test_solid_vs_occt import occt_volume_area  # (converged: spheres need it at 1e-6)
-
-    parts, ops = _HUNT_FIXED[name]
-    r = _hunt_chain("coons", parts, ops)
-    volume, area = occt_volume_area(_hunt_chain("build123d", parts, ops).wrapped)
-    assert r.check().ok
-    assert r.volume == pytest.approx(volume, rel=RTOL_OCCT)
-    assert r.area == pytest.approx(area, rel=RTOL_OCCT)
+    _assert_hunt_chain_agrees_with_occt(*_HUNT_FIXED[name])
 
 
 #: Hunt chains that still raise (benchmarks/hunt_boolean_chains.py), as (kind, size, height, centre)
@@ -779,6 +772,18 @@ _HUNT_RAISING = {
     "seed24-chain31": ([("cyl", 1.5, 4.0, (0.5, -0.5, 0.0)), ("cyl", 2.0, 4.0, (0.75, 0.75, 1.0)),
                         ("cyl", 2.0, 2.0, (0.5, -1.0, 0.0))], ["&", "+"]),
 }
+
+
+def _assert_hunt_chain_agrees_with_occt(parts: list, ops: list[str]) -> None:
+    """coons' result of a hunt chain is valid, with OCCT's volume and area (converged figures: spheres need
+    them at 1e-6)."""
+    from tests.booleans.test_solid_vs_occt import occt_volume_area
+
+    r = _hunt_chain("coons", parts, ops)
+    volume, area = occt_volume_area(_hunt_chain("build123d", parts, ops).wrapped)
+    assert r.check().ok
+    assert r.volume == pytest.approx(volume, rel=RTOL_OCCT)
+    assert r.area == pytest.approx(area, rel=RTOL_OCCT)
 
 
 def _hunt_chain(lib: str, parts: list, ops: list[str]):
@@ -805,14 +810,7 @@ def _hunt_chain(lib: str, parts: list, ops: list[str]):
                                                                           reason="raises in the face split or sewing"))
                                   for k in _HUNT_RAISING])
 def test_hunt_chains_that_still_raise(name):
-    from tests.booleans.test_solid_vs_occt import occt_volume_area  # (converged: spheres need it at 1e-6)
-
-    parts, ops = _HUNT_RAISING[name]
-    r = _hunt_chain("coons", parts, ops)
-    volume, area = occt_volume_area(_hunt_chain("build123d", parts, ops).wrapped)
-    assert r.check().ok
-    assert r.volume == pytest.approx(volume, rel=RTOL_OCCT)
-    assert r.area == pytest.approx(area, rel=RTOL_OCCT)
+    _assert_hunt_chain_agrees_with_occt(*_HUNT_RAISING[name])
 
 
 def test_runs_along_holds_only_for_the_same_line_or_circle():

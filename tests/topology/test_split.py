@@ -931,7 +931,6 @@ def _slant_branches(z0: float, a: float, b: float):
     return face, intersect_surfaces(face.surface, plane, box, ((-9.0, 9.0), (-9.0, 9.0))).curves
 
 
-@settings(max_examples=30)
 def _clipped_as_the_general_path(face, c) -> list[EdgeSpec]:
     """The inside pieces (longer than 1e-3) of branch ``c`` clipped to ``face``, after asserting that the
     fast paths of ``clip_to_face`` give the general path's pieces."""
@@ -942,6 +941,7 @@ def _clipped_as_the_general_path(face, c) -> list[EdgeSpec]:
     return [EdgeSpec(c.curve, s0, s1, c.pcurve_a, c.tol) for s0, s1, w in fast if w == "inside" and s1 - s0 > 1e-3]
 
 
+@settings(max_examples=30)
 @given(st.booleans(), st.floats(-0.9, 0.9), st.floats(-1.5, 1.5), st.floats(-1.5, 1.5))
 def test_clip_and_split_of_fitted_pcurves_on_half_cylinder_match_the_general_path(sense, z0, a, b):
     """Plane sections of a half cylinder (fitted NURBS p-curves crossing its sides, the rectangle's

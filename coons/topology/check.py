@@ -82,6 +82,12 @@ _ENDS = np.array([0.0, 1.0])  # sample parameters of a straight segment: its two
 #: radius 1: from 0.02 to 3e-7).
 _REFINE = 16
 _REFINE_LEVELS = 2
+#: Fractions of an edge's range, falling by 2^(1/4) from 1/2 to 2^-30, at which the last refinement of
+#: :func:`_check_trims` samples curved edges towards both ends besides the uniform fractions.  At a vertex
+#: where edges of curvatures ``κa > κb`` leave tangent to each other, the chord of the flatter one over
+#: ``[s, 2^(1/4) s]`` sags by ``κb (0.19 s)² / 8``, less than their gap ``(κa - κb) s² / 2`` there while
+#: ``κa > 1.01 κb``; below 2^-30 of an edge the gaps are far below a tolerance.
+_DENSE_ENDS = np.exp2(-np.arange(4, 121) / 4.0)
 
 
 @dataclass(frozen=True)
@@ -1053,6 +1059,13 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
         n = (n - 1) * _REFINE + 1
         finer = [_face_segments(b, f, n, t) for f in sorted(hits)]
         hits = _crossings([p for p in finer if p is not None])
+    # Where two edges of a face leave a vertex tangent to each other (a loop touching itself or another
+    # loop there: a hole internally tangent to a rim, the crescent between them), the chord from the
+    # vertex along the flatter edge cuts into the other edge by a fixed fraction of its length at any
+    # uniform spacing; chords falling geometrically towards the ends leave the two curves apart.
+    if hits:
+        finer = [_face_segments(b, f, n, t, dense_ends=True) for f in sorted(hits)]
+        hits = _crossings([p for p in finer if p is not None])
     for f in sorted(hits)[:10]:
         ci, cj, x = hits[f]
         out.append(Problem("self-intersecting-trim", "face", f,
@@ -1397,14 +1410,20 @@ def _implicit_segments(b: BRep, faces: np.ndarray, t: Tolerance) -> tuple[np.nda
     return A, B, f, pos[b.coedge_next[c]], c, np.full(c.size, t.linear)
 
 
-def _face_rings(b: BRep, f: int, samples: int) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
+def _face_rings(b: BRep, f: int, samples: int, dense_ends: bool = False
+                ) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
     """Each loop of a face as a closed polyline (its p-curves sampled; 3-D points on implicit planes).
 
+    ``dense_ends``: curved edges are sampled, besides ``samples`` uniform fractions of their
+    range, at fractions falling geometrically towards both ends (:data:`_DENSE_ENDS`).
     Returns ``(rings, owners)``: per loop a ``(m, 2)`` (or ``(m, 3)``) ring and the coedge of each
     point; None when a coedge of a face on a surface has no p-curve (nothing to sample).
     """
     si = int(b.face_surface[f])
     s = np.linspace(0.0, 1.0, samples)
+    if dense_ends:
+        g = _DENSE_ENDS[_DENSE_ENDS < s[1]]
+        s = np.unique(np.concatenate([s, g, 1.0 - g]))
     rings, owners = [], []
     for loop in b.face_loop_ids(f):
         pts, own = [], []
@@ -1434,15 +1453,17 @@ def _face_rings(b: BRep, f: int, samples: int) -> tuple[list[np.ndarray], list[n
     return rings, owners
 
 
-def _face_segments(b: BRep, f: int, samples: int, t: Tolerance) -> tuple[np.ndarray, ...] | None:
+def _face_segments(b: BRep, f: int, samples: int, t: Tolerance, dense_ends: bool = False
+                   ) -> tuple[np.ndarray, ...] | None:
     """Boundary polylines of one face in its parameter plane (or Newell plane), as segments.
 
     For implicit planar faces and for sampling again finer where crossings were found (the
-    first pass of faces on surfaces is :func:`_sampled_rings`).  Returns None when a coedge of a
-    face on a surface has no p-curve (nothing to sample).
+    first pass of faces on surfaces is :func:`_sampled_rings`; ``dense_ends``: see
+    :func:`_face_rings`).  Returns None when a coedge of a face on a surface has no p-curve
+    (nothing to sample).
     """
     si = int(b.face_surface[f])
-    found = _face_rings(b, f, samples)
+    found = _face_rings(b, f, samples, dense_ends)
     if found is None:
         return None
     rings, owners = found

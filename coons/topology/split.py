@@ -1644,6 +1644,12 @@ class _Graph:
         for ci, cyc in enumerate(cycles):
             if area[ci] >= 0:
                 continue
+            # A cycle running a boundary piece backward bounds the outside of the original face, never a
+            # hole of a piece (a piece's holes run the face's inner loops forward, or cuts only).  Its probe
+            # may still fall in a piece where a cut touches the boundary tangentially: a loop inside the
+            # face touching its outer loop at a point.
+            if any(self.pieces[self.sub[h >> 1].piece].kind != "cut" and h % 2 == 1 for h in cyc):
+                continue
             mine = {h >> 1 for h in cyc}
             probe = polys[ci][:1] if polys[ci].shape[0] < 2 else 0.5 * (polys[ci][:1] + polys[ci][1:2])
             best, best_area = None, math.inf

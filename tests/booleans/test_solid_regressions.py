@@ -745,7 +745,51 @@ _HUNT_FIXED = {
     # and dropped the disc inside the loop (coverage 1); the side of the straight boundary on which the
     # loop lies a little farther along decides now.
     "seed35-chain0": ([("cyl", 2.0, 2.0, (1.0, 1.0, 0.0)), ("sph", 1.0, 2.0, (0.0, -1.0, 0.0))], ["-"]),
+    # One Boolean: a cylinder inside a wider one, touching its wall along a line through the wider one's
+    # seam vertices (test_cylinder_internally_tangent_to_a_wider_one below).
+    "seed41-chain21": ([("cyl", 1.0, 4.0, (0.0, 0.0, 0.0)), ("cyl", 2.0, 2.0, (1.0, 0.0, 0.0))], ["&"]),
 }
+
+
+@pytest.mark.parametrize("degrees", [0.0, 75.0, 210.0])
+def test_cylinder_internally_tangent_to_a_wider_one(degrees):
+    """A cylinder of radius 1 and height 4 inside one of radius 2 and height 2 whose centre lies 1 away
+    towards ``degrees``: the walls touch along a line, each cap of the wider one is split by the narrower
+    one's circle, which touches its rim at one point, into a disc and a crescent pinched there.
+
+    At 0° the point is a seam vertex of the rim: the face split took the rim run backwards (the outside
+    of the cap) for a hole of the disc, and the result was open.  Elsewhere the rim is split at the point,
+    and the check found the crescent's loop crossing itself: the chord from the point along the rim cuts
+    into the circle (tangent there) by a fixed fraction of its length, whatever the uniform sampling.
+    The wider one minus the narrower is the crescent's prism, pinched along the line: not a manifold.
+    It raises, or (the tangent line clear of the wider one's seam) comes back with the narrower one's
+    wall touching the wider one's along it, which the check does not see (the volume is right)."""
+    th = math.radians(degrees)
+    a = Cylinder(1.0, 4.0)
+    b = Cylinder(2.0, 2.0).translate((math.cos(th), math.sin(th), 0.0))
+    for r, volume, area in ((a & b, 2 * math.pi, 6 * math.pi), (a - b, 2 * math.pi, 8 * math.pi),
+                            (a + b, 10 * math.pi, 20 * math.pi)):
+        assert r.check().ok
+        assert r.volume == pytest.approx(volume, rel=1e-7)
+        assert r.area == pytest.approx(area, rel=1e-7)
+    try:
+        r = b - a
+    except BooleanError as exc:
+        assert exc.stage == "sew"
+    else:
+        assert r.check().ok
+        assert r.volume == pytest.approx(6 * math.pi, rel=1e-7)
+
+
+def test_crescent_between_tangent_rims_needs_the_dense_ends_of_the_trim_check(monkeypatch):
+    """The case above at 75° without the check's samples falling towards the edges' ends: the union's
+    crescent caps are reported as crossing themselves (so that test exercises them)."""
+    from coons.topology import check as check_module
+
+    monkeypatch.setattr(check_module, "_DENSE_ENDS", np.empty(0))
+    th = math.radians(75.0)
+    with pytest.raises(BooleanError, match="self-intersecting-trim"):
+        Cylinder(1.0, 4.0) + Cylinder(2.0, 2.0).translate((math.cos(th), math.sin(th), 0.0))
 
 
 @pytest.mark.occt

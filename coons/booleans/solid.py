@@ -205,7 +205,11 @@ Status and limitations
   point (a pinch: a box face tangent to a torus tube at a saddle point, whose section is a
   lemniscate with its two lobes meeting there) it is not a manifold and raises at ``"sew"``
   with the point and the number of fans, as the polyhedral Booleans do (OCCT returns the
-  pinched solid).
+  pinched solid).  Where such a contact lies inside faces and meets no edge of the other side
+  (a void sphere touching its outer sphere inside both faces; a cylinder hole internally tangent
+  to a wider cylinder's wall along a line clear of its seams) nothing is shared topologically:
+  the result comes back with the right volume, touching itself, and the check does not see it
+  (it compares topology and each face's own trims, not distances between faces).
 * Singular intersection curves other than the equal cylinders' ellipses are marched and raise
   a ``BooleanError`` (at ``"split"`` or ``"intersect"``) in configurations found failing:
   cylinders of different radii touching at a point (the thin one internally tangent to the
@@ -235,7 +239,11 @@ Status and limitations
   a point in the plane of a face, in its hole (an open result); a section loop touching a half
   sphere's bounding meridian to fourth order, ordered against it at the node by a curvature below
   the fit's accuracy (``split_face`` now asks on which side of a straight boundary the curve lies a
-  little farther along).
+  little farther along); a cylinder inside a wider one, tangent to its wall along a line (seed 41),
+  whose cap is split by the narrower rim into a disc and a crescent pinched where the rims touch:
+  ``split_face`` took the wider rim run backwards (the outside of the cap) for a hole of the disc
+  when the contact was the rim's seam vertex, and the check's sampled trims crossed where the
+  crescent's loop touches itself (its last refinement now samples towards the edges' ends).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

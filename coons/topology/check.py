@@ -999,8 +999,11 @@ def _check_trims(b: BRep, t: Tolerance, samples: int, out: list[Problem], table:
     Touching loops and shared vertices are therefore accepted.  The polylines are samples:
     chords cut the corners of curved edges by their sagitta, so loops closer than that (a hole
     grazing a circular rim) cross as polylines but not as curves.  Faces with crossings are
-    therefore sampled again :data:`_REFINE` times finer, up to :data:`_REFINE_LEVELS` times, and
-    only crossings that persist are reported (a real crossing persists at every level).  A
+    therefore sampled again :data:`_REFINE` times finer, up to :data:`_REFINE_LEVELS` times, then
+    once more with samples falling towards the edges' ends (:data:`_DENSE_ENDS`: where two edges
+    leave a vertex tangent to each other, a chord from the vertex cuts into the other edge at any
+    uniform spacing), and only crossings that persist are reported (a real crossing persists at
+    every level).  A
     crossing of the true curves that the coarse chords miss is not found.  Planar faces made of
     one loop of at most three straight edges cannot self-intersect and are skipped, and so are
     the faces of ``passed`` (``(F,)`` bool, :func:`_trims_passed`), for crossings and orientation;

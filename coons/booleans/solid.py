@@ -220,15 +220,11 @@ Status and limitations
   0.25 grid, many sharing cap planes, compared with OCCT and a Monte Carlo referee by
   ``benchmarks/hunt_boolean_chains.py``; the fixed configurations are tests in
   ``tests/booleans/test_solid_regressions.py``) still raise a
-  ``BooleanError`` in these found cases: rims of different radii internally tangent to 1e-5
-  beside a seam vertex (the cuts' end tolerance covers the vertex, ``split_face`` splits the rim
-  there and one stretch is used once); a cylinder wall whose section with a sphere touches the
+  ``BooleanError`` in these found cases: a cylinder wall whose section with a sphere touches the
   sphere's seam meridian (tangent to it, near the pole: the fitted p-curve crosses the seam by
-  round-off and the trim self-intersects at sewing); a box side tangent to a cylinder wall along a
-  line that meets another cylinder's cap plane; a sphere–cylinder section osculating the sphere
+  round-off and the trim self-intersects at sewing); a sphere–cylinder section osculating the sphere
   face's bounding meridian to fourth order (``split_face`` runs its first stretch along the
-  boundary); a cylinder inside another, tangent to its wall along a line that meets the outer one's
-  cap (the cap becomes a crescent pinched at a vertex; a 1e-6 edge is used four times).  In the same
+  boundary).  In the same
   runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
   referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
   earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a
@@ -243,7 +239,19 @@ Status and limitations
   whose cap is split by the narrower rim into a disc and a crescent pinched where the rims touch:
   ``split_face`` took the wider rim run backwards (the outside of the cap) for a hole of the disc
   when the contact was the rim's seam vertex, and the check's sampled trims crossed where the
-  crescent's loop touches itself (its last refinement now samples towards the edges' ends).
+  crescent's loop touches itself (its last refinement now samples towards the edges' ends); rims
+  of different radii internally tangent to 1e-5 beside a seam vertex (the same backward run taken
+  for a hole); a cylinder inside another, tangent to its wall along a line that meets the outer
+  one's cap, and a box side tangent to a cylinder wall along a line that meets another cylinder's
+  cap plane: the cap's split put the node where two rims touch 1.2e-6 from the vertex the walls'
+  tangent line gives (Newton on the squared distance stops about ``sqrt(eps / Δκ)`` along tangent
+  curves; two circles now meet in closed form, ``kernel.curve_intersect._circle_circle``), and the
+  batched end tolerance lacked :func:`_runs_along` (cuts along an earlier Boolean's circle took 0.1);
+  a sphere–cylinder section touching the plane of the sphere's seam meridians where a box side
+  crosses both (seed 46): the 5.5e-5 sliver of the fitted section on the far half sphere runs along
+  that half's boundary and, on the cylinder, along the near half's section piece; ``split_face``
+  dropped it on both faces, rightly, and the check of the cuts' use raised (it now accepts a dropped
+  cut lying along the face's edges or its other cuts, :func:`_along_edges`).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
@@ -1626,7 +1634,15 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             d[q], sine[q] = dq, sq
         on = d <= 10.0 * delta[:, None]
         ratio = np.where(on, delta[:, None] / sine, -np.inf)
-        np.maximum.at(worst, ent[rows], np.maximum(ratio[:, 0], ratio[:, 1]))
+        w = np.maximum(ratio[:, 0], ratio[:, 1])
+        # As in _end_tolerance: a cut running along the edge (a circle of an earlier Boolean cut again by
+        # the same plane) ends where another edge crosses it, and this one's tangent says nothing.
+        for q in np.flatnonzero(w > 10.0 * delta).tolist():
+            e = E[hinv[q]]
+            if _runs_along(branches[int(ent[rows[q]])].curve, e.curve, min(e.t0, e.t1), max(e.t0, e.t1),
+                           float(delta[q])):
+                w[q] = -np.inf
+        np.maximum.at(worst, ent[rows], w)
         known_u = np.array([kd in (Line, Circle, Ellipse) for kd in kinds], dtype=bool)
         known = known_u[hinv]
         if known.any():
@@ -3319,12 +3335,36 @@ def _self_crossing(seg: np.ndarray) -> bool:
     return bool(np.any(proper_crossings(seg[i, 0], seg[i, 1], seg[j, 0], seg[j, 1])))
 
 
+def _distance_to_edges(X: _Operand, f: int, Q: np.ndarray, t: Tolerance, others: list[EdgeSpec] = ()
+                       ) -> np.ndarray:
+    """Distances ``(k,)`` of the points ``Q (k, 3)`` to face ``f``'s boundary edges and the edges ``others``."""
+    from coons.booleans.classify import _curve_closest
+
+    best = np.full(Q.shape[0], np.inf)
+    for loop in (*X.specs[f].loops, others):
+        for e in loop:
+            lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+            tq = np.clip(_curve_closest(e.curve, Q, lo, t), lo, hi)
+            best = np.minimum(best, np.linalg.norm(np.asarray(e.curve.evaluate(tq)).reshape(-1, 3) - Q, axis=1))
+    return best
+
+
+def _along_edges(X: _Operand, f: int, c: EdgeSpec, others: list[EdgeSpec], t: Tolerance) -> bool:
+    """Whether cut ``c`` lies within ten times its tolerance of face ``f``'s boundary or of the cuts ``others``
+    at :data:`_ALONG_SAMPLES` points of its range, ends included: ``split_face`` drops such a stretch (the
+    other edge serves)."""
+    Q = np.asarray(c.curve.evaluate(np.linspace(c.t0, c.t1, _ALONG_SAMPLES)), dtype=np.float64).reshape(-1, 3)
+    return bool(np.all(_distance_to_edges(X, f, Q, t, others) <= 10.0 * max(t.linear, c.tol or 0.0)))
+
+
+#: Points of a dropped cut tested against its face's boundary and other cuts (:func:`_along_edges`).
+_ALONG_SAMPLES = 17
+
+
 def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.ndarray:
     """Per cut, whether its chain (cuts joined end to end) has an end inside the face (not on its boundary)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
-
-    from coons.booleans.classify import _curve_closest
 
     n = len(cuts)
     E = np.array([np.asarray(c.curve.evaluate(np.array([c.t0, c.t1])), dtype=np.float64) for c in cuts]).reshape(-1, 3)
@@ -3338,14 +3378,7 @@ def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.
     ends = np.flatnonzero(degree == 0)
     on_boundary = np.zeros(ends.size, dtype=bool)
     if ends.size:
-        Q = E[ends]
-        best = np.full(ends.size, np.inf)
-        for loop in X.specs[f].loops:
-            for e in loop:
-                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                tq = np.clip(_curve_closest(e.curve, Q, lo, t), lo, hi)
-                best = np.minimum(best, np.linalg.norm(np.asarray(e.curve.evaluate(tq)).reshape(-1, 3) - Q, axis=1))
-        on_boundary = best <= 10.0 * thr[ends]
+        on_boundary = _distance_to_edges(X, f, E[ends], t) <= 10.0 * thr[ends]
     free_comp = np.zeros(comp.max() + 1, dtype=bool)
     free_comp[comp[ends[~on_boundary] // 2]] = True
     return free_comp[comp]
@@ -3370,10 +3403,13 @@ def _check_cuts_used(X: _Operand, f: int, cuts: list[EdgeSpec], pieces: list[Fac
         covered = sum(b - a for a, b in spans.get(id(c.curve), []) if a >= lo - eps and b <= hi + eps)
         if abs(covered) <= 1e-6 * (hi - lo) + eps:
             # Dropped: legitimate for a dangling tree (a line of tangent contact ending inside the
-            # face), not for a path whose ends all lie on the face's boundary or that closes.
+            # face) and for a cut running along the face's boundary or another cut (which serves
+            # instead: a sliver of a section touching a sphere face's boundary meridian, clipped to
+            # that face and again, overlapping, to its neighbour), not for a path whose ends all lie
+            # on the face's boundary or that closes.
             if free is None:
                 free = _free_chains(X, f, cuts, t)
-            if free[k]:
+            if free[k] or _along_edges(X, f, c, [o for o in cuts if o is not c], t):
                 continue
         if abs(covered - 2.0 * (hi - lo)) > 1e-6 * (hi - lo) + eps:
             P = np.asarray(c.curve.evaluate(np.array([c.t0, c.t1]))).tolist()

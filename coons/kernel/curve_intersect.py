@@ -7,9 +7,10 @@ parameter ranges where they coincide (overlaps).  It accepts the curves of coons
 :class:`~coons.kernel.analytic.Circle`, :class:`~coons.kernel.analytic.Ellipse` — and any object
 with ``derivatives(t, order) -> shape + (order + 1, d)``.
 
-0. **Closed forms** first: crossing lines (2-D or 3-D, least squares) and a 2-D line against a
-   ``Trig2D`` (``A cos t + B sin t = R`` along the line's normal), plus the range ends lying
-   within ``tol.linear`` of the other curve.  Parallel lines and all other pairs go on with the
+0. **Closed forms** first: crossing lines (2-D or 3-D, least squares), a 2-D line against a
+   ``Trig2D`` (``A cos t + B sin t = R`` along the line's normal) and two 2-D circles (the radical
+   line; circles within ``tol.linear`` of touching meet once, at the touching point), plus the
+   range ends lying within ``tol.linear`` of the other curve.  Parallel lines and all other pairs go on with the
    classic bounding-box subdivision and Newton (Sederberg & Nishita 1990; The NURBS Book §6.5):
 1. **Pieces with proven boxes.**  Each curve is cut into pieces whose axis-aligned boxes
    contain the curve: for a NURBS the local control points of each (refined) knot span
@@ -1310,7 +1311,7 @@ def _in_range(x: np.ndarray, r: tuple[float, float], slack: np.ndarray | float) 
 
 
 def _exact(c1, r1, c2, r2, t_: Tolerance) -> CurveIntersections | None:
-    """Closed forms: crossing lines (Cramer / least squares) and a 2-D line against a ``Trig2D``.
+    """Closed forms: crossing lines (Cramer / least squares), a 2-D line against a ``Trig2D``, two 2-D circles.
 
     Returns None when no closed form applies (parallel lines go to the general path, which
     reports their overlaps).  Parameters within ``tol.linear`` of a range end (in length) are
@@ -1340,7 +1341,73 @@ def _exact(c1, r1, c2, r2, t_: Tolerance) -> CurveIntersections | None:
         return _line_trig(c1, r1, c2, r2, t_, swap=False)
     if L2 is not None and isinstance(c1, Trig2D) and isinstance(c2, Line2D):
         return _line_trig(c2, r2, c1, r1, t_, swap=True)
+    if isinstance(c1, Trig2D) and isinstance(c2, Trig2D):
+        f1, f2 = _circle_frame(c1, t_), _circle_frame(c2, t_)
+        if f1 is not None and f2 is not None:
+            return _circle_circle(c1, r1, f1, c2, r2, f2, t_)
     return None
+
+
+def _circle_circle(c1: Trig2D, r1, f1: tuple, c2: Trig2D, r2, f2: tuple, t_: Tolerance) -> CurveIntersections | None:
+    """Two 2-D circles (:func:`_circle_frame`): their crossings from the radical line, or their touching point.
+
+    With centres ``C1, C2`` at distance ``d`` along ``u`` and radii ``ρ1, ρ2``, the crossings lie at
+    ``C1 + a u ± h v`` (``a = (ρ1² - ρ2² + d²) / 2d``, ``h² = ρ1² - a²``).  Circles within ``tol.linear`` of
+    touching (``d`` within it of ``ρ1 + ρ2`` or of ``|ρ1 - ρ2|``) stay within it of each other between their
+    two crossings: they touch once, at ``C1 ± ρ1 u``, exactly where tangent circles meet (Newton on the
+    squared distance stops about ``sqrt(eps / Δκ)`` along them from it: a node of a face split 1e-6 away
+    from the vertex the other faces have).  Concentric circles of one radius: None (the general path
+    reports the overlap).  As :func:`_line_trig`: every representative of a parameter within its range
+    (and within ``tol.linear`` of it, snapped), points farther apart than ``tol.linear`` dropped.
+    """
+    eps = t_.linear
+    (C1, A1, B1), (C2, A2, B2) = f1, f2
+    rho1, rho2 = math.sqrt(float(A1 @ A1)), math.sqrt(float(A2 @ A2))
+    w = np.asarray(C2, dtype=np.float64) - C1
+    d = math.hypot(float(w[0]), float(w[1]))
+    if d <= eps:
+        if abs(rho1 - rho2) <= eps:
+            return None
+        return _result(c1, c2, np.zeros(0), np.zeros(0))
+    u = w / d
+    if abs(d - (rho1 + rho2)) <= eps or abs(d - abs(rho1 - rho2)) <= eps:
+        # (externally, or internally with circle 1 the larger: towards C2; internally the smaller: away)
+        sign = -1.0 if abs(d - (rho1 + rho2)) > eps and rho1 < rho2 else 1.0
+        P = (C1 + sign * rho1 * u)[None]
+    elif d > rho1 + rho2 or d < abs(rho1 - rho2):
+        return _result(c1, c2, np.zeros(0), np.zeros(0))
+    else:
+        a = (rho1 * rho1 - rho2 * rho2 + d * d) / (2.0 * d)
+        h = math.sqrt(max(rho1 * rho1 - a * a, 0.0))
+        v = np.array([-u[1], u[0]])
+        P = np.stack([C1 + a * u + h * v, C1 + a * u - h * v])
+
+    def angles(C, A, B, r):
+        # every representative of each point's angle about C inside the range (a range may exceed one period)
+        X = P - C
+        base = np.arctan2(X @ B, X @ A)
+        k0 = np.floor((r[0] - base) / (2 * math.pi))
+        return base[:, None] + 2 * math.pi * (k0[:, None] + np.arange(3))
+
+    t1, t2 = angles(C1, A1, B1, r1), angles(C2, A2, B2, r2)
+    s_out, t_out = [], []
+    for k in range(P.shape[0]):
+        for s in t1[k][_in_range(t1[k], r1, eps / rho1)].tolist():
+            for t in t2[k][_in_range(t2[k], r2, eps / rho2)].tolist():
+                s_out.append(min(max(s, r1[0]), r1[1]))
+                t_out.append(min(max(t, r2[0]), r2[1]))
+    s, t = np.array(s_out), np.array(t_out)
+    if s.size:
+        close = np.linalg.norm(c1.evaluate(s) - c2.evaluate(t), axis=1) <= eps
+        s, t = s[close], t[close]
+    if s.size > 1:  # range ends one period apart give one point twice: keep the first along c1
+        order = np.argsort(s, kind="stable")
+        s, t = s[order], t[order]
+        Q = c1.evaluate(s)
+        far = np.linalg.norm(Q[:, None] - Q[None], axis=2) > eps
+        first = np.array([k == 0 or bool(np.all(far[k, :k])) for k in range(s.size)])
+        s, t = s[first], t[first]
+    return _result(c1, c2, s, t)
 
 
 def _line_trig(line: Line2D, rl, trig: Trig2D, rt, t_: Tolerance, swap: bool) -> CurveIntersections:

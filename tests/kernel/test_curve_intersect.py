@@ -808,3 +808,51 @@ def test_span_polynomials_at_a_few_parameters_match_those_in_many(rational):
         for x in few:
             assert np.array_equal(form.derivatives(np.array([x]), order)[0], form.derivatives(many, order)[
                 int(np.flatnonzero((many == x) | (np.isnan(many) & np.isnan(x)))[0])], equal_nan=True)
+
+
+@settings(max_examples=40)
+@given(st.floats(0.3, 3.0), st.floats(0.3, 3.0), st.floats(0.0, TWO_PI), st.floats(0.05, 0.95),
+       st.booleans())
+def test_circle_circle_closed_form_equals_the_general_path(r1, r2, phi, where, flip):
+    """Two crossing circles (centres at a distance strictly between |r1 - r2| and r1 + r2, the second one
+    clockwise when ``flip``): the closed form of :func:`_circle_circle` and the subdivision and Newton of
+    the general path find the same points."""
+    from coons.kernel import curve_intersect as ci
+
+    lo, hi = abs(r1 - r2), r1 + r2
+    d = lo + where * (hi - lo)
+    c1 = Trig2D([0.2, -0.1], [r1, 0], [0, r1])
+    c2 = Trig2D([0.2 + d * math.cos(phi), -0.1 + d * math.sin(phi)], [r2, 0], [0, -r2 if flip else r2])
+    x = intersect_curves(c1, (-1, 6), c2, (0.5, 7))
+    saved, ci._FAST = ci._FAST, False
+    try:
+        ci_exact, ci._exact = ci._exact, lambda *a: None
+        try:
+            y = intersect_curves(c1, (-1, 6), c2, (0.5, 7))
+        finally:
+            ci._exact = ci_exact
+    finally:
+        ci._FAST = saved
+    assert len(x) == len(y)
+    np.testing.assert_allclose(x.points, y.points, atol=1e-9)
+    _assert_consistent(x, c1, c2)
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.3, 2.0, 4.4])
+@pytest.mark.parametrize("inside", [True, False])
+def test_tangent_circles_touch_at_the_exact_point(phi, inside):
+    """Circles of radii 2 and 1.5 touching internally (centres 0.5 apart) or externally (3.5 apart): one
+    point, the touching point to round-off, from either side.  Newton on the squared distance stops about
+    sqrt(eps / Δκ) along tangent curves from it (1e-6 here), which left a face split's node that far from
+    the vertex the other faces of a Boolean had."""
+    u = np.array([math.cos(phi), math.sin(phi)])
+    d = 0.5 if inside else 3.5
+    c1 = Trig2D([0.3, 0.7], [2, 0], [0, 2])
+    c2 = Trig2D(np.array([0.3, 0.7]) + d * u, [0, 1.5], [-1.5, 0])
+    want = np.array([0.3, 0.7]) + 2.0 * u
+    for a, ra, b, rb in ((c1, (-1, 6), c2, (0, 7)), (c2, (0, 7), c1, (-1, 6))):
+        x = intersect_curves(a, ra, b, rb)
+        assert len(x) == 1 and not x.overlaps
+        np.testing.assert_allclose(x.points[0], want, atol=1e-14)
+        np.testing.assert_allclose(a.evaluate(x.t1[0]), want, atol=1e-14)
+        np.testing.assert_allclose(b.evaluate(x.t2[0]), want, atol=1e-14)

@@ -220,11 +220,9 @@ Status and limitations
   0.25 grid, many sharing cap planes, compared with OCCT and a Monte Carlo referee by
   ``benchmarks/hunt_boolean_chains.py``; the fixed configurations are tests in
   ``tests/booleans/test_solid_regressions.py``) still raise a
-  ``BooleanError`` in these found cases: a cylinder wall whose section with a sphere touches the
-  sphere's seam meridian (tangent to it, near the pole: the fitted p-curve crosses the seam by
-  round-off and the trim self-intersects at sewing); a sphere–cylinder section osculating the sphere
-  face's bounding meridian to fourth order (``split_face`` runs its first stretch along the
-  boundary).  In the same
+  ``BooleanError`` in this found case: a sphere–cylinder section osculating the sphere face's
+  bounding meridian to fourth order (``split_face`` runs its first stretch along the boundary).  In
+  the same
   runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
   referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
   earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a
@@ -239,7 +237,9 @@ Status and limitations
   whose cap is split by the narrower rim into a disc and a crescent pinched where the rims touch:
   ``split_face`` took the wider rim run backwards (the outside of the cap) for a hole of the disc
   when the contact was the rim's seam vertex, and the check's sampled trims crossed where the
-  crescent's loop touches itself (its last refinement now samples towards the edges' ends); rims
+  crescent's loop touches itself (its last refinement now samples towards the edges' ends; the
+  same for a cylinder wall whose section with a sphere is tangent to the sphere's seam meridian
+  near the pole, seed 10); rims
   of different radii internally tangent to 1e-5 beside a seam vertex (the same backward run taken
   for a hole); a cylinder inside another, tangent to its wall along a line that meets the outer
   one's cap, and a box side tangent to a cylinder wall along a line that meets another cylinder's

@@ -772,6 +772,11 @@ _HUNT_FIXED = {
     # it, and the 5.5e-5 sliver clipped to that half sphere runs along its boundary there and, on the
     # cylinder, along the other half's section piece.  split_face dropped it on both faces, rightly,
     # and the check of the cuts' use raised.
+    # (cylinder − cylinder) ∩ sphere: a cylinder wall's section with the sphere is tangent to the sphere's
+    # seam meridian near the pole.  The trim of the face there touches itself where two edges leave a vertex
+    # tangent to each other, and the check's chords from the vertex crossed (check._DENSE_ENDS).
+    "seed10-chain12": ([("cyl", 1.0, 4.0, (-1.0, -0.5, 0.0)), ("cyl", 1.0, 4.0, (-1.0, 0.75, 0.0)),
+                        ("sph", 2.0, 2.0, (-0.75, -0.25, 0.0))], ["-", "&"]),
     "seed46-chain6": ([("sph", 2.0, 4.0, (-0.75, 1.0, -1.0)), ("box", 1.5, 2.0, (-0.25, 0.5, 0.0)),
                        ("cyl", 1.5, 4.0, (0.5, -0.5, -1.0)), ("cyl", 1.5, 4.0, (0.0, 0.25, 1.0))], ["&", "-", "+"]),
 }

@@ -719,6 +719,11 @@ def _operand_specs(solid: Solid, name: str, t: Tolerance) -> list[FaceSpec]:
     return specs  # type: ignore[return-value]
 
 
+#: Surface types whose parameter domain :func:`_within_domain` never clips (an infinite ``v`` range, and ``u``
+#: infinite or periodic): it returns the box as given.
+_WHOLE_DOMAIN = (PlanarSurface, CylindricalSurface)
+
+
 def _within_domain(S, ub: tuple, vb: tuple, v_face: tuple) -> tuple[tuple[float, float], tuple[float, float]]:
     """The enlarged parameter box ``(ub, vb)`` clipped to where ``S`` is one-to-one.
 
@@ -943,7 +948,10 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     views of the pass's arrays; the values are those of one loop at a time.
     """
     uses = [e for loop, _ in items for e in loop]
-    samples, pads = zip(*[_use_samples_pad(e, S) for loop, S in items for e in loop])
+    # (one look-up pass: _prefill_samples has left most uses' samples and pads; the rest by _use_samples_pad)
+    surfaces = [S for loop, S in items for _ in loop]
+    samples, pads = zip(*[got[1:] if got is not None and got[0] is S and got[2] is not None else _use_samples_pad(e, S)
+                          for e, S, got in zip(uses, surfaces, _USE_SAMPLES.get_many(uses))])
     n_uses = np.array([len(loop) for loop, _ in items], dtype=np.int64)
     use_start = np.concatenate([[0], np.cumsum(n_uses)[:-1]])
     cnt = np.array([U.shape[0] for U in samples], dtype=np.int64)
@@ -1185,7 +1193,9 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     box_lo, box_hi = (R - mu).tolist(), (Rx + mu).tolist()
     uv_box = []
     for spec, b0, b1, r0, r1 in zip(specs, box_lo, box_hi, R.tolist(), Rx.tolist()):
-        uv_box.append(_within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1])))
+        # (a plane or a cylinder: _within_domain leaves the box as it is, a hundred tools' faces without the call)
+        uv_box.append(((b0[0], b1[0]), (b0[1], b1[1])) if type(spec.surface) in _WHOLE_DOMAIN
+                      else _within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1])))
     # The parameter box that surely holds each face's region D: the segment boxes (padded by
     # the chords of curved p-curves) and the enlarged uv_box.
     U = np.array([(ub[0], vb[0], ub[1], vb[1]) for ub, vb in uv_box]).reshape(-1, 4)

@@ -808,3 +808,17 @@ def test_span_polynomials_at_a_few_parameters_match_those_in_many(rational):
         for x in few:
             assert np.array_equal(form.derivatives(np.array([x]), order)[0], form.derivatives(many, order)[
                 int(np.flatnonzero((many == x) | (np.isnan(many) & np.isnan(x)))[0])], equal_nan=True)
+
+
+def test_curve_boxes_of_circles_in_one_pass_are_those_of_their_forms():
+    """A batch of circles alone (their forms ``C + r X cos t + r Y sin t`` in one pass) gets, bit for bit, the
+    boxes the same circles get in a mixed batch (each circle's form by ``_trig_form``)."""
+    rng = np.random.default_rng(3)
+    circles = [Circle(rng.uniform(-9, 9, 3), rng.normal(size=3), rng.normal(size=3), rng.uniform(0.1, 4))
+               for _ in range(40)]
+    lo = rng.uniform(-7, 7, 40)
+    hi = lo + rng.uniform(0.1, 8.0, 40)
+    alone = curve_boxes(circles, lo, hi)
+    mixed = curve_boxes(circles + [Ellipse([0, 0, 0], [0, 0, 1], [1, 0, 0], 3.0, 1.0)], np.append(lo, 0.0),
+                        np.append(hi, 1.0))
+    np.testing.assert_array_equal(alone, mixed[:-1])

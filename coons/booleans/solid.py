@@ -1708,8 +1708,9 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
     K = len(faces)
     # Each distinct face's sides once (a hole's wall meets the plate's top and bottom), scattered into its
     # padded row by (face, column) indices, then gathered per branch.
-    uniq, inv = np.unique(np.asarray(faces, dtype=np.int64), return_inverse=True)
-    data = [_straight_data(X, f, t) for f in uniq.tolist()]
+    index: dict[int, int] = {}
+    inv = np.array([index.setdefault(f, len(index)) for f in faces], dtype=np.int64)
+    data = [_straight_data(X, f, t) for f in index]
     m = np.array([len(d[3]) for d in data])
     width = int(m.max())
     at = np.repeat(np.arange(len(data)), m)
@@ -2570,6 +2571,10 @@ def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
 _SCALAR_CUTS = 16
 
 
+#: Up to this many groups :func:`_apart_many` tests their pairs in Python floats.
+_SCALAR_GROUPS = 16
+
+
 def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
     """Per group of cuts, whether no two cuts' midpoints lie within twice the group's widest cut
     tolerance: then no two are within it, and the k-d tree of :func:`_unique_cuts` (whose distances
@@ -2586,6 +2591,15 @@ def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
     if len(simple) < len(cuts):
         for k in sorted(set(range(len(cuts))) - set(simple)):
             M[k] = np.asarray(cuts[k].curve.evaluate(np.array([tm[k]])), dtype=np.float64).reshape(3)
+    if len(groups) <= _SCALAR_GROUPS:  # (a few faces: Python floats, without the arrays' fixed cost)
+        mids = M.tolist()
+        out, s0 = [], 0
+        for g in groups:
+            r = 2.0 * max(max(t.linear, c.tol or 0.0) for c in g)
+            m = mids[s0:s0 + len(g)]
+            s0 += len(g)
+            out.append(all(_distance(p, q) > r for i, p in enumerate(m) for q in m[:i]))
+        return out
     # Every pair of one group's cuts at once (the walls of a hundred holes: two cuts each), grouped by the
     # groups' sizes; the distances by _distance's expression coordinate by coordinate (the same floats).
     n = np.array([len(g) for g in groups])

@@ -376,8 +376,8 @@ def test_batched_edge_boxes_are_each_faces():
 
 
 def test_apart_groups_in_arrays_are_the_pairwise_test():
-    """``_apart_many`` (every pair of a group's midpoints at once, groups by size) answers, group by group, the
-    pairwise test in Python floats: no two midpoints within twice the group's widest cut tolerance."""
+    """``_apart_many`` (every pair of a group's midpoints at once, groups by size; a few groups in Python floats)
+    answers, group by group, the pairwise test: no two midpoints within twice the group's widest cut tolerance."""
     rng = np.random.default_rng(13)
     groups = []
     for k in range(120):
@@ -391,6 +391,10 @@ def test_apart_groups_in_arrays_are_the_pairwise_test():
             g.append(EdgeSpec(c, -0.5, 0.5, None, [None, 1e-7, 2e-7][(k + i) % 3]))
         groups.append(g)
     got = S._apart_many(groups, T)
+    assert len(groups) > S._SCALAR_GROUPS
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_SCALAR_GROUPS", 1 << 60)
+        assert S._apart_many(groups, T) == got  # (the Python floats' path for a few faces)
     expect = []
     for g in groups:
         r = 2.0 * max(max(T.linear, c.tol or 0.0) for c in g)

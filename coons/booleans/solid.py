@@ -662,13 +662,28 @@ class _Operand:
         infinite where it gives none) and tolerances ``(k,)``, computed once per face spec."""
         d = self._data[f]
         if d.edge_boxes is None:
-            edges = [e for loop in self.specs[f].loops for e in loop]
-            # (the loops' stacked use boxes: one copy for a face of many holes)
-            lo = np.concatenate([ld.use_lo for ld in d.loops]) if d.loops else np.empty((0, 3))
-            hi = np.concatenate([ld.use_hi for ld in d.loops]) if d.loops else np.empty((0, 3))
-            tol = np.array([e.tol or 0.0 for e in edges], dtype=np.float64)
-            d.edge_boxes = (edges, _frozen(lo), _frozen(hi), _frozen(tol))
+            self.fill_edge_boxes([f])
         return d.edge_boxes
+
+    def fill_edge_boxes(self, faces: list[int]) -> None:
+        """:meth:`edge_boxes` of the faces ``faces`` not computed yet, their tolerances in one array (the
+        walls of a hundred holes: each face's are read-only views of it)."""
+        todo = [f for f in dict.fromkeys(faces) if self._data[f].edge_boxes is None]
+        if not todo:
+            return
+        edges = [[e for loop in self.specs[f].loops for e in loop] for f in todo]
+        tol = _frozen(np.array([e.tol or 0.0 for es in edges for e in es], dtype=np.float64))
+        at = 0
+        for f, es in zip(todo, edges):
+            d = self._data[f]
+            # (the loops' stacked use boxes: one copy for a face of many holes; a face of one loop has them)
+            if len(d.loops) == 1:
+                lo, hi = d.loops[0].use_lo, d.loops[0].use_hi
+            else:
+                lo = np.concatenate([ld.use_lo for ld in d.loops]) if d.loops else np.empty((0, 3))
+                hi = np.concatenate([ld.use_hi for ld in d.loops]) if d.loops else np.empty((0, 3))
+            d.edge_boxes = (es, _frozen(lo), _frozen(hi), tol[at : at + len(es)])
+            at += len(es)
 
     @property
     def classifier(self):
@@ -718,6 +733,11 @@ def _operand_specs(solid: Solid, name: str, t: Tolerance) -> list[FaceSpec]:
                                stage="input", diagnostics={"operand": name, "face": f}) from exc
         specs[f] = FaceSpec(S, spec.sense, loops)
     return specs  # type: ignore[return-value]
+
+
+#: Surface types whose parameter domain :func:`_within_domain` never clips (an infinite ``v`` range, and ``u``
+#: infinite or periodic): it returns the box as given.
+_WHOLE_DOMAIN = (PlanarSurface, CylindricalSurface)
 
 
 def _within_domain(S, ub: tuple, vb: tuple, v_face: tuple) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -944,7 +964,10 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     views of the pass's arrays; the values are those of one loop at a time.
     """
     uses = [e for loop, _ in items for e in loop]
-    samples, pads = zip(*[_use_samples_pad(e, S) for loop, S in items for e in loop])
+    # (one look-up pass: _prefill_samples has left most uses' samples and pads; the rest by _use_samples_pad)
+    surfaces = [S for loop, S in items for _ in loop]
+    samples, pads = zip(*[got[1:] if got is not None and got[0] is S and got[2] is not None else _use_samples_pad(e, S)
+                          for e, S, got in zip(uses, surfaces, _USE_SAMPLES.get_many(uses))])
     n_uses = np.array([len(loop) for loop, _ in items], dtype=np.int64)
     use_start = np.concatenate([[0], np.cumsum(n_uses)[:-1]])
     cnt = np.array([U.shape[0] for U in samples], dtype=np.int64)
@@ -1186,7 +1209,9 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     box_lo, box_hi = (R - mu).tolist(), (Rx + mu).tolist()
     uv_box = []
     for spec, b0, b1, r0, r1 in zip(specs, box_lo, box_hi, R.tolist(), Rx.tolist()):
-        uv_box.append(_within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1])))
+        # (a plane or a cylinder: _within_domain leaves the box as it is, a hundred tools' faces without the call)
+        uv_box.append(((b0[0], b1[0]), (b0[1], b1[1])) if type(spec.surface) in _WHOLE_DOMAIN
+                      else _within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1])))
     # The parameter box that surely holds each face's region D: the segment boxes (padded by
     # the chords of curved p-curves) and the enlarged uv_box.
     U = np.array([(ub[0], vb[0], ub[1], vb[1]) for ub, vb in uv_box]).reshape(-1, 4)
@@ -1366,10 +1391,13 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
     along: set[int] = set()  # ids of the cuts that run along the other operand's edges (_split_overlaps)
     sections = _batched_sections(A, B, I, J, t)
     try:
-        ready = _batched_pieces(A, B, I, J, sections, t)
+        ready, trusted = _batched_pieces(A, B, I, J, sections, t)
     except (CoonsError, ValueError, ArithmeticError) as exc:  # the loop below meets it again, naming the pair
         _log.debug("batched clips failed (%s: %s); per pair instead", type(exc).__name__, exc)
-        ready = {}
+        ready, trusted = {}, False
+    # The batched pieces' cuts by the trusted constructor when _batched_pieces vouches for their fields (a
+    # hundred holes bring 800 cuts); the others by the validating one, which raises as before.
+    edge_spec, trusted_spec = EdgeSpec, EdgeSpec._trusted
     for k, (i, j) in enumerate(zip(I.tolist(), J.tolist())):
         X, Y = A.specs[i], B.specs[j]
         try:
@@ -1386,6 +1414,7 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                 curves = si.curves
             for c in curves:
                 pieces = ready.get(id(c))
+                make = edge_spec if pieces is None or not trusted else trusted_spec
                 if pieces is None:
                     if c.tol > _REFIT_FACTOR * t.linear:
                         c = _refitted(c, X.surface, Y.surface, A.uv_box[i], B.uv_box[j], t)
@@ -1394,13 +1423,13 @@ def _intersect(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, t: Tolera
                     # Both ends within _check_cut_ends's reach of this face's boundary, for sure.
                     reach = 10.0 * max(t.linear, etol)
                     if wa == "inside":
-                        cuts_a.setdefault(i, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_a, etol))
+                        cuts_a.setdefault(i, []).append(e := make(c.curve, s0, s1, c.pcurve_a, etol))
                         if max(near[0]) <= reach:
                             bounded.add(id(e))
                         if wb != "inside":
                             along.add(id(e))
                     if wb == "inside":
-                        cuts_b.setdefault(j, []).append(e := EdgeSpec(c.curve, s0, s1, c.pcurve_b, etol))
+                        cuts_b.setdefault(j, []).append(e := make(c.curve, s0, s1, c.pcurve_b, etol))
                         if max(near[1]) <= reach:
                             bounded.add(id(e))
                         if wa != "inside":
@@ -1494,15 +1523,17 @@ def _branch_pieces(A: _Operand, B: _Operand, i: int, j: int, c, t: Tolerance) ->
     return out
 
 
-def _batched_pieces(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, sections: list, t: Tolerance) -> dict:
-    """``id(branch) -> `` :func:`_branch_pieces` of the batched sections' branches, in array passes: the clips
-    (:func:`_clip_many` on each operand), the length test (:func:`_long_enough_many`) and the end
-    tolerances (:func:`_end_tolerance_many`).  Branches whose deviation calls for :func:`_refitted` are
-    left to the per-pair loop."""
+def _batched_pieces(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, sections: list,
+                    t: Tolerance) -> tuple[dict, bool]:
+    """``(id(branch) -> `` :func:`_branch_pieces` ``, trusted)`` of the batched sections' branches, in array
+    passes: the clips (:func:`_clip_many` on each operand), the length test (:func:`_long_enough_many`) and the
+    end tolerances (:func:`_end_tolerance_many`).  Branches whose deviation calls for :func:`_refitted` are
+    left to the per-pair loop.  ``trusted``: every piece's range is two finite Python floats ``s0 < s1`` and
+    its end tolerance a finite Python float ``>= 0`` (what ``EdgeSpec._trusted`` asks of its fields)."""
     rows = [(i, j, c) for (i, j), curves in zip(zip(I.tolist(), J.tolist()), sections) if curves
             for c in curves if c.tol <= _REFIT_FACTOR * t.linear]
     if not rows:
-        return {}
+        return {}, False
     branches = [c for _, _, c in rows]
     ra = _clip_many(A, [i for i, _, _ in rows], [c.pcurve_a for c in branches], branches, t)
     on_a = [r for r, a in enumerate(ra) if a]  # (as the per-pair path: B is clipped only where A's clip is not empty)
@@ -1514,16 +1545,21 @@ def _batched_pieces(A: _Operand, B: _Operand, I: np.ndarray, J: np.ndarray, sect
                   if min(a1, b1) > max(a0, b0)]
     out: dict = {id(c): [] for c in branches}
     if not spans:
-        return out
+        return out, False
     long = _long_enough_many([branches[r].curve for r, *_ in spans], [x[1] for x in spans], [x[2] for x in spans], t)
     spans = [x for x, ok in zip(spans, long) if ok]
     if not spans:
-        return out
-    etol, near = _end_tolerance_many([branches[r] for r, *_ in spans], [(x[1], x[2]) for x in spans],
+        return out, False
+    ends = [(x[1], x[2]) for x in spans]
+    etol, near = _end_tolerance_many([branches[r] for r, *_ in spans], ends,
                                      [(A, rows[r][0]) for r, *_ in spans], [(B, rows[r][1]) for r, *_ in spans], t)
-    for (r, s0, s1, wa, wb), e, nr in zip(spans, etol, near):
+    # (the ranges through one array: Python floats, the same values, whichever clip gave them; s0 < s1 above)
+    ends_f = np.array(ends, dtype=np.float64)
+    etol_f = np.array(etol, dtype=np.float64)
+    trusted = bool(np.isfinite(ends_f).all() and np.isfinite(etol_f).all() and (etol_f >= 0.0).all())
+    for (r, *_, wa, wb), (s0, s1), e, nr in zip(spans, ends_f.tolist(), etol, near):
         out[id(branches[r])].append((s0, s1, wa, wb, e, nr))
-    return out
+    return out, trusted
 
 
 def _long_enough_many(curves: list, s0: list[float], s1: list[float], t: Tolerance) -> list[bool]:
@@ -1581,8 +1617,12 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
         u = index.get((id(X), f))
         if u is None:
             u = index[(id(X), f)] = len(uniq)
-            uniq.append(X.edge_boxes(f))
+            uniq.append((X, f))
         of.append(u)
+    # (the distinct faces' edge boxes made together, per operand)
+    for X in {id(X): X for X, _ in uniq}.values():
+        X.fill_edge_boxes([f for Y, f in uniq if Y is X])
+    uniq = [X.edge_boxes(f) for X, f in uniq]
     edges_u = [e for edges, *_ in uniq for e in edges]
     n_u = np.array([len(edges) for edges, *_ in uniq])
     of = np.array(of)
@@ -1690,17 +1730,26 @@ def _clip_straight_many(X: _Operand, faces: list[int], pcurves: list, branches: 
     nothing), the crossings and clearances by :func:`_straight_crossings_arrays`'s expressions, the pieces'
     midpoints against their faces by :func:`_in_faces`.  Per branch the clip, or None where it declines."""
     K = len(faces)
-    data = [_straight_data(X, f, t) for f in faces]
-    width = max(len(d[3]) for d in data)
-    A = np.zeros((K, width, 2))
-    E = np.zeros((K, width, 2))
-    L = np.zeros((K, width))
-    valid = np.zeros((K, width), dtype=bool)
-    for k, d in enumerate(data):
-        m = len(d[3])
-        A[k, :m], E[k, :m], L[k, :m], valid[k, :m] = d[1], d[2], d[3], True
-    sp = np.array([d[0] for d in data])
-    largest = np.array([d[6] for d in data])
+    # Each distinct face's sides once (a hole's wall meets the plate's top and bottom), scattered into its
+    # padded row by (face, column) indices, then gathered per branch.
+    index: dict[int, int] = {}
+    inv = np.array([index.setdefault(f, len(index)) for f in faces], dtype=np.int64)
+    data = [_straight_data(X, f, t) for f in index]
+    m = np.array([len(d[3]) for d in data])
+    width = int(m.max())
+    at = np.repeat(np.arange(len(data)), m)
+    col = np.arange(at.size) - np.repeat(np.cumsum(m) - m, m)
+    A = np.zeros((len(data), width, 2))
+    E = np.zeros((len(data), width, 2))
+    L = np.zeros((len(data), width))
+    valid = np.zeros((len(data), width), dtype=bool)
+    A[at, col] = np.concatenate([d[1] for d in data])
+    E[at, col] = np.concatenate([d[2] for d in data])
+    L[at, col] = np.concatenate([d[3] for d in data])
+    valid[at, col] = True
+    A, E, L, valid = A[inv], E[inv], L[inv], valid[inv]
+    sp = np.array([d[0] for d in data])[inv]
+    largest = np.array([d[6] for d in data])[inv]
     o = np.array([p.origin for p in pcurves])
     dd = np.array([p.direction for p in pcurves])
     t0 = np.array([c.t0 for c in branches])
@@ -2021,7 +2070,16 @@ def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
     AE = A + E
     for x in (sp_f, A, E, L, LL):  # (each face's arrays are read-only views of these)
         _frozen(x)
-    kept = np.concatenate([[0], np.cumsum(np.add.reduceat(side.astype(np.int64), first))]).tolist()
+    n_kept = np.add.reduceat(side.astype(np.int64), first)
+    at = np.cumsum(n_kept) - n_kept
+    # Each face's side starts then ends, V (its rows 2 a : 2 b), for all faces in one array: row r of face k
+    # (rows a : b) goes to r + a, its end to r + a + (b - a).
+    own = np.repeat(at, n_kept)
+    V = np.empty((2 * A.shape[0], 2))
+    V[np.arange(A.shape[0]) + own] = A
+    V[np.arange(A.shape[0]) + own + np.repeat(n_kept, n_kept)] = AE
+    _frozen(V)
+    kept = np.append(at, A.shape[0]).tolist()
     sides = list(zip(A.tolist(), E.tolist(), L.tolist(), LL.tolist()))
     for k, f in enumerate(todo):
         a, b = kept[k], kept[k + 1]
@@ -2029,8 +2087,7 @@ def _prefill_straight(X: _Operand, faces: list[int], t: Tolerance) -> None:
         if a == b:
             d.straight = False
             continue
-        d.straight = (sp_f[k], A[a:b], E[a:b], L[a:b], LL[a:b], _frozen(np.concatenate([A[a:b], AE[a:b]])),
-                      largest[k], sides[a:b], 1.0 + vmax[k])
+        d.straight = (sp_f[k], A[a:b], E[a:b], L[a:b], LL[a:b], V[2 * a : 2 * b], largest[k], sides[a:b], 1.0 + vmax[k])
 
 
 #: Up to this many polygon sides :func:`_clip_straight` tests them in Python floats.
@@ -2191,6 +2248,44 @@ def _distance(p, q) -> float:
     return math.sqrt((x * x + y * y) + z * z)
 
 
+def _open_cut_ends(cuts: list[EdgeSpec], t: Tolerance) -> tuple[list[list[float]], list[float]]:
+    """The two ends ``[x, y, z]`` of each cut of :func:`_check_cut_ends` that is not closed (its ends farther
+    apart than its threshold ``max(t.linear, tol)``), in order, and each end's threshold."""
+    from coons.kernel.intersect import _curve_points
+
+    ends, thr = [], []
+    # Many cuts (a plate crossed by many holes): the ends of those on lines and conics in one pass
+    # (evaluate_curves: the same expressions).
+    simple = [k for k, c in enumerate(cuts) if type(c.curve) in (Line, Circle, Ellipse)
+              and math.isfinite(c.t0) and math.isfinite(c.t1)] if len(cuts) > _SCALAR_ENDS else []
+    ends_of = evaluate_curves([cuts[k].curve for k in simple], np.array([[cuts[k].t0, cuts[k].t1] for k in simple])) \
+        if simple else None
+    if simple and len(simple) == len(cuts):
+        # All of them: the gaps in arrays too, _distance's expression coordinate by coordinate (the same floats).
+        D = ends_of[:, 0] - ends_of[:, 1]
+        gap = np.sqrt((D[:, 0] * D[:, 0] + D[:, 1] * D[:, 1]) + D[:, 2] * D[:, 2])
+        lim = np.array([max(t.linear, c.tol or 0.0) for c in cuts])
+        for k in np.flatnonzero(np.abs(gap - lim) <= 1e-9 * lim).tolist():  # (near ties: as below)
+            gap[k] = np.linalg.norm(ends_of[k, 0] - ends_of[k, 1])
+        open_ = gap > lim  # (closed cuts have no ends)
+        ends, thr = ends_of[open_].reshape(-1, 3).tolist(), np.repeat(lim[open_], 2).tolist()
+    else:
+        known = dict(zip(simple, ends_of)) if simple else {}
+        for k, c in enumerate(cuts):
+            tt = np.array([c.t0, c.t1])
+            P = known[k] if k in known else _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) \
+                else np.asarray(c.curve.evaluate(tt), dtype=np.float64)
+            lim = max(t.linear, c.tol or 0.0)
+            p, q = P.tolist()
+            gap = _distance(p, q)
+            if abs(gap - lim) <= 1e-9 * lim:  # a near tie: numpy's norm of a vector (its dot product rounds its own way)
+                gap = float(np.linalg.norm(P[0] - P[1]))
+            if gap > lim:  # closed cuts have no ends
+                ends += [p, q]
+                thr += [lim, lim]
+    return ends, thr
+
+
 def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: Tolerance) -> None:
     """Every end of a cut on face ``f`` of X must meet another cut's end, the face's boundary or an edge of Y.
 
@@ -2212,28 +2307,8 @@ def _check_cut_ends(X: _Operand, f: int, cuts: list[EdgeSpec], Y: _Operand, t: T
         (stage ``"intersect"``) naming the face, the dangling point and its distances.
     """
     from coons.booleans.classify import _curve_closest
-    from coons.kernel.intersect import _curve_points
 
-    ends, thr = [], []
-    # Many cuts (a plate crossed by many holes): the ends of those on lines and conics in one pass
-    # (evaluate_curves: the same expressions).
-    simple = [k for k, c in enumerate(cuts) if type(c.curve) in (Line, Circle, Ellipse)
-              and math.isfinite(c.t0) and math.isfinite(c.t1)] if len(cuts) > _SCALAR_ENDS else []
-    known = dict(zip(simple, evaluate_curves([cuts[k].curve for k in simple],
-                                                np.array([[cuts[k].t0, cuts[k].t1] for k in simple]))
-                     if simple else []))
-    for k, c in enumerate(cuts):
-        tt = np.array([c.t0, c.t1])
-        P = known[k] if k in known else _curve_points(c.curve, tt) if math.isfinite(c.t0) and math.isfinite(c.t1) \
-            else np.asarray(c.curve.evaluate(tt), dtype=np.float64)
-        lim = max(t.linear, c.tol or 0.0)
-        p, q = P.tolist()
-        gap = _distance(p, q)
-        if abs(gap - lim) <= 1e-9 * lim:  # a near tie: numpy's norm of a vector (its dot product rounds its own way)
-            gap = float(np.linalg.norm(P[0] - P[1]))
-        if gap > lim:  # closed cuts have no ends
-            ends += [p, q]
-            thr += [lim, lim]
+    ends, thr = _open_cut_ends(cuts, t)
     if not ends:
         return
     # Ends meeting another end.
@@ -2520,6 +2595,10 @@ def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
 _SCALAR_CUTS = 16
 
 
+#: Up to this many groups :func:`_apart_many` tests their pairs in Python floats.
+_SCALAR_GROUPS = 16
+
+
 def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
     """Per group of cuts, whether no two cuts' midpoints lie within twice the group's widest cut
     tolerance: then no two are within it, and the k-d tree of :func:`_unique_cuts` (whose distances
@@ -2536,14 +2615,30 @@ def _apart_many(groups: list[list[EdgeSpec]], t: Tolerance) -> list[bool]:
     if len(simple) < len(cuts):
         for k in sorted(set(range(len(cuts))) - set(simple)):
             M[k] = np.asarray(cuts[k].curve.evaluate(np.array([tm[k]])), dtype=np.float64).reshape(3)
-    mids = M.tolist()
-    out, s0 = [], 0
-    for g in groups:
-        r = 2.0 * max(max(t.linear, c.tol or 0.0) for c in g)
-        m = mids[s0:s0 + len(g)]
-        s0 += len(g)
-        out.append(all(_distance(p, q) > r for i, p in enumerate(m) for q in m[:i]))
-    return out
+    if len(groups) <= _SCALAR_GROUPS:  # (a few faces: Python floats, without the arrays' fixed cost)
+        mids = M.tolist()
+        out, s0 = [], 0
+        for g in groups:
+            r = 2.0 * max(max(t.linear, c.tol or 0.0) for c in g)
+            m = mids[s0:s0 + len(g)]
+            s0 += len(g)
+            out.append(all(_distance(p, q) > r for i, p in enumerate(m) for q in m[:i]))
+        return out
+    # Every pair of one group's cuts at once (the walls of a hundred holes: two cuts each), grouped by the
+    # groups' sizes; the distances by _distance's expression coordinate by coordinate (the same floats).
+    n = np.array([len(g) for g in groups])
+    start = np.cumsum(n) - n
+    thr = np.array([max(t.linear, c.tol or 0.0) for c in cuts])
+    r = np.zeros(len(groups))
+    r[n > 0] = 2.0 * np.maximum.reduceat(thr, start[n > 0])  # (the groups' widest tolerances, twice)
+    close = np.zeros(len(groups), dtype=bool)
+    for size in np.unique(n[n >= 2]).tolist():
+        rows = np.flatnonzero(n == size)
+        i, j = np.tril_indices(size, -1)
+        D = M[start[rows, None] + i] - M[start[rows, None] + j]  # (rows, pairs, 3)
+        d = np.sqrt((D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1]) + D[..., 2] * D[..., 2])
+        close[rows] = np.any(~(d > r[rows, None]), axis=1)  # (not apart: a NaN distance too)
+    return (~close).tolist()
 
 
 #: Where along a cut that ends on another cut the run-along test of :func:`_split_overlaps` looks

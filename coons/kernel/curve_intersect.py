@@ -567,7 +567,10 @@ def curve_boxes(curves: list, lo, hi, tol: Tolerance | None = None) -> np.ndarra
         k = int(np.flatnonzero(~(np.isfinite(a) & np.isfinite(b) & (a != b)))[0])
         raise InvalidInputError(f"range {k} must be two finite, different numbers, got ({a[k]!r}, {b[k]!r})")
     a, b = np.minimum(a, b), np.maximum(a, b)
-    dims = {_dimension(c, "curve") for c in curves}
+    # (by exact type where the type alone gives the dimension and the kind: an operand brings hundreds of edges)
+    types = set(map(type, curves))
+    dims = {_dimension(c, "curve") for c in curves} if not types <= _KNOWN_DIMENSION.keys() \
+        else {_KNOWN_DIMENSION[kind] for kind in types}
     if len(dims) != 1:
         raise InvalidInputError(f"curve_boxes needs curves of one dimension, got {sorted(dims)}")
     d = dims.pop()
@@ -582,12 +585,24 @@ def curve_boxes(curves: list, lo, hi, tol: Tolerance | None = None) -> np.ndarra
         P0, P1 = O + a[lines, None] * D, O + b[lines, None] * D
         out[lines, 0], out[lines, 1] = np.minimum(P0, P1), np.maximum(P0, P1)
     if arcs:
-        forms = [_trig_form(curves[k]) for k in arcs]
-        C, A, B = (np.array([f[i] for f in forms], dtype=np.float64) for i in range(3))
+        # Circles' forms in one pass (_trig_form's products, the same floats; the edges of a hundred tools are
+        # hundreds of circles), other arcs' by _trig_form.
+        cs = [curves[k] for k in arcs]
+        if all(type(c) is Circle for c in cs):
+            R = np.array([c.radius for c in cs], dtype=np.float64)[:, None]
+            F = np.array([c._frame for c in cs], dtype=np.float64)
+            C, A, B = np.array([c.center for c in cs], dtype=np.float64), R * F[:, 0], R * F[:, 1]
+        else:
+            forms = [_trig_form(curves[k]) for k in arcs]
+            C, A, B = (np.array([f[i] for f in forms], dtype=np.float64) for i in range(3))
         out[arcs] = _trig_boxes(C, A, B, a[arcs], b[arcs])
     for k in other:
         out[k] = curve_box(curves[k], (a[k], b[k]), t_)
     return out
+
+
+#: The dimension :func:`_dimension` gives a curve of each of these exact types.
+_KNOWN_DIMENSION = {Line: 3, Circle: 3, Ellipse: 3, Line2D: 2, Trig2D: 2}
 
 
 def _trig_box(curve: Any, lo: float, hi: float) -> np.ndarray:

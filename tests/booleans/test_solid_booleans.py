@@ -1969,3 +1969,19 @@ def test_groups_number_equal_rows_as_a_dict_of_key_tuples_would():
                 S._GROUPS_BY_DICT = by_dict
             assert got_first.tolist() == first and got_of.tolist() == of
             assert got_first.dtype == got_of.dtype == np.int64
+
+
+def test_faces_of_planes_and_cylinders_keep_their_parameter_boxes():
+    """``_new_face_data`` gives planes and cylinders their enlarged parameter boxes without ``_within_domain``,
+    which leaves such a box as it is (an infinite ``v`` domain; ``u`` infinite or periodic)."""
+    from coons.kernel.analytic import CylindricalSurface, PlanarSurface
+
+    rng = np.random.default_rng(5)
+    surfaces = [PlanarSurface([1, 2, 3], [0, 0, 1], [1, 0, 0]),
+                CylindricalSurface([0, 1, 0], [0, 1, 1], [1, 0, 0], 2.0)]
+    assert {type(s) for s in surfaces} == set(S._WHOLE_DOMAIN)
+    for S_ in surfaces:
+        for _ in range(50):
+            u0, v0 = rng.uniform(-20, 20, 2)
+            ub, vb = (u0, u0 + rng.uniform(0.01, 30)), (v0, v0 + rng.uniform(0.01, 30))
+            assert S._within_domain(S_, ub, vb, vb) == (ub, vb)

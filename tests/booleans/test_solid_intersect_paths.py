@@ -311,3 +311,113 @@ def test_batched_straight_clips_are_the_single_ones():
         assert many == single
         if solid is plate:  # (some branches leave and re-enter a face)
             assert sum(r is not None and len(r) > 1 for r in single) > 10
+
+
+def test_batched_cuts_are_what_the_validating_constructor_makes():
+    """The cuts of the batched plane-cylinder pairs, made by ``EdgeSpec._trusted``, have the fields the validating
+    constructor would give them: Python floats, a finite non-empty range, a finite tolerance >= 0."""
+    a, b = CASES["plate - 3x3 holes"]()
+    A, B = S._Operand(a, "A", T), S._Operand(b, "B", T)
+    I, J = S._broad_phase(A, B)
+    cuts_a, cuts_b = S._intersect(A, B, I, J, T, {})
+    cuts = [e for cuts in (cuts_a, cuts_b) for es in cuts.values() for e in es]
+    assert len(cuts) == 72  # (9 holes' two walls, each cut by the plate's top and bottom: a cut on each operand)
+    for e in cuts:
+        assert type(e.t0) is float and type(e.t1) is float and type(e.tol) is float
+        assert vars(EdgeSpec(e.curve, e.t0, e.t1, e.pcurve, e.tol)) == vars(e)  # (EdgeSpec compares by identity)
+
+
+def test_open_cut_ends_in_arrays_are_the_per_cut_ones():
+    """``_open_cut_ends`` of many cuts on lines and circles (ends, gaps and thresholds in arrays) gives the ends
+    and thresholds of the per-cut path bit for bit, closed cuts and near ties included."""
+    rng = np.random.default_rng(11)
+    cuts = []
+    for k in range(60):
+        centre, axis = rng.uniform(-50, 50, 3), rng.normal(size=3)
+        x = np.cross(axis, rng.normal(size=3))
+        tol = [None, 0.0, 3e-7, 1e-5][k % 4]
+        lim = max(T.linear, tol or 0.0)
+        if k % 3 == 0:
+            t0 = rng.uniform(-5, 5)
+            # (a chord at the threshold within round-off: the near-tie branch; or plainly open)
+            cuts.append(EdgeSpec(Line(centre, axis / np.linalg.norm(axis)), t0,
+                                 t0 + (lim if k % 2 else rng.uniform(0.1, 9.0)), None, tol))
+        else:
+            t0 = rng.uniform(-7, 7)
+            closed = k % 5 == 0
+            cuts.append(EdgeSpec(Circle(centre, axis, x, rng.uniform(0.1, 5)), t0,
+                                 t0 + (2.0 * math.pi if closed else rng.uniform(0.1, 6.0)), None, tol))
+    assert len(cuts) > S._SCALAR_ENDS
+    fast = S._open_cut_ends(cuts, T)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_SCALAR_ENDS", 1 << 60)  # (every cut by the per-cut path)
+        slow = S._open_cut_ends(cuts, T)
+    assert fast == slow
+    assert 0 < len(fast[0]) < 2 * len(cuts)  # (some cuts closed)
+
+
+def test_batched_edge_boxes_are_each_faces():
+    """``_Operand.fill_edge_boxes`` of many faces gives each face the uses, boxes and tolerances of its own
+    computation, on faces of one loop and of many (a plate with holes)."""
+    plate = Box(40, 40, 10) - Cylinder(2, 20).translate((5, 5, 0)) - Cylinder(2, 20).translate((-5, -5, 0))
+    for solid in (plate, Cylinder(3, 10)):
+        X = S._Operand(solid, "A", T)
+        faces = list(range(len(X.specs)))
+        for f in faces:
+            X._data[f].edge_boxes = None
+        X.fill_edge_boxes(faces)
+        many = [X._data[f].edge_boxes for f in faces]
+        assert any(len(X.specs[f].loops) > 1 for f in faces) or solid is not plate
+        for f, got in zip(faces, many):
+            X._data[f].edge_boxes = None
+            one = X.edge_boxes(f)
+            assert got[0] == one[0] and all(map(np.array_equal, got[1:], one[1:]))
+            assert not any(a.flags.writeable for a in got[1:])
+
+
+def test_apart_groups_in_arrays_are_the_pairwise_test():
+    """``_apart_many`` (every pair of a group's midpoints at once, groups by size; a few groups in Python floats)
+    answers, group by group, the pairwise test: no two midpoints within twice the group's widest cut tolerance."""
+    rng = np.random.default_rng(13)
+    groups = []
+    for k in range(120):
+        size = int(rng.integers(1, 7))
+        base = rng.uniform(-9, 9, 3)
+        g = []
+        for i in range(size):
+            # (near-repeats at about the threshold in some groups; far apart in others)
+            o = base + (rng.choice([1e-7, 2e-7, 1.0]) if k % 2 else 5.0) * rng.normal(size=3)
+            c = Circle(o, rng.normal(size=3), rng.normal(size=3), 1.0) if i % 2 else Line(o, [1.0, 0.0, 0.0])
+            g.append(EdgeSpec(c, -0.5, 0.5, None, [None, 1e-7, 2e-7][(k + i) % 3]))
+        groups.append(g)
+    got = S._apart_many(groups, T)
+    assert len(groups) > S._SCALAR_GROUPS
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(S, "_SCALAR_GROUPS", 1 << 60)
+        assert S._apart_many(groups, T) == got  # (the Python floats' path for a few faces)
+    expect = []
+    for g in groups:
+        r = 2.0 * max(max(T.linear, c.tol or 0.0) for c in g)
+        m = [np.asarray(c.curve.evaluate(np.array([0.5 * (c.t0 + c.t1)]))).reshape(3).tolist() for c in g]
+        expect.append(all(S._distance(p, q) > r for i, p in enumerate(m) for q in m[:i]))
+    assert got == expect
+    assert 0 < sum(got) < len(got)
+
+
+def test_straight_data_of_many_faces_keeps_each_faces_sides():
+    """``_prefill_straight`` of many faces at once gives each face its own sides' starts then ends ``V``
+    (rows of one array for all faces), as stacked from that face's sides alone."""
+    plate = Box(20, 20, 4)
+    for x, y in ((-5.0, -5.0), (5.0, 5.0)):
+        plate = plate - Box(3, 3, 10).translate((x, y, 0.0))
+    for solid in (plate, Cylinder(3, 10)):
+        X = S._Operand(solid, "A", T)
+        for d in X._data:
+            d.straight = None
+        S._prefill_straight(X, list(range(len(X.specs))), T)
+        data = [d.straight for d in X._data if d.straight]
+        assert len(data) > 1
+        for sp, A, E, L, LL, V, largest, sides, size in data:
+            np.testing.assert_array_equal(V, np.concatenate([A, A + E]))
+            assert not V.flags.writeable
+            assert sides == list(zip(A.tolist(), E.tolist(), L.tolist(), LL.tolist()))

@@ -856,3 +856,17 @@ def test_tangent_circles_touch_at_the_exact_point(phi, inside):
         np.testing.assert_allclose(x.points[0], want, atol=1e-14)
         np.testing.assert_allclose(a.evaluate(x.t1[0]), want, atol=1e-14)
         np.testing.assert_allclose(b.evaluate(x.t2[0]), want, atol=1e-14)
+
+
+def test_curve_boxes_of_circles_in_one_pass_are_those_of_their_forms():
+    """A batch of circles alone (their forms ``C + r X cos t + r Y sin t`` in one pass) gets, bit for bit, the
+    boxes the same circles get in a mixed batch (each circle's form by ``_trig_form``)."""
+    rng = np.random.default_rng(3)
+    circles = [Circle(rng.uniform(-9, 9, 3), rng.normal(size=3), rng.normal(size=3), rng.uniform(0.1, 4))
+               for _ in range(40)]
+    lo = rng.uniform(-7, 7, 40)
+    hi = lo + rng.uniform(0.1, 8.0, 40)
+    alone = curve_boxes(circles, lo, hi)
+    mixed = curve_boxes(circles + [Ellipse([0, 0, 0], [0, 0, 1], [1, 0, 0], 3.0, 1.0)], np.append(lo, 0.0),
+                        np.append(hi, 1.0))
+    np.testing.assert_array_equal(alone, mixed[:-1])

@@ -220,9 +220,11 @@ Status and limitations
   0.25 grid, many sharing cap planes, compared with OCCT and a Monte Carlo referee by
   ``benchmarks/hunt_boolean_chains.py``; the fixed configurations are tests in
   ``tests/booleans/test_solid_regressions.py``) still raise a
-  ``BooleanError`` in this found case: a sphere–cylinder section osculating the sphere face's
-  bounding meridian to fourth order (``split_face`` runs its first stretch along the boundary).  In
-  the same
+  ``BooleanError`` in these found cases: a sphere–cylinder section osculating the sphere face's
+  bounding meridian to fourth order (``split_face`` runs its first stretch along the boundary); a
+  sphere centred on a cylinder's seam line at angle π (seed 48; its section runs through both
+  poles, and the fitted p-curve on one half sphere comes out a turn, 2π, off that face's box between
+  its pole ends: the half is left unsplit and sewing finds the shell open).  In the same
   runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
   referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
   earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a

@@ -221,9 +221,8 @@ Status and limitations
   ``benchmarks/hunt_boolean_chains.py``; the fixed configurations are tests in
   ``tests/booleans/test_solid_regressions.py``) still raise a
   ``BooleanError`` in this found case: a sphere–cylinder section osculating the sphere face's
-  bounding meridian to fourth order (``split_face`` runs its first stretch along the boundary).  In
-  the same
-  runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
+  bounding meridian to fourth order (``split_face`` runs its first stretch along the boundary).
+  In the same runs OCCT returned wrong volumes (2–120 % off the referee) in chains where coons agreed with the
   referee.  Fixed since: a cut running along a boundary edge of its face (the same circle, from an
   earlier Boolean with a shared cap plane) widened its end tolerance 1000-fold per Boolean until a
   short cut was dropped (:func:`_runs_along`); a straight and a curved p-curve of one shared edge
@@ -251,7 +250,11 @@ Status and limitations
   crosses both (seed 46): the 5.5e-5 sliver of the fitted section on the far half sphere runs along
   that half's boundary and, on the cylinder, along the near half's section piece; ``split_face``
   dropped it on both faces, rightly, and the check of the cuts' use raised (it now accepts a dropped
-  cut lying along the face's edges or its other cuts, :func:`_along_edges`).
+  cut lying along the face's edges or its other cuts, :func:`_along_edges`); a sphere centred on a
+  cylinder's seam line (seed 48): its section runs through both poles, and the marching of the far
+  half took its longitudes a turn off the face's box from the value Newton left at the pole where it
+  started (``kernel.ssi._determined`` now moves a piece's periodic parameters by whole periods into
+  the box).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

@@ -1420,7 +1420,8 @@ def _points_tangents(c: BSpline, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def _determined(g, f, X: np.ndarray, bg: np.ndarray, bf: np.ndarray, t: Tolerance
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Undetermined parameters (at a pole or apex) taken from the neighbouring samples of the piece.
+    """Undetermined parameters (at a pole or apex) taken from the neighbouring samples of the piece, and
+    its periodic parameters moved by whole periods so that the middle of the determined ones is in the box.
 
     Returns the samples and ``(2, 4)`` bool: the parameters undetermined at the first and the
     last sample (a piece through a singular point is split there, so it is one of its ends),
@@ -1431,6 +1432,17 @@ def _determined(g, f, X: np.ndarray, bg: np.ndarray, bf: np.ndarray, t: Toleranc
     ends = np.zeros((2, 4), bool)
     for off, surface, box in ((0, g, bg), (2, f, bf)):
         free = singular_parameters(surface, X[:, off : off + 2], box, t)
+        # A piece traced from a singular point (a branch from pole to pole of a sphere) took its turn from
+        # the value Newton left for the free parameter there, which may be any: its periodic parameters go
+        # by whole periods to where the middle of its determined samples lies in the box.
+        for k, per in enumerate(surface_periods(surface, t)):
+            lo, hi = (float(x) for x in box[k])
+            det = ~free[:, k]
+            if per is None or not det.any() or not (math.isfinite(lo) and math.isfinite(hi)):
+                continue
+            turns = round((0.5 * (lo + hi) - float(np.median(X[det, off + k]))) / per)
+            if turns:
+                X[:, off + k] += turns * per
         for k in range(2):
             bad = free[:, k]
             if np.any(bad) and not np.all(bad):

@@ -3489,25 +3489,30 @@ def _local_status_many(jobs: list[tuple], links: dict[int, list[_Link]], t: Tole
     # Each piece takes its first candidate that passes (in the order of its loops and uses): evaluated in
     # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole circles needs one
     # of them, not all; each piece's candidates are found as its rounds come (most pieces need one).
-    gens = {(j, k): _piece_candidates(k, f, spec, links, side)
-            for j, (pieces, _, side, _, cut) in enumerate(jobs)
-            for k, (f, spec) in enumerate(pieces) if cut is None or f in cut}
-    while gens:
-        sub, of = [], []
-        for (j, k), gen in list(gens.items()):
-            c = next(gen, None) if jobs[j][3][k] < 0 else None
-            if c is None:
-                del gens[(j, k)]
-            else:
+    # (the undecided pieces as (job, generator), in order; a round's answers written per job in one step)
+    active = [(j, _piece_candidates(k, f, spec, links, side))
+              for j, (pieces, _, side, status, cut) in enumerate(jobs)
+              for k, ((f, spec), open_) in enumerate(zip(pieces, (status < 0).tolist()))
+              if open_ and (cut is None or f in cut)]
+    while active:
+        sub, of, waiting = [], [], []
+        for j, gen in active:
+            c = next(gen, None)
+            if c is not None:
                 sub.append(c)
                 of.append(j)
+                waiting.append((j, gen))
         if not sub:
             return
         Ys = jobs[0][1] if len(jobs) == 1 else [jobs[j][1] for j in of]
         ok, cos = _local_tests(sub, Ys, t)
-        for c, j, good, x in zip(sub, of, ok.tolist(), cos.tolist()):
-            if good:
-                jobs[j][3][c[0]] = IN if x < 0 else OUT
+        piece = np.fromiter((c[0] for c in sub), dtype=np.int64, count=len(sub))
+        job = np.asarray(of, dtype=np.int64)
+        answer = np.where(cos < 0, IN, OUT)
+        for j, (_, _, _, status, _) in enumerate(jobs):
+            done = ok & (job == j)
+            status[piece[done]] = answer[done]
+        active = [x for x, good in zip(waiting, ok.tolist()) if not good]
 
 
 def _piece_candidates(k: int, f: int, spec: FaceSpec, links: dict[int, list[_Link]], side: int):
@@ -3601,10 +3606,15 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
         pair_start = np.cumsum(per_row) - per_row
         row = np.repeat(np.arange(r.size), per_row)
         seg = np.repeat(seg0 - pair_start, per_row) + np.arange(int(per_row.sum()))
-        lo = np.concatenate([ops[y].seg_lo[j] for y, j in few])[seg]
-        hi = np.concatenate([ops[y].seg_hi[j] for y, j in few])[seg]
-        q, mr = uv_y[r][row], m[r][row]
-        near = np.all((q >= lo - mr) & (q <= hi + mr), axis=1)
+        lo = np.concatenate([ops[y].seg_lo[j] for y, j in few])
+        hi = np.concatenate([ops[y].seg_hi[j] for y, j in few])
+        q, mr = uv_y[r], m[r]
+        # (coordinate by coordinate, each gathered as a column: numpy's fancy index of the rows of an
+        # (n, 2) array and its all() over that short last axis run row by row)
+        near = np.ones(seg.size, dtype=bool)
+        for ax in (0, 1):
+            qa, ma = q[:, ax][row], mr[:, ax][row]
+            near &= (qa >= lo[:, ax][seg] - ma) & (qa <= hi[:, ax][seg] + ma)
         ok[r[np.logical_or.reduceat(near, pair_start)]] = False
     for (y, j), rows in by_face.items():
         Y = ops[y]

@@ -3631,25 +3631,30 @@ def _local_status_many(jobs: list[tuple], links: dict[int, list[_Link]], t: Tole
     # Each piece takes its first candidate that passes (in the order of its loops and uses): evaluated in
     # rounds of one candidate per undecided piece, as a piece bounded by a hundred hole circles needs one
     # of them, not all; each piece's candidates are found as its rounds come (most pieces need one).
-    gens = {(j, k): _piece_candidates(k, f, spec, links, side)
-            for j, (pieces, _, side, _, cut) in enumerate(jobs)
-            for k, (f, spec) in enumerate(pieces) if cut is None or f in cut}
-    while gens:
-        sub, of = [], []
-        for (j, k), gen in list(gens.items()):
-            c = next(gen, None) if jobs[j][3][k] < 0 else None
-            if c is None:
-                del gens[(j, k)]
-            else:
+    # (the undecided pieces as (job, generator), in order; a round's answers written per job in one step)
+    active = [(j, _piece_candidates(k, f, spec, links, side))
+              for j, (pieces, _, side, status, cut) in enumerate(jobs)
+              for k, ((f, spec), open_) in enumerate(zip(pieces, (status < 0).tolist()))
+              if open_ and (cut is None or f in cut)]
+    while active:
+        sub, of, waiting = [], [], []
+        for j, gen in active:
+            c = next(gen, None)
+            if c is not None:
                 sub.append(c)
                 of.append(j)
+                waiting.append((j, gen))
         if not sub:
             return
         Ys = jobs[0][1] if len(jobs) == 1 else [jobs[j][1] for j in of]
         ok, cos = _local_tests(sub, Ys, t)
-        for c, j, good, x in zip(sub, of, ok.tolist(), cos.tolist()):
-            if good:
-                jobs[j][3][c[0]] = IN if x < 0 else OUT
+        piece = np.fromiter((c[0] for c in sub), dtype=np.int64, count=len(sub))
+        job = np.asarray(of, dtype=np.int64)
+        answer = np.where(cos < 0, IN, OUT)
+        for j, (_, _, _, status, _) in enumerate(jobs):
+            done = ok & (job == j)
+            status[piece[done]] = answer[done]
+        active = [x for x, good in zip(waiting, ok.tolist()) if not good]
 
 
 def _piece_candidates(k: int, f: int, spec: FaceSpec, links: dict[int, list[_Link]], side: int):
@@ -3743,10 +3748,15 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
         pair_start = np.cumsum(per_row) - per_row
         row = np.repeat(np.arange(r.size), per_row)
         seg = np.repeat(seg0 - pair_start, per_row) + np.arange(int(per_row.sum()))
-        lo = np.concatenate([ops[y].seg_lo[j] for y, j in few])[seg]
-        hi = np.concatenate([ops[y].seg_hi[j] for y, j in few])[seg]
-        q, mr = uv_y[r][row], m[r][row]
-        near = np.all((q >= lo - mr) & (q <= hi + mr), axis=1)
+        lo = np.concatenate([ops[y].seg_lo[j] for y, j in few])
+        hi = np.concatenate([ops[y].seg_hi[j] for y, j in few])
+        q, mr = uv_y[r], m[r]
+        # (coordinate by coordinate, each gathered as a column: numpy's fancy index of the rows of an
+        # (n, 2) array and its all() over that short last axis run row by row)
+        near = np.ones(seg.size, dtype=bool)
+        for ax in (0, 1):
+            qa, ma = q[:, ax][row], mr[:, ax][row]
+            near &= (qa >= lo[:, ax][seg] - ma) & (qa <= hi[:, ax][seg] + ma)
         ok[r[np.logical_or.reduceat(near, pair_start)]] = False
     for (y, j), rows in by_face.items():
         Y = ops[y]
@@ -4199,7 +4209,8 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     info_of = [orig.get(id(f)) for f in faces]
     group = np.repeat(np.array([0 if i is None else i[0] for i in info_of], dtype=np.int64), count)
     # (the uses of the other faces found by id, all at once)
-    other = np.repeat(np.array([i is None for i in info_of], dtype=bool), count)
+    is_new = np.array([i is None for i in info_of], dtype=bool)
+    other = np.repeat(is_new, count)
     if orig_edges is not None and orig_edges[0].size and other.any():
         at, found = found_by_id(spec[other], orig_edges[0], orig_edges[1])
         group[other] = np.where(found, orig_edges[2][at], 0)
@@ -4219,71 +4230,55 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                     if inside.size:
                         face_foreign[kept[k]] = inside
     # Which uses of which faces a vertex may split (:func:`_clear_uses`), then the candidate
-    # vertices of all those uses in one pass (:func:`_split_candidates`).
-    todo: dict[int, np.ndarray] = {}
-    for k, f in enumerate(faces):
-        near = None
-        if info_of[k] is not None:
-            inside = face_foreign.get(k)
-            if inside is None:
-                continue  # no foreign vertex near this face
-            near = starts[inside], start_tol[inside]
+    # vertices of all those uses in one pass (:func:`_shared_candidates`).  A new face's new uses
+    # are never clear (every vertex is foreign to them): a new face without a use of an operand (a
+    # cut cylinder's pieces) is open throughout without a test.
+    is_open = other.copy()  # (an unchanged face is clear throughout unless tested below)
+    n_operand = np.diff(np.concatenate([[0], np.cumsum(group != 0)])[first])  # (per face, its operand uses)
+    tested = sorted(set(face_foreign) | set(np.flatnonzero(is_new & (n_operand > 0)).tolist()))
+    for k in tested:
+        f = faces[k]
+        inside = face_foreign.get(k)
+        near = None if inside is None else (starts[inside], start_tol[inside])
         sl = slice(int(first[k]), int(first[k + 1]))
         # (a face of many loops, as a plate's top gaining a hole, boxes only the uses the last one had not)
-        clear = _clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of,
-                            kept=len(f.loops) > _PREFIX_LOOPS)
-        if not clear.all():
-            todo[k] = clear
-    if not todo:
-        return faces
-    open_uses = [e for k, clear in todo.items() for e, c in zip((e for loop in faces[k].loops for e in loop),
-                                                                  clear.tolist()) if not c]
-    # The open uses' keys for _shared_candidates from the use tables (curve ids, ranges), in open_uses' order.
-    open_flag = ~np.concatenate(list(todo.values()))  # (the uses of the faces in todo, in turn)
-    of_todo = np.zeros(len(faces), dtype=bool)
-    of_todo[list(todo)] = True
-    is_open = np.zeros(int(first[-1]), dtype=bool)
-    is_open[np.repeat(of_todo, count)] = open_flag
+        is_open[sl] = ~_clear_uses([e for loop in f.loops for e in loop], group[sl], use_tol[sl], near, foreign_of,
+                                   kept=len(f.loops) > _PREFIX_LOOPS)
     open_rows = np.flatnonzero(is_open)
-    keys = (curve_id[open_rows], *ranges[open_rows].T)
-    X_all, cand_all = _shared_candidates(open_uses, starts, start_tol, t, keys)
-    # Only a face with a candidate for one of its open uses may change (T-junctions are few: most
-    # faces' open uses have none); each face's open uses are a run of open_uses (at least one).
-    size = np.array([clear.size for clear in todo.values()], dtype=np.int64)
-    n_open = np.add.reduceat(open_flag, np.cumsum(size) - size, dtype=np.int64)
-    run = np.cumsum(n_open) - n_open
-    has = np.fromiter((c.size for c in cand_all), dtype=np.int64, count=len(cand_all)) > 0
-    busy = dict(zip(todo, np.logical_or.reduceat(has, run).tolist()))
-    first_open = dict(zip(todo, run.tolist()))
-    out = []
+    if open_rows.size == 0:
+        return faces
+    # (the open uses' keys for _shared_candidates from the use tables: curve ids, ranges)
+    found = _shared_candidates(spec[open_rows].tolist(), starts, start_tol, t,
+                               (curve_id[open_rows], *ranges[open_rows].T))
+    if not found:
+        return faces  # no vertex near the interior of any open use (T-junctions are few)
+    # Only the faces of an open use with a candidate may change; their uses are walked by row.
+    hits = {int(open_rows[i]): got for i, got in found.items()}
+    busy = np.unique(np.searchsorted(first, list(hits), side="right") - 1).tolist()
+    out = list(faces)
     changed_any = False
-    for k, f in enumerate(faces):
-        clear = todo.get(k)
-        if clear is None or not busy[k]:
-            out.append(f)  # no vertex can split any of its uses
-            continue
-        at = itertools.count(first_open[k])
+    for k in busy:
+        f = faces[k]
+        row = itertools.count(int(first[k]))
         loops = []
         face_changed = False
-        clear = iter(clear.tolist())
         for loop in f.loops:
             new: list[EdgeSpec] = []
             for e in loop:
-                thr = max(t.linear, e.tol or 0.0)
-                if next(clear):
-                    new.append(e)
+                got = hits.get(next(row))
+                if got is None:
+                    new.append(e)  # (clear, or no candidate vertex)
                     continue
-                i = next(at)
-                X, cand = X_all[i], cand_all[i]
+                X, cand = got
+                thr = max(t.linear, e.tol or 0.0)
                 params: list[float] = []
-                if cand.size:
-                    Q, qt = starts[cand], np.maximum(start_tol[cand], thr)
-                    lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
-                    tq = _curve_closest(e.curve, Q, lo, t)
-                    on = (tq > lo) & (tq < hi)
-                    if np.any(on):
-                        d = np.linalg.norm(np.asarray(e.curve.evaluate(tq[on])) - Q[on], axis=1)
-                        params = sorted({float(x) for x in tq[on][d <= qt[on]]}, reverse=e.t1 < e.t0)
+                Q, qt = starts[cand], np.maximum(start_tol[cand], thr)
+                lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
+                tq = _curve_closest(e.curve, Q, lo, t)
+                on = (tq > lo) & (tq < hi)
+                if np.any(on):
+                    d = np.linalg.norm(np.asarray(e.curve.evaluate(tq[on])) - Q[on], axis=1)
+                    params = sorted({float(x) for x in tq[on][d <= qt[on]]}, reverse=e.t1 < e.t0)
                 if not params:
                     new.append(e)
                     continue
@@ -4300,15 +4295,18 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
                     if a != b:
                         new.append(EdgeSpec(e.curve, a, b, e.pcurve, e.tol))
             loops.append(new)
-        out.append(FaceSpec(f.surface, f.sense, loops) if face_changed else f)
-        changed_any |= face_changed
+        if face_changed:
+            out[k] = FaceSpec(f.surface, f.sense, loops)
+            changed_any = True
     return out if changed_any else faces
 
 
 def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol: np.ndarray, t: Tolerance,
-                       keys: tuple[np.ndarray, ...] | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """:func:`_split_candidates` then :func:`_off_the_ends` of each of ``open_uses``: per use its samples
-    ``(17, 3)`` in its own direction and its candidate vertices, each distinct edge computed once.
+                       keys: tuple[np.ndarray, ...] | None = None) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """:func:`_split_candidates` then :func:`_off_the_ends` of ``open_uses``, each distinct edge computed
+    once: per open use (by its position) that has a candidate vertex, its samples ``(17, 3)`` in its own
+    direction and its candidates (indices into ``starts``); the uses without any are left out (most:
+    T-junctions are few).
 
     The two uses of an edge (one per face, opposite ways round) share their samples and candidates: each
     distinct (curve, range, tolerance) is sampled and queried once, in the way its first use runs; the
@@ -4329,14 +4327,22 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
                 np.array([e.tol or 0.0 for e in open_uses], dtype=np.float64).reshape(n))
     ids, t0, t1, tol = keys
     first, of = _groups(ids, np.minimum(t0, t1), np.maximum(t0, t1), tol)
-    flip = t0 != t0[first][of]  # (a use running the other way from its group's first)
     distinct = [open_uses[i] for i in first.tolist()]
-    X_u, cand_u = _split_candidates(distinct, starts, t)
-    cand_u = _off_the_ends(distinct, X_u, cand_u, starts, start_tol, t)  # (symmetric in the two ends)
-    of_l = of.tolist()
-    X_all = [X_u[u, ::-1] if fl else X_u[u] for u, fl in zip(of_l, flip.tolist())]
-    cand_all = [cand_u[u] for u in of_l]
-    return X_all, cand_all
+    # (max(t.linear, tol) as the uses give it: numpy's fmax, like Python's max here, keeps t.linear over a NaN)
+    ranges = (t0[first], t1[first], np.fmax(tol[first], t.linear))
+    X_u, cand_u = _split_candidates(distinct, starts, t, ranges)
+    use, vertex = _off_the_ends(X_u, cand_u, starts, start_tol, ranges[2])  # (symmetric in the two ends)
+    if use.size == 0:
+        return {}
+    bounds = np.searchsorted(use, np.arange(len(distinct) + 1)).tolist()  # (the pairs come use by use)
+    has = np.zeros(len(distinct), dtype=bool)
+    has[use] = True
+    out = {}
+    for i in np.flatnonzero(has[of]).tolist():
+        u = int(of[i])
+        X = X_u[u] if t0[i] == t0[first[u]] else X_u[u, ::-1]  # (a use running the other way from its group's first)
+        out[i] = (X, vertex[bounds[u]:bounds[u + 1]])
+    return out
 
 
 def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -4375,27 +4381,38 @@ def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 _GROUPS_BY_DICT = 64
 
 
-def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance) -> tuple[np.ndarray, list]:
+def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance,
+                      ranges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, list]:
     """For each use, its curve at 17 parameters ``(k, 17, 3)`` and the indices of ``starts``
     within the ball around those samples (their centre, the largest distance to it times
     1.05 plus the use's tolerance: chords of 16 steps deviate little).  Lines and circles are
     evaluated together (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas),
-    and all balls are one k-d tree query."""
+    and all balls are one k-d tree query.  ``ranges``: the uses' :func:`_use_ranges` when the
+    caller has them."""
     from scipy.spatial import cKDTree
 
     from coons.kernel.onsurface import evaluate_curves
 
-    T = np.linspace([e.t0 for e in uses], [e.t1 for e in uses], 17, axis=1)
+    t0, t1, thr = _use_ranges(uses, t) if ranges is None else ranges
+    T = np.linspace(t0, t1, 17, axis=1)
     X = evaluate_curves([e.curve for e in uses], T)
     c = X.mean(axis=1)
     D = X - c[:, None, :]
     # Coordinate-wise (a norm over the short last axis is several times slower; same sums in the same order).
     rad = np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1] + D[..., 2] * D[..., 2]).max(axis=1)
-    thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     r = rad * 1.05 + thr
     if len(uses) * starts.shape[0] > _BALL_PAIRS:
         return X, cKDTree(starts).query_ball_point(c, r)
     return X, _in_balls(c, r, starts)
+
+
+def _use_ranges(uses: list[EdgeSpec], t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The uses' ``t0``, ``t1`` and tolerance ``max(t.linear, tol or 0)`` (that of the T-junction pass), ``(k,)``
+    each."""
+    k = len(uses)
+    return (np.fromiter((e.t0 for e in uses), dtype=np.float64, count=k),
+            np.fromiter((e.t1 for e in uses), dtype=np.float64, count=k),
+            np.fromiter((max(t.linear, e.tol or 0.0) for e in uses), dtype=np.float64, count=k))
 
 
 #: Up to this many ball–point pairs :func:`_split_candidates` tests every pair (a sequential cut's few
@@ -4416,21 +4433,19 @@ def _in_balls(c: np.ndarray, r: np.ndarray, P: np.ndarray) -> list[np.ndarray]:
     return np.split(cols, np.searchsorted(rows, np.arange(1, c.shape[0])))
 
 
-def _off_the_ends(uses: list[EdgeSpec], X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
-                  t: Tolerance) -> list[np.ndarray]:
-    """Per use, its candidate vertices (indices into ``starts``, from :func:`_split_candidates`)
-    farther than ``max(their tolerance, the use's)`` from both of the use's ends ``X[:, 0]``,
+def _off_the_ends(X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
+                  thr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The candidate vertices of uses (indices into ``starts``, from :func:`_split_candidates`)
+    farther than ``max(their tolerance, the use's thr)`` from both of the use's ends ``X[:, 0]``,
     ``X[:, -1]``: only those can split it.  All pairs in one pass (most candidates are the
-    use's own end vertices)."""
+    use's own end vertices), kept as pairs ``(use, vertex)``, ``(m,)`` each: use by use
+    (ascending), each use's vertices in the order of ``cand``."""
     n = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(cand))
     flat = np.fromiter(itertools.chain.from_iterable(cand), dtype=np.int64, count=int(n.sum()))
     use = np.repeat(np.arange(len(cand)), n)
-    thr = np.array([max(t.linear, e.tol or 0.0) for e in uses], dtype=np.float64)
     Q, qt = starts[flat], np.maximum(start_tol[flat], thr[use])
     keep = (np.linalg.norm(Q - X[use, 0], axis=1) > qt) & (np.linalg.norm(Q - X[use, -1], axis=1) > qt)
-    first = np.concatenate([[0], np.cumsum(np.bincount(use[keep], minlength=len(cand)))])
-    kept = flat[keep]
-    return [kept[first[i]:first[i + 1]] for i in range(len(cand))]
+    return use[keep], flat[keep]
 
 
 def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_foreign, foreign_of: dict,
@@ -4518,7 +4533,8 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     that holds the whole padded box (half its diagonal plus ``√3`` times the largest tolerance,
     with a margin for round-off); the box test itself decides.  Boxes times points would grow
     with the square of a part's size: every unchanged face of a plate against every vertex (up
-    to ``_SMALL_BOX_PAIRS`` pairs, as a box and a cylinder bring, the box test runs on every pair).
+    to :data:`_BOX_POINT_PAIRS` pairs, as a box and a cylinder bring, or the four side faces of a plate
+    cut by a hundred tools in one call, the box test runs on every pair).
     """
     from scipy.spatial import cKDTree
 
@@ -4526,7 +4542,7 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
     if cand.size == 0:
         return [cand] * n
     Q, qt = P[cand], ptol[cand]
-    if n * cand.size <= _SMALL_BOX_PAIRS:
+    if n * cand.size <= _BOX_POINT_PAIRS:
         # (few boxes and points: the box test on every pair costs less than the tree; the same test)
         # (coordinate by coordinate: numpy's all() over a last axis of 3 runs row by row)
         pad = qt[None, :]
@@ -4554,6 +4570,11 @@ def _foreign_in_boxes(lo: np.ndarray, hi: np.ndarray, P: np.ndarray, ptol: np.nd
             h = h[ok]
         out.append(cand[h])
     return out
+
+
+#: Up to this many box–point pairs :func:`_foreign_in_boxes` tests every pair (measured: 4 boxes and 1 200
+#: points 0.14 against 0.39 ms by the tree, 4 and 4 800 0.34 against 1.7; about even at 30 000 pairs).
+_BOX_POINT_PAIRS = 1 << 15
 
 
 def _use_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:

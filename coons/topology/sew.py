@@ -72,7 +72,8 @@ from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
 from coons.topology._components import components
-from coons.topology._memo import IdentityMemo, LastRecord, found_by_id, id_index, is_value, read_only as _read_only
+from coons.topology._memo import (IdentityMemo, LastRecord, all_values, found_by_id, id_index, is_value,
+                                  read_only as _read_only)
 from coons.topology.brep import BRep
 from coons.topology.builder import BRepBuilder, assembled_brep
 from coons.topology.check import _SEWN_FROM, _norms
@@ -606,9 +607,11 @@ def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
     ``(t0 + t1) / 2``), ``t0, t1`` and the use's own tolerance (0 for None), its curve kind and
     frame (:class:`_FaceUses`).  Remembered per use (:data:`_USE_ROWS`); the others computed
     together: lines and circles (most edges) in one batch
-    (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas element by element), any
-    other curve in one evaluation per distinct curve object.  ``w (k, 4)``: face, loop, position
-    and loop length of each use, to name a bad one.
+    (:func:`~coons.kernel.onsurface.evaluate_curves`, their own formulas element by element), each
+    distinct curve and range once (:func:`_distinct_ranges`: the two uses of an edge, one per face,
+    run over one range opposite ways round, and their rows differ only in the order of the ends);
+    any other curve in one evaluation per distinct curve object.  ``w (k, 4)``: face, loop,
+    position and loop length of each use, to name a bad one.
 
     Raises
     ------
@@ -626,23 +629,35 @@ def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
     if not need:
         return out
     sub = [spec[i] for i in need]
+    curves = [e.curve for e in sub]
     wn = w[need]
     n = len(sub)
-    ranges = np.array([(e.t0, e.t1, e.tol or 0.0) for e in sub], dtype=np.float64).reshape(n, 3)
-    t0, t1 = ranges[:, 0], ranges[:, 1]
+    # (a column at a time: numpy reads a list of tuples slowly)
+    t0 = np.fromiter((e.t0 for e in sub), dtype=np.float64, count=n)
+    t1 = np.fromiter((e.t1 for e in sub), dtype=np.float64, count=n)
+    ranges = np.stack([t0, t1, np.fromiter((e.tol or 0.0 for e in sub), dtype=np.float64, count=n)], axis=1)
 
     def name(i: int) -> str:
         return f"face {int(wn[i, 0])}, loop {int(wn[i, 1])}, edge {int(wn[i, 2])}"
 
     P = np.empty((n, 3, 3))
-    simple = np.array([type(e.curve) in BATCHED_CURVES for e in sub], dtype=bool)
+    kind = np.zeros(n)
+    frame = np.zeros((n, 4))
+    simple = np.fromiter((type(c) in BATCHED_CURVES for c in curves), dtype=bool, count=n)
     rs = np.flatnonzero(simple)
-    tt = np.stack([t0[rs], t1[rs], 0.5 * (t0[rs] + t1[rs])], axis=1)
-    Q = evaluate_curves([sub[i].curve for i in rs.tolist()], tt) if np.isfinite(tt).all() else None
-    if Q is not None and np.isfinite(Q).all():
-        P[rs] = Q
-    else:  # the per-curve path below names the use whose curve or range is bad
-        simple[:] = False
+    if rs.size:
+        rep, of, forward = _distinct_ranges(np.fromiter(map(id, curves), dtype=np.int64, count=n)[rs], t0[rs], t1[rs])
+        reps = [curves[i] for i in rs[rep].tolist()]
+        kind[rs], frame[rs] = (x[of] for x in _curve_frames(reps))
+        # (each distinct range from its lower end: a use's own ends are those parameters, bit for bit)
+        lo, hi = np.where(forward, t0[rs], t1[rs])[rep], np.where(forward, t1[rs], t0[rs])[rep]
+        tt = np.stack([lo, hi, 0.5 * (lo + hi)], axis=1)
+        Q = evaluate_curves(reps, tt) if np.isfinite(tt).all() else None
+        if Q is not None and np.isfinite(Q).all():
+            # (a use running down its range takes the upper end first)
+            P[rs] = Q[of[:, None], np.where(forward[:, None], [0, 1, 2], [1, 0, 2])]
+        else:  # the per-curve path below names the use whose curve or range is bad
+            simple[:] = False
     groups: dict[int, list[int]] = {}
     for i in np.flatnonzero(~simple).tolist():
         groups.setdefault(id(sub[i].curve), []).append(i)
@@ -657,22 +672,49 @@ def _use_rows(spec: list[EdgeSpec], w: np.ndarray) -> np.ndarray:
         if not np.all(np.isfinite(Q)):
             raise InvalidInputError(f"{name(rows[0])}: its curve evaluates to non-finite points")
         P[r] = Q.transpose(1, 0, 2)
-    kind = np.array([_LINE if type(e.curve) is Line else _CIRCLE if type(e.curve) is Circle else 0 for e in sub],
-                    dtype=np.float64)
-    frame = np.zeros((n, 4))
-    for code, attr in ((_LINE, "origin"), (_CIRCLE, "center")):
-        rows = np.flatnonzero(kind == code)
-        if rows.size:
-            frame[rows, :3] = [getattr(sub[i].curve, attr) for i in rows.tolist()]
-            if code == _CIRCLE:
-                frame[rows, 3] = [float(sub[i].curve.radius) for i in rows.tolist()]
     new = np.concatenate([P.reshape(n, 9), ranges, kind[:, None], frame], axis=1)
     out[need] = new
     # (``new`` made read-only in place: its rows are read-only views; a kept row holds the batch, 136 bytes a use)
     rows = list(_read_only(new))
-    keep = [i for i, e in enumerate(sub) if is_value(e.curve)]
-    _USE_ROWS.set_many([sub[i] for i in keep], [rows[i] for i in keep])
+    if all_values(curves):  # (tested once per curve type)
+        _USE_ROWS.set_many(sub, rows)
+    else:
+        keep = [i for i, c in enumerate(curves) if is_value(c)]
+        _USE_ROWS.set_many([sub[i] for i in keep], [rows[i] for i in keep])
     return out
+
+
+def _distinct_ranges(curve_id: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct (curve, range) of uses ``(k,)`` (curve ids and ends), whichever way round a use runs:
+    ``rep (g,)`` one use of each, ``of (k,)`` each use's, and ``forward (k,)`` whether a use's range is
+    ``t0 <= t1``; two uses share one when their curves are one object and their ends the same floats bit
+    for bit (``0.0`` and ``-0.0`` apart: a row holds the use's own ends).  One sort of the keys."""
+    forward = t0 <= t1
+    lo = np.where(forward, t0, t1).view(np.int64)
+    hi = np.where(forward, t1, t0).view(np.int64)
+    order = np.lexsort((hi, lo, curve_id))
+    c, a, b = curve_id[order], lo[order], hi[order]
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = (c[1:] != c[:-1]) | (a[1:] != a[:-1]) | (b[1:] != b[:-1])
+    of = np.empty(order.size, dtype=np.int64)
+    of[order] = np.cumsum(first) - 1
+    return order[first], of, forward
+
+
+def _curve_frames(curves: list) -> tuple[np.ndarray, np.ndarray]:
+    """The curve kind ``(k,)`` and frame ``(k, 4)`` columns of :class:`_FaceUses` of each of ``curves``: a
+    line's origin, a circle's centre and radius, zeros for another curve."""
+    k = len(curves)
+    kind = np.fromiter((_LINE if type(c) is Line else _CIRCLE if type(c) is Circle else 0 for c in curves),
+                       dtype=np.float64, count=k)
+    frame = np.zeros((k, 4))
+    for code, attr in ((_LINE, "origin"), (_CIRCLE, "center")):
+        rows = np.flatnonzero(kind == code)
+        if rows.size:
+            frame[rows, :3] = [getattr(curves[i], attr) for i in rows.tolist()]
+            if code == _CIRCLE:
+                frame[rows, 3] = [float(curves[i].radius) for i in rows.tolist()]
+    return kind, frame
 
 
 def use_points(faces: Sequence[FaceSpec]) -> np.ndarray:

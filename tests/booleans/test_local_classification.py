@@ -231,3 +231,29 @@ def test_local_way_of_both_operands_in_one_pass_as_each_alone(monkeypatch, case)
         np.testing.assert_array_equal(got, ref)
     if case != "tangent":  # (there the candidates fail the test: near tangency, decided by points)
         assert all((ref >= 0).any() for ref in alone)
+
+
+def test_local_status_leaves_pieces_decided_before_untouched(monkeypatch):
+    """_local_status tests only the pieces still undecided when it is called (its caller may have decided
+    some: the pieces of faces far from the other solid are OUT): such a piece keeps its status and none
+    of its candidates is tested; every other piece gets the status of a run from scratch."""
+    a, b = Box(40, 40, 10), S._gathered([_cyl(2, 20, (x, y, 0)) for x in (-10, 0, 10) for y in (-10, 0, 10)],
+                                        resolve(None))
+    t, A, B, I, J, links, cuts, pieces = _phases(a, b)
+    for side, Y in enumerate((B, A)):
+        fresh = np.full(len(pieces[side]), -1, dtype=np.int8)
+        S._local_status(pieces[side], Y, links, side, t, fresh, cut=cuts[side])
+        decided = np.flatnonzero(fresh >= 0)[::2]
+        assert decided.size
+        preset = np.full(len(pieces[side]), -1, dtype=np.int8)
+        preset[decided] = S.ON_SAME  # (a status the local way never gives)
+        tested = []
+        real = S._local_tests
+        with monkeypatch.context() as m:
+            m.setattr(S, "_local_tests", lambda cand, Y, tol: tested.extend(c[0] for c in cand) or real(cand, Y, tol))
+            S._local_status(pieces[side], Y, links, side, t, preset, cut=cuts[side])
+        assert tested and not set(tested) & set(decided.tolist())
+        assert (preset[decided] == S.ON_SAME).all()
+        rest = np.ones(len(pieces[side]), dtype=bool)
+        rest[decided] = False
+        np.testing.assert_array_equal(preset[rest], fresh[rest])

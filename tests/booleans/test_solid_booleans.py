@@ -1293,12 +1293,12 @@ def test_foreign_in_boxes_is_the_box_test_of_every_point(points, boxes, ptol, st
     lo, hi = B[:, :3], B[:, :3] + B[:, 3:]  # boxes of any shape, flat ones included
     cand = np.arange(0, P.shape[0], 1 + stride)
     every = S._foreign_in_boxes(lo, hi, P, tol, cand)
-    small = S._SMALL_BOX_PAIRS
+    small = S._BOX_POINT_PAIRS
     try:
-        S._SMALL_BOX_PAIRS = -1  # (the tree, whatever the size)
+        S._BOX_POINT_PAIRS = -1  # (the tree, whatever the size)
         tree = S._foreign_in_boxes(lo, hi, P, tol, cand)
     finally:
-        S._SMALL_BOX_PAIRS = small
+        S._BOX_POINT_PAIRS = small
     for got in (every, tree):
         assert len(got) == lo.shape[0]
         for i in range(lo.shape[0]):
@@ -1760,9 +1760,9 @@ def test_t_junction_pass_shares_an_edges_candidates_between_its_two_uses(monkeyp
         calls.append((list(faces), t, dict(orig or {}), _operand_map(orig_edges), boxes))
         return real(faces, t, orig, orig_edges, boxes)
 
-    def spy_cand(uses, starts, t):
+    def spy_cand(uses, starts, t, ranges=None):
         sizes.append(len(uses))
-        return real_cand(uses, starts, t)
+        return real_cand(uses, starts, t, ranges)
 
     monkeypatch.setattr(S, "_split_edges_at_vertices", spy)
     if case == "plate":
@@ -1842,8 +1842,9 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
         return real_closest(*a, **k)
 
     def every_use(open_uses, starts, start_tol, t, keys=None):
-        X_all, cand_all = real_shared(open_uses, starts, start_tol, t, keys)
-        return X_all, [c if c.size else np.array([0]) for c in cand_all]
+        found = real_shared(open_uses, starts, start_tol, t, keys)
+        X, _ = S._split_candidates(open_uses, starts, t)
+        return {i: found.get(i, (X[i], np.array([0]))) for i in range(len(open_uses))}
 
     monkeypatch.setattr(classify, "_curve_closest", closest)
     changed = False
@@ -1865,7 +1866,8 @@ def test_t_junction_pass_skips_faces_without_candidates_as_the_per_use_path_woul
 @pytest.mark.parametrize("case", ["plate", "corner"])
 def test_shared_candidates_are_each_uses_own(monkeypatch, case):
     """_shared_candidates gives every open use (a shared edge's second use too, read backwards) the end samples
-    and candidate vertices that _split_candidates and _off_the_ends give it alone."""
+    and candidate vertices that _split_candidates and _off_the_ends give it alone, and leaves out exactly the
+    uses without a candidate."""
     calls = []
     real = S._shared_candidates
 
@@ -1878,25 +1880,29 @@ def test_shared_candidates_are_each_uses_own(monkeypatch, case):
     _t_junction_case(case)
     assert calls
     flipped = with_candidates = 0
-    for open_uses, starts, start_tol, t, keys, (X_all, cand_all) in calls:
-        assert len(X_all) == len(cand_all) == len(open_uses)
+    for open_uses, starts, start_tol, t, keys, found in calls:
+        assert set(found) <= set(range(len(open_uses)))
         # The T-junction pass hands over the keys read from its use tables: those the uses give.
         assert keys is not None
         np.testing.assert_array_equal(keys[0], [id(e.curve) for e in open_uses])
         np.testing.assert_array_equal(np.stack(keys[1:], axis=1), [(e.t0, e.t1, e.tol or 0.0) for e in open_uses])
-        X_own, cand_own = real(open_uses, starts, start_tol, t)  # (the keys read from the uses)
-        assert all(np.array_equal(a, b) for a, b in zip(X_all, X_own))
-        assert all(np.array_equal(a, b) for a, b in zip(cand_all, cand_own))
+        own = real(open_uses, starts, start_tol, t)  # (the keys read from the uses)
+        assert own.keys() == found.keys()
+        assert all(np.array_equal(own[i][0], found[i][0]) and np.array_equal(own[i][1], found[i][1]) for i in found)
         seen = {}
-        for e, X, cand in zip(open_uses, X_all, cand_all):
+        for i, e in enumerate(open_uses):
             X1, c1 = S._split_candidates([e], starts, t)
-            c1 = S._off_the_ends([e], X1, c1, starts, start_tol, t)
-            np.testing.assert_array_equal(X[[0, -1]], X1[0][[0, -1]])
-            assert sorted(np.asarray(cand).tolist()) == sorted(np.asarray(c1[0]).tolist())
+            _, c1 = S._off_the_ends(X1, c1, starts, start_tol, S._use_ranges([e], t)[2])
+            if i in found:
+                X, cand = found[i]
+                np.testing.assert_array_equal(X[[0, -1]], X1[0][[0, -1]])
+                assert sorted(cand.tolist()) == sorted(c1.tolist())
+            else:
+                assert c1.size == 0
             key = (id(e.curve), min(e.t0, e.t1), max(e.t0, e.t1), e.tol or 0.0)
             flipped += key in seen and seen[key] != e.t0
             seen.setdefault(key, e.t0)
-            with_candidates += len(cand) > 0
+            with_candidates += i in found
     assert flipped  # (second uses, read backwards, were compared)
     if case == "corner":
         assert with_candidates  # (and uses with candidate vertices)

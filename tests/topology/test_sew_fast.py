@@ -649,3 +649,42 @@ def test_set_many_is_set_of_each():
     del e, uses[3:]
     gc.collect()
     assert len(many) == 3  # (entries die with their objects)
+
+
+def test_use_rows_evaluate_each_edge_once_and_equal_each_uses_own_row(monkeypatch):
+    """_use_rows evaluates each distinct (curve, range) once for the uses of both ways round (a cut plate's
+    edges, each used by two faces); every row equals, bit for bit, the row of its use computed alone, and
+    uses whose ends differ only in the sign of a zero are not taken for one another."""
+    from coons import Box, Cylinder, difference
+    from coons.kernel import onsurface
+    from coons.kernel.analytic import Circle, Line
+    from coons.kernel.curve import NurbsCurve
+    from coons.topology._memo import IdentityMemo
+
+    plate = difference(Box(30, 30, 5), *[Cylinder(1.5, 10).translate((8.0 * i, 0, 0)) for i in (-1, 0, 1)])
+    uses = [e for spec in sew.face_specs(plate.brep) for loop in spec.loops for e in loop]
+    line = Line(np.zeros(3), np.array([1.0, 2.0, 0.0]))
+    circle = Circle(np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), 2.0)
+    nurbs = NurbsCurve(np.array([[0, 0, 0], [1, 2, 0], [3, 1, 1.0]]), [0, 0, 0, 1, 1, 1], 2)
+    uses += [sew.EdgeSpec(line, 0.0, 1.5), sew.EdgeSpec(line, 1.5, 0.0, tol=1e-5), sew.EdgeSpec(circle, -0.0, 1.0),
+             sew.EdgeSpec(circle, 1.0, 0.0), sew.EdgeSpec(circle, 2.0, 0.5), sew.EdgeSpec(nurbs, 0.9, 0.2)]
+    w = np.zeros((len(uses), 4), dtype=np.int64)
+    evaluated = []
+    real = onsurface.curve_derivatives
+
+    def spy(curves, T, *rest):
+        evaluated.append(len(curves))
+        return real(curves, T, *rest)
+
+    monkeypatch.setattr(sew, "_USE_ROWS", IdentityMemo())
+    monkeypatch.setattr(onsurface, "curve_derivatives", spy)
+    rows = sew._use_rows(uses, w)
+    simple = [e for e in uses if type(e.curve) in (Line, Circle)]
+    # (one evaluation of the lines and circles, a row per distinct curve and ends, bit for bit)
+    assert evaluated == [len({(id(e.curve), *(x.hex() for x in sorted((e.t0, e.t1)))) for e in simple})]
+    assert evaluated[0] <= len(simple) // 2 + 4  # (the plate's edges: one evaluation for two uses)
+    for i, e in enumerate(uses):
+        monkeypatch.setattr(sew, "_USE_ROWS", IdentityMemo())
+        alone = sew._use_rows([e], w[i:i + 1])
+        np.testing.assert_array_equal(rows[i], alone[0])
+        assert rows[i].tobytes() == alone[0].tobytes()  # (the sign of a zero too)

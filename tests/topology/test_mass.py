@@ -1027,8 +1027,8 @@ def test_pool_rows_made_together_equal_each_object_alone():
     pcurves = (Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7])), Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0])),
                Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0])), Loose())
     memo = IdentityMemo()
-    first = mass._pool_rows(pcurves[:1], np.full(1, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
-    code, rows = mass._pool_rows(pcurves, np.full(4, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
+    first = mass._pool_rows(pcurves[:1], np.full(1, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_rows)
+    code, rows = mass._pool_rows(pcurves, np.full(4, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_rows)
     for k, pc in enumerate(pcurves):
         kind, row = mass._pcurve_row(pc)
         assert code[k] == kind
@@ -1041,3 +1041,32 @@ def test_pool_rows_made_together_equal_each_object_alone():
             np.testing.assert_array_equal(got[1], row)
     np.testing.assert_array_equal(first[1][0], rows[0])
     assert len(memo) == 3
+
+
+def test_pcurve_rows_by_type_equal_each_object_alone():
+    # _pcurve_rows gathers the coefficients of lines and ellipses by type in array passes: every
+    # shape and row must be the one _pcurve_row gives the object alone (iso-v and constant-u lines,
+    # signed zeros, lines made by Line2D.many as rows of one array, a fitted
+    # NURBS p-curve, a subclass and a type the tables do not know, in mixed order).
+    from coons.kernel.pcurve import Trig2D
+
+    class Loose:
+        pass
+
+    class Sub(Line2D):
+        pass
+
+    fitted = NurbsCurve(np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 1.0]]), np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]), 2)
+    pcurves = [Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7])), Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0])),
+               Line2D(np.array([1.0, 2.0]), np.array([-0.0, 5.0])),
+               Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0])),
+               Trig2D(np.array([0.1, 0.2]), np.array([1.0, -0.0]), np.array([-0.0, 0.5])), Loose(), fitted,
+               Sub(np.array([0.0, 1.0]), np.array([0.0, 2.0]))]
+    pcurves += Line2D.many(np.random.default_rng(3).normal(size=(5, 2)), np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0],
+                                                                                   [-1.0, -0.0], [2.0, 3.0]]))
+    pcurves += [Trig2D(np.array([x, 1.0]), np.array([2.0, 0.0]), np.array([0.0, x])) for x in (-0.5, 1.5)]
+    shape, rows = mass._pcurve_rows(pcurves[::-1] + pcurves)
+    for k, pc in enumerate(pcurves[::-1] + pcurves):
+        kind, row = mass._pcurve_row(pc)
+        assert shape[k] == kind, k
+        assert rows[k].tobytes() == np.array(row, dtype=np.float64).tobytes(), k

@@ -934,12 +934,15 @@ def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray,
     return recorded
 
 
-def _value_faces(b: BRep) -> np.ndarray:
+def _value_faces(b: BRep, exempt: np.ndarray | None = None) -> np.ndarray:
     """``(F,)`` bool: every coedge of the face has a curve and a p-curve, both values
-    (:func:`~coons.topology._memo.pool_values`)."""
+    (:func:`~coons.topology._memo.pool_values`); the coedges of the loops ``exempt`` ``(L,)`` bool
+    (if given) are not asked."""
     cv = np.append(pool_values(b, "curves"), False)  # (index -1, none, reads False)
     pv = np.append(pool_values(b, "pcurves"), False)
     ok = np.repeat(cv[b.edge_curve], 2) & pv[b.edge_pcurve.ravel()]
+    if exempt is not None:
+        ok |= exempt[b.coedge_loop]
     out = np.ones(b.n_faces, dtype=bool)
     out[b.coedge_face[~ok]] = False
     return out

@@ -564,12 +564,21 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     # the record); an extended face's old loops are its old spec's, recorded under that test.
     old_loops = {f: extends[f][0] for f in extended}
     recorded = carried.copy()
-    for f in np.flatnonzero(unchanged & ~carried).tolist():
-        spec = specs[f]
-        if is_value(spec) and is_value(spec.surface) and all(
-                is_value(e.curve) and is_value(e.pcurve) for loop in spec.loops[old_loops.get(f, 0):] for e in loop):
-            _FACE_VOLUMES.setdefault(spec, dict)[key] = float(vol[f])
-            recorded[f] = True
+    todo = np.flatnonzero(unchanged & ~carried)
+    if todo.size:
+        # (an unchanged face's uses hold its coedges' very curves and p-curves: read from the pools)
+        from coons.topology.check import _first_loops, _value_faces
+
+        todo = todo[_value_faces(b, _first_loops(b, old_loops) if old_loops else None)[todo]]
+        todo = todo[np.array([is_value(spec) and is_value(spec.surface) for spec in map(specs.__getitem__, todo.tolist())],
+                             dtype=bool)]
+        made = [specs[f] for f in todo.tolist()]
+        for spec, got, v in zip(made, _FACE_VOLUMES.get_many(made), vol[todo].tolist()):
+            if got is None:
+                _FACE_VOLUMES.set(spec, {key: v})
+            else:
+                got[key] = v
+        recorded[todo] = True
     rec = _Volumes()
     rec.specs, rec.key, rec.vol, rec.recorded = tuple(specs), key, vol, recorded
     rec.ids, rec.order = id_index(rec.specs)

@@ -418,27 +418,30 @@ class _PcurveSamples:
     gapped: frozenset = frozenset()
 
 
-def _pcurves_at(pcurves: list, which: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``pcurves[which[k]]`` at the parameters ``T[k]``, ``(k, n, 2)``, lines and ellipses in array time;
-    and whether each is a :class:`Line2D`, ``(k,)``."""
+def _pcurves_at(b: BRep, which: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``b.pcurves[which[k]]`` at the parameters ``T[k]``, ``(k, n, 2)``, lines and ellipses in array time
+    from the coefficient rows of the mass tables (:func:`~coons.topology.mass.pcurve_table`: the
+    p-curves' own origin and direction, centre and axes, gathered once per B-rep and shared with
+    the orientation check's shell volumes); and whether each is a :class:`Line2D`, ``(k,)``."""
+    from coons.topology.mass import pcurve_table
+
+    pcurves = b.pcurves
     out = np.empty(T.shape + (2,))
     which = np.asarray(which, dtype=np.int64)
     ids, inv = np.unique(which, return_inverse=True)
     kind = np.array([0 if isinstance(pcurves[i], Line2D) else 1 if isinstance(pcurves[i], Trig2D) else 2
                      for i in ids.tolist()], dtype=np.int64)
     k = kind[inv.reshape(-1)] if ids.size else np.empty(0, dtype=np.int64)
+    coef = pcurve_table(b) if (k < 2).any() else None
     rows = np.flatnonzero(k == 0)
     if rows.size:
-        O = np.array([pcurves[i].origin for i in which[rows]])
-        D = np.array([pcurves[i].direction for i in which[rows]])
-        out[rows] = O[:, None, :] + T[rows][..., None] * D[:, None, :]
+        C = coef.take(which[rows], axis=0)
+        out[rows] = C[:, None, 0:2] + T[rows][..., None] * C[:, None, 2:4]
     rows = np.flatnonzero(k == 1)
     if rows.size:
-        C = np.array([pcurves[i].center for i in which[rows]])
-        A = np.array([pcurves[i].a for i in which[rows]])
-        B = np.array([pcurves[i].b for i in which[rows]])
+        C = coef.take(which[rows], axis=0)
         tt = T[rows][..., None]
-        out[rows] = C[:, None, :] + np.cos(tt) * A[:, None, :] + np.sin(tt) * B[:, None, :]
+        out[rows] = C[:, None, 0:2] + np.cos(tt) * C[:, None, 4:6] + np.sin(tt) * C[:, None, 6:8]
     rows = np.flatnonzero(k == 2)
     if rows.size:
         for r, D in zip(rows, derivatives_many([pcurves[int(i)] for i in which[rows]], [T[r] for r in rows], 0)):
@@ -553,7 +556,7 @@ def _check_geometry(b: BRep, t: Tolerance, samples: int, out: list[Problem],
     uv[hit], speed[hit], dev[hit], line[hit] = uv_h, speed_h, dev_h, line_h
     if miss.size:
         Tm, Pm = Ts[at[rr[miss]]], Ps[at[rr[miss]]]
-        uv_m, line_m = _pcurves_at(b.pcurves, pi[miss], Tm)
+        uv_m, line_m = _pcurves_at(b, pi[miss], Tm)
         u_m, v_m = uv_m[..., 0].ravel(), uv_m[..., 1].ravel()
         ids, inv = np.unique(si[miss], return_inverse=True)
         used = [b.surfaces[s] for s in ids.tolist()]
@@ -937,12 +940,15 @@ def _remember_trims(b: BRep, known: tuple[list, np.ndarray], passed: np.ndarray,
     return recorded
 
 
-def _value_faces(b: BRep) -> np.ndarray:
+def _value_faces(b: BRep, exempt: np.ndarray | None = None) -> np.ndarray:
     """``(F,)`` bool: every coedge of the face has a curve and a p-curve, both values
-    (:func:`~coons.topology._memo.pool_values`)."""
+    (:func:`~coons.topology._memo.pool_values`); the coedges of the loops ``exempt`` ``(L,)`` bool
+    (if given) are not asked."""
     cv = np.append(pool_values(b, "curves"), False)  # (index -1, none, reads False)
     pv = np.append(pool_values(b, "pcurves"), False)
     ok = np.repeat(cv[b.edge_curve], 2) & pv[b.edge_pcurve.ravel()]
+    if exempt is not None:
+        ok |= exempt[b.coedge_loop]
     out = np.ones(b.n_faces, dtype=bool)
     out[b.coedge_face[~ok]] = False
     return out
@@ -1190,7 +1196,7 @@ def _coedge_samples(b: BRep, c: np.ndarray, samples: int) -> tuple[np.ndarray, n
     miss = np.flatnonzero(miss)
     if miss.size:
         T, _ = _edge_samples(b, samples, e[miss])
-        uv[miss], line[miss] = _pcurves_at(b.pcurves, pi[miss], T)
+        uv[miss], line[miss] = _pcurves_at(b, pi[miss], T)
     return uv, line
 
 

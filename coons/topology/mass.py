@@ -133,6 +133,7 @@ from __future__ import annotations
 
 import functools
 import math
+import operator
 import weakref
 from dataclasses import dataclass
 from typing import Callable
@@ -563,12 +564,21 @@ def carried_shell_volumes(b: BRep, specs: tuple, unchanged: np.ndarray, extends:
     # the record); an extended face's old loops are its old spec's, recorded under that test.
     old_loops = {f: extends[f][0] for f in extended}
     recorded = carried.copy()
-    for f in np.flatnonzero(unchanged & ~carried).tolist():
-        spec = specs[f]
-        if is_value(spec) and is_value(spec.surface) and all(
-                is_value(e.curve) and is_value(e.pcurve) for loop in spec.loops[old_loops.get(f, 0):] for e in loop):
-            _FACE_VOLUMES.setdefault(spec, dict)[key] = float(vol[f])
-            recorded[f] = True
+    todo = np.flatnonzero(unchanged & ~carried)
+    if todo.size:
+        # (an unchanged face's uses hold its coedges' very curves and p-curves: read from the pools)
+        from coons.topology.check import _first_loops, _value_faces
+
+        todo = todo[_value_faces(b, _first_loops(b, old_loops) if old_loops else None)[todo]]
+        todo = todo[np.array([is_value(spec) and is_value(spec.surface) for spec in map(specs.__getitem__, todo.tolist())],
+                             dtype=bool)]
+        made = [specs[f] for f in todo.tolist()]
+        for spec, got, v in zip(made, _FACE_VOLUMES.get_many(made), vol[todo].tolist()):
+            if got is None:
+                _FACE_VOLUMES.set(spec, {key: v})
+            else:
+                got[key] = v
+        recorded[todo] = True
     rec = _Volumes()
     rec.specs, rec.key, rec.vol, rec.recorded = tuple(specs), key, vol, recorded
     rec.ids, rec.order = id_index(rec.specs)
@@ -760,14 +770,14 @@ def _tables(b: BRep) -> _Tables:
             break
     if D is not None:
         code, rows = _pool_rows(b.surfaces, pool_positions(b, donor, "surfaces"), D.surface_code, D.surface_rows,
-                                _SURFACE_ROWS, _surface_row)
+                                _SURFACE_ROWS, _surface_rows)
         shape, coef = _pool_rows(b.pcurves, pool_positions(b, donor, "pcurves"), D.pcurve_shape, D.pcurve_coef,
-                                 _PCURVE_ROWS, _pcurve_row)
+                                 _PCURVE_ROWS, _pcurve_rows)
     else:
         none = np.full(len(b.surfaces), -1, dtype=np.int64)
-        code, rows = _pool_rows(b.surfaces, none, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_row)
+        code, rows = _pool_rows(b.surfaces, none, _NO_CODE, _IMPLICIT_PLANE_ROW_2D, _SURFACE_ROWS, _surface_rows)
         none = np.full(len(b.pcurves), -1, dtype=np.int64)
-        shape, coef = _pool_rows(b.pcurves, none, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_row)
+        shape, coef = _pool_rows(b.pcurves, none, _NO_CODE, _ZEROS8_2D, _PCURVE_ROWS, _pcurve_rows)
     code = np.append(code, np.int8(_C_PLANE))
     rows = np.concatenate([rows, _IMPLICIT_PLANE_ROW_2D])
     # (classified as _classify_shapes does)
@@ -791,15 +801,24 @@ def _tables(b: BRep) -> _Tables:
     return T
 
 
+def pcurve_table(b: BRep) -> np.ndarray:
+    """The p-curve coefficient rows of ``b``'s mass tables, ``(P + 1, 8)`` (never written): row ``i`` of
+    ``b.pcurves[i]`` a :class:`Line2D` is its origin and direction, of a :class:`Trig2D` its centre
+    (columns 0:2) and axes ``a``, ``b`` (4:6, 6:8), the very floats of the p-curve (the checker
+    samples them from here)."""
+    return _tables(b).pcurve_coef
+
+
 def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows: np.ndarray, memo: IdentityMemo,
-               row_of: Callable) -> tuple[np.ndarray, np.ndarray]:
+               rows_of: Callable) -> tuple[np.ndarray, np.ndarray]:
     """The codes ``(n,)`` int8 and rows ``(n, w)`` of :class:`_Tables` for the geometry objects
     ``objs`` of a B-rep's pool (its surfaces or p-curves): those at positions ``pos >= 0`` of a
     donor's pool (:func:`~coons.topology._memo.pool_positions`) gathered from the donor's table
-    in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``row_of``.  A
-    row is a function of its object alone, so it does not matter which table it is read from.
-    The rows made are one array (each object's row a read-only view of it), remembered in one
-    call (a Boolean of a hundred tools brings a thousand new p-curves)."""
+    in one take, the others from :data:`_SURFACE_ROWS` / :data:`_PCURVE_ROWS` or ``rows_of``
+    (a list of objects -> their codes ``(m,)`` and rows ``(m, w)``).  A row is a function of its
+    object alone, so it does not matter which table it is read from.  The rows made are one array
+    (each object's row a read-only view of it), remembered in one call (a Boolean of a hundred
+    tools brings a thousand new p-curves)."""
     code = donor_code.take(pos)  # (-1, absent from the donor, reads the sentinel and is overwritten)
     rows = donor_rows.take(pos, axis=0)
     miss = np.flatnonzero(pos < 0)
@@ -813,10 +832,11 @@ def _pool_rows(objs: tuple, pos: np.ndarray, donor_code: np.ndarray, donor_rows:
         if len(old) < len(need):
             new = [k for k, g in enumerate(got) if g is None]
             made = [need[k] for k in new]
-            kinds, R = zip(*map(row_of, made))
-            R = _read_only(np.array(R, dtype=np.float64))
+            kinds, R = rows_of(made)
+            R = _read_only(R)
             code[miss[new]] = kinds
             rows[miss[new]] = R
+            kinds = kinds.tolist()
             if not all_values(made):
                 keep = [k for k, o in enumerate(made) if is_value(o)]
                 made, kinds, R = [made[k] for k in keep], [kinds[k] for k in keep], _read_only(R[keep])
@@ -853,6 +873,45 @@ def _pcurve_row(pc) -> tuple[int, list[float]]:
         a, bb = pc.a.tolist(), pc.b.tolist()
         return (_P_ISO_V if a[1] == 0.0 and bb[1] == 0.0 else _P_TRIG), pc.center.tolist() + _ZEROS2 + a + bb
     return (_P_CURVE if isinstance(pc, NurbsCurve) and pc.dimension == 2 else _P_BAD), _ZEROS8
+
+
+def _surface_rows(surfaces: list) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_surface_row` of each surface: codes ``(m,)`` int8 and rows ``(m, 17)``."""
+    kinds, R = zip(*map(_surface_row, surfaces))
+    return np.array(kinds, dtype=np.int8), np.array(R, dtype=np.float64)
+
+
+def _pcurve_rows(pcurves: list) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_pcurve_row` of each p-curve: shapes ``(m,)`` int8 and rows ``(m, 8)``, the same values;
+    the :class:`Line2D` and :class:`Trig2D` p-curves (the fitted ones aside, all of a Boolean's new
+    p-curves) by one array pass per type over their gathered coefficients."""
+    m = len(pcurves)
+    shape = np.empty(m, dtype=np.int8)
+    R = np.zeros((m, 8))
+    kind = np.fromiter(map(id, map(type, pcurves)), dtype=np.int64, count=m)  # (exact types: no subclass)
+    line = np.flatnonzero(kind == id(Line2D))
+    if line.size:
+        some = [pcurves[i] for i in line.tolist()]
+        R[line, 0:2] = _rows_of(some, "origin")
+        R[line, 2:4] = D = _rows_of(some, "direction")
+        shape[line] = np.where(D[:, 1] == 0.0, _P_ISO_V, np.where(D[:, 0] == 0.0, _P_CONST_U, _P_LINE))
+    trig = np.flatnonzero(kind == id(Trig2D))
+    if trig.size:
+        some = [pcurves[i] for i in trig.tolist()]
+        R[trig, 0:2] = _rows_of(some, "center")
+        R[trig, 4:6] = A = _rows_of(some, "a")
+        R[trig, 6:8] = B = _rows_of(some, "b")
+        shape[trig] = np.where((A[:, 1] == 0.0) & (B[:, 1] == 0.0), _P_ISO_V, _P_TRIG)
+    for i in np.flatnonzero((kind != id(Line2D)) & (kind != id(Trig2D))).tolist():  # (any other type)
+        shape[i], R[i] = _pcurve_row(pcurves[i])
+    return shape, R
+
+
+def _rows_of(objs: list, name: str) -> np.ndarray:
+    """The 2-vector attribute ``name`` of the p-curves ``objs``, stacked ``(m, 2)``: their bytes joined
+    (the constructors of :class:`Line2D` and :class:`Trig2D` make each a contiguous float64 array of
+    its own or a row of one; several times faster than ``np.array`` of the list)."""
+    return np.frombuffer(b"".join(map(operator.attrgetter(name), objs)), dtype=np.float64).reshape(-1, 2)
 
 
 #: Surface -> :func:`_surface_row`, p-curve -> :func:`_pcurve_row` (code and row as a read-only

@@ -1111,21 +1111,21 @@ def test_mass_tables_gathered_from_the_operand_equal_cold_ones():
     mass._SURFACE_ROWS.clear()
     mass._PCURVE_ROWS.clear()
     made = {"surfaces": 0, "pcurves": 0}
-    real_s, real_p = mass._surface_row, mass._pcurve_row
+    real_s, real_p = mass._surface_rows, mass._pcurve_rows
 
-    def surface_row(obj):
-        made["surfaces"] += 1
-        return real_s(obj)
+    def surface_rows(objs):
+        made["surfaces"] += len(objs)
+        return real_s(objs)
 
-    def pcurve_row(obj):
-        made["pcurves"] += 1
-        return real_p(obj)
+    def pcurve_rows(objs):
+        made["pcurves"] += len(objs)
+        return real_p(objs)
 
-    mass._surface_row, mass._pcurve_row = surface_row, pcurve_row
+    mass._surface_rows, mass._pcurve_rows = surface_rows, pcurve_rows
     try:
         warm = mass._tables(two.brep)
     finally:
-        mass._surface_row, mass._pcurve_row = real_s, real_p
+        mass._surface_rows, mass._pcurve_rows = real_s, real_p
     for name, k in zip(("surfaces", "pcurves"), shared):
         assert made[name] <= len(getattr(two.brep, name)) - k, name
     _memo.clear_all()
@@ -1426,3 +1426,22 @@ def test_geometry_check_of_analytic_surfaces_equals_the_grouped_path(make, monke
     assert [str(p) for p in out_fast] == [str(p) for p in out_general]
     for name in ("coedge", "uv", "speed", "line", "pos"):
         np.testing.assert_array_equal(getattr(fast, name), getattr(general, name), err_msg=name)
+
+
+def test_pcurve_samples_from_the_mass_tables_equal_each_pcurve_evaluated():
+    # The checker samples lines and ellipses from the coefficient rows of the mass tables (the
+    # p-curves' own floats): every sample must be the bits of the p-curve's own evaluate, for the
+    # lines and ellipses of a plate minus cylinders and of the union of two spheres.
+    from coons.booleans.solid import difference, union
+
+    plate = difference(Box(30.0, 30.0, 4.0), *[Cylinder(1.0, 10.0).translate((x, y, -3.0))
+                                              for x in (-6.0, 6.0) for y in (-6.0, 6.0)])
+    blob = union(Sphere(2.0), Sphere(2.0).translate((1.5, 0.5, 0.25)))
+    for b in (plate.brep, blob.brep):
+        which = np.array([i for i, pc in enumerate(b.pcurves) if isinstance(pc, (Line2D, Trig2D))])[::-1].repeat(2)
+        T = np.random.default_rng(5).uniform(-1.0, 4.0, size=(which.size, 9))
+        uv, line = check_module._pcurves_at(b, which, T)
+        for k, i in enumerate(which.tolist()):
+            pc = b.pcurves[i]
+            assert line[k] == isinstance(pc, Line2D)
+            assert uv[k].tobytes() == pc.evaluate(T[k]).tobytes(), (k, type(pc).__name__)

@@ -1027,8 +1027,8 @@ def test_pool_rows_made_together_equal_each_object_alone():
     pcurves = (Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7])), Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0])),
                Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0])), Loose())
     memo = IdentityMemo()
-    first = mass._pool_rows(pcurves[:1], np.full(1, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
-    code, rows = mass._pool_rows(pcurves, np.full(4, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_row)
+    first = mass._pool_rows(pcurves[:1], np.full(1, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_rows)
+    code, rows = mass._pool_rows(pcurves, np.full(4, -1), mass._NO_CODE, mass._ZEROS8_2D, memo, mass._pcurve_rows)
     for k, pc in enumerate(pcurves):
         kind, row = mass._pcurve_row(pc)
         assert code[k] == kind
@@ -1041,3 +1041,70 @@ def test_pool_rows_made_together_equal_each_object_alone():
             np.testing.assert_array_equal(got[1], row)
     np.testing.assert_array_equal(first[1][0], rows[0])
     assert len(memo) == 3
+
+
+def test_pcurve_rows_by_type_equal_each_object_alone():
+    # _pcurve_rows gathers the coefficients of lines and ellipses by type in array passes: every
+    # shape and row must be the one _pcurve_row gives the object alone (iso-v and constant-u lines,
+    # signed zeros, lines made by Line2D.many as rows of one array, a fitted
+    # NURBS p-curve, a subclass and a type the tables do not know, in mixed order).
+    from coons.kernel.pcurve import Trig2D
+
+    class Loose:
+        pass
+
+    class Sub(Line2D):
+        pass
+
+    fitted = NurbsCurve(np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 1.0]]), np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]), 2)
+    pcurves = [Line2D(np.array([0.5, -1.25]), np.array([3.0, 0.7])), Line2D(np.array([1.0, 2.0]), np.array([-2.0, 0.0])),
+               Line2D(np.array([1.0, 2.0]), np.array([-0.0, 5.0])),
+               Trig2D(np.array([0.1, 0.2]), np.array([1.0, 0.5]), np.array([-0.25, 2.0])),
+               Trig2D(np.array([0.1, 0.2]), np.array([1.0, -0.0]), np.array([-0.0, 0.5])), Loose(), fitted,
+               Sub(np.array([0.0, 1.0]), np.array([0.0, 2.0]))]
+    pcurves += Line2D.many(np.random.default_rng(3).normal(size=(5, 2)), np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0],
+                                                                                   [-1.0, -0.0], [2.0, 3.0]]))
+    pcurves += [Trig2D(np.array([x, 1.0]), np.array([2.0, 0.0]), np.array([0.0, x])) for x in (-0.5, 1.5)]
+    shape, rows = mass._pcurve_rows(pcurves[::-1] + pcurves)
+    for k, pc in enumerate(pcurves[::-1] + pcurves):
+        kind, row = mass._pcurve_row(pc)
+        assert shape[k] == kind, k
+        assert rows[k].tobytes() == np.array(row, dtype=np.float64).tobytes(), k
+
+
+
+def test_carried_shell_volumes_record_faces_whose_new_uses_are_values():
+    # carried_shell_volumes records a face's contribution when its spec, surface and every use's
+    # curve and p-curve (of its new loops, for a face extending a spec) are values, read from the
+    # B-rep's pools (check._value_faces): the faces recorded must be those the test of each object
+    # finds.  A box sewn with one planar face's p-curves left out (None: not a value) and a plate's
+    # cut (faces carried, the top extending its spec).
+    from coons.topology import _memo, check
+    from coons.topology._memo import is_value
+    from coons.topology.sew import EdgeSpec, FaceSpec, face_specs, sew_faces
+
+    def expected(specs, unchanged, first):
+        return [bool(u) and is_value(s) and is_value(s.surface)
+                and all(is_value(e.curve) and is_value(e.pcurve) for loop in s.loops[first.get(f, 0):] for e in loop)
+                for f, (s, u) in enumerate(zip(specs, unchanged))]
+
+    _memo.clear_all()
+    specs = list(face_specs(Box(2.0, 3.0, 4.0).brep))
+    specs[2] = FaceSpec(specs[2].surface, specs[2].sense,
+                        [[EdgeSpec(e.curve, e.t0, e.t1, None, e.tol) for e in loop] for loop in specs[2].loops])
+    b = sew_faces(specs).brep
+    known = check._SEWN_FROM[b]
+    mass.carried_shell_volumes(b, *known, {})
+    want = expected(*known, {})
+    assert mass._VOLUMES_OF.last().recorded.tolist() == want and not all(want) and any(want)
+    f = int(np.flatnonzero(~np.array(want))[0])
+    exempt = np.zeros(b.n_loops, dtype=bool)
+    exempt[b.face_loops[b.face_loop_ptr[f]:b.face_loop_ptr[f + 1]]] = True
+    assert check._value_faces(b, exempt).tolist() == [True] * b.n_faces
+    _memo.clear_all()
+    one = Box(30.0, 30.0, 4.0) - Cylinder(1.0, 10.0).translate((4.0, 0.0, -3.0))
+    two = one - Cylinder(1.0, 10.0).translate((-4.0, 0.0, -3.0))
+    rec = mass._VOLUMES_OF.last()
+    assert rec is mass._VOLUMES_OF.get(two.brep)
+    specs, unchanged = check._SEWN_FROM[two.brep]
+    assert rec.recorded.tolist() == expected(specs, unchanged, {}) and rec.recorded.all()

@@ -3036,7 +3036,10 @@ def _cut_ends(cuts: list[EdgeSpec]) -> np.ndarray:
 def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray,
                    skip_self: bool = False) -> bool:
     """Whether a closed box ``lo_a, hi_a (n, 2)`` meets one of ``lo_b, hi_b (m, 2)`` (another of the
-    same set when ``skip_self``), by :func:`~coons.booleans._broad_phase.box_pairs` on flat 3-D boxes."""
+    same set when ``skip_self``: then ``lo_b, hi_b`` are ``lo_a, hi_a``), by
+    :func:`~coons.booleans._broad_phase.box_pairs` on flat 3-D boxes, or for one set of many boxes
+    by :func:`_ring_box_pairs`' sort and sweep (the island cycles of a plate drilled in one call:
+    a sort, where the trees cost about ten times more)."""
     if lo_a.shape[0] == 0 or lo_b.shape[0] == 0:
         return False
     if lo_a.shape[0] * lo_b.shape[0] <= _SMALL_BOX_PAIRS:  # (every pair costs less than building trees)
@@ -3044,6 +3047,8 @@ def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: n
         if skip_self:
             np.fill_diagonal(meet, False)
         return bool(np.any(meet))
+    if skip_self:
+        return bool(_ring_box_pairs(lo_a, hi_a, np.zeros(lo_a.shape[0], dtype=np.int64))[0].size)
     z = np.zeros((1,))
     flat = [np.concatenate([x, np.broadcast_to(z, (x.shape[0], 1))], axis=1) for x in (lo_a, hi_a, lo_b, hi_b)]
     I, J = box_pairs(*flat)
@@ -3365,32 +3370,35 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
     """
     from coons.kernel.analytic import _angle
 
-    # One row per chord end: entry, cut, which end, side use, plane solution, side length, margin.
-    rows: list[tuple[int, EdgeSpec, int, EdgeSpec]] = []
-    tau0, SLr, mg = [], [], []
-    for q, (f, ends, tau, SL, margin) in enumerate(feet):
-        loop, cs = X.specs[f].loops[0], cuts[f]
-        for k, (i0, i1) in enumerate(ends.tolist()):
-            rows += [(q, cs[k], 0, loop[i0]), (q, cs[k], 1, loop[i1])]
-        # (the entry's rows in order: cut k, end 0 then 1)
-        tau0 += tau.ravel().tolist()
-        SLr.append(SL[ends].ravel())
-        mg += [margin] * (2 * ends.shape[0])
-    R = len(rows)
-    ok = [True] * len(feet)
+    # One row per chord end (row 2 k + which of the entries' cuts in order): its side use, the
+    # plane solution, the side's length, the margin and the entry it belongs to.
+    uses: list[EdgeSpec] = []
+    chords: list[EdgeSpec] = []
+    for f, ends, _, _, _ in feet:
+        loop = X.specs[f].loops[0]
+        uses += [loop[i] for i in ends.ravel().tolist()]
+        chords += cuts[f]
+    R = len(uses)
+    per = np.array([2 * ends.shape[0] for _, ends, _, _, _ in feet])
+    entry = np.repeat(np.arange(len(feet)), per)
+    tau0 = np.concatenate([tau.ravel() for _, _, tau, _, _ in feet])
+    SLr = np.concatenate([SL[ends].ravel() for _, ends, _, SL, _ in feet])
+    mg = np.repeat([margin for *_, margin in feet], per)
     # The cuts' 3-D ends (each cut evaluated at both ends, as the cut's own two-point call would), once
     # per cut: its two rows (ends 0 and 1) follow each other.
-    chords = [c for _, c, _, _ in rows[0::2]]
     Pc = evaluate_curves([c.curve for c in chords], np.array([[c.t0, c.t1] for c in chords])).reshape(R, 3)
-    tau0 = np.array(tau0)
     x = tau0.copy()
-    sides = [e.curve for _, _, _, e in rows]
-    lines = [r for r, c in enumerate(sides) if type(c) is Line]
-    circles = [r for r, c in enumerate(sides) if type(c) is Circle]
+    sides = [e.curve for e in uses]
+    kinds = [type(c) for c in sides]
+    lines = [r for r, k in enumerate(kinds) if k is Line]
+    circles = [r for r, k in enumerate(kinds) if k is Circle]
+    Pe = Pc.copy()  # (the feet in space; rows that fail keep the cut's end: they are dropped anyway)
     if lines:
         Ol = np.array([sides[r].origin for r in lines])
         Dl = np.array([sides[r].direction for r in lines])
         x[lines] = ((Pc[lines] - Ol)[:, None, :] @ Dl[:, :, None])[:, 0, 0]
+        # (Line.evaluate's expression on the rows gathered here: the same floats as evaluate_curves')
+        Pe[lines] = Ol + x[lines][:, None] * Dl
     if circles:
         Oc = np.array([sides[r]._origin for r in circles])
         Fc = np.array([sides[r]._frame for r in circles])
@@ -3398,23 +3406,27 @@ def _chord_feet(X: _Operand, cuts: dict[int, list[EdgeSpec]], feet: list, t: Tol
         # into the use's period
         x[circles] = [a + math.remainder(b - a, 2.0 * math.pi)
                       for a, b in zip(tau0[circles].tolist(), _angle(L[:, 1], L[:, 0]).tolist())]
-    for r, c in enumerate(sides):
-        if type(c) is Line or type(c) is Circle:
-            continue
-        if not isinstance(c, (Line, Circle)):
-            ok[rows[r][0]] = False
-            continue
-        xr = float(np.asarray(c.closest_parameters(Pc[r][None]), dtype=np.float64).reshape(-1)[0])
-        x[r] = tau0[r] + math.remainder(xr - tau0[r], 2.0 * math.pi) if isinstance(c, Circle) else xr
-    # The feet in space (rows that failed keep the cut's end: they are dropped anyway).
-    good = [r for r, c in enumerate(sides) if isinstance(c, (Line, Circle))]
-    Pe = Pc.copy()
-    Pe[good] = evaluate_curves([sides[r] for r in good], x[good][:, None])[:, 0]
-    span = np.array([abs(e.t1 - e.t0) for _, _, _, e in rows])
-    thr = np.array([max(t.linear, c.tol or 0.0, e.tol or 0.0) for _, c, _, e in rows])
-    bad = (np.abs(x - tau0) * np.concatenate(SLr) / span > np.array(mg)) | (row_norms(Pe - Pc) > thr)
-    for r in np.flatnonzero(bad).tolist():
-        ok[rows[r][0]] = False
+    ok = [True] * len(feet)
+    others = []  # (rows on subclasses of Line and Circle, by their own methods)
+    if len(lines) + len(circles) < R:
+        for r, (c, k) in enumerate(zip(sides, kinds)):
+            if k is Line or k is Circle:
+                continue
+            if not isinstance(c, (Line, Circle)):
+                ok[int(entry[r])] = False
+                continue
+            xr = float(np.asarray(c.closest_parameters(Pc[r][None]), dtype=np.float64).reshape(-1)[0])
+            x[r] = tau0[r] + math.remainder(xr - tau0[r], 2.0 * math.pi) if isinstance(c, Circle) else xr
+            others.append(r)
+    rest = circles + others
+    if rest:
+        Pe[rest] = evaluate_curves([sides[r] for r in rest], x[rest][:, None])[:, 0]
+    T = np.array([(e.t0, e.t1, e.tol or 0.0) for e in uses])
+    span = np.abs(T[:, 1] - T[:, 0])
+    thr = np.maximum(np.maximum(t.linear, np.repeat([c.tol or 0.0 for c in chords], 2)), T[:, 2])
+    bad = (np.abs(x - tau0) * SLr / span > mg) | (row_norms(Pe - Pc) > thr)
+    for q in entry[bad].tolist():
+        ok[q] = False
     r = 0
     for f, ends, tau, SL, margin in feet:
         n = ends.shape[0]

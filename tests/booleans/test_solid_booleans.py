@@ -702,6 +702,22 @@ def test_ring_box_pairs_are_every_meeting_pair_of_a_ring(boxes):
     assert I.size == len(every) and set(zip(I.tolist(), J.tolist())) == every
 
 
+@settings(max_examples=30)
+@given(st.integers(65, 200), st.floats(0.5, 12.0), st.integers(0, 2**31 - 1))
+def test_boxes_meet_2d_of_one_set_is_every_pair(n, size, seed):
+    """Above ``_SMALL_BOX_PAIRS`` pairs, one set against itself (``skip_self``) goes by the sort and sweep of
+    ``_ring_box_pairs``: the same answer as testing every pair of distinct boxes (touching counts)."""
+    rng = np.random.default_rng(seed)
+    lo = np.round(rng.uniform(0.0, 100.0, (n, 2)), 1)  # (rounded: boxes that touch exactly are drawn too)
+    hi = lo + np.round(rng.uniform(0.0, size, (n, 2)), 1)
+    meet = np.all((lo[None] <= hi[:, None]) & (hi[None] >= lo[:, None]), axis=2)
+    np.fill_diagonal(meet, False)
+    assert S._boxes_meet_2d(lo, hi, lo, hi, skip_self=True) == bool(meet.any())
+    apart = np.arange(n, dtype=float)[:, None] * np.array([3.0, 0.0])  # (a row of boxes, neighbours 1 apart)
+    assert not S._boxes_meet_2d(apart, apart + 2.0, apart, apart + 2.0, skip_self=True)
+    assert S._boxes_meet_2d(apart, apart + 3.0, apart, apart + 3.0, skip_self=True)  # (touching)
+
+
 @settings(max_examples=40)
 @given(st.lists(st.tuples(st.integers(1, 3), st.integers(3, 12), st.floats(0.2, 2.0), st.floats(0.0, 1.5),
                           st.integers(0, 2**31 - 1)), min_size=1, max_size=6),

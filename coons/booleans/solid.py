@@ -285,7 +285,7 @@ import numpy as np
 
 from coons.booleans._broad_phase import box_pairs
 from coons.errors import BooleanError, CoonsError, InvalidInputError
-from coons.kernel._common import linspace_rows, row_norms, used_ids
+from coons.kernel._common import linspace_rows, row_groups, row_norms, used_ids
 from coons.kernel.analytic import (Circle, ConicalSurface, CylindricalSurface, Ellipse, Line, PlanarSurface,
                                    surface_derivatives, surface_normals)
 from coons.kernel.curve import NurbsCurve
@@ -851,7 +851,7 @@ def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None) -> None:
             if group is lines:
                 pad = [0.0] * len(group)
             else:
-                pad = _norms2(np.diff(U, axis=1)).max(axis=1).tolist()
+                pad = row_norms(np.diff(U, axis=1)).max(axis=1).tolist()
             _USE_SAMPLES.set_many([e for e, _ in group], [(S, Ue, p) for (_, S), Ue, p in zip(group, U, pad)])
 
 
@@ -865,7 +865,7 @@ def _use_samples_pad(e: EdgeSpec, S) -> tuple[np.ndarray, float]:
         got = _USE_SAMPLES.get(e)
     if got[2] is None:
         Ue = got[1]
-        pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(_norms2(np.diff(Ue, axis=0))))
+        pad = 0.0 if isinstance(e.pcurve, Line2D) else float(np.max(row_norms(np.diff(Ue, axis=0))))
         got = (S, Ue, pad)
         _USE_SAMPLES.set(e, got)
     return got[1], got[2]
@@ -1833,7 +1833,7 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
         Q = np.where(finite[:, None, None], Q, 0.0)
     # (the largest step's root as the largest root, and the extremes per coordinate: the same floats, without
     # numpy's row-by-row reductions of a short axis)
-    step = np.max(_norms2(Q[:, 1:] - Q[:, :-1]), axis=1)[:, None]
+    step = np.max(row_norms(Q[:, 1:] - Q[:, :-1]), axis=1)[:, None]
     scale = 1.0 + np.max(np.abs(Q), axis=(1, 2))[:, None]
     Q_lo, Q_hi = _middle_extremes(Q)
     lo = Q_lo - step - 1e-9 * scale  # rounding margin of parameter values
@@ -2557,7 +2557,7 @@ def _edge_box_array(edges: list[EdgeSpec]) -> tuple[np.ndarray, np.ndarray]:
         t0 = np.array([e.t0 for e in uses], dtype=np.float64)
         t1 = np.array([e.t1 for e in uses], dtype=np.float64)
         lo, hi = np.minimum(t0, t1), np.maximum(t0, t1)
-        first, of = _groups(np.fromiter(map(id, (e.curve for e in uses)), dtype=np.int64, count=len(uses)), lo, hi)
+        first, of = row_groups(np.fromiter(map(id, (e.curve for e in uses)), dtype=np.int64, count=len(uses)), lo, hi)
         got = curve_boxes([uses[i].curve for i in first.tolist()], lo[first], hi[first])[of]
     if len(uses) == len(edges):
         boxes = got
@@ -2882,7 +2882,7 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
     Q = _cut_samples(cuts)  # (n, _CLEAR_SAMPLES, 2)
     if Q is None or not np.all(np.isfinite(Q)):
         return None
-    step = np.max(_norms2(np.diff(Q, axis=1)), axis=1)
+    step = np.max(row_norms(np.diff(Q, axis=1)), axis=1)
     margin = step + 1e-9 * (1.0 + np.max(np.abs(Q), axis=(1, 2)))
     Q_lo, Q_hi = _middle_extremes(Q)
     lo, hi = Q_lo - margin[:, None], Q_hi + margin[:, None]
@@ -2990,16 +2990,10 @@ def _fitted_end_near_loops(X: _Operand, f: int, cuts: list[EdgeSpec]) -> bool:
     if not np.all(np.isfinite(E)):
         return False
     D = E[:, 1] - E[:, 0]
-    pad = 0.5 * (_norms2(D) / (_CLEAR_SAMPLES - 1) + 1e-9 * (1.0 + np.max(np.abs(E), axis=(1, 2))))
+    pad = 0.5 * (row_norms(D) / (_CLEAR_SAMPLES - 1) + 1e-9 * (1.0 + np.max(np.abs(E), axis=(1, 2))))
     lo = (E - pad[:, None, None]).reshape(-1, 2)
     hi = (E + pad[:, None, None]).reshape(-1, 2)
     return _boxes_meet_2d(lo, hi, X.seg_lo[f], X.seg_hi[f])
-
-
-def _norms2(D: np.ndarray) -> np.ndarray:
-    """``np.linalg.norm(D, axis=-1)`` of 2-D rows ``D (..., 2)``, written out: the same sum of squares and root
-    (the same floats), where numpy reduces a short last axis row by row, several times slower."""
-    return np.sqrt(D[..., 0] * D[..., 0] + D[..., 1] * D[..., 1])
 
 
 def _middle_extremes(Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -3461,12 +3455,11 @@ def _distance_to_edges(X: _Operand, f: int, Q: np.ndarray, t: Tolerance, others:
 
 
 def _along_edges(X: _Operand, f: int, c: EdgeSpec, others: list[EdgeSpec], t: Tolerance,
-                 span: tuple[float, float] | None = None) -> bool:
-    """Whether cut ``c`` (over ``span`` of its parameter, or its whole range) lies within ten times its tolerance
-    of face ``f``'s boundary or of the cuts ``others`` at :data:`_ALONG_SAMPLES` points, ends included:
-    ``split_face`` drops such a stretch (the other edge serves)."""
-    a, b = (c.t0, c.t1) if span is None else span
-    Q = np.asarray(c.curve.evaluate(np.linspace(a, b, _ALONG_SAMPLES)), dtype=np.float64).reshape(-1, 3)
+                 span: tuple[float, float]) -> bool:
+    """Whether cut ``c`` over ``span`` of its parameter lies within ten times its tolerance of face ``f``'s
+    boundary or of the cuts ``others`` at :data:`_ALONG_SAMPLES` points, ends included: ``split_face`` drops
+    such a stretch (the other edge serves)."""
+    Q = np.asarray(c.curve.evaluate(np.linspace(*span, _ALONG_SAMPLES)), dtype=np.float64).reshape(-1, 3)
     return bool(np.all(_distance_to_edges(X, f, Q, t, others) <= 10.0 * max(t.linear, c.tol or 0.0)))
 
 
@@ -3528,23 +3521,21 @@ def _check_cuts_used(X: _Operand, f: int, cuts: list[EdgeSpec], pieces: list[Fac
         lo, hi = min(c.t0, c.t1), max(c.t0, c.t1)
         eps = 1e-9 * (1.0 + abs(lo) + abs(hi))  # parameter rounding of sub-ranges
         covered = sum(b - a for a, b in spans.get(id(c.curve), []) if a >= lo - eps and b <= hi + eps)
-        if abs(covered) <= 1e-6 * (hi - lo) + eps:
-            # Dropped: legitimate for a dangling tree (a line of tangent contact ending inside the
-            # face) and for a cut running along the face's boundary or another cut (which serves
-            # instead: a sliver of a section touching a sphere face's boundary meridian, clipped to
-            # that face and again, overlapping, to its neighbour), not for a path whose ends all lie
-            # on the face's boundary or that closes.
-            if free is None:
-                free = _free_chains(X, f, cuts, t)
-            if free[k] or _along_edges(X, f, c, [o for o in cuts if o is not c], t):
-                continue
-        elif covered < 2.0 * (hi - lo) - 1e-6 * (hi - lo) - eps:
-            # Used twice except where it runs within tolerance of the face's boundary or another cut
-            # (a section osculating a sphere face's bounding meridian: split_face lets the boundary serve
-            # over the stretch where they are one).
+        if covered < 2.0 * (hi - lo) - 1e-6 * (hi - lo) - eps:
+            # Used fewer than twice: legitimate for a dangling tree dropped whole (a line of tangent
+            # contact ending inside the face), and where the stretches not used twice run along the
+            # face's boundary or another cut, which serves instead (a sliver of a section touching a
+            # sphere face's boundary meridian, clipped to that face and again, overlapping, to its
+            # neighbour; a section osculating such a meridian over its first stretch); not for a path
+            # whose ends all lie on the face's boundary or that closes.
+            if abs(covered) <= 1e-6 * (hi - lo) + eps:
+                if free is None:
+                    free = _free_chains(X, f, cuts, t)
+                if free[k]:
+                    continue
             short = _short_of_two(spans.get(id(c.curve), []), lo, hi, eps)
             others = [o for o in cuts if o is not c]
-            if short and all(_along_edges(X, f, c, others, t, (a, b)) for a, b in short):
+            if short and all(_along_edges(X, f, c, others, t, span) for span in short):
                 continue
         if abs(covered - 2.0 * (hi - lo)) > 1e-6 * (hi - lo) + eps:
             P = np.asarray(c.curve.evaluate(np.array([c.t0, c.t1]))).tolist()
@@ -4363,7 +4354,7 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
                 np.array([e.t1 for e in open_uses], dtype=np.float64).reshape(n),
                 np.array([e.tol or 0.0 for e in open_uses], dtype=np.float64).reshape(n))
     ids, t0, t1, tol = keys
-    first, of = _groups(ids, np.minimum(t0, t1), np.maximum(t0, t1), tol)
+    first, of = row_groups(ids, np.minimum(t0, t1), np.maximum(t0, t1), tol)
     distinct = [open_uses[i] for i in first.tolist()]
     # (max(t.linear, tol) as the uses give it: numpy's fmax, like Python's max here, keeps t.linear over a NaN)
     ranges = (t0[first], t1[first], np.fmax(tol[first], t.linear))
@@ -4380,42 +4371,6 @@ def _shared_candidates(open_uses: list[EdgeSpec], starts: np.ndarray, start_tol:
         X = X_u[u] if t0[i] == t0[first[u]] else X_u[u, ::-1]  # (a use running the other way from its group's first)
         out[i] = (X, vertex[bounds[u]:bounds[u + 1]])
     return out
-
-
-def _groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rows equal in every column of ``cols`` (``(k,)`` each) as groups numbered in the order of their first
-    row: ``first (g,)`` the first row of each group and ``of (k,)`` each row's group.  One sort of the rows
-    (floats compare as Python's do: ``0.0 == -0.0``, as in a dict of key tuples), or for a few rows
-    that dict itself."""
-    k = cols[0].size
-    if k <= _GROUPS_BY_DICT:
-        # (a few rows: a dict of Python key tuples, which compare as the sort below does, costs less)
-        seen: dict[tuple, int] = {}
-        first_l: list[int] = []
-        of_l: list[int] = []
-        for i, key in enumerate(zip(*[c.tolist() for c in cols])):
-            g = seen.setdefault(key, len(first_l))
-            if g == len(first_l):
-                first_l.append(i)
-            of_l.append(g)
-        return np.array(first_l, dtype=np.int64), np.array(of_l, dtype=np.int64)
-    order = np.lexsort(cols[::-1])
-    same = np.ones(max(k - 1, 0), dtype=bool)  # (each sorted row equal to the one before)
-    for col in cols:
-        c = col[order]
-        same &= c[1:] == c[:-1]
-    group = np.empty(k, dtype=np.int64)
-    start = np.concatenate([[True], ~same])[:k]
-    group[order] = np.cumsum(start) - 1
-    first = order[start]  # (the sort is stable: a run's first row is its group's smallest)
-    rank = np.argsort(first, kind="stable")  # the groups in the order of their first row
-    renumber = np.empty(rank.size, dtype=np.int64)
-    renumber[rank] = np.arange(rank.size)
-    return first[rank], renumber[group]
-
-
-#: Up to this many rows :func:`_groups` groups them by a dict.
-_GROUPS_BY_DICT = 64
 
 
 def _split_candidates(uses: list[EdgeSpec], starts: np.ndarray, t: Tolerance,

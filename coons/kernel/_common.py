@@ -271,3 +271,39 @@ def interval_cuts(intervals: np.ndarray, count: np.ndarray) -> tuple[np.ndarray,
     first = np.repeat(np.cumsum(count) - count, count)
     step = np.arange(owner.size) - first + 1
     return owner, step / np.repeat(count + 1, count)
+
+
+def row_groups(*cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows equal in every column of ``cols`` (``(k,)`` each) as groups numbered in the order of their first
+    row: ``first (g,)`` the first row of each group and ``of (k,)`` each row's group.  One sort of the rows
+    (floats compare as Python's do: ``0.0 == -0.0``, as in a dict of key tuples; to tell floats apart bit
+    for bit, pass them viewed as int64), or for a few rows that dict itself."""
+    k = cols[0].size
+    if k <= _ROW_GROUPS_BY_DICT:
+        # (a few rows: a dict of Python key tuples, which compare as the sort below does, costs less)
+        seen: dict[tuple, int] = {}
+        first_l: list[int] = []
+        of_l: list[int] = []
+        for i, key in enumerate(zip(*[c.tolist() for c in cols])):
+            g = seen.setdefault(key, len(first_l))
+            if g == len(first_l):
+                first_l.append(i)
+            of_l.append(g)
+        return np.array(first_l, dtype=np.int64), np.array(of_l, dtype=np.int64)
+    order = np.lexsort(cols[::-1])
+    same = np.ones(max(k - 1, 0), dtype=bool)  # (each sorted row equal to the one before)
+    for col in cols:
+        c = col[order]
+        same &= c[1:] == c[:-1]
+    group = np.empty(k, dtype=np.int64)
+    start = np.concatenate([[True], ~same])[:k]
+    group[order] = np.cumsum(start) - 1
+    first = order[start]  # (the sort is stable: a run's first row is its group's smallest)
+    rank = np.argsort(first, kind="stable")  # the groups in the order of their first row
+    renumber = np.empty(rank.size, dtype=np.int64)
+    renumber[rank] = np.arange(rank.size)
+    return first[rank], renumber[group]
+
+
+#: Up to this many rows :func:`row_groups` groups them by a dict.
+_ROW_GROUPS_BY_DICT = 64

@@ -1415,13 +1415,7 @@ def _circle_circle(c1: Trig2D, r1, f1: tuple, c2: Trig2D, r2, f2: tuple, t_: Tol
     if s.size:
         close = np.linalg.norm(c1.evaluate(s) - c2.evaluate(t), axis=1) <= eps
         s, t = s[close], t[close]
-    if s.size > 1:  # range ends one period apart give one point twice: keep the first along c1
-        order = np.argsort(s, kind="stable")
-        s, t = s[order], t[order]
-        Q = c1.evaluate(s)
-        far = np.linalg.norm(Q[:, None] - Q[None], axis=2) > eps
-        first = np.array([k == 0 or bool(np.all(far[k, :k])) for k in range(s.size)])
-        s, t = s[first], t[first]
+    s, t = _first_per_point(c1, s, t, eps)  # (range ends one period apart give one point twice)
     return _result(c1, c2, s, t)
 
 
@@ -1456,14 +1450,22 @@ def _line_trig(line: Line2D, rl, trig: Trig2D, rt, t_: Tolerance, swap: bool) ->
     s, t = np.clip(s[keep], *rl), t[keep]
     close = np.linalg.norm(line.evaluate(s) - trig.evaluate(t), axis=1) <= eps
     s, t = s[close], t[close]
-    if t.size > 1:  # a double root (tangency) or range ends one period apart: one point
-        order = np.argsort(t)
-        s, t = s[order], t[order]
-        P = trig.evaluate(t)
-        far = np.linalg.norm(P[:, None] - P[None], axis=2) > eps
-        first = np.array([k == 0 or bool(np.all(far[k, :k])) for k in range(t.size)])
-        s, t = s[first], t[first]
+    t, s = _first_per_point(trig, t, s, eps)  # (a double root, a tangency, or range ends one period apart)
     return _result(trig, line, t, s) if swap else _result(line, trig, s, t)
+
+
+def _first_per_point(curve, u: np.ndarray, w: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The solutions ``u`` on ``curve`` (with their parameters ``w`` on the other curve) in ascending ``u``,
+    each dropped whose point lies within ``eps`` of an earlier one's: one per point of a closed form that
+    gives a touching twice or a point at both ends of a range a period long."""
+    if u.size < 2:
+        return u, w
+    order = np.argsort(u, kind="stable")
+    u, w = u[order], w[order]
+    P = curve.evaluate(u)
+    far = np.linalg.norm(P[:, None] - P[None], axis=2) > eps
+    first = np.array([k == 0 or bool(np.all(far[k, :k])) for k in range(u.size)])
+    return u[first], w[first]
 
 
 def _end_feet(c1, r1, c2, r2, t_: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

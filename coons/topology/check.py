@@ -1429,7 +1429,7 @@ def _face_rings(b: BRep, f: int, samples: int, dense_ends: bool = False
     point; None when a coedge of a face on a surface has no p-curve (nothing to sample).
     """
     si = int(b.face_surface[f])
-    s = np.linspace(0.0, 1.0, samples)
+    s = _unit_samples(samples)
     if dense_ends:
         g = _DENSE_ENDS[_DENSE_ENDS < s[1]]
         s = np.unique(np.concatenate([s, g, 1.0 - g]))

@@ -66,6 +66,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from coons.errors import InvalidInputError, TopologyError
+from coons.kernel._common import row_groups
 from coons.kernel.analytic import TWO_PI, Circle, Ellipse, Line, scalar_parameter, scalar_point
 from coons.kernel.curve import NurbsCurve
 from coons.kernel.onsurface import BATCHED_CURVES, evaluate_curves
@@ -688,17 +689,10 @@ def _distinct_ranges(curve_id: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> tu
     """The distinct (curve, range) of uses ``(k,)`` (curve ids and ends), whichever way round a use runs:
     ``rep (g,)`` one use of each, ``of (k,)`` each use's, and ``forward (k,)`` whether a use's range is
     ``t0 <= t1``; two uses share one when their curves are one object and their ends the same floats bit
-    for bit (``0.0`` and ``-0.0`` apart: a row holds the use's own ends).  One sort of the keys."""
+    for bit (``0.0`` and ``-0.0`` apart: a row holds the use's own ends; the ends grouped as int64)."""
     forward = t0 <= t1
-    lo = np.where(forward, t0, t1).view(np.int64)
-    hi = np.where(forward, t1, t0).view(np.int64)
-    order = np.lexsort((hi, lo, curve_id))
-    c, a, b = curve_id[order], lo[order], hi[order]
-    first = np.ones(order.size, dtype=bool)
-    first[1:] = (c[1:] != c[:-1]) | (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    of = np.empty(order.size, dtype=np.int64)
-    of[order] = np.cumsum(first) - 1
-    return order[first], of, forward
+    rep, of = row_groups(curve_id, np.where(forward, t0, t1).view(np.int64), np.where(forward, t1, t0).view(np.int64))
+    return rep, of, forward
 
 
 def _curve_frames(curves: list) -> tuple[np.ndarray, np.ndarray]:

@@ -1631,24 +1631,16 @@ class _Graph:
         polys = [self.polygon(c) for c in cycles]
         area = np.array([0.5 * float(np.sum(p[:, 0] * _next(p[:, 1]) - _next(p[:, 0]) * p[:, 1]))
                          for p in polys])
-        outer = []
-        for ci, cyc in enumerate(cycles):
-            if not area[ci] > 0:
-                continue
-            kinds = [(self.pieces[self.sub[h >> 1].piece].kind, h % 2) for h in cyc]
-            # Inside the original face: boundary pieces run forward (the face is on their left).
-            if any(k != "cut" and d == 1 for k, d in kinds):
-                continue
-            outer.append(ci)
+        # A cycle running a boundary piece backward bounds the outside of the original face (the face is on
+        # the left of its boundary pieces run forward): never a piece, nor a hole of one (a piece's holes run
+        # the face's inner loops forward, or cuts only), though its probe may fall inside a piece where a cut
+        # touches the boundary tangentially (a loop inside the face touching its outer loop at a point).
+        outside = [any(self.pieces[self.sub[h >> 1].piece].kind != "cut" and h % 2 == 1 for h in cyc)
+                   for cyc in cycles]
+        outer = [ci for ci in range(len(cycles)) if area[ci] > 0 and not outside[ci]]
         holes: dict[int, list[int]] = {ci: [] for ci in outer}
         for ci, cyc in enumerate(cycles):
-            if area[ci] >= 0:
-                continue
-            # A cycle running a boundary piece backward bounds the outside of the original face, never a
-            # hole of a piece (a piece's holes run the face's inner loops forward, or cuts only).  Its probe
-            # may still fall in a piece where a cut touches the boundary tangentially: a loop inside the
-            # face touching its outer loop at a point.
-            if any(self.pieces[self.sub[h >> 1].piece].kind != "cut" and h % 2 == 1 for h in cyc):
+            if area[ci] >= 0 or outside[ci]:
                 continue
             mine = {h >> 1 for h in cyc}
             probe = polys[ci][:1] if polys[ci].shape[0] < 2 else 0.5 * (polys[ci][:1] + polys[ci][1:2])

@@ -1972,23 +1972,25 @@ def test_edge_box_array_boxes_each_distinct_edge_once_as_each_use_alone():
 
 
 def test_groups_number_equal_rows_as_a_dict_of_key_tuples_would():
-    """_groups (one sort) numbers equal rows in the order of their first row, as a dict of key tuples does
+    """row_groups (one sort) numbers equal rows in the order of their first row, as a dict of key tuples does
     (``0.0 == -0.0`` included): the first rows and every row's group."""
+    from coons.kernel import _common
+
     rng = np.random.default_rng(7)
-    for k in (0, 1, 2, 50, S._GROUPS_BY_DICT, S._GROUPS_BY_DICT + 1, 400):
+    for k in (0, 1, 2, 50, _common._ROW_GROUPS_BY_DICT, _common._ROW_GROUPS_BY_DICT + 1, 400):
         ids = rng.integers(0, 6, size=k)
         lo = rng.choice([0.0, -0.0, 1.5, 2.0], size=k)
         hi = rng.choice([3.0, 4.0], size=k)
         index: dict = {}
         of = [index.setdefault((int(i), float(a), float(b)), len(index)) for i, a, b in zip(ids, lo, hi)]
         first = [of.index(g) for g in range(len(index))]
-        by_dict = S._GROUPS_BY_DICT
+        by_dict = _common._ROW_GROUPS_BY_DICT
         for limit in (by_dict, -1):  # (a few rows by a dict; every size by the sort)
-            S._GROUPS_BY_DICT = limit
+            _common._ROW_GROUPS_BY_DICT = limit
             try:
-                got_first, got_of = S._groups(ids, lo, hi)
+                got_first, got_of = _common.row_groups(ids, lo, hi)
             finally:
-                S._GROUPS_BY_DICT = by_dict
+                _common._ROW_GROUPS_BY_DICT = by_dict
             assert got_first.tolist() == first and got_of.tolist() == of
             assert got_first.dtype == got_of.dtype == np.int64
 

@@ -36,6 +36,7 @@ nothing about speed.
 from __future__ import annotations
 
 import cProfile
+import gc
 import io
 import math
 import os
@@ -57,16 +58,22 @@ def _best_pair(cfn, ofn, reps: int, budget: float = 40.0):
 
     Taken in turn, not as a block of one peer then a block of the other: the shared VM's speed drifts
     over seconds (a peer's best moved 2–3× between blocks a minute apart), and alternating puts both
-    peers' bests in the same stretches of time.  A coons failure raises before OCCT runs.
+    peers' bests in the same stretches of time.  Before each timing both previous results are freed
+    and Python's collector runs (a full pass costs ~15 ms with coons, scipy and OCP imported): a
+    timing holds its own call only, not the teardown of the last result or a collection that earlier
+    garbage set off.  A coons failure raises before OCCT runs.
     """
     bc = bo = math.inf
     rc = ro = None
     start = time.perf_counter()
     for _ in range(reps):
+        rc = ro = None  # (each peer's previous result freed and the collector run before, not inside, a timing)
         forget_coons_caches()
+        gc.collect()
         t0 = time.perf_counter()
         rc = cfn()
         bc = min(bc, time.perf_counter() - t0)
+        gc.collect()
         t0 = time.perf_counter()
         ro = ofn()
         bo = min(bo, time.perf_counter() - t0)
@@ -125,16 +132,17 @@ def _cases():
             s = s - t
         return s
 
-    # (best of 3 for the one-call plates and of 2 for the 10×10 chain of cuts, one of each peer in
-    # turn: single draws of a few hundred ms swung by 20% between runs on this VM)
-    out["plate − 10×10 holes, one call"] = (lambda: coons.difference(cplate, *ctools), lambda: oplate.cut(*otools), 3)
-    out["plate − 10×10 holes, sequential"] = (coons_seq, occt_seq, 2)
+    # (best of 9 for the 10×10 one-call plate, 5 for the 20×20 one and 4 for the 10×10 chain of cuts, one
+    # of each peer in turn: single draws of 0.1–2 s swung by 20–30 % between runs on this VM, and the
+    # best of 2 or 3 moved the 10×10 ratio between 0.76 and 1.03 over four runs of one code)
+    out["plate − 10×10 holes, one call"] = (lambda: coons.difference(cplate, *ctools), lambda: oplate.cut(*otools), 9)
+    out["plate − 10×10 holes, sequential"] = (coons_seq, occt_seq, 4)
     centres20 = [(-95.0 + 10 * i, -95.0 + 10 * j, 0.0) for i in range(20) for j in range(20)]
     cplate20, oplate20 = box(coons, 210, 210, 10), box(bd, 210, 210, 10)
     ctools20 = [cyl(coons, 2, 20, c) for c in centres20]
     otools20 = [cyl(bd, 2, 20, c) for c in centres20]
     out["plate − 20×20 holes, one call"] = (lambda: coons.difference(cplate20, *ctools20),
-                                            lambda: oplate20.cut(*otools20), 3)
+                                            lambda: oplate20.cut(*otools20), 5)
 
     def seq20(plate, tools):
         def run():

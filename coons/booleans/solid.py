@@ -255,7 +255,12 @@ Status and limitations
   the box); a sphere–cylinder section osculating the sphere face's bounding meridian to fourth
   order (seed 23): ``split_face`` lets the meridian serve over the cut's first 0.006, and the check
   of the cuts' use now accepts a cut used fewer than twice only where it runs along the face's edges
-  or its other cuts (:func:`_short_of_two`).
+  or its other cuts (:func:`_short_of_two`); a box side touching the lens of a cylinder and a sphere
+  along the wall's line from the box's edge to where the lens's rim touches the side (seed 49): the
+  sphere face's section with the side, clipped to the face, is a sliver shorter than its own end
+  tolerance at the line's inner end, and the check of the cuts' use took it for a joint that made
+  the dangling line a path from the boundary (every Boolean raised; :func:`_free_chains` now takes
+  such a cut for a point).  The union there touches itself along the line, as above.
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
@@ -2582,16 +2587,18 @@ def _imprint(X: FaceSpec, Y: FaceSpec, box_x, out: list[EdgeSpec], t: Tolerance)
                     out.append(EdgeSpec(e.curve, s0, s1, pc, max(dev, e.tol or 0.0)))
 
 
-def _long_enough(curve, s0: float, s1: float, t: Tolerance) -> bool:
-    """A cut must leave the tolerance ball of its start somewhere (else it is a point)."""
+def _long_enough(curve, s0: float, s1: float, t: Tolerance, reach: float | None = None) -> bool:
+    """A cut must leave the tolerance ball of its start somewhere (else it is a point); the ball's
+    radius is ``reach`` when given (a cut's own tolerance), else ``t.linear``."""
+    r = t.linear if reach is None else reach
     if type(curve) in (Line, Circle, Ellipse) and math.isfinite(s0) and math.isfinite(s1):
         from coons.kernel.intersect import _curve_points
 
         # evaluate's points; their distances by np.linalg.norm's expression (_distance)
         P = _curve_points(curve, np.linspace(s0, s1, 5)).tolist()
-        return max(_distance(p, P[0]) for p in P) > t.linear
+        return max(_distance(p, P[0]) for p in P) > r
     P = np.asarray(curve.evaluate(np.linspace(s0, s1, 5)))
-    return bool(np.max(np.linalg.norm(P - P[0], axis=1)) > t.linear)
+    return bool(np.max(np.linalg.norm(P - P[0], axis=1)) > r)
 
 
 #: Up to this many cuts on a face :func:`_unique_cuts` first tests in Python floats whether any two
@@ -3482,7 +3489,13 @@ _ALONG_SAMPLES = 17
 
 
 def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.ndarray:
-    """Per cut, whether its chain (cuts joined end to end) has an end inside the face (not on its boundary)."""
+    """Per cut, whether its chain (cuts joined end to end) has an end inside the face (not on its boundary).
+
+    A cut that never leaves the ball of its own tolerance is a point, as sewing collapses it into
+    its vertex (a tangent section clipped to a sliver shorter than its end tolerance): the cut
+    ends within that ball meet there, and the point's own ends are no chain's end nor a neighbour
+    that makes another cut's end a joint.
+    """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -3491,11 +3504,17 @@ def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.
     thr = np.repeat([max(t.linear, c.tol or 0.0) for c in cuts], 2)
     D = np.linalg.norm(E[:, None] - E[None], axis=-1)
     close = D <= np.maximum(thr[:, None], thr[None])
-    degree = close.sum(axis=1) - 1  # other cut ends at this end
+    point = np.array([not _long_enough(c.curve, min(c.t0, c.t1), max(c.t0, c.t1), t, float(thr[2 * k]))
+                      for k, c in enumerate(cuts)])
+    for d in np.flatnonzero(point).tolist():
+        near = D[2 * d] <= thr[2 * d]
+        close |= near[:, None] & near[None, :]
+    real = ~np.repeat(point, 2)
+    degree = close[:, real].sum(axis=1) - real  # other cut ends at this end, points not counted
     i, j = np.nonzero(close)
     g = coo_matrix((np.ones(i.size), (i // 2, j // 2)), shape=(n, n))
     _, comp = connected_components(g, directed=False)
-    ends = np.flatnonzero(degree == 0)
+    ends = np.flatnonzero((degree == 0) & real)
     on_boundary = np.zeros(ends.size, dtype=bool)
     if ends.size:
         on_boundary = _distance_to_edges(X, f, E[ends], t) <= 10.0 * thr[ends]

@@ -3730,7 +3730,9 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
     n = len(cand)
     Ys = Y if isinstance(Y, list) else [Y] * n
     ops = {id(y): y for y in Ys}
-    s = np.array([c[3] for c in cand])
+    # (the candidates' fields as columns, in one pass)
+    _, specs, uses, s, faces, pcurves_y = zip(*cand)
+    s = np.array(s)
     ok = np.ones(n, dtype=bool)
     T, uv_x, uv_y = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 2))
     n_x = np.zeros((n, 3))
@@ -3755,15 +3757,15 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
                 ok[r] = False
 
     frame = np.zeros((n, 2, 2, 3))
-    batched([c[2].curve for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 1, 3)[:, 0, 1], T)
-    batched([c[2].pcurve for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_x)
-    batched([c[5] for c in cand], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_y)
-    batched([c[1].surface for c in cand], lambda objs, r: surface_normals(objs, uv_x[r, 0], uv_x[r, 1]), n_x)
-    face_y = [y.specs[c[4]] for c, y in zip(cand, Ys)]
+    batched([e.curve for e in uses], lambda objs, r: curve_derivatives(objs, s[r, None], 1, 3)[:, 0, 1], T)
+    batched([e.pcurve for e in uses], lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_x)
+    batched(list(pcurves_y), lambda objs, r: curve_derivatives(objs, s[r, None], 0, 2)[:, 0, 0], uv_y)
+    batched([f.surface for f in specs], lambda objs, r: surface_normals(objs, uv_x[r, 0], uv_x[r, 1]), n_x)
+    face_y = [y.specs[j] for j, y in zip(faces, Ys)]
     batched([f.surface for f in face_y], lambda objs, r: surface_derivatives(objs, uv_y[r, 0], uv_y[r, 1], 1), frame)
     Su, Sv = frame[:, 1, 0], frame[:, 0, 1]
-    forward = np.array([c[2].t1 > c[2].t0 for c in cand])
-    sense_x = np.array([1.0 if c[1].sense else -1.0 for c in cand])
+    forward = np.array([e.t1 > e.t0 for e in uses])
+    sense_x = np.array([1.0 if f.sense else -1.0 for f in specs])
     sense_y = np.array([1.0 if f.sense else -1.0 for f in face_y])
     T = np.where(forward[:, None], T, -T)
     # (np.cross's products and np.linalg.norm's sums written out: the same floats, without the set-up of
@@ -3771,18 +3773,21 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
     d = _cross(sense_x[:, None] * n_x, T)
     n_y = _cross(Su, Sv)
     sd, sn = row_norms(d), row_norms(n_y)
-    speed = np.stack([row_norms(Su), row_norms(Sv)], axis=1)
-    ok &= (sd > 0) & (sn > 0) & np.all(speed > 0, axis=1) & np.all(np.isfinite(d), axis=1) & np.isfinite(sn)
+    su, sv = row_norms(Su), row_norms(Sv)
+    speed = np.stack([su, sv], axis=1)
+    # (column by column: numpy's all() over a short last axis runs row by row)
+    ok &= ((sd > 0) & (sn > 0) & (su > 0) & (sv > 0) & np.isfinite(d[:, 0]) & np.isfinite(d[:, 1])
+           & np.isfinite(d[:, 2]) & np.isfinite(sn))
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = sense_y * np.einsum("ij,ij->i", d, n_y) / (sd * sn)
         ok &= np.abs(cos) >= _LOCAL_SIN
         # Clear of Y_j's loops: outside every padded segment box enlarged by the clearance in the
         # parameter plane (a space distance over the surface's speeds there).
-        m = _LOCAL_CLEARANCE * np.array([max(t.linear, c[2].tol or 0.0) for c in cand])[:, None] / speed
+        m = _LOCAL_CLEARANCE * np.array([max(t.linear, e.tol or 0.0) for e in uses])[:, None] / speed
     # (the faces of Y by (operand, face))
     by_face: dict[tuple[int, int], list[int]] = {}
     for i in np.flatnonzero(ok).tolist():
-        by_face.setdefault((id(Ys[i]), cand[i][4]), []).append(i)
+        by_face.setdefault((id(Ys[i]), faces[i]), []).append(i)
     # Faces of few loops: every candidate against every padded segment box of its face, all such
     # faces in one pass over the (candidate, segment) pairs (a hundred holes' walls).
     few = [(y, j) for y, j in by_face if len(ops[y].specs[j].loops) <= _LOOPS_BOXED]
@@ -3810,19 +3815,27 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
         if len(Y.specs[j].loops) <= _LOOPS_BOXED:
             continue  # (above)
         r = np.asarray(rows)
-        lo, hi = Y.seg_lo[j], Y.seg_hi[j]
-        q, mr = uv_y[r][:, None, :], m[r][:, None, :]
+        q, mr = uv_y[r], m[r]
         # Only the segments of loops whose box comes near a point (a plate's face of many holes).
-        first, llo, lhi = _loop_boxes(Y._data[j])
-        hit = np.any(np.all((q >= llo[None] - mr) & (q <= lhi[None] + mr), axis=2), axis=0)
-        loops = np.flatnonzero(hit)
+        # (coordinate by coordinate, points by boxes, reduced over the points, the first axis: numpy's
+        # all() over a short last axis runs row by row)
+        first, llo, lhi = _loop_boxes(Y._data[j], Y.specs[j])
+        hit = np.ones((r.size, llo.shape[0]), dtype=bool)
+        for ax in (0, 1):
+            qa, ma = q[:, ax, None], mr[:, ax, None]
+            hit &= (qa >= llo[None, :, ax] - ma) & (qa <= lhi[None, :, ax] + ma)
+        loops = np.flatnonzero(hit.any(axis=0))
         if loops.size == 0:
             continue
-        ends = np.append(first, lo.shape[0])
-        seg = np.concatenate([np.arange(ends[k], ends[k + 1]) for k in loops.tolist()])
-        lo, hi = lo[seg], hi[seg]
-        near = np.any(np.all((q >= lo[None] - mr) & (q <= hi[None] + mr), axis=2), axis=1)
-        ok[r[near]] = False
+        # (the hit loops' segments in order, as one range each)
+        count = np.append(first, Y.seg_lo[j].shape[0])[loops + 1] - first[loops]
+        seg = np.repeat(first[loops] - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
+        lo, hi = Y.seg_lo[j][seg], Y.seg_hi[j][seg]
+        near = np.ones((r.size, seg.size), dtype=bool)
+        for ax in (0, 1):
+            qa, ma = q[:, ax, None], mr[:, ax, None]
+            near &= (qa >= lo[None, :, ax] - ma) & (qa <= hi[None, :, ax] + ma)
+        ok[r[near.any(axis=1)]] = False
     return ok, cos
 
 
@@ -3831,16 +3844,41 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
 _LOOPS_BOXED = 8
 
 
-def _loop_boxes(d: "_FaceData") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(first, lo, hi)``: per loop of the face, its first segment in ``d.seg_lo`` and the union
-    ``(L, 2)`` of its segments' padded boxes (a face's loops in order, as ``_face_data`` stacks them);
-    computed once per face data."""
+def _loop_boxes(d: "_FaceData", spec: FaceSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(first, lo, hi)``: per loop of the face ``spec`` (its data ``d``), its first segment in
+    ``d.seg_lo`` and the union ``(L, 2)`` of its segments' padded boxes (a face's loops in order, as
+    ``_face_data`` stacks them); computed once per face data.
+
+    A loop's union is its :class:`_LoopData`'s ``seg_min, seg_max`` (the same reduction over the same
+    rows in the same order).  The rows of the loops that the last face boxed here with the same first
+    use had first (:data:`_LOOP_BOXES`) are taken in one piece: a plate's top gaining a hole every cut
+    stacks only its new loop's."""
     if d.loop_boxes is None:
-        n = np.array([ld.seg_lo.shape[0] for ld in d.loops], dtype=np.int64)
-        first = np.concatenate([[0], np.cumsum(n)[:-1]])
-        d.loop_boxes = (first, np.minimum.reduceat(d.seg_lo, first, axis=0),
-                        np.maximum.reduceat(d.seg_hi, first, axis=0))
+        loops = d.loops
+        n0 = 0
+        got = _LOOP_BOXES.get(spec.loops[0][0])
+        if got is not None:
+            old, first0, lo0, hi0 = got
+            n0 = len(old)
+            if n0 > len(loops) or not all(map(operator.is_, old, loops[:n0])):
+                n0 = 0
+        new = loops[n0:]
+        count = np.array([ld.seg_lo.shape[0] for ld in new], dtype=np.int64)
+        lo = np.array([ld.seg_min for ld in new]).reshape(-1, 2)
+        hi = np.array([ld.seg_max for ld in new]).reshape(-1, 2)
+        first = np.cumsum(count) - count
+        if n0:
+            first = np.concatenate([first0, first + (first0[-1] + loops[n0 - 1].seg_lo.shape[0])])
+            lo, hi = np.concatenate([lo0, lo]), np.concatenate([hi0, hi])
+        d.loop_boxes = (_frozen(first), _frozen(lo), _frozen(hi))
+        _LOOP_BOXES.set(spec.loops[0][0], (tuple(loops), *d.loop_boxes))
     return d.loop_boxes
+
+
+#: First use of a face -> ``(its loops' :class:`_LoopData`, first, lo, hi of :func:`_loop_boxes`)`` of
+#: the last face data boxed with that first use.  The value never holds the key (loop data holds a
+#: loop's uses after the first).
+_LOOP_BOXES = IdentityMemo()
 
 
 def _propagate(pieces: list[tuple[int, FaceSpec]], free: np.ndarray, status: np.ndarray) -> None:
@@ -4267,7 +4305,9 @@ def _split_edges_at_vertices(faces: list[FaceSpec], t: Tolerance, orig: dict | N
     kept = [k for k, i in enumerate(info_of) if i is not None]
     face_foreign: dict[int, np.ndarray] = {}
     if kept:
-        g_of, f_of = np.array([info_of[k] for k in kept], dtype=np.int64).reshape(-1, 2).T
+        # (the pairs flattened: numpy reads a list of tuples slowly)
+        g_of, f_of = np.fromiter(itertools.chain.from_iterable(info_of[k] for k in kept), dtype=np.int64,
+                                 count=2 * len(kept)).reshape(-1, 2).T
         for g in (1, 2):
             sel = np.flatnonzero(g_of == g)
             foreign = np.flatnonzero(group != g)
@@ -4441,7 +4481,9 @@ def _in_balls(c: np.ndarray, r: np.ndarray, P: np.ndarray) -> list[np.ndarray]:
         dj = P[None, :, j] - c[:, j, None]
         d2 += dj * dj
     rows, cols = np.nonzero(d2 <= (r * r)[:, None])
-    return np.split(cols, np.searchsorted(rows, np.arange(1, c.shape[0])))
+    # (each ball's slice of cols: np.split's set-up costs more on a sequential cut's few balls)
+    ends = np.searchsorted(rows, np.arange(c.shape[0] + 1)).tolist()
+    return [cols[a:b] for a, b in zip(ends[:-1], ends[1:])]
 
 
 def _off_the_ends(X: np.ndarray, cand: list, starts: np.ndarray, start_tol: np.ndarray,
@@ -4477,7 +4519,10 @@ def _clear_uses(edges: list[EdgeSpec], group: np.ndarray, thr: np.ndarray, face_
     # (the distinct keys, ascending, of a face's few uses by a set: np.unique's sort costs more)
     tested = [-1] if face_foreign is not None else [k for k in sorted(set(group.tolist())) if k in foreign_of]
     if kept and tested:
-        face_boxes = _face_use_boxes(edges, np.isin(keys, tested))
+        need = keys == tested[0]
+        for key in tested[1:]:  # (np.isin's set-up costs more on a face's few keys)
+            need |= keys == key
+        face_boxes = _face_use_boxes(edges, need)
     for key in tested:
         rows = np.flatnonzero(keys == key)
         B, none = (face_boxes[0][rows], face_boxes[1][rows]) if kept else _use_box_array([edges[i] for i in rows.tolist()])

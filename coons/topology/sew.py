@@ -460,8 +460,11 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
         return out  # type: ignore[return-value]
     parts: list[list] = []
     new_spec: list[EdgeSpec] = []
-    new_where: list[tuple[int, int, int, int]] = []
     new_slots: list[tuple[int, int]] = []
+    # (per new loop its face, number and length: the uses' places, only to name a bad one, made in arrays
+    # below, not a tuple per use)
+    new_face: list[int] = []
+    new_len: list[int] = []
     # Per missing face, the number of its first loops taken from a kept face and that face's table.
     kept: dict[int, tuple[int, _FaceUses]] = {}
     for p, fi in enumerate(missing):
@@ -480,14 +483,18 @@ def _face_uses(faces: Sequence[FaceSpec], values: list[bool] | None = None) -> l
                 continue
             got.append(None)
             new_slots.append((p, li))
-            for pi, e in enumerate(loop):
-                new_spec.append(e)
-                new_where.append((fi, li, pi, len(loop)))
+            new_face.append(fi)
+            new_len.append(len(loop))
+            new_spec.extend(loop)
         parts.append(got)
     if new_slots:
-        w = np.asarray(new_where, dtype=np.int64).reshape(-1, 4)
+        n_in = np.array(new_len, dtype=np.int64)
+        w = np.stack([np.repeat(np.array(new_face, dtype=np.int64), n_in),
+                      np.repeat(np.array([li for _, li in new_slots], dtype=np.int64), n_in),
+                      np.arange(len(new_spec)) - np.repeat(np.cumsum(n_in) - n_in, n_in), np.repeat(n_in, n_in)], axis=1)
         R = _use_rows(new_spec, w) if new_spec else np.empty((0, 17))
-        value = [is_value(e.curve) for e in new_spec]
+        # (all values, tested once per curve type, as is usual; else use by use)
+        value = [True] * len(new_spec) if all_values([e.curve for e in new_spec]) else [is_value(e.curve) for e in new_spec]
         curve_id = np.array([id(e.curve) for e in new_spec], dtype=np.int64)
         own_tol = np.array([np.nan if e.tol is None else e.tol for e in new_spec], dtype=np.float64)
         complete = np.array([e.curve is not None and e.pcurve is not None for e in new_spec], dtype=bool)

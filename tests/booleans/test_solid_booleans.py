@@ -1222,16 +1222,21 @@ def test_use_box_array_is_the_stacked_edge_boxes():
     assert none3.tolist() == none.tolist()
 
 
-def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
-    """The boxes of a plate's top gaining a hole (the rows the kept face boxed in one piece, the others
-    alone) are _use_box_array's in every row asked for; a face whose uses are not a prefix's boxes them."""
-    t = S.resolve(None)
+def _growing_tops(t) -> list:
+    """The top face specs of a plate cut by three holes one after another (a face gaining a loop each cut)."""
     plate = Box(40, 40, 5)
     tops = []
     for x in (-10.0, 0.0, 10.0):
         plate = S.difference(plate, Cylinder(2, 10).translate((x, 0.0, 0.0)), method="brep")
-        top = max(S._Operand(plate, "A", t).specs, key=lambda f: len(f.loops))
-        tops.append([e for loop in top.loops for e in loop])
+        tops.append(max(S._Operand(plate, "A", t).specs, key=lambda f: len(f.loops)))
+    return tops
+
+
+def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
+    """The boxes of a plate's top gaining a hole (the rows the kept face boxed in one piece, the others
+    alone) are _use_box_array's in every row asked for; a face whose uses are not a prefix's boxes them."""
+    t = S.resolve(None)
+    tops = [[e for loop in top.loops for e in loop] for top in _growing_tops(t)]
     S._FACE_USE_BOXES.clear()
     rng = np.random.default_rng(3)
     for edges in tops + tops[::-1] + [tops[0][:1] + tops[2][1:]]:
@@ -1240,6 +1245,22 @@ def test_face_use_boxes_of_a_face_gaining_holes_are_its_use_boxes():
             B0, none0 = S._use_box_array(edges)
             np.testing.assert_array_equal(B[need], B0[need])
             np.testing.assert_array_equal(none[need], none0[need])
+
+
+def test_loop_boxes_of_a_face_gaining_holes_are_its_segments_unions():
+    """The loop boxes of a plate's top gaining a hole (the loops the last face boxed taken in one
+    piece, the new ones from their loop data) are the reductions of the face's padded segment boxes
+    per loop, bit for bit; a face whose loops are not a prefix's is boxed whole."""
+    t = S.resolve(None)
+    tops = [(top, S._face_data(top, t)) for top in _growing_tops(t)]
+    S._LOOP_BOXES.clear()
+    for spec, d in tops + tops[::-1]:
+        d.loop_boxes = None
+        first, lo, hi = S._loop_boxes(d, spec)
+        n = np.array([ld.seg_lo.shape[0] for ld in d.loops])
+        np.testing.assert_array_equal(first, np.cumsum(n) - n)
+        np.testing.assert_array_equal(lo, np.minimum.reduceat(d.seg_lo, first, axis=0))
+        np.testing.assert_array_equal(hi, np.maximum.reduceat(d.seg_hi, first, axis=0))
 
 
 def test_fuse_edges_keeps_untouched_faces():

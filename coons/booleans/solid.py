@@ -1876,15 +1876,10 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
     for f in np.unique(fa).tolist():
         rows = np.flatnonzero(fa == f)
         # Only the segments of the loops whose box meets a branch's (a plate's face of a hundred holes: a
-        # segment box meets a branch's only inside its loop's box, so the others cannot change the answer),
-        # coordinate by coordinate (numpy reduces the short last axis row by row).
+        # segment box meets a branch's only inside its loop's box, so the others cannot change the answer).
         seg = _near_loop_segments(X._data[f], lo[rows], hi[rows])
         s_lo, s_hi = X.seg_lo[f][seg], X.seg_hi[f][seg]
-        r_lo, r_hi = lo[rows], hi[rows]
-        m = np.ones((rows.size, s_lo.shape[0]), dtype=bool)
-        for ax in (0, 1):
-            m &= (s_lo[None, :, ax] <= r_hi[:, ax, None]) & (s_hi[None, :, ax] >= r_lo[:, ax, None])
-        meet[rows] = m.any(axis=1)
+        meet[rows] = np.any(np.all((s_lo[None] <= hi[rows, None]) & (s_hi[None] >= lo[rows, None]), axis=2), axis=1)
     out: list = [None] * len(faces)
     clear = np.flatnonzero(~meet & finite)
     if clear.size:

@@ -1628,13 +1628,19 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             u = index[(id(X), f)] = len(uniq)
             uniq.append((X, f))
         of.append(u)
-    # (the distinct faces' edge boxes made together, per operand)
+    # (the distinct faces' edge boxes made together, per operand; of a face of many loops not boxed yet, a
+    # plate's face of a hundred holes, only the loops near its ranges' ends, :func:`_near_loop_edges`)
+    of = np.array(of)
+    local: dict[int, tuple] = {}
+    for u, (X, f) in enumerate(uniq):
+        if X._data[f].edge_boxes is None and len(X.specs[f].loops) > _LOOPS_BOXED:
+            ks = np.flatnonzero(of == u) % M  # (the ranges on the face: row r is range r mod M's)
+            local[u] = _near_loop_edges(X, f, P[ks].reshape(-1, 3), float(base[ks].max()))
     for X in {id(X): X for X, _ in uniq}.values():
-        X.fill_edge_boxes([f for Y, f in uniq if Y is X])
-    uniq = [X.edge_boxes(f) for X, f in uniq]
+        X.fill_edge_boxes([f for u, (Y, f) in enumerate(uniq) if Y is X and u not in local])
+    uniq = [local[u] if u in local else X.edge_boxes(f) for u, (X, f) in enumerate(uniq)]
     edges_u = [e for edges, *_ in uniq for e in edges]
     n_u = np.array([len(edges) for edges, *_ in uniq])
-    of = np.array(of)
     counts = n_u[of]
     total = int(counts.sum())
     # (row -> its edge among the stacked distinct faces' edges: the face's first edge, then along its edges)
@@ -1702,6 +1708,33 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
             slack = 1e-12 * (size[ent[kr]] + O)
             np.minimum.at(near, (ent[kr], side[kr]), d[known] + slack[:, None])
     return worst.tolist(), near.tolist()
+
+
+def _near_loop_edges(X: _Operand, f: int, P: np.ndarray, base: float) -> tuple[list[EdgeSpec], np.ndarray,
+                                                                              np.ndarray, np.ndarray]:
+    """:meth:`_Operand.edge_boxes` of face ``f`` of X restricted to the loops whose box (:class:`_LoopData`
+    ``box``, the union of its uses' boxes) comes within :func:`_end_tolerance_many`'s reach of one of the points
+    ``P (p, 3)`` (``base``: the largest tolerance of the ranges they end): ``(edges, lo, hi, tol)``.
+
+    An edge's box lies in its loop's and its reach ``10 max(base, tol)`` is at most the loop's (its largest
+    tolerance), so an end near no loop's box is near none of its edges' (a loop without a box is kept); the
+    edges left out could not change the tolerances or the bounds found.
+    """
+    d, loops = X._data[f], X.specs[f].loops
+    keep = [k for k, ld in enumerate(d.loops) if ld.box is None]
+    boxed = [k for k, ld in enumerate(d.loops) if ld.box is not None]
+    if boxed:
+        B = np.array([d.loops[k].box for k in boxed])  # (n, 2, 3)
+        R = 10.0 * np.maximum(base, np.array([d.loops[k].tol for k in boxed]))
+        hit = np.ones((P.shape[0], len(boxed)), dtype=bool)
+        for ax in range(3):  # (coordinate by coordinate: numpy reduces the short last axis row by row)
+            hit &= (P[:, ax, None] >= B[None, :, 0, ax] - R) & (P[:, ax, None] <= B[None, :, 1, ax] + R)
+        keep = sorted(keep + [boxed[k] for k in np.flatnonzero(hit.any(axis=0)).tolist()])
+    edges = [e for k in keep for e in loops[k]]
+    if not keep:
+        return edges, np.empty((0, 3)), np.empty((0, 3)), np.empty(0)
+    return (edges, np.concatenate([d.loops[k].use_lo for k in keep]), np.concatenate([d.loops[k].use_hi for k in keep]),
+            np.array([e.tol or 0.0 for e in edges], dtype=np.float64))
 
 
 def _clip_many(X: _Operand, faces: list[int], pcurves: list, branches: list, t: Tolerance) -> list[list]:
@@ -1847,8 +1880,11 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
     meet = np.zeros(len(faces), dtype=bool)
     for f in np.unique(fa).tolist():
         rows = np.flatnonzero(fa == f)
-        meet[rows] = np.any(np.all((X.seg_lo[f][None] <= hi[rows, None]) & (X.seg_hi[f][None] >= lo[rows, None]),
-                                   axis=2), axis=1)
+        # Only the segments of the loops whose box meets a branch's (a plate's face of a hundred holes: a
+        # segment box meets a branch's only inside its loop's box, so the others cannot change the answer).
+        seg = _near_loop_segments(X._data[f], lo[rows], hi[rows])
+        s_lo, s_hi = X.seg_lo[f][seg], X.seg_hi[f][seg]
+        meet[rows] = np.any(np.all((s_lo[None] <= hi[rows, None]) & (s_hi[None] >= lo[rows, None]), axis=2), axis=1)
     out: list = [None] * len(faces)
     clear = np.flatnonzero(~meet & finite)
     if clear.size:
@@ -1860,6 +1896,23 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
             elif not (getattr(S, "periodic_u", False) or getattr(S, "periodic_v", False)):
                 out[k] = []
     return out
+
+
+def _near_loop_segments(d: "_FaceData", lo: np.ndarray, hi: np.ndarray) -> np.ndarray | slice:
+    """The rows of ``d.seg`` on the loops whose padded box (:func:`_loop_boxes`) meets one of the closed boxes
+    ``lo, hi (n, 2)``; every row (a slice) for a face of at most :data:`_LOOPS_BOXED` loops.
+
+    A segment's padded box lies in its loop's, so a box that meets no loop's meets none of its segments'."""
+    if len(d.loops) <= _LOOPS_BOXED:
+        return slice(None)
+    first, llo, lhi = _loop_boxes(d)
+    hit = np.ones((lo.shape[0], llo.shape[0]), dtype=bool)
+    for ax in (0, 1):  # (coordinate by coordinate: numpy reduces the short last axis row by row)
+        hit &= (llo[None, :, ax] <= hi[:, ax, None]) & (lhi[None, :, ax] >= lo[:, ax, None])
+    loops = np.flatnonzero(hit.any(axis=0))
+    ends = np.append(first, d.seg_lo.shape[0])
+    return np.concatenate([np.arange(ends[k], ends[k + 1]) for k in loops.tolist()]) if loops.size \
+        else np.zeros(0, dtype=np.int64)
 
 
 #: Faces of at most this many polygon segments are tested together by :func:`_in_faces`, padded to the
@@ -1880,7 +1933,13 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
         if n > _PAD_SEGMENTS:
             rows = np.flatnonzero(inv == u)
             f = int(uniq[u])
-            out[rows] = _in_polygon(Q[rows], X.segments[f], _slopes(X, f))
+            # Only the loops whose box spans a point's height: a segment straddles the line y = const only
+            # within its loop's box, so the others add no crossing (a plate's face of a hundred holes).
+            y = Q[rows, 1:2]
+            seg = _near_loop_segments(X._data[f], np.concatenate([np.full_like(y, -np.inf), y], axis=1),
+                                      np.concatenate([np.full_like(y, np.inf), y], axis=1))
+            # (the near loops' slopes by _in_polygon itself, the same divisions: the whole face's are not needed)
+            out[rows] = _in_polygon(Q[rows], X.segments[f][seg], _slopes(X, f) if type(seg) is slice else None)
     if small:
         width = max(sizes[u] for u in small)
         pad = np.full((len(uniq), 4, width), np.nan)  # rows: start x, start y, end y, slope

@@ -421,3 +421,37 @@ def test_straight_data_of_many_faces_keeps_each_faces_sides():
             np.testing.assert_array_equal(V, np.concatenate([A, A + E]))
             assert not V.flags.writeable
             assert sides == list(zip(A.tolist(), E.tolist(), L.tolist(), LL.tolist()))
+
+
+def test_phase_3_on_a_face_of_many_loops_reads_only_the_near_loops():
+    """On a plate's face of more than ``_LOOPS_BOXED`` loops, the clear test, the point-in-face test and the end
+    tolerances read only the loops whose boxes come near (``_near_loop_segments``, ``_near_loop_edges``): the
+    cuts, tolerances and links are bit for bit those of every loop read, for a hole clear of the others, one
+    passing within 0.2 of a hole, one cutting into a hole (cut ends on its edges) and a wide one across two holes."""
+    plate = Box(60, 60, 10)
+    for i in range(3):
+        for j in range(3):
+            plate = plate - Cylinder(2, 20).translate((-20.0 + 20 * i, -20.0 + 20 * j, 0.0))
+    assert max(len(f.loops) for f in S._operand_specs(plate, "A", T)) > S._LOOPS_BOXED
+    tools = [Cylinder(2, 20).translate((10.0, 10.0, 0.0)), Cylinder(2, 20).translate((4.2, 0.0, 0.0)),
+             Cylinder(2, 20).translate((3.0, 0.0, 0.0)), Cylinder(9, 20).translate((10.0, 0.0, 0.0))]
+    for tool in tools:
+        taken = {"_near_loop_segments": 0, "_near_loop_edges": 0}
+        with pytest.MonkeyPatch.context() as m:
+            for fn in taken:
+                real = getattr(S, fn)
+
+                def spy(*args, _real=real, _fn=fn):
+                    got = _real(*args)
+                    taken[_fn] += not isinstance(got, slice)
+                    return got
+
+                m.setattr(S, fn, spy)
+            S._FACE_DATA.clear()
+            local = _phase3(plate, tool)
+        assert taken["_near_loop_edges"] or taken["_near_loop_segments"]
+        with pytest.MonkeyPatch.context() as m:
+            m.setattr(S, "_LOOPS_BOXED", 1 << 60)  # (every loop of every face)
+            S._FACE_DATA.clear()
+            every = _phase3(plate, tool)
+        assert local == every

@@ -2950,7 +2950,14 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
         if _boxes_meet_2d(clo, chi, clo, chi, skip_self=True):
             return None
     # Simple cycles, none around an existing loop of the face, each inside the face, not flat.
-    probes = np.array([R[0] for R in X.polygons[f]])
+    # The probes are the loops' first points (their first segments' starts); only those whose
+    # ordinate is within the cycles' can be inside one (the even–odd rule counts the segments
+    # straddling it): a plate's face of a hundred holes tests the holes in the new one's row.
+    polygons = X.polygons[f]
+    first = np.cumsum([0, *map(len, polygons[:-1])]) if polygons else []
+    probes = X.segments[f][first, 0] if polygons else np.zeros((0, 2))
+    y = probes[:, 1]
+    probes = probes[(y >= rings[:, :, 1].min()) & (y < rings[:, :, 1].max())]
     ok, area = _cycle_tests(rings, c0, size, probes)
     if not np.all(ok):
         return None
@@ -3039,7 +3046,11 @@ def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: n
     if lo_a.shape[0] == 0 or lo_b.shape[0] == 0:
         return False
     if lo_a.shape[0] * lo_b.shape[0] <= _SMALL_BOX_PAIRS:  # (every pair costs less than building trees)
-        meet = np.all((lo_b[None] <= hi_a[:, None]) & (hi_b[None] >= lo_a[:, None]), axis=2)
+        # (coordinate by coordinate: numpy reduces a short last axis row by row)
+        meet = lo_b[None, :, 0] <= hi_a[:, None, 0]
+        meet &= hi_b[None, :, 0] >= lo_a[:, None, 0]
+        meet &= lo_b[None, :, 1] <= hi_a[:, None, 1]
+        meet &= hi_b[None, :, 1] >= lo_a[:, None, 1]
         if skip_self:
             np.fill_diagonal(meet, False)
         return bool(np.any(meet))
@@ -3051,8 +3062,9 @@ def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: n
     return bool(np.any(I != J)) if skip_self else bool(I.size)
 
 
-#: Up to this many box pairs :func:`_boxes_meet_2d` tests every pair.
-_SMALL_BOX_PAIRS = 1 << 12
+#: Up to this many box pairs :func:`_boxes_meet_2d` tests every pair (a few cuts against a face of a
+#: hundred holes' segments: the grid of ``box_pairs`` costs several times more).
+_SMALL_BOX_PAIRS = 1 << 16
 
 
 def _ring_box_pairs(lo: np.ndarray, hi: np.ndarray, ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

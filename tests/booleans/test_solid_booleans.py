@@ -179,6 +179,29 @@ def test_island_pieces_equal_validated_specs():
     assert made == 2  # the plate's top and bottom
 
 
+def test_island_split_tells_a_cycle_around_a_loop_of_a_face_of_many_holes():
+    """_split_islands probes only the loops whose first point's ordinate lies within the new cycles'
+    (the even–odd rule counts no crossing elsewhere): a square cut around a hole of a face of ten
+    holes, clear of its segments' boxes, is still declined (split_face decides), a square beside the
+    holes is an island."""
+    t = S.resolve(None)
+    plate = Box(60, 40, 6)
+    for i in range(-2, 3):
+        for j in (-1, 1):
+            plate = _ok(S.difference(plate, Cylinder(1.0, 20).translate((10.0 * i, 10.0 * j, 0)), method="brep"))
+    for tool, around in ((Box(6, 6, 20).translate((10.0, 10.0, 0)), True), (Box(4, 4, 20).translate((5.0, 0.0, 0)), False)):
+        A, B = S._Operand(plate, "A", t), S._Operand(tool, "B", t)
+        I, J = S._broad_phase(A, B)
+        cuts_a, _ = S._intersect(A, B, I, J, t)
+        faces = [f for f in cuts_a if len(A.specs[f].loops) == 11]
+        assert len(faces) == 2  # the plate's top and bottom
+        for f in faces:
+            assert (S._split_islands(A, f, cuts_a[f], t) is None) is around
+        side = 6.0 if around else 4.0
+        _vol(_ok(S.difference(plate, tool, method="brep")),
+             60 * 40 * 6 - 10 * PI * 6 - side * side * 6 + (PI * 6 if around else 0.0), rtol=1e-12)
+
+
 @pytest.mark.parametrize("pair", [
     lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
     lambda: (Box(10, 10, 10), Sphere(4).translate((8, 5, 5))),

@@ -4863,8 +4863,11 @@ def _merge_new(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec] | None:
         counts = np.zeros(len(faces), dtype=np.int64)
         face_first[face_of[first]] = first
         counts[face_of[first]] = np.diff(np.append(first, face_of.size))
-        if _first_merge(faces, t, pairs, P3, W, tol, face_of, kind, face_first, counts, set(), []) is not None:
-            return None
+        try:
+            if _first_merge(faces, t, pairs, P3, W, tol, face_of, kind, face_first, counts, set(), []) is not None:
+                return None
+        except (CoonsError, ValueError, ArithmeticError):
+            return None  # (the search of every pair raises it, or merges first and never meets this pair)
     # The faces tried join the record; the members absent leave it.
     member = [False] * len(rec.member)
     for k in k_g:

@@ -181,8 +181,9 @@ Status and limitations
   the face of 16 loops or more that it extends, ``_FACE_PREFIX``); loop samples and
   space boxes are cached per edge use (``_USE_SAMPLES``, ``_USE_BOXES``), which the pieces of a
   split face keep (a split face's new space box joins its kept edges' boxes); a pair of face
-  specs found unmergeable is not tried again (``_MERGE_FAILED``), nor a face spec found not to
-  lie on another face's surface (``_NOT_ON``).  The end and mid points of a face's uses are
+  specs found unmergeable is not tried again (``_MERGE_FAILED``), the faces the last merge returned are
+  not searched against each other again (``_MERGE_SETTLED``: a cut searches only its new faces' uses), nor
+  a face spec found not to lie on another face's surface (``_NOT_ON``).  The end and mid points of a face's uses are
   one table per face spec (:func:`~coons.topology.sew.use_points`), read by the T-junction,
   merge and fuse passes and by sewing; the checker remembers its same-parameter measurements
   per curve, p-curve, surface and range (:mod:`coons.topology.check`), so the faces carried
@@ -3015,7 +3016,14 @@ def _split_islands(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> l
         if _boxes_meet_2d(clo, chi, clo, chi, skip_self=True):
             return None
     # Simple cycles, none around an existing loop of the face, each inside the face, not flat.
-    probes = np.array([R[0] for R in X.polygons[f]])
+    # The probes are the loops' first points (their first segments' starts); only those whose
+    # ordinate is within the cycles' can be inside one (the even–odd rule counts the segments
+    # straddling it): a plate's face of a hundred holes tests the holes in the new one's row.
+    polygons = X.polygons[f]
+    first = np.cumsum([0, *map(len, polygons[:-1])]) if polygons else []
+    probes = X.segments[f][first, 0] if polygons else np.zeros((0, 2))
+    y = probes[:, 1]
+    probes = probes[(y >= rings[:, :, 1].min()) & (y < rings[:, :, 1].max())]
     ok, area = _cycle_tests(rings, c0, size, probes)
     if not np.all(ok):
         return None
@@ -3104,7 +3112,11 @@ def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: n
     if lo_a.shape[0] == 0 or lo_b.shape[0] == 0:
         return False
     if lo_a.shape[0] * lo_b.shape[0] <= _SMALL_BOX_PAIRS:  # (every pair costs less than building trees)
-        meet = np.all((lo_b[None] <= hi_a[:, None]) & (hi_b[None] >= lo_a[:, None]), axis=2)
+        # (coordinate by coordinate: numpy reduces a short last axis row by row)
+        meet = lo_b[None, :, 0] <= hi_a[:, None, 0]
+        meet &= hi_b[None, :, 0] >= lo_a[:, None, 0]
+        meet &= lo_b[None, :, 1] <= hi_a[:, None, 1]
+        meet &= hi_b[None, :, 1] >= lo_a[:, None, 1]
         if skip_self:
             np.fill_diagonal(meet, False)
         return bool(np.any(meet))
@@ -3116,8 +3128,9 @@ def _boxes_meet_2d(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: n
     return bool(np.any(I != J)) if skip_self else bool(I.size)
 
 
-#: Up to this many box pairs :func:`_boxes_meet_2d` tests every pair.
-_SMALL_BOX_PAIRS = 1 << 12
+#: Up to this many box pairs :func:`_boxes_meet_2d` tests every pair (a few cuts against a face of a
+#: hundred holes' segments: the grid of ``box_pairs`` costs several times more).
+_SMALL_BOX_PAIRS = 1 << 16
 
 
 def _ring_box_pairs(lo: np.ndarray, hi: np.ndarray, ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -4757,90 +4770,242 @@ def _same_surface(S1, S2, t: Tolerance) -> bool:
 
 
 def _merge_faces(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
-    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense."""
+    """Repeatedly fuse two faces that share an edge use pair on one surface with one sense.
+
+    A list of faces most of which the last merge returned (a plate cut again: its hole walls)
+    first tries only the pairs that involve another face (:func:`_merge_new`); should one of them
+    merge, or no such record apply, every pair is searched (:func:`_merge_all`).
+    """
+    faces = list(faces)
+    out = _merge_new(faces, t)
+    return _merge_all(faces, t) if out is None else out
+
+
+def _merge_all(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
+    """:func:`_merge_faces` over every pair of uses: the pairs are searched again after each merge."""
     from scipy.spatial import cKDTree
 
-    faces = list(faces)
     failed: set[tuple] = set()  # pairs of uses already tried (their faces are kept alive in ``seen``)
     seen: list[tuple[FaceSpec, FaceSpec]] = []
-    kinds: dict[type, int] = {}
     # The uses' points come from the per-face tables (:func:`~coons.topology.sew.use_points`):
     # faces carried over from an operand are not evaluated again, a merged face once.
-    changed = True
-    while changed:
-        changed = False
+    while True:
         tables = _face_uses(faces)
         counts = [len(x.where) for x in tables]
         if sum(counts) < 2:
-            break
+            return faces
         face_of = np.repeat(np.arange(len(faces)), counts)
         W = np.concatenate([x.where for x in tables])  # loop, position, loop length
         tol = np.concatenate([x.ranges[:, 2] for x in tables])
         P3 = np.concatenate([x.points for x in tables])  # start, end, mid
-        pairs = cKDTree(P3[:, 2]).query_pairs(r=max(t.linear, 1e-12), output_type="ndarray").reshape(-1, 2)
-        # Only uses of two faces on surfaces of one type that run between the same two points
-        # the opposite way can be merged across; the test of the loop below, all pairs at once
-        # with a margin (it passes every pair the exact test passes, which then decides).
-        kind = np.array([kinds.setdefault(type(f.surface), len(kinds)) for f in faces], dtype=np.int64)[face_of]
-        p, q = pairs[:, 0], pairs[:, 1]
-        reach = np.square(np.maximum(np.maximum(tol[p], tol[q]), t.linear) * (1.0 + 1e-9))
-        keep = ((face_of[p] != face_of[q]) & (kind[p] == kind[q])
-                & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
-                & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
-        pairs = pairs[keep]
-        # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
-        fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
-        # Pairs tried before, in this pass or by an earlier Boolean on the same two face specs,
-        # are dropped before the batched full-period test (a plate cut hole by hole brings every
-        # earlier hole's two wall halves again).
-        live = []
-        memos = _MERGE_FAILED.get_many([faces[fp] for fp, _ in fpq])
-        for i, ((fp, fq), (up, uq), known) in enumerate(zip(fpq, upq, memos)):
-            A, B = faces[fp], faces[fq]
-            up, uq = tuple(up), tuple(uq)
-            if (id(A), up, id(B), uq) in failed:
-                continue
-            known = known.get(id(B)) if known is not None else None
-            if known is not None and known[0]() is B and (up, uq, t) in known[1]:
-                continue  # found unmergeable by an earlier Boolean on the same two face specs
-            live.append(i)
-        if not live:
-            break
+        tree = cKDTree(P3[:, 2])
+        pairs = tree.query_pairs(r=max(t.linear, 1e-12), output_type="ndarray").reshape(-1, 2)
+        kind = np.array([_SURFACE_KINDS.setdefault(type(f.surface), len(_SURFACE_KINDS)) for f in faces],
+                        dtype=np.int64)[face_of]
         face_first = np.cumsum(counts) - counts  # (each face's first row in P3)
-        pairs = pairs[live]
-        fpq = [fpq[i] for i in live]
-        upq = [upq[i] for i in live]
-        _prefill_uv_extents([faces[f] for f in sorted({f for fg in fpq for f in fg})
-                             if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
-        wraps = _wrapping_pairs(faces, fpq, upq)
-        for (p, q), (fp, fq), (up, uq), wrap in zip(pairs.tolist(), fpq, upq, wraps):
-            A, B = faces[fp], faces[fq]
-            up, uq = tuple(up), tuple(uq)
-            key = (id(A), up, id(B), uq)
-            if key in failed:
-                continue
-            memo = (up, uq, t)
-            failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
-            seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
-            ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
-            Pa, Pb = P3[p], P3[q]
-            thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
-            d0, d1 = Pa[0] - Pb[1], Pa[1] - Pb[0]
-            # (np.linalg.norm of a vector is the root of its dot product with itself: the same floats, without
-            # its set-up)
-            if not (math.sqrt(d0.dot(d0)) <= thr and math.sqrt(d1.dot(d1)) <= thr):
-                continue
-            probes = P3[face_first[fq] : face_first[fq] + min(int(counts[fq]), _MOVED_PROBES), 0]  # (B's own rows)
-            if not wrap and _off_plane(A, B, probes, t):
-                _merge_failed(A, B, memo)
-                continue
-            merged = None if wrap else _merged_pair(A, B, up, uq, t)
-            if merged is None:
-                _merge_failed(A, B, memo)
-                continue
-            faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
-            changed = True
-            break
+        hit = _first_merge(faces, t, pairs, P3, W, tol, face_of, kind, face_first, counts, failed, seen)
+        if hit is None:
+            _settle(faces, t, P3, W, tol, kind, face_of, tree)
+            return faces
+        fp, fq, merged = hit
+        faces = [f for k, f in enumerate(faces) if k not in (fp, fq)] + [merged]
+
+
+#: Surface type -> a number, by which the merge compares the faces' surface types row by row.
+_SURFACE_KINDS: dict[type, int] = {}
+
+
+def _first_merge(faces: list[FaceSpec], t: Tolerance, pairs: np.ndarray, P3: np.ndarray, W: np.ndarray,
+                 tol: np.ndarray, face_of: np.ndarray, kind: np.ndarray, face_first: np.ndarray,
+                 counts, failed: set, seen: list) -> tuple[int, int, FaceSpec] | None:
+    """Try the candidate pairs of uses ``pairs (m, 2)`` in turn: ``(fp, fq, A ∪ B)`` for the first
+    that merges faces ``fp`` and ``fq``, None when none does (each failure remembered in
+    :data:`_MERGE_FAILED`).
+
+    Rows of the use table: ``P3 (n, 3, 3)`` start, end and mid point, ``W (n, 3)`` loop, position
+    and loop length, ``tol (n,)``, ``face_of (n,)`` the face, ``kind (n,)`` its surface type's
+    number; each face's rows in loop order from ``face_first[f]``, ``counts[f]`` of them.
+    ``failed`` (keys of the pairs tried) and ``seen`` (their faces, which keeps the ids in the keys
+    from being reused) carry over between the calls of one merge.
+    """
+    # Only uses of two faces on surfaces of one type that run between the same two points
+    # the opposite way can be merged across; the test of the loop below, all pairs at once
+    # with a margin (it passes every pair the exact test passes, which then decides).
+    p, q = pairs[:, 0], pairs[:, 1]
+    reach = np.square(np.maximum(np.maximum(tol[p], tol[q]), t.linear) * (1.0 + 1e-9))
+    keep = ((face_of[p] != face_of[q]) & (kind[p] == kind[q])
+            & (np.square(P3[p, 0] - P3[q, 1]).sum(axis=1) <= reach)
+            & (np.square(P3[p, 1] - P3[q, 0]).sum(axis=1) <= reach))
+    pairs = pairs[keep]
+    # (only the candidate pairs' rows as Python lists: a plate's thousands of uses are not converted)
+    fpq, upq = face_of[pairs].tolist(), W[pairs, :2].tolist()
+    # Pairs tried before, in this pass or by an earlier Boolean on the same two face specs,
+    # are dropped before the batched full-period test (a plate cut hole by hole brings every
+    # earlier hole's two wall halves again).
+    live = []
+    memos = _MERGE_FAILED.get_many([faces[fp] for fp, _ in fpq])
+    for i, ((fp, fq), (up, uq), known) in enumerate(zip(fpq, upq, memos)):
+        A, B = faces[fp], faces[fq]
+        up, uq = tuple(up), tuple(uq)
+        if (id(A), up, id(B), uq) in failed:
+            continue
+        known = known.get(id(B)) if known is not None else None
+        if known is not None and known[0]() is B and (up, uq, t) in known[1]:
+            continue  # found unmergeable by an earlier Boolean on the same two face specs
+        live.append(i)
+    if not live:
+        return None
+    pairs = pairs[live]
+    fpq = [fpq[i] for i in live]
+    upq = [upq[i] for i in live]
+    _prefill_uv_extents([faces[f] for f in sorted({f for fg in fpq for f in fg})
+                         if getattr(faces[f].surface, "period_u", None) or getattr(faces[f].surface, "period_v", None)])
+    wraps = _wrapping_pairs(faces, fpq, upq)
+    for (p, q), (fp, fq), (up, uq), wrap in zip(pairs.tolist(), fpq, upq, wraps):
+        A, B = faces[fp], faces[fq]
+        up, uq = tuple(up), tuple(uq)
+        key = (id(A), up, id(B), uq)
+        if key in failed:
+            continue
+        memo = (up, uq, t)
+        failed.add(key)  # (if the merge succeeds both faces are gone and the key is never seen again)
+        seen.append((A, B))  # keeps the ids in the keys from being reused by new faces
+        ea, eb = A.loops[up[0]][up[1]], B.loops[uq[0]][uq[1]]
+        Pa, Pb = P3[p], P3[q]
+        thr = max(t.linear, ea.tol or 0.0, eb.tol or 0.0)
+        d0, d1 = Pa[0] - Pb[1], Pa[1] - Pb[0]
+        # (np.linalg.norm of a vector is the root of its dot product with itself: the same floats, without
+        # its set-up)
+        if not (math.sqrt(d0.dot(d0)) <= thr and math.sqrt(d1.dot(d1)) <= thr):
+            continue
+        probes = P3[face_first[fq] : face_first[fq] + min(int(counts[fq]), _MOVED_PROBES), 0]  # (B's own rows)
+        if not wrap and _off_plane(A, B, probes, t):
+            _merge_failed(A, B, memo)
+            continue
+        merged = None if wrap else _merged_pair(A, B, up, uq, t)
+        if merged is None:
+            _merge_failed(A, B, memo)
+            continue
+        return fp, fq, merged
+    return None
+
+
+class _Settled:
+    """Faces of which no two merge (every candidate pair of uses among them tried, none merging),
+    for the tolerance ``t`` (:data:`_MERGE_SETTLED`).
+
+    Each face has a number ``k``; ``member[k]`` says whether it still belongs: a face absent from a
+    merge that adds faces to the record leaves it (its pairs with the faces added were not tried).
+    The faces' use rows as :func:`_first_merge` reads them, in layers (one per merge that added
+    faces): ``(P3, W, tol, kind, face, tree)``, ``face`` the rows' face numbers (each face's rows
+    together, in loop order) and ``tree`` a k-d tree of their mid points.
+    """
+
+    __slots__ = ("t", "member", "layers")
+
+
+#: Face spec -> ``(_Settled, its number there)``.  Whether two faces merge across two uses depends
+#: only on the two specs, the uses and the tolerance, and which pairs are candidates only on their
+#: use rows (functions of each spec), so two members of one record are not tried again.
+_MERGE_SETTLED = IdentityMemo()
+#: A record is rebuilt as one layer of its members' rows when it has more layers than this.
+_SETTLED_LAYERS = 4
+
+
+def _settle(faces: list[FaceSpec], t: Tolerance, P3: np.ndarray, W: np.ndarray, tol: np.ndarray,
+            kind: np.ndarray, face_of: np.ndarray, tree) -> None:
+    """Record in :data:`_MERGE_SETTLED` that no two of ``faces`` merge: a new :class:`_Settled` of
+    one layer, their rows (``face_of`` the rows' faces) and the tree of the rows' mid points."""
+    rec = _Settled()
+    rec.t, rec.member, rec.layers = t, [True] * len(faces), [(P3, W, tol, kind, face_of, tree)]
+    _MERGE_SETTLED.set_many(faces, [(rec, k) for k in range(len(faces))])
+
+
+def _merge_new(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec] | None:
+    """``faces`` when no pair of them merges, decided by trying only the pairs of uses that involve
+    a face not in the record (:data:`_MERGE_SETTLED`) that holds most of them; None when no record
+    applies or some pair merges (then :func:`_merge_all` decides: which merge comes first
+    depends on the order of its search).  The faces tried join the record, those absent leave it.
+
+    The record's faces take their use rows and the trees of their mid points from it; the other
+    faces' rows are read (:func:`~coons.topology.sew._face_uses`) and searched against both.  The
+    search radius is widened by a round-off margin: more candidates than :func:`_merge_all`'s
+    only cost their tests, whose outcome decides nothing beyond themselves.
+    """
+    from scipy.spatial import cKDTree
+
+    if len(set(map(id, faces))) != len(faces):
+        return None  # (a face twice: its two copies are a pair of faces to search)
+    got = _MERGE_SETTLED.get_many(faces)
+    groups: dict[int, list[int]] = {}
+    for i, g in enumerate(got):
+        if g is not None and g[0].member[g[1]] and g[0].t == t:
+            groups.setdefault(id(g[0]), []).append(i)
+    if not groups:
+        return None
+    G = max(groups.values(), key=len)
+    rec = got[G[0]][0]
+    if len(G) == len(faces):
+        return faces
+    in_g = [False] * len(faces)
+    for i in G:
+        in_g[i] = True
+    R = [i for i, x in enumerate(in_g) if not x]
+    tables = _face_uses([faces[i] for i in R])
+    counts_r = [len(x.where) for x in tables]
+    n_r = sum(counts_r)
+    # The members' rows, renumbered to ``faces`` (rows of faces absent here dropped).
+    number = np.full(len(rec.member), -1, dtype=np.int64)
+    k_g = [got[i][1] for i in G]
+    number[k_g] = G
+    alive = [number[layer[4]] >= 0 for layer in rec.layers]
+    face_of = np.concatenate([np.repeat(np.array(R, dtype=np.int64), counts_r)]
+                             + [number[layer[4][a]] for layer, a in zip(rec.layers, alive)])
+    own = (np.concatenate([x.points for x in tables]), np.concatenate([x.where for x in tables]),
+           np.concatenate([x.ranges[:, 2] for x in tables]),
+           np.repeat(np.array([_SURFACE_KINDS.setdefault(type(faces[i].surface), len(_SURFACE_KINDS)) for i in R],
+                              dtype=np.int64), counts_r))
+    P3, W, tol, kind = (np.concatenate([own[c]] + [layer[c][a] for layer, a in zip(rec.layers, alive)])
+                        for c in range(4))
+    pairs = np.zeros((0, 2), dtype=np.int64)
+    if n_r:
+        r = max(t.linear, 1e-12) * (1.0 + 1e-6)
+        new = cKDTree(P3[:n_r, 2])
+        found = [new.query_pairs(r=r, output_type="ndarray").reshape(-1, 2)]
+        at = n_r  # (each layer's first row here)
+        for layer, a in zip(rec.layers, alive):
+            near = new.sparse_distance_matrix(layer[5], r, output_type="ndarray")
+            keep = a[near["j"]]
+            row = np.cumsum(a) - 1 + at  # (a layer row's row here)
+            found.append(np.stack([near["i"][keep], row[near["j"][keep]]], axis=1))
+            at += int(np.count_nonzero(a))
+        pairs = np.concatenate(found).astype(np.int64)
+        # Each face's rows are together, in loop order.
+        first = np.flatnonzero(np.concatenate([[True], face_of[1:] != face_of[:-1]]))
+        face_first = np.zeros(len(faces), dtype=np.int64)
+        counts = np.zeros(len(faces), dtype=np.int64)
+        face_first[face_of[first]] = first
+        counts[face_of[first]] = np.diff(np.append(first, face_of.size))
+        try:
+            if _first_merge(faces, t, pairs, P3, W, tol, face_of, kind, face_first, counts, set(), []) is not None:
+                return None
+        except (CoonsError, ValueError, ArithmeticError):
+            return None  # (the search of every pair raises it, or merges first and never meets this pair)
+    # The faces tried join the record; the members absent leave it.
+    member = [False] * len(rec.member)
+    for k in k_g:
+        member[k] = True
+    k_r = list(range(len(member), len(member) + len(R)))
+    member += [True] * len(R)
+    rec.member = member
+    if len(rec.layers) >= _SETTLED_LAYERS:
+        number = np.empty(len(faces), dtype=np.int64)
+        number[G], number[R] = k_g, k_r
+        rec.layers = [(P3, W, tol, kind, number[face_of], cKDTree(P3[:, 2]))]
+    elif n_r:
+        rec.layers.append((P3[:n_r], W[:n_r], tol[:n_r], kind[:n_r],
+                           np.repeat(np.array(k_r, dtype=np.int64), counts_r), new))
+    _MERGE_SETTLED.set_many([faces[i] for i in R], [(rec, k) for k in k_r])
     return faces
 
 

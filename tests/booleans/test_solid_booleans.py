@@ -179,6 +179,29 @@ def test_island_pieces_equal_validated_specs():
     assert made == 2  # the plate's top and bottom
 
 
+def test_island_split_tells_a_cycle_around_a_loop_of_a_face_of_many_holes():
+    """_split_islands probes only the loops whose first point's ordinate lies within the new cycles'
+    (the even–odd rule counts no crossing elsewhere): a square cut around a hole of a face of ten
+    holes, clear of its segments' boxes, is still declined (split_face decides), a square beside the
+    holes is an island."""
+    t = S.resolve(None)
+    plate = Box(60, 40, 6)
+    for i in range(-2, 3):
+        for j in (-1, 1):
+            plate = _ok(S.difference(plate, Cylinder(1.0, 20).translate((10.0 * i, 10.0 * j, 0)), method="brep"))
+    for tool, around in ((Box(6, 6, 20).translate((10.0, 10.0, 0)), True), (Box(4, 4, 20).translate((5.0, 0.0, 0)), False)):
+        A, B = S._Operand(plate, "A", t), S._Operand(tool, "B", t)
+        I, J = S._broad_phase(A, B)
+        cuts_a, _ = S._intersect(A, B, I, J, t)
+        faces = [f for f in cuts_a if len(A.specs[f].loops) == 11]
+        assert len(faces) == 2  # the plate's top and bottom
+        for f in faces:
+            assert (S._split_islands(A, f, cuts_a[f], t) is None) is around
+        side = 6.0 if around else 4.0
+        _vol(_ok(S.difference(plate, tool, method="brep")),
+             60 * 40 * 6 - 10 * PI * 6 - side * side * 6 + (PI * 6 if around else 0.0), rtol=1e-12)
+
+
 @pytest.mark.parametrize("pair", [
     lambda: (Sphere(5), Sphere(5).translate((4.0, 2.0, 0.5))),
     lambda: (Box(10, 10, 10), Sphere(4).translate((8, 5, 5))),
@@ -1077,6 +1100,7 @@ def test_merge_failures_are_remembered_per_face_pair(monkeypatch):
     assert first == list(halves) and any(S._MERGE_FAILED.get(f) for f in halves)
     assert S._merge_faces(list(halves), t) == first and not calls
     S._MERGE_FAILED.clear()
+    S._MERGE_SETTLED.clear()  # (else the record of the first merge settles every pair at once)
     monkeypatch.setattr(S, "_wrapping_pairs", lambda faces, fpq, upq: [False] * len(fpq))
     first = S._merge_faces(list(halves), t)
     n = len(calls)
@@ -1101,6 +1125,37 @@ def test_remembered_merge_failures_skip_the_batched_period_test(monkeypatch):
         seen.clear()
         plate = _ok(S.difference(plate, Cylinder(2, 10).translate((-10.0 + 10 * k, 0, 0)), method="brep"))
         assert sum(w for *_, w in seen) == 2
+
+
+def test_merge_of_new_faces_against_a_record_gives_the_search_of_every_pair(monkeypatch):
+    """A chain of cuts tries only the pairs involving faces the last merge did not return
+    (``_merge_new``); on every merge of a chain its answer is that of searching every pair with
+    nothing remembered (``_merge_all``), and when a new face merges (a box joined flush to the
+    plate's side: the two tops and bottoms become one) it declines."""
+    from coons.topology._memo import IdentityMemo
+
+    real_new, answers = S._merge_new, []
+
+    def both(faces, t):
+        fast = real_new(list(faces), t)
+        kept = S._MERGE_FAILED, S._MERGE_SETTLED
+        monkeypatch.setattr(S, "_MERGE_FAILED", IdentityMemo())
+        monkeypatch.setattr(S, "_MERGE_SETTLED", IdentityMemo())
+        every = S._merge_all(list(faces), t)
+        monkeypatch.setattr(S, "_MERGE_FAILED", kept[0])
+        monkeypatch.setattr(S, "_MERGE_SETTLED", kept[1])
+        answers.append(fast is not None)
+        assert fast is None or fast == every
+        return fast
+
+    monkeypatch.setattr(S, "_merge_new", both)
+    plate = Box(40, 40, 4)
+    for k in range(4):
+        plate = _ok(S.difference(plate, Cylinder(2, 10).translate((-15.0 + 10 * k, 5.0 * (k % 2), 0)), method="brep"))
+    joined = _ok(S.union(plate, Box(10, 40, 4).translate((25.0, 0, 0)), method="brep"))
+    assert answers[1:4] == [True] * 3 and answers[-1] is False
+    assert joined.brep.n_faces == plate.brep.n_faces  # (the box's top, bottom and sides merged into the plate's)
+    _vol(joined, 50 * 40 * 4 - 4 * PI * 4 * 4, rtol=1e-12)
 
 
 def _wrapping_pairs_seen(monkeypatch) -> list:

@@ -814,23 +814,24 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     return Ue
 
 
-def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None) -> None:
+def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None, kept: list | None = None) -> None:
     """Fill :func:`_use_samples` (and the pads of :func:`_use_samples_pad`) for the uses of ``specs`` not sampled yet
     whose p-curve is a :class:`Line2D` or :class:`Trig2D`, all in one array pass
     (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own formulas): the pieces of a
     Boolean bring many new cut edges.  With ``t``, the loops whose :class:`_LoopData` is cached are
     skipped (:func:`_cached_loop`; the kept loops of a face extending a kept one, :func:`_kept_prefix`,
     without a look-up each): their samples are not read again (a plate's top gaining a hole keeps
-    a hundred loops)."""
+    a hundred loops).  ``kept``: per spec, its :func:`_kept_prefix` entry or None, when the caller
+    has found them."""
     lines: list[tuple[EdgeSpec, object]] = []
     trigs: list[tuple[EdgeSpec, object]] = []
-    for spec in specs:
+    for k, spec in enumerate(specs):
         S = spec.surface
         loops = spec.loops
         if t is not None and len(loops) > _PREFIX_LOOPS:
-            kept = _kept_prefix(spec, t)
-            if kept is not None:
-                loops = loops[len(kept[1]) + 1 :]  # (their data is kept whole: _extended_face_data)
+            got = _kept_prefix(spec, t) if kept is None else kept[k]
+            if got is not None:
+                loops = loops[len(got[1]) + 1 :]  # (their data is kept whole: _extended_face_data)
         for loop in loops:
             if t is not None and loop and _cached_loop(loop, S, t) is not None:
                 continue
@@ -1029,8 +1030,11 @@ def _face_data_many(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     if fresh:
         # (a spec listed twice, as in both operands of a Boolean of a solid with itself, is computed once)
         todo = list({id(specs[k]): specs[k] for k in fresh}.values())
-        _prefill_samples(todo, t)
-        made = {id(spec): d for spec, d in zip(todo, _new_face_data(todo, t))}
+        # The kept data each face of many loops extends, found once for both passes (a plate's top
+        # and bottom: the test compares every use of their hundred loops).
+        kept = [_kept_prefix(spec, t) if len(spec.loops) > _PREFIX_LOOPS else None for spec in todo]
+        _prefill_samples(todo, t, kept)
+        made = {id(spec): d for spec, d in zip(todo, _new_face_data(todo, t, kept=kept))}
         for k in fresh:
             data[k] = made[id(specs[k])]
     return data
@@ -1039,11 +1043,12 @@ def _face_data_many(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
 #: Loops from which a face's data is kept for a face that extends it by new loops, on a surface
 #: without interior extremes (:func:`_extended_face_data`).
 _PREFIX_LOOPS = 16
-#: First use of a face's outer loop -> ``(the outer loop's other uses, the other loops, t, the
-#: loops' :class:`_LoopData`, the per-face reductions of :func:`_new_face_data`: rmin, rmax,
-#: seg_min, seg_max (2,), box lo, hi (3,), largest tolerance, a box missing)`` of the last face
-#: with many loops computed on it: a plate's top gaining a hole every cut keeps its outer loop
-#: and its other loops.  The value never holds the key (the outer loop is stored without it).
+#: First use of a face's outer loop -> ``(the outer loop's other uses, the other loops' lengths,
+#: their uses in order, t, the loops' :class:`_LoopData`, the per-face reductions of
+#: :func:`_new_face_data`: rmin, rmax, seg_min, seg_max (2,), box lo, hi (3,), largest tolerance,
+#: a box missing; the face's segments and their boxes seg, seg_lo, seg_hi)`` of the last face with
+#: many loops computed on it: a plate's top gaining a hole every cut keeps its outer loop and its
+#: other loops.  The value never holds the key (the outer loop is stored without it).
 _FACE_PREFIX = IdentityMemo()
 
 
@@ -1054,11 +1059,12 @@ def _kept_prefix(spec: FaceSpec, t: Tolerance) -> tuple | None:
     got = _FACE_PREFIX.get(loops[0][0]) if loops and loops[0] else None
     if got is None:
         return None
-    rest0, tail, t_old, parts, raw = got
-    n = len(tail) + 1
+    rest0, lengths, uses, t_old, parts = got[:5]
+    n = len(lengths) + 1
+    # (the other loops' uses compared in one pass once their lengths agree: a plate's top has a hundred)
     if (t_old != t or n >= len(loops) or parts[0].surface is not spec.surface or len(loops[0]) != len(rest0) + 1
-            or not all(map(operator.is_, rest0, loops[0][1:]))
-            or not all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(tail, loops[1:n]))):
+            or not all(map(operator.is_, rest0, loops[0][1:])) or tuple(map(len, loops[1:n])) != lengths
+            or not all(map(operator.is_, uses, itertools.chain.from_iterable(loops[1:n])))):
         return None
     return got
 
@@ -1079,8 +1085,8 @@ def _extended_face_data(spec: FaceSpec, t: Tolerance, got: tuple | None = None) 
     got = _kept_prefix(spec, t) if got is None else got
     if got is None:
         return None
-    rest0, tail, t_old, parts, raw = got
-    n = len(tail) + 1
+    parts, raw, kept_seg = got[4:]
+    n = len(got[1]) + 1
     new = [(loop, _cached_loop(loop, S, t)) for loop in loops[n:]]
     todo = [(loop, S) for loop, ld in new if ld is None]
     made = iter(_new_loop_data(todo, t) if todo else [])
@@ -1094,13 +1100,17 @@ def _extended_face_data(spec: FaceSpec, t: Tolerance, got: tuple | None = None) 
     lo = np.minimum.reduce([lo] + [_NAN_BOX[0] if ld.box is None else ld.box[0] for ld in new_parts])
     hi = np.maximum.reduce([hi] + [_NAN_BOX[1] if ld.box is None else ld.box[1] for ld in new_parts])
     tol = max([tol] + [ld.tol for ld in new_parts])
-    return _face_data_from(spec, t, parts + new_parts, (R, Rx, G, Gx, lo, hi, tol, no_box))
+    # (the kept face's segments, the concatenation of its loops' in order, joined with the new loops')
+    seg = [np.concatenate([kept, *(getattr(ld, name) for ld in new_parts)]) for kept, name in
+           zip(kept_seg, ("seg", "seg_lo", "seg_hi"))]
+    return _face_data_from(spec, t, parts + new_parts, (R, Rx, G, Gx, lo, hi, tol, no_box), seg)
 
 
-def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> _FaceData:
-    """:class:`_FaceData` of ``spec`` on a surface without interior extremes from its loops' data
-    and the per-face reductions ``raw`` (:data:`_FACE_PREFIX`), as :func:`_new_face_data` makes it
-    (the same expressions on one face's rows); cached, and kept for faces extending it."""
+def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple, seg: list) -> _FaceData:
+    """:class:`_FaceData` of ``spec`` on a surface without interior extremes from its loops' data,
+    the per-face reductions ``raw`` (:data:`_FACE_PREFIX`) and its segments with their boxes ``seg``
+    (``seg, seg_lo, seg_hi``: the loops' concatenated), as :func:`_new_face_data` makes it (the same
+    expressions on one face's rows); cached, and kept for faces extending it."""
     R, Rx, G, Gx, lo, hi, tol, no_box = raw
     pad = tol + t.linear
     mu = _BOX_MARGIN * (Rx - R) + t.linear
@@ -1110,25 +1120,28 @@ def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> _F
     d.loops = parts
     d.rings = [ld.ring for ld in parts]
     d.uv_box = _within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1]))
-    d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
-    d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
-    d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
+    d.seg, d.seg_lo, d.seg_hi = map(_frozen, seg)
     d.box = None if no_box else _frozen(np.stack([lo - pad, hi + pad]))
     _FACE_DATA[spec] = d
-    _keep_prefix(spec, t, parts, raw)
+    _keep_prefix(spec, t, parts, raw, d)
     return d
 
 
-def _keep_prefix(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> None:
-    """Keep a face's loop data and reductions for the faces that extend it (:data:`_FACE_PREFIX`)."""
+def _keep_prefix(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple, d: _FaceData) -> None:
+    """Keep a face's loop data, reductions and segments (its :class:`_FaceData` ``d``) for the faces
+    that extend it (:data:`_FACE_PREFIX`)."""
     loops = spec.loops
     if len(loops) >= _PREFIX_LOOPS and loops[0] and is_value(loops[0][0]):
-        _FACE_PREFIX.set(loops[0][0], (tuple(loops[0][1:]), tuple(loops[1:]), t, list(parts), raw))
+        _FACE_PREFIX.set(loops[0][0], (tuple(loops[0][1:]), tuple(map(len, loops[1:])),
+                                       tuple(itertools.chain.from_iterable(loops[1:])), t, list(parts), raw,
+                                       (d.seg, d.seg_lo, d.seg_hi)))
 
 
-def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> list[_FaceData]:
+def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True, kept: list | None = None
+                   ) -> list[_FaceData]:
     """The :class:`_FaceData` of completed specs (each with a loop), computed together and cached
-    (``extend``: first try :func:`_extended_face_data` on faces of many loops).
+    (``extend``: first try :func:`_extended_face_data` on faces of many loops; ``kept``: per spec,
+    its :func:`_kept_prefix` entry or None, when the caller has found them).
 
     The loops missing from the loop cache are computed in one :func:`_new_loop_data` pass; the
     parameter boxes and the space boxes of all faces are reductions over the stacked loop data
@@ -1147,10 +1160,10 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
     # A face extending a kept one by new loops (a plate's top gaining a hole) from the kept data.
-    kept = {}
+    found, kept = kept, {}
     for k, spec in enumerate(specs if extend else ()):
         if len(spec.loops) > _PREFIX_LOOPS and _no_interior_extremes(spec.surface):
-            got = _kept_prefix(spec, t)
+            got = _kept_prefix(spec, t) if found is None else found[k]
             if got is not None:
                 kept[k] = got
     extended: dict[int, _FaceData] = {}
@@ -1251,7 +1264,7 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
         out.append(d)
         if keep[k]:
             _keep_prefix(spec, t, parts, (R[k].copy(), Rx[k].copy(), G[k].copy(), Gx[k].copy(), lo[k].copy(),
-                                          hi[k].copy(), float(tol_max[k]), no_box[k]))
+                                          hi[k].copy(), float(tol_max[k]), no_box[k]), d)
     return out
 
 

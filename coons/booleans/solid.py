@@ -935,14 +935,31 @@ class _LoopData:
     ``rest`` the loop's uses after the first, its key (identity-checked on every look-up; the
     first is not held, so that the entry dies with it), ``surface``, ``t``;
     ``ring (k, 2)`` (the uses' :func:`_use_samples` in turn), ``seg (k, 2, 2)`` and its padded
-    boxes ``seg_lo, seg_hi`` with their union ``seg_min, seg_max (2,)``, the ring's extremes
-    ``rmin, rmax (2,)``, the uses' :func:`_use_box_array` ``use_lo, use_hi (k, 3)`` (infinite where
-    there is none), ``box (2, 3)`` their union (None when a use has none) and ``tol`` their
-    largest tolerance.
+    boxes ``seg_lo, seg_hi``, the uses' :func:`_use_box_array` ``use_lo, use_hi (k, 3)`` (infinite
+    where there is none); the loop's reductions are row ``row`` of ``table`` (:data:`_LOOP_COLUMNS`),
+    the table of the :func:`_new_loop_data` pass that made it, so that a face's loops are gathered
+    by index (:func:`_loop_rows`), not stacked row by row.
     """
 
-    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "seg_min", "seg_max", "rmin", "rmax",
-                 "use_lo", "use_hi", "box", "tol")
+    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "use_lo", "use_hi", "table", "row")
+
+
+#: The columns of a :class:`_LoopData`'s row: the ring's extremes ``rmin, rmax (2,)``, the union
+#: ``seg_min, seg_max (2,)`` of its segments' padded boxes, the union ``box_lo, box_hi (3,)`` of its
+#: uses' boxes (``nan`` when a use has none), the largest tolerance of its uses and 1 when a use
+#: has no box (else 0).
+_LOOP_COLUMNS = {"rmin": slice(0, 2), "rmax": slice(2, 4), "seg_min": slice(4, 6), "seg_max": slice(6, 8),
+                 "box_lo": slice(8, 11), "box_hi": slice(11, 14), "tol": 14, "no_box": 15}
+
+
+def _loop_rows(lds: list[_LoopData]) -> np.ndarray:
+    """The rows ``(L, 16)`` of loops' data (:data:`_LOOP_COLUMNS`) in order, gathered from their tables
+    (one gather for the loops of one :func:`_new_loop_data` pass: a hundred tools' faces)."""
+    tables = list({id(ld.table): ld.table for ld in lds}.values())
+    if len(tables) == 1:
+        return tables[0][[ld.row for ld in lds]]
+    at = dict(zip(map(id, tables), np.cumsum([0] + [len(T) for T in tables[:-1]]).tolist()))
+    return np.concatenate(tables)[[at[id(ld.table)] + ld.row for ld in lds]]
 
 
 #: First use of a loop -> its :class:`_LoopData`.  A face gaining a hole (a plate cut again and
@@ -997,9 +1014,11 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     box_lo = np.minimum.reduceat(lo, use_start, axis=0)
     box_hi = np.maximum.reduceat(hi, use_start, axis=0)
     no_box = np.logical_or.reduceat(none, use_start)
-    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start).tolist()
-    loop_box = _frozen(np.stack([box_lo, box_hi], axis=1))
-    no_box = no_box.tolist()
+    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start)
+    box_lo[no_box] = np.nan
+    box_hi[no_box] = np.nan
+    table = _frozen(np.concatenate([rmin, rmax, seg_min, seg_max, box_lo, box_hi, tol[:, None], no_box[:, None]],
+                                   axis=1))
     out = []
     # (the bounds as Python ints, read once: a hundred tools bring hundreds of loops)
     bounds = zip(start.tolist(), (start + n_pts).tolist(), use_start.tolist(), (use_start + n_uses).tolist())
@@ -1007,10 +1026,8 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         ld = _LoopData()
         ld.rest, ld.surface, ld.t = tuple(loop[1:]), S, t
         ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
-        ld.rmin, ld.rmax, ld.seg_min, ld.seg_max = rmin[k], rmax[k], seg_min[k], seg_max[k]
         ld.use_lo, ld.use_hi = lo[ua:ub], hi[ua:ub]
-        ld.box = None if no_box[k] else loop_box[k]
-        ld.tol = tol[k]
+        ld.table, ld.row = table, k
         out.append(ld)
     _LOOP_DATA.set_many([loop[0] for loop, _ in items], out)
     return out
@@ -1092,14 +1109,16 @@ def _extended_face_data(spec: FaceSpec, t: Tolerance, got: tuple | None = None) 
     made = iter(_new_loop_data(todo, t) if todo else [])
     new_parts = [next(made) if ld is None else ld for loop, ld in new]
     R, Rx, G, Gx, lo, hi, tol, no_box = raw
-    R = np.minimum.reduce([R] + [ld.rmin for ld in new_parts])
-    Rx = np.maximum.reduce([Rx] + [ld.rmax for ld in new_parts])
-    G = np.minimum.reduce([G] + [ld.seg_min for ld in new_parts])
-    Gx = np.maximum.reduce([Gx] + [ld.seg_max for ld in new_parts])
-    no_box = no_box or any(ld.box is None for ld in new_parts)
-    lo = np.minimum.reduce([lo] + [_NAN_BOX[0] if ld.box is None else ld.box[0] for ld in new_parts])
-    hi = np.maximum.reduce([hi] + [_NAN_BOX[1] if ld.box is None else ld.box[1] for ld in new_parts])
-    tol = max([tol] + [ld.tol for ld in new_parts])
+    V = _loop_rows(new_parts)
+    c = _LOOP_COLUMNS
+    R = np.minimum.reduce(np.concatenate([R[None], V[:, c["rmin"]]]))
+    Rx = np.maximum.reduce(np.concatenate([Rx[None], V[:, c["rmax"]]]))
+    G = np.minimum.reduce(np.concatenate([G[None], V[:, c["seg_min"]]]))
+    Gx = np.maximum.reduce(np.concatenate([Gx[None], V[:, c["seg_max"]]]))
+    no_box = no_box or bool(V[:, c["no_box"]].any())
+    lo = np.minimum.reduce(np.concatenate([lo[None], V[:, c["box_lo"]]]))
+    hi = np.maximum.reduce(np.concatenate([hi[None], V[:, c["box_hi"]]]))
+    tol = max([tol] + V[:, c["tol"]].tolist())
     # (the kept face's segments, the concatenation of its loops' in order, joined with the new loops')
     seg = [np.concatenate([kept, *(getattr(ld, name) for ld in new_parts)]) for kept, name in
            zip(kept_seg, ("seg", "seg_lo", "seg_hi"))]
@@ -1205,19 +1224,19 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True, kep
         made = dict(zip(todo, _new_loop_data(list(todo.values()), t)))
         for parts, li, key in missing:
             parts[li] = made[key]
-    lds = [ld for parts in parts_of for ld in parts]
+    V = _loop_rows([ld for parts in parts_of for ld in parts])
+    c = _LOOP_COLUMNS
     first = np.cumsum([0] + [len(parts) for parts in parts_of[:-1]])
     # Per face: the rings' extremes (u0, v0, u1, v1), the segment boxes' union, the loop boxes'
-    # union and the largest tolerance.
-    R = np.minimum.reduceat(np.array([ld.rmin for ld in lds]), first, axis=0)
-    Rx = np.maximum.reduceat(np.array([ld.rmax for ld in lds]), first, axis=0)
-    G = np.minimum.reduceat(np.array([ld.seg_min for ld in lds]), first, axis=0)
-    Gx = np.maximum.reduceat(np.array([ld.seg_max for ld in lds]), first, axis=0)
-    no_box = np.logical_or.reduceat(np.array([ld.box is None for ld in lds]), first).tolist()
-    B = np.concatenate([_NAN_BOX if ld.box is None else ld.box for ld in lds]).reshape(-1, 2, 3)  # (np.stack costs more)
-    lo = np.minimum.reduceat(B[:, 0], first, axis=0)
-    hi = np.maximum.reduceat(B[:, 1], first, axis=0)
-    tol_max = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first)
+    # union (nan when a loop has none) and the largest tolerance.
+    R = np.minimum.reduceat(V[:, c["rmin"]], first, axis=0)
+    Rx = np.maximum.reduceat(V[:, c["rmax"]], first, axis=0)
+    G = np.minimum.reduceat(V[:, c["seg_min"]], first, axis=0)
+    Gx = np.maximum.reduceat(V[:, c["seg_max"]], first, axis=0)
+    no_box = np.logical_or.reduceat(V[:, c["no_box"]] != 0, first).tolist()
+    lo = np.minimum.reduceat(V[:, c["box_lo"]], first, axis=0)
+    hi = np.maximum.reduceat(V[:, c["box_hi"]], first, axis=0)
+    tol_max = np.maximum.reduceat(V[:, c["tol"]], first)
     pad = tol_max + t.linear
     # Faces whose reductions are kept for faces extending them: no interior extremes to add.
     # (their rows of lo, hi are final here: only faces with interior extremes change theirs below)
@@ -1266,9 +1285,6 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True, kep
             _keep_prefix(spec, t, parts, (R[k].copy(), Rx[k].copy(), G[k].copy(), Gx[k].copy(), lo[k].copy(),
                                           hi[k].copy(), float(tol_max[k]), no_box[k]), d)
     return out
-
-
-_NAN_BOX = np.full((2, 3), np.nan)
 
 
 #: Parameter slack of the critical-point tests of :func:`_interior_extremes`: many times the

@@ -820,23 +820,24 @@ def _use_samples(e: EdgeSpec, S) -> np.ndarray:
     return Ue
 
 
-def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None) -> None:
+def _prefill_samples(specs: list[FaceSpec], t: Tolerance | None = None, kept: list | None = None) -> None:
     """Fill :func:`_use_samples` (and the pads of :func:`_use_samples_pad`) for the uses of ``specs`` not sampled yet
     whose p-curve is a :class:`Line2D` or :class:`Trig2D`, all in one array pass
     (:func:`~coons.kernel.onsurface.curve_derivatives`, the p-curves' own formulas): the pieces of a
     Boolean bring many new cut edges.  With ``t``, the loops whose :class:`_LoopData` is cached are
     skipped (:func:`_cached_loop`; the kept loops of a face extending a kept one, :func:`_kept_prefix`,
     without a look-up each): their samples are not read again (a plate's top gaining a hole keeps
-    a hundred loops)."""
+    a hundred loops).  ``kept``: per spec, its :func:`_kept_prefix` entry or None, when the caller
+    has found them."""
     lines: list[tuple[EdgeSpec, object]] = []
     trigs: list[tuple[EdgeSpec, object]] = []
-    for spec in specs:
+    for k, spec in enumerate(specs):
         S = spec.surface
         loops = spec.loops
         if t is not None and len(loops) > _PREFIX_LOOPS:
-            kept = _kept_prefix(spec, t)
-            if kept is not None:
-                loops = loops[len(kept[1]) + 1 :]  # (their data is kept whole: _extended_face_data)
+            got = _kept_prefix(spec, t) if kept is None else kept[k]
+            if got is not None:
+                loops = loops[len(got[1]) + 1 :]  # (their data is kept whole: _extended_face_data)
         for loop in loops:
             if t is not None and loop and _cached_loop(loop, S, t) is not None:
                 continue
@@ -940,14 +941,31 @@ class _LoopData:
     ``rest`` the loop's uses after the first, its key (identity-checked on every look-up; the
     first is not held, so that the entry dies with it), ``surface``, ``t``;
     ``ring (k, 2)`` (the uses' :func:`_use_samples` in turn), ``seg (k, 2, 2)`` and its padded
-    boxes ``seg_lo, seg_hi`` with their union ``seg_min, seg_max (2,)``, the ring's extremes
-    ``rmin, rmax (2,)``, the uses' :func:`_use_box_array` ``use_lo, use_hi (k, 3)`` (infinite where
-    there is none), ``box (2, 3)`` their union (None when a use has none) and ``tol`` their
-    largest tolerance.
+    boxes ``seg_lo, seg_hi``, the uses' :func:`_use_box_array` ``use_lo, use_hi (k, 3)`` (infinite
+    where there is none); the loop's reductions are row ``row`` of ``table`` (:data:`_LOOP_COLUMNS`),
+    the table of the :func:`_new_loop_data` pass that made it, so that a face's loops are gathered
+    by index (:func:`_loop_rows`), not stacked row by row.
     """
 
-    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "seg_min", "seg_max", "rmin", "rmax",
-                 "use_lo", "use_hi", "box", "tol")
+    __slots__ = ("rest", "surface", "t", "ring", "seg", "seg_lo", "seg_hi", "use_lo", "use_hi", "table", "row")
+
+
+#: The columns of a :class:`_LoopData`'s row: the ring's extremes ``rmin, rmax (2,)``, the union
+#: ``seg_min, seg_max (2,)`` of its segments' padded boxes, the union ``box_lo, box_hi (3,)`` of its
+#: uses' boxes (``nan`` when a use has none), the largest tolerance of its uses and 1 when a use
+#: has no box (else 0).
+_LOOP_COLUMNS = {"rmin": slice(0, 2), "rmax": slice(2, 4), "seg_min": slice(4, 6), "seg_max": slice(6, 8),
+                 "box_lo": slice(8, 11), "box_hi": slice(11, 14), "tol": 14, "no_box": 15}
+
+
+def _loop_rows(lds: list[_LoopData]) -> np.ndarray:
+    """The rows ``(L, 16)`` of loops' data (:data:`_LOOP_COLUMNS`) in order, gathered from their tables
+    (one gather for the loops of one :func:`_new_loop_data` pass: a hundred tools' faces)."""
+    tables = list({id(ld.table): ld.table for ld in lds}.values())
+    if len(tables) == 1:
+        return tables[0][[ld.row for ld in lds]]
+    at = dict(zip(map(id, tables), np.cumsum([0] + [len(T) for T in tables[:-1]]).tolist()))
+    return np.concatenate(tables)[[at[id(ld.table)] + ld.row for ld in lds]]
 
 
 #: First use of a loop -> its :class:`_LoopData`.  A face gaining a hole (a plate cut again and
@@ -1002,9 +1020,11 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
     box_lo = np.minimum.reduceat(lo, use_start, axis=0)
     box_hi = np.maximum.reduceat(hi, use_start, axis=0)
     no_box = np.logical_or.reduceat(none, use_start)
-    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start).tolist()
-    loop_box = _frozen(np.stack([box_lo, box_hi], axis=1))
-    no_box = no_box.tolist()
+    tol = np.maximum.reduceat(np.array([e.tol or 0.0 for e in uses], dtype=np.float64), use_start)
+    box_lo[no_box] = np.nan
+    box_hi[no_box] = np.nan
+    table = _frozen(np.concatenate([rmin, rmax, seg_min, seg_max, box_lo, box_hi, tol[:, None], no_box[:, None]],
+                                   axis=1))
     out = []
     # (the bounds as Python ints, read once: a hundred tools bring hundreds of loops)
     bounds = zip(start.tolist(), (start + n_pts).tolist(), use_start.tolist(), (use_start + n_uses).tolist())
@@ -1012,10 +1032,8 @@ def _new_loop_data(items: list[tuple[list[EdgeSpec], object]], t: Tolerance) -> 
         ld = _LoopData()
         ld.rest, ld.surface, ld.t = tuple(loop[1:]), S, t
         ld.ring, ld.seg, ld.seg_lo, ld.seg_hi = R[a:b], seg[a:b], seg_lo[a:b], seg_hi[a:b]
-        ld.rmin, ld.rmax, ld.seg_min, ld.seg_max = rmin[k], rmax[k], seg_min[k], seg_max[k]
         ld.use_lo, ld.use_hi = lo[ua:ub], hi[ua:ub]
-        ld.box = None if no_box[k] else loop_box[k]
-        ld.tol = tol[k]
+        ld.table, ld.row = table, k
         out.append(ld)
     _LOOP_DATA.set_many([loop[0] for loop, _ in items], out)
     return out
@@ -1035,8 +1053,11 @@ def _face_data_many(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
     if fresh:
         # (a spec listed twice, as in both operands of a Boolean of a solid with itself, is computed once)
         todo = list({id(specs[k]): specs[k] for k in fresh}.values())
-        _prefill_samples(todo, t)
-        made = {id(spec): d for spec, d in zip(todo, _new_face_data(todo, t))}
+        # The kept data each face of many loops extends, found once for both passes (a plate's top
+        # and bottom: the test compares every use of their hundred loops).
+        kept = [_kept_prefix(spec, t) if len(spec.loops) > _PREFIX_LOOPS else None for spec in todo]
+        _prefill_samples(todo, t, kept)
+        made = {id(spec): d for spec, d in zip(todo, _new_face_data(todo, t, kept=kept))}
         for k in fresh:
             data[k] = made[id(specs[k])]
     return data
@@ -1045,11 +1066,12 @@ def _face_data_many(specs: list[FaceSpec], t: Tolerance) -> list[_FaceData]:
 #: Loops from which a face's data is kept for a face that extends it by new loops, on a surface
 #: without interior extremes (:func:`_extended_face_data`).
 _PREFIX_LOOPS = 16
-#: First use of a face's outer loop -> ``(the outer loop's other uses, the other loops, t, the
-#: loops' :class:`_LoopData`, the per-face reductions of :func:`_new_face_data`: rmin, rmax,
-#: seg_min, seg_max (2,), box lo, hi (3,), largest tolerance, a box missing)`` of the last face
-#: with many loops computed on it: a plate's top gaining a hole every cut keeps its outer loop
-#: and its other loops.  The value never holds the key (the outer loop is stored without it).
+#: First use of a face's outer loop -> ``(the outer loop's other uses, the other loops' lengths,
+#: their uses in order, t, the loops' :class:`_LoopData`, the per-face reductions of
+#: :func:`_new_face_data`: rmin, rmax, seg_min, seg_max (2,), box lo, hi (3,), largest tolerance,
+#: a box missing; the face's segments and their boxes seg, seg_lo, seg_hi)`` of the last face with
+#: many loops computed on it: a plate's top gaining a hole every cut keeps its outer loop and its
+#: other loops.  The value never holds the key (the outer loop is stored without it).
 _FACE_PREFIX = IdentityMemo()
 
 
@@ -1060,11 +1082,12 @@ def _kept_prefix(spec: FaceSpec, t: Tolerance) -> tuple | None:
     got = _FACE_PREFIX.get(loops[0][0]) if loops and loops[0] else None
     if got is None:
         return None
-    rest0, tail, t_old, parts, raw = got
-    n = len(tail) + 1
+    rest0, lengths, uses, t_old, parts = got[:5]
+    n = len(lengths) + 1
+    # (the other loops' uses compared in one pass once their lengths agree: a plate's top has a hundred)
     if (t_old != t or n >= len(loops) or parts[0].surface is not spec.surface or len(loops[0]) != len(rest0) + 1
-            or not all(map(operator.is_, rest0, loops[0][1:]))
-            or not all(len(a) == len(c) and all(map(operator.is_, a, c)) for a, c in zip(tail, loops[1:n]))):
+            or not all(map(operator.is_, rest0, loops[0][1:])) or tuple(map(len, loops[1:n])) != lengths
+            or not all(map(operator.is_, uses, itertools.chain.from_iterable(loops[1:n])))):
         return None
     return got
 
@@ -1085,28 +1108,34 @@ def _extended_face_data(spec: FaceSpec, t: Tolerance, got: tuple | None = None) 
     got = _kept_prefix(spec, t) if got is None else got
     if got is None:
         return None
-    rest0, tail, t_old, parts, raw = got
-    n = len(tail) + 1
+    parts, raw, kept_seg = got[4:]
+    n = len(got[1]) + 1
     new = [(loop, _cached_loop(loop, S, t)) for loop in loops[n:]]
     todo = [(loop, S) for loop, ld in new if ld is None]
     made = iter(_new_loop_data(todo, t) if todo else [])
     new_parts = [next(made) if ld is None else ld for loop, ld in new]
     R, Rx, G, Gx, lo, hi, tol, no_box = raw
-    R = np.minimum.reduce([R] + [ld.rmin for ld in new_parts])
-    Rx = np.maximum.reduce([Rx] + [ld.rmax for ld in new_parts])
-    G = np.minimum.reduce([G] + [ld.seg_min for ld in new_parts])
-    Gx = np.maximum.reduce([Gx] + [ld.seg_max for ld in new_parts])
-    no_box = no_box or any(ld.box is None for ld in new_parts)
-    lo = np.minimum.reduce([lo] + [_NAN_BOX[0] if ld.box is None else ld.box[0] for ld in new_parts])
-    hi = np.maximum.reduce([hi] + [_NAN_BOX[1] if ld.box is None else ld.box[1] for ld in new_parts])
-    tol = max([tol] + [ld.tol for ld in new_parts])
-    return _face_data_from(spec, t, parts + new_parts, (R, Rx, G, Gx, lo, hi, tol, no_box))
+    V = _loop_rows(new_parts)
+    c = _LOOP_COLUMNS
+    R = np.minimum.reduce(np.concatenate([R[None], V[:, c["rmin"]]]))
+    Rx = np.maximum.reduce(np.concatenate([Rx[None], V[:, c["rmax"]]]))
+    G = np.minimum.reduce(np.concatenate([G[None], V[:, c["seg_min"]]]))
+    Gx = np.maximum.reduce(np.concatenate([Gx[None], V[:, c["seg_max"]]]))
+    no_box = no_box or bool(V[:, c["no_box"]].any())
+    lo = np.minimum.reduce(np.concatenate([lo[None], V[:, c["box_lo"]]]))
+    hi = np.maximum.reduce(np.concatenate([hi[None], V[:, c["box_hi"]]]))
+    tol = max([tol] + V[:, c["tol"]].tolist())
+    # (the kept face's segments, the concatenation of its loops' in order, joined with the new loops')
+    seg = [np.concatenate([kept, *(getattr(ld, name) for ld in new_parts)]) for kept, name in
+           zip(kept_seg, ("seg", "seg_lo", "seg_hi"))]
+    return _face_data_from(spec, t, parts + new_parts, (R, Rx, G, Gx, lo, hi, tol, no_box), seg)
 
 
-def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> _FaceData:
-    """:class:`_FaceData` of ``spec`` on a surface without interior extremes from its loops' data
-    and the per-face reductions ``raw`` (:data:`_FACE_PREFIX`), as :func:`_new_face_data` makes it
-    (the same expressions on one face's rows); cached, and kept for faces extending it."""
+def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple, seg: list) -> _FaceData:
+    """:class:`_FaceData` of ``spec`` on a surface without interior extremes from its loops' data,
+    the per-face reductions ``raw`` (:data:`_FACE_PREFIX`) and its segments with their boxes ``seg``
+    (``seg, seg_lo, seg_hi``: the loops' concatenated), as :func:`_new_face_data` makes it (the same
+    expressions on one face's rows); cached, and kept for faces extending it."""
     R, Rx, G, Gx, lo, hi, tol, no_box = raw
     pad = tol + t.linear
     mu = _BOX_MARGIN * (Rx - R) + t.linear
@@ -1116,25 +1145,28 @@ def _face_data_from(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> _F
     d.loops = parts
     d.rings = [ld.ring for ld in parts]
     d.uv_box = _within_domain(spec.surface, (b0[0], b1[0]), (b0[1], b1[1]), (r0[1], r1[1]))
-    d.seg = _frozen(np.concatenate([ld.seg for ld in parts]))
-    d.seg_lo = _frozen(np.concatenate([ld.seg_lo for ld in parts]))
-    d.seg_hi = _frozen(np.concatenate([ld.seg_hi for ld in parts]))
+    d.seg, d.seg_lo, d.seg_hi = map(_frozen, seg)
     d.box = None if no_box else _frozen(np.stack([lo - pad, hi + pad]))
     _FACE_DATA[spec] = d
-    _keep_prefix(spec, t, parts, raw)
+    _keep_prefix(spec, t, parts, raw, d)
     return d
 
 
-def _keep_prefix(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple) -> None:
-    """Keep a face's loop data and reductions for the faces that extend it (:data:`_FACE_PREFIX`)."""
+def _keep_prefix(spec: FaceSpec, t: Tolerance, parts: list, raw: tuple, d: _FaceData) -> None:
+    """Keep a face's loop data, reductions and segments (its :class:`_FaceData` ``d``) for the faces
+    that extend it (:data:`_FACE_PREFIX`)."""
     loops = spec.loops
     if len(loops) >= _PREFIX_LOOPS and loops[0] and is_value(loops[0][0]):
-        _FACE_PREFIX.set(loops[0][0], (tuple(loops[0][1:]), tuple(loops[1:]), t, list(parts), raw))
+        _FACE_PREFIX.set(loops[0][0], (tuple(loops[0][1:]), tuple(map(len, loops[1:])),
+                                       tuple(itertools.chain.from_iterable(loops[1:])), t, list(parts), raw,
+                                       (d.seg, d.seg_lo, d.seg_hi)))
 
 
-def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> list[_FaceData]:
+def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True, kept: list | None = None
+                   ) -> list[_FaceData]:
     """The :class:`_FaceData` of completed specs (each with a loop), computed together and cached
-    (``extend``: first try :func:`_extended_face_data` on faces of many loops).
+    (``extend``: first try :func:`_extended_face_data` on faces of many loops; ``kept``: per spec,
+    its :func:`_kept_prefix` entry or None, when the caller has found them).
 
     The loops missing from the loop cache are computed in one :func:`_new_loop_data` pass; the
     parameter boxes and the space boxes of all faces are reductions over the stacked loop data
@@ -1153,10 +1185,10 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
     them for spheres and tori and bounds NURBS surfaces by their control points.
     """
     # A face extending a kept one by new loops (a plate's top gaining a hole) from the kept data.
-    kept = {}
+    found, kept = kept, {}
     for k, spec in enumerate(specs if extend else ()):
         if len(spec.loops) > _PREFIX_LOOPS and _no_interior_extremes(spec.surface):
-            got = _kept_prefix(spec, t)
+            got = _kept_prefix(spec, t) if found is None else found[k]
             if got is not None:
                 kept[k] = got
     extended: dict[int, _FaceData] = {}
@@ -1198,19 +1230,19 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
         made = dict(zip(todo, _new_loop_data(list(todo.values()), t)))
         for parts, li, key in missing:
             parts[li] = made[key]
-    lds = [ld for parts in parts_of for ld in parts]
+    V = _loop_rows([ld for parts in parts_of for ld in parts])
+    c = _LOOP_COLUMNS
     first = np.cumsum([0] + [len(parts) for parts in parts_of[:-1]])
     # Per face: the rings' extremes (u0, v0, u1, v1), the segment boxes' union, the loop boxes'
-    # union and the largest tolerance.
-    R = np.minimum.reduceat(np.array([ld.rmin for ld in lds]), first, axis=0)
-    Rx = np.maximum.reduceat(np.array([ld.rmax for ld in lds]), first, axis=0)
-    G = np.minimum.reduceat(np.array([ld.seg_min for ld in lds]), first, axis=0)
-    Gx = np.maximum.reduceat(np.array([ld.seg_max for ld in lds]), first, axis=0)
-    no_box = np.logical_or.reduceat(np.array([ld.box is None for ld in lds]), first).tolist()
-    B = np.concatenate([_NAN_BOX if ld.box is None else ld.box for ld in lds]).reshape(-1, 2, 3)  # (np.stack costs more)
-    lo = np.minimum.reduceat(B[:, 0], first, axis=0)
-    hi = np.maximum.reduceat(B[:, 1], first, axis=0)
-    tol_max = np.maximum.reduceat(np.array([ld.tol for ld in lds]), first)
+    # union (nan when a loop has none) and the largest tolerance.
+    R = np.minimum.reduceat(V[:, c["rmin"]], first, axis=0)
+    Rx = np.maximum.reduceat(V[:, c["rmax"]], first, axis=0)
+    G = np.minimum.reduceat(V[:, c["seg_min"]], first, axis=0)
+    Gx = np.maximum.reduceat(V[:, c["seg_max"]], first, axis=0)
+    no_box = np.logical_or.reduceat(V[:, c["no_box"]] != 0, first).tolist()
+    lo = np.minimum.reduceat(V[:, c["box_lo"]], first, axis=0)
+    hi = np.maximum.reduceat(V[:, c["box_hi"]], first, axis=0)
+    tol_max = np.maximum.reduceat(V[:, c["tol"]], first)
     pad = tol_max + t.linear
     # Faces whose reductions are kept for faces extending them: no interior extremes to add.
     # (their rows of lo, hi are final here: only faces with interior extremes change theirs below)
@@ -1257,11 +1289,8 @@ def _new_face_data(specs: list[FaceSpec], t: Tolerance, extend: bool = True) -> 
         out.append(d)
         if keep[k]:
             _keep_prefix(spec, t, parts, (R[k].copy(), Rx[k].copy(), G[k].copy(), Gx[k].copy(), lo[k].copy(),
-                                          hi[k].copy(), float(tol_max[k]), no_box[k]))
+                                          hi[k].copy(), float(tol_max[k]), no_box[k]), d)
     return out
-
-
-_NAN_BOX = np.full((2, 3), np.nan)
 
 
 #: Parameter slack of the critical-point tests of :func:`_interior_extremes`: many times the

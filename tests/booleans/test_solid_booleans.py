@@ -2022,6 +2022,28 @@ def test_operand_face_data_is_each_faces_own_under_its_tolerance():
             np.testing.assert_array_equal(getattr(alone, name), getattr(d, name), err_msg=name)
 
 
+def test_face_data_from_loops_of_several_passes_equals_one_pass():
+    """A face whose loops' data came from different _new_loop_data passes (their rows gathered from
+    several tables, _loop_rows) gets the very data of a face whose loops were computed in one pass."""
+    t = S.resolve(None)
+    r = _ok(S.difference(Box(40, 40, 4), *[Cylinder(1.0, 10).translate((8.0 * i - 8, 3.0 * i, 0)) for i in range(3)],
+                         method="brep"))
+    specs = [spec for spec in S._operand_specs(r, "A", t) if len(spec.loops) > 1]
+    assert specs  # (the top and the bottom: an outer loop and three holes)
+    _forget_carried()
+    one = S._new_face_data(specs, t)
+    _forget_carried()
+    for spec in specs:
+        for loop in spec.loops:  # (each loop in a pass of its own)
+            S._new_loop_data([(loop, spec.surface)], t)
+    assert len({id(S._cached_loop(loop, spec.surface, t).table) for spec in specs for loop in spec.loops}) > 2
+    several = S._new_face_data(specs, t)
+    for a, b in zip(one, several):
+        assert a.uv_box == b.uv_box
+        for name in ("seg", "seg_lo", "seg_hi", "box"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
 def test_edge_box_array_boxes_each_distinct_edge_once_as_each_use_alone():
     """_edge_box_array boxes the two uses of an edge (opposite ways round) once: every row is the box
     curve_box gives the use alone (equal; bit for bit up to the sign of a zero end); a use whose curve has no

@@ -198,7 +198,7 @@ def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
                 coons.Sphere(5) + coons.Sphere(5).translate((4.0, 2.0, 0.5))]
 
     fast = cases()
-    k = lambda uses, rows: ([math.inf] * len(uses), [math.inf] * len(uses))  # noqa: E731
+    k = lambda uses, rows: (np.full(len(uses), math.inf), np.full(len(uses), math.inf))  # noqa: E731
     monkeypatch.setattr(sew, "_reach", k)
     monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
         np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))

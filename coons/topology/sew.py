@@ -724,13 +724,12 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     ``rank (n,)`` (default: the points' order).
 
     Points at exactly the same place (the ends of the uses of one curve object meeting there:
-    most of them) are one point to the k-d tree, with the largest of their tolerances (two
-    points are within ``max(tol_i, tol_j)`` of some pair of their copies exactly when within the
-    larger of those two maxima), so the labels are those of the components of all the points.
+    most of them) are one point to the pair search (:func:`_close_pairs`), with the largest of
+    their tolerances (two points are within ``max(tol_i, tol_j)`` of some pair of their copies
+    exactly when within the larger of those two maxima), so the labels are those of the
+    components of all the points.
     Sewing's vertices and the Booleans' T-junction and fuse passes cluster with it.
     """
-    from scipy.spatial import cKDTree
-
     n = X.shape[0]
     if n == 0:
         return np.empty(0, dtype=np.int64)
@@ -743,7 +742,7 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     point_of[order] = np.cumsum(distinct) - 1
     U = Xs[at]
     utol = np.maximum.reduceat(np.asarray(tol, dtype=np.float64)[order], at)
-    pairs = cKDTree(U).query_pairs(r=float(utol.max()), output_type="ndarray")
+    pairs = _close_pairs(U, float(utol.max()))
     if pairs.size:
         d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
         pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
@@ -757,6 +756,39 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     out = np.empty(nc, dtype=np.int64)
     out[np.argsort(first, kind="stable")] = np.arange(nc)
     return out[label[point_of]]
+
+
+#: Candidate pairs per point up to which :func:`_close_pairs` sweeps along x (beyond: a k-d tree).
+_SWEEP_PAIRS = 16
+
+
+def _close_pairs(U: np.ndarray, r: float) -> np.ndarray:
+    """Pairs ``(p, 2)`` int64 ``[i, j]``, ``i < j``, of the distinct points ``U (m, 3)`` (sorted by x,
+    as :func:`point_clusters` sorts them), among which are all pairs within ``r`` of each other (the
+    caller keeps those within their tolerance).
+
+    A sweep along x: each point against the points after it up to ``x + 2r`` (a bound that the
+    rounding of ``x + 2r`` cannot bring below any ``x_j <= x + r``), kept when ``|dy|`` and ``|dz|``
+    are at most ``2r`` too.  A model's vertices share coordinates (a grid of holes: whole columns
+    of vertices on one x, all on one of two z), on which the k-d tree's rectangles do not separate
+    and its pair search walks several hundred thousand instructions for a few hundred points;
+    along x only points on one x meet.  Where more than ``_SWEEP_PAIRS`` pairs per point would be
+    tried, or a coordinate is not finite, ``scipy``'s ``cKDTree.query_pairs`` answers (its pairs
+    within ``r``, which the caller filters the same way)."""
+    m = U.shape[0]
+    x = U[:, 0]
+    count = np.searchsorted(x, x + 2.0 * r, side="right") - np.arange(1, m + 1)
+    total = int(count.sum())
+    if total > _SWEEP_PAIRS * m or not np.isfinite(U).all():
+        from scipy.spatial import cKDTree
+
+        return cKDTree(U).query_pairs(r=r, output_type="ndarray")
+    i = np.repeat(np.arange(m), count)
+    j = np.arange(total) - np.repeat(np.cumsum(count) - count - np.arange(1, m + 1), count)
+    y, z = U[:, 1].copy(), U[:, 2].copy()
+    near = ((np.abs(y.take(j) - np.repeat(y, count)) <= 2.0 * r)
+            & (np.abs(z.take(j) - np.repeat(z, count)) <= 2.0 * r))
+    return np.stack([i[near], j[near]], axis=1)
 
 
 def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -855,7 +887,7 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     vs, ve = vertex[:, 0], vertex[:, 1]
     closed = vs == ve  # (closed curves: sew_faces collapsed the uses shorter than their tolerance)
     lo, hi = np.minimum(vs, ve), np.maximum(vs, ve)
-    # The uses by (lo, hi), ties in use order: one stable sort of one integer key (a lexsort of three costs more).
+    # The uses by (lo, hi), ties in use order: one stable sort of one integer key (not a lexsort of three).
     key = lo * (int(hi.max()) + 1) + hi
     order = np.argsort(key, kind="stable")
     key = key[order]

@@ -749,8 +749,8 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     m = U.shape[0]
     nc, label = components(m, pairs[:, 0], pairs[:, 1])
     # Each component's first rank: the least rank of each distinct point (its copies are consecutive in
-    # ``order``), then the least over the component's distinct points (a minimum in any order; a fifth
-    # of the points to ``np.minimum.at``, which costs about 0.1 µs per element).
+    # ``order``, one reduceat), then the least over the component's distinct points (a minimum in any
+    # order; a fifth of the points to ``np.minimum.at``, several times a reduceat's cost per element).
     first = np.full(nc, n, dtype=np.int64)
     np.minimum.at(first, label, np.minimum.reduceat((np.arange(n) if rank is None else np.asarray(rank))[order], at))
     out = np.empty(nc, dtype=np.int64)
@@ -812,9 +812,8 @@ def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, 
     mean = np.stack([np.bincount(label, weights=X[:, i], minlength=nv) for i in range(3)], axis=1)
     mean /= count[:, None]
     d = X - mean[label]
-    # Each vertex's largest distance by one stable sort of the labels (every label has a member; a
-    # maximum in any order: np.maximum.at costs about 0.1 µs per element).
-    spread = np.maximum.reduceat(_norms(d)[np.argsort(label, kind="stable")], np.cumsum(count) - count)
+    spread = np.zeros(nv)
+    np.maximum.at(spread, label, _norms(d))
     return np.stack([label[:k], label[k:]], axis=1), mean, np.maximum(spread, t.linear)
 
 

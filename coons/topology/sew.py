@@ -731,13 +731,12 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     ``rank (n,)`` (default: the points' order).
 
     Points at exactly the same place (the ends of the uses of one curve object meeting there:
-    most of them) are one point to the k-d tree, with the largest of their tolerances (two
-    points are within ``max(tol_i, tol_j)`` of some pair of their copies exactly when within the
-    larger of those two maxima), so the labels are those of the components of all the points.
+    most of them) are one point to the pair search (:func:`_close_pairs`), with the largest of
+    their tolerances (two points are within ``max(tol_i, tol_j)`` of some pair of their copies
+    exactly when within the larger of those two maxima), so the labels are those of the
+    components of all the points.
     Sewing's vertices and the Booleans' T-junction and fuse passes cluster with it.
     """
-    from scipy.spatial import cKDTree
-
     n = X.shape[0]
     if n == 0:
         return np.empty(0, dtype=np.int64)
@@ -750,18 +749,53 @@ def point_clusters(X: np.ndarray, tol: np.ndarray, rank: np.ndarray | None = Non
     point_of[order] = np.cumsum(distinct) - 1
     U = Xs[at]
     utol = np.maximum.reduceat(np.asarray(tol, dtype=np.float64)[order], at)
-    pairs = cKDTree(U).query_pairs(r=float(utol.max()), output_type="ndarray")
+    pairs = _close_pairs(U, float(utol.max()))
     if pairs.size:
         d = np.linalg.norm(U[pairs[:, 0]] - U[pairs[:, 1]], axis=1)
         pairs = pairs[d <= np.maximum(utol[pairs[:, 0]], utol[pairs[:, 1]])]
     m = U.shape[0]
     nc, label = components(m, pairs[:, 0], pairs[:, 1])
-    label = label[point_of]
+    # Each component's first rank: the least rank of each distinct point (its copies are consecutive in
+    # ``order``, one reduceat), then the least over the component's distinct points (a minimum in any
+    # order; a fifth of the points to ``np.minimum.at``, several times a reduceat's cost per element).
     first = np.full(nc, n, dtype=np.int64)
-    np.minimum.at(first, label, np.arange(n) if rank is None else rank)
+    np.minimum.at(first, label, np.minimum.reduceat((np.arange(n) if rank is None else np.asarray(rank))[order], at))
     out = np.empty(nc, dtype=np.int64)
     out[np.argsort(first, kind="stable")] = np.arange(nc)
-    return out[label]
+    return out[label[point_of]]
+
+
+#: Candidate pairs per point up to which :func:`_close_pairs` sweeps along x (beyond: a k-d tree).
+_SWEEP_PAIRS = 16
+
+
+def _close_pairs(U: np.ndarray, r: float) -> np.ndarray:
+    """Pairs ``(p, 2)`` int64 ``[i, j]``, ``i < j``, of the distinct points ``U (m, 3)`` (sorted by x,
+    as :func:`point_clusters` sorts them), among which are all pairs within ``r`` of each other (the
+    caller keeps those within their tolerance).
+
+    A sweep along x: each point against the points after it up to ``x + 2r`` (a bound that the
+    rounding of ``x + 2r`` cannot bring below any ``x_j <= x + r``), kept when ``|dy|`` and ``|dz|``
+    are at most ``2r`` too.  A model's vertices share coordinates (a grid of holes: whole columns
+    of vertices on one x, all on one of two z), on which the k-d tree's rectangles do not separate
+    and its pair search walks several hundred thousand instructions for a few hundred points;
+    along x only points on one x meet.  Where more than ``_SWEEP_PAIRS`` pairs per point would be
+    tried, or a coordinate is not finite, ``scipy``'s ``cKDTree.query_pairs`` answers (its pairs
+    within ``r``, which the caller filters the same way)."""
+    m = U.shape[0]
+    x = U[:, 0]
+    count = np.searchsorted(x, x + 2.0 * r, side="right") - np.arange(1, m + 1)
+    total = int(count.sum())
+    if total > _SWEEP_PAIRS * m or not np.isfinite(U).all():
+        from scipy.spatial import cKDTree
+
+        return cKDTree(U).query_pairs(r=r, output_type="ndarray")
+    i = np.repeat(np.arange(m), count)
+    j = np.arange(total) - np.repeat(np.cumsum(count) - count - np.arange(1, m + 1), count)
+    y, z = U[:, 1].copy(), U[:, 2].copy()
+    near = ((np.abs(y.take(j) - np.repeat(y, count)) <= 2.0 * r)
+            & (np.abs(z.take(j) - np.repeat(z, count)) <= 2.0 * r))
+    return np.stack([i[near], j[near]], axis=1)
 
 
 def _merge_vertices(uses: _Uses, t: Tolerance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -859,8 +893,10 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
     vs, ve = vertex[:, 0], vertex[:, 1]
     closed = vs == ve  # (closed curves: sew_faces collapsed the uses shorter than their tolerance)
     lo, hi = np.minimum(vs, ve), np.maximum(vs, ve)
-    order = np.lexsort((np.arange(len(uses)), hi, lo))
-    key = lo[order] * (int(hi.max()) + 1) + hi[order]
+    # The uses by (lo, hi), ties in use order: one stable sort of one integer key (not a lexsort of three).
+    key = lo * (int(hi.max()) + 1) + hi
+    order = np.argsort(key, kind="stable")
+    key = key[order]
     start = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
     stop = np.append(start[1:], key.size)
     # The common case at once: two uses between two distinct vertices, running opposite ways,
@@ -882,6 +918,8 @@ def _match_edges(uses: _Uses, vertex: np.ndarray, vpoint: np.ndarray, t: Toleran
         got, done = _match_fours(uses, vertex, closed, order[start[four, None] + np.arange(4)], reach)
         pairs.append(got)
         slow[four[done]] = False
+    if slow.any():  # (the general path's bounds as Python floats, read pair by pair)
+        reach = reach[0].tolist(), reach[1].tolist()
     for s, e in zip(start[slow], stop[slow]):
         group = [int(x) for x in order[s:e]]
         for comp in _agreeing_components(uses, group, samples, reach):
@@ -896,7 +934,7 @@ _MATCHINGS = np.array([[[0, 1], [2, 3]], [[0, 2], [1, 3]], [[0, 3], [1, 2]]])
 
 
 def _match_fours(uses: _Uses, vertex: np.ndarray, closed: np.ndarray, G: np.ndarray,
-                 reach: tuple[list[float], list[float]]) -> tuple[np.ndarray, np.ndarray]:
+                 reach: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Groups of four uses (two edges between the same two vertices, as the halves of a hole) at once.
 
     A group is decided here only when every pair's verdict of :func:`_curves_agree` is certain
@@ -916,8 +954,7 @@ def _match_fours(uses: _Uses, vertex: np.ndarray, closed: np.ndarray, G: np.ndar
     pairs : (m, 2) int64, the edges of the decided groups
     done : (n,) bool, which groups were decided
     """
-    radius = np.asarray(reach[0])
-    scale = np.asarray(reach[1])
+    radius, scale = reach
     a = G[:, [0, 0, 0, 1, 1, 2]]  # the six pairs of a group, numbered as in ``col``
     b = G[:, [1, 2, 3, 2, 3, 3]]
     thr = np.maximum(uses.tol[a], uses.tol[b])
@@ -949,7 +986,7 @@ def _match_fours(uses: _Uses, vertex: np.ndarray, closed: np.ndarray, G: np.ndar
     return P[ok].reshape(-1, 2), done
 
 
-def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
+def _reach(uses: _Uses, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For the uses ``rows``, a bound on how far each curve strays from its midpoint, and the size of its numbers.
 
     ``radius[i]`` bounds the distance from ``uses.mid[i]`` to every point of the use's curve over
@@ -957,7 +994,7 @@ def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
     (arc length from the midpoint to an end, and the diameter); ``inf`` for any other curve and
     any use not in ``rows`` (no bound, the distance is then always measured).  ``scale[i]`` is
     the magnitude of the coordinates and parameters that went into the use's points, for a
-    round-off margin.  Lists of Python floats, length ``len(uses)``.
+    round-off margin.  Arrays ``(len(uses),)``.
     """
     k = len(uses)
     radius = np.full(k, math.inf)
@@ -978,7 +1015,7 @@ def _reach(uses: _Uses, rows: np.ndarray) -> tuple[list[float], list[float]]:
             R = uses.frame[r, 3]
             radius[r] = np.minimum(R * half[sel], 2.0 * R)
             scale[r] = base[sel] + _abs_max3(uses.frame[r, :3]) + R
-    return radius.tolist(), scale.tolist()
+    return radius, scale
 
 
 def _abs_max3(X: np.ndarray) -> np.ndarray:

@@ -198,7 +198,7 @@ def test_boolean_results_have_the_tables_of_the_old_paths(monkeypatch):
                 coons.Sphere(5) + coons.Sphere(5).translate((4.0, 2.0, 0.5))]
 
     fast = cases()
-    k = lambda uses, rows: ([math.inf] * len(uses), [math.inf] * len(uses))  # noqa: E731
+    k = lambda uses, rows: (np.full(len(uses), math.inf), np.full(len(uses), math.inf))  # noqa: E731
     monkeypatch.setattr(sew, "_reach", k)
     monkeypatch.setattr(sew, "_match_fours", lambda uses, vertex, closed, G, reach: (
         np.empty((0, 2), np.int64), np.zeros(G.shape[0], bool)))
@@ -688,3 +688,43 @@ def test_use_rows_evaluate_each_edge_once_and_equal_each_uses_own_row(monkeypatc
         alone = sew._use_rows([e], w[i:i + 1])
         np.testing.assert_array_equal(rows[i], alone[0])
         assert rows[i].tobytes() == alone[0].tobytes()  # (the sign of a zero too)
+
+
+# ---------------------------------------------------------------------- vertex clusters
+@pytest.mark.parametrize("seed", range(6))
+def test_point_clusters_by_the_sweep_equal_those_by_the_kd_tree(seed, monkeypatch):
+    """point_clusters finds its close pairs by a sweep along x (``_close_pairs``) unless too many pairs
+    would be tried; the k-d tree path (``_SWEEP_PAIRS`` -1 forces it) must give the same labels, on
+    points sharing whole coordinates (a grid, one z) with copies moved by about their tolerance."""
+    rng = np.random.default_rng(seed)
+    runs = []
+    clouds = []
+    for _ in range(40):
+        n = int(rng.integers(1, 300))
+        P = rng.integers(0, 5, (n, 3)).astype(float) * rng.choice([1.0, 2e-7])
+        P[:, 0] = rng.integers(0, max(n // 4, 1), n)  # (about four points per x: the sweep's case)
+        P[:, 2] *= rng.integers(0, 2)  # (one z for all, half of the clouds)
+        P += (rng.random((n, 3)) < 0.3) * rng.normal(0.0, 1e-7, (n, 3))
+        P = P * rng.choice([1.0, 1e3]) + rng.choice([0.0, 123.0])
+        tol = rng.choice([1e-7, 2e-7, 5e-8], n) * rng.choice([1.0, 1e3])
+        rank = rng.permutation(n) if n % 2 else None
+        clouds.append((P, tol, rank))
+    kd = []
+    from scipy.spatial import cKDTree
+
+    class Counted(cKDTree):
+        def __init__(self, *a, **k):
+            kd.append(1)
+            super().__init__(*a, **k)
+
+    monkeypatch.setattr("scipy.spatial.cKDTree", Counted)
+    for sweep in (True, False):
+        if not sweep:
+            monkeypatch.setattr(sew, "_SWEEP_PAIRS", -1)
+        runs.append([sew.point_clusters(P, tol, rank) for P, tol, rank in clouds])
+        if sweep:
+            assert len(kd) < len(clouds) // 2  # (most clouds swept)
+    assert len(kd) >= len(clouds)  # (and then none)
+    for a, b in zip(*runs):
+        np.testing.assert_array_equal(a, b)
+    assert any(np.unique(a).size < a.size for a in runs[0])  # (some points did merge)

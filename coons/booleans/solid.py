@@ -1912,7 +1912,7 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
         rows = np.flatnonzero(fa == f)
         # Only the segments of the loops whose box meets a branch's (a plate's face of a hundred holes: a
         # segment box meets a branch's only inside its loop's box, so the others cannot change the answer).
-        seg = _near_loop_segments(X._data[f], lo[rows], hi[rows])
+        seg = _near_loop_segments(X._data[f], X.specs[f], lo[rows], hi[rows])
         s_lo, s_hi = X.seg_lo[f][seg], X.seg_hi[f][seg]
         meet[rows] = np.any(np.all((s_lo[None] <= hi[rows, None]) & (s_hi[None] >= lo[rows, None]), axis=2), axis=1)
     out: list = [None] * len(faces)
@@ -1928,14 +1928,15 @@ def _clear_many(X: _Operand, faces: list[int], pcurves: list, branches: list) ->
     return out
 
 
-def _near_loop_segments(d: "_FaceData", lo: np.ndarray, hi: np.ndarray) -> np.ndarray | slice:
-    """The rows of ``d.seg`` on the loops whose padded box (:func:`_loop_boxes`) meets one of the closed boxes
-    ``lo, hi (n, 2)``; every row (a slice) for a face of at most :data:`_LOOPS_BOXED` loops.
+def _near_loop_segments(d: "_FaceData", spec: FaceSpec, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | slice:
+    """The rows of ``d.seg`` (the data of face ``spec``) on the loops whose padded box (:func:`_loop_boxes`)
+    meets one of the closed boxes ``lo, hi (n, 2)``; every row (a slice) for a face of at most
+    :data:`_LOOPS_BOXED` loops.
 
     A segment's padded box lies in its loop's, so a box that meets no loop's meets none of its segments'."""
     if len(d.loops) <= _LOOPS_BOXED:
         return slice(None)
-    first, llo, lhi = _loop_boxes(d)
+    first, llo, lhi = _loop_boxes(d, spec)
     hit = np.ones((lo.shape[0], llo.shape[0]), dtype=bool)
     for ax in (0, 1):  # (coordinate by coordinate: numpy reduces the short last axis row by row)
         hit &= (llo[None, :, ax] <= hi[:, ax, None]) & (lhi[None, :, ax] >= lo[:, ax, None])
@@ -1966,7 +1967,7 @@ def _in_faces(X: _Operand, faces: np.ndarray, Q: np.ndarray) -> np.ndarray:
             # Only the loops whose box spans a point's height: a segment straddles the line y = const only
             # within its loop's box, so the others add no crossing (a plate's face of a hundred holes).
             y = Q[rows, 1:2]
-            seg = _near_loop_segments(X._data[f], np.concatenate([np.full_like(y, -np.inf), y], axis=1),
+            seg = _near_loop_segments(X._data[f], X.specs[f], np.concatenate([np.full_like(y, -np.inf), y], axis=1),
                                       np.concatenate([np.full_like(y, np.inf), y], axis=1))
             # (the near loops' slopes by _in_polygon itself, the same divisions: the whole face's are not needed)
             out[rows] = _in_polygon(Q[rows], X.segments[f][seg], _slopes(X, f) if type(seg) is slice else None)

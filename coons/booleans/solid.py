@@ -1742,8 +1742,8 @@ def _end_tolerance_many(branches: list, ends: list[tuple[float, float]], face_a:
 
 def _near_loop_edges(X: _Operand, f: int, P: np.ndarray, base: float) -> tuple[list[EdgeSpec], np.ndarray,
                                                                               np.ndarray, np.ndarray]:
-    """:meth:`_Operand.edge_boxes` of face ``f`` of X restricted to the loops whose box (:class:`_LoopData`
-    ``box``, the union of its uses' boxes) comes within :func:`_end_tolerance_many`'s reach of one of the points
+    """:meth:`_Operand.edge_boxes` of face ``f`` of X restricted to the loops whose box (the ``box_lo, box_hi``
+    columns of :class:`_LoopData`'s row, the union of its uses' boxes) comes within :func:`_end_tolerance_many`'s reach of one of the points
     ``P (p, 3)`` (``base``: the largest tolerance of the ranges they end): ``(edges, lo, hi, tol)``.
 
     An edge's box lies in its loop's and its reach ``10 max(base, tol)`` is at most the loop's (its largest
@@ -1751,15 +1751,17 @@ def _near_loop_edges(X: _Operand, f: int, P: np.ndarray, base: float) -> tuple[l
     edges left out could not change the tolerances or the bounds found.
     """
     d, loops = X._data[f], X.specs[f].loops
-    keep = [k for k, ld in enumerate(d.loops) if ld.box is None]
-    boxed = [k for k, ld in enumerate(d.loops) if ld.box is not None]
-    if boxed:
-        B = np.array([d.loops[k].box for k in boxed])  # (n, 2, 3)
-        R = 10.0 * np.maximum(base, np.array([d.loops[k].tol for k in boxed]))
-        hit = np.ones((P.shape[0], len(boxed)), dtype=bool)
+    rows, c = _loop_rows(d.loops), _LOOP_COLUMNS
+    no_box = rows[:, c["no_box"]] != 0.0
+    keep = np.flatnonzero(no_box).tolist()
+    boxed = np.flatnonzero(~no_box)
+    if boxed.size:
+        B_lo, B_hi = rows[boxed, c["box_lo"]], rows[boxed, c["box_hi"]]  # (n, 3) each
+        R = 10.0 * np.maximum(base, rows[boxed, c["tol"]])
+        hit = np.ones((P.shape[0], boxed.size), dtype=bool)
         for ax in range(3):  # (coordinate by coordinate: numpy reduces the short last axis row by row)
-            hit &= (P[:, ax, None] >= B[None, :, 0, ax] - R) & (P[:, ax, None] <= B[None, :, 1, ax] + R)
-        keep = sorted(keep + [boxed[k] for k in np.flatnonzero(hit.any(axis=0)).tolist()])
+            hit &= (P[:, ax, None] >= B_lo[None, :, ax] - R) & (P[:, ax, None] <= B_hi[None, :, ax] + R)
+        keep = sorted(keep + boxed[np.flatnonzero(hit.any(axis=0))].tolist())
     edges = [e for k in keep for e in loops[k]]
     if not keep:
         return edges, np.empty((0, 3)), np.empty((0, 3)), np.empty(0)
@@ -3951,8 +3953,8 @@ def _loop_boxes(d: "_FaceData", spec: FaceSpec) -> tuple[np.ndarray, np.ndarray,
     ``d.seg_lo`` and the union ``(L, 2)`` of its segments' padded boxes (a face's loops in order, as
     ``_face_data`` stacks them); computed once per face data.
 
-    A loop's union is its :class:`_LoopData`'s ``seg_min, seg_max`` (the same reduction over the same
-    rows in the same order).  The rows of the loops that the last face boxed here with the same first
+    A loop's union is its :class:`_LoopData`'s ``seg_min, seg_max`` columns (the same reduction over the
+    same rows in the same order).  The rows of the loops that the last face boxed here with the same first
     use had first (:data:`_LOOP_BOXES`) are taken in one piece: a plate's top gaining a hole every cut
     stacks only its new loop's."""
     if d.loop_boxes is None:
@@ -3966,8 +3968,8 @@ def _loop_boxes(d: "_FaceData", spec: FaceSpec) -> tuple[np.ndarray, np.ndarray,
                 n0 = 0
         new = loops[n0:]
         count = np.array([ld.seg_lo.shape[0] for ld in new], dtype=np.int64)
-        lo = np.array([ld.seg_min for ld in new]).reshape(-1, 2)
-        hi = np.array([ld.seg_max for ld in new]).reshape(-1, 2)
+        rows = _loop_rows(new) if new else np.zeros((0, 16))
+        lo, hi = rows[:, _LOOP_COLUMNS["seg_min"]], rows[:, _LOOP_COLUMNS["seg_max"]]
         first = np.cumsum(count) - count
         if n0:
             first = np.concatenate([first0, first + (first0[-1] + loops[n0 - 1].seg_lo.shape[0])])

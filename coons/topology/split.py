@@ -46,7 +46,9 @@ in the working plane) and then re-solved between the 3-D curves of the two edge 
 both have derivatives (:func:`~coons.kernel.curve_intersect.refine_intersections`): fitted
 p-curves crossing at a small angle would otherwise put a shared vertex at different places
 in the two faces that meet there.  A crossing whose 3-D points already coincide exactly keeps
-its parameters without Newton (only a strictly closer pair would replace them).
+its parameters without Newton (only a strictly closer pair would replace them), and one at a
+cut's end is that end, the edge split at its foot: along a tangential touching Newton slides by
+``sqrt(gap / curvature)`` off the vertex the cut's other faces have there.
 
 Speed.  The Boolean pipeline clips every intersection branch against a face and then splits
 the face: what depends on the face alone — its working plane, the working-plane p-curves of
@@ -92,7 +94,7 @@ from coons.errors import InvalidInputError
 from coons.kernel.analytic import (TWO_PI, Circle, ConicalSurface, CylindricalSurface, Ellipse, Line,
                                    PlanarSurface, SphericalSurface, ToroidalSurface)
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.curve_intersect import (_derivs, _point1, _scalar_form, curve_box, intersect_curves,
+from coons.kernel.curve_intersect import (_derivs, _point1, _project, _scalar_form, curve_box, intersect_curves,
                                          refine_intersections)
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -471,6 +473,12 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     p-curve error ``e`` moves the crossing by ``e / sin(angle)``, enough for two faces sharing
     a vertex to disagree about it.  Crossings that converge in space within ``tol3``, closer
     than they were, take the refined parameters; the others keep theirs.
+
+    A crossing at an end of ``c3``'s range ``r1`` (a cut) within ``tol3`` of the edge is that end:
+    the other faces of the cut's edge have their vertex at the end's point, so the edge is split
+    at the end's foot on it.  Newton would move such a crossing along a tangential touching (a
+    section tangent to a face's boundary line where it ends on it: a cylinder across another,
+    tangent to the plane of its boundary lines) by up to ``sqrt(distance / curvature)``.
     """
     if s.size == 0 or e is None or c3 is None:
         return s, u
@@ -481,13 +489,20 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
         if P.shape != Q.shape:
             return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
         d0 = np.linalg.norm(P - Q, axis=-1)
+        lo, hi = min(r1), max(r1)
+        rounding = 1e-9 * (1.0 + abs(lo) + abs(hi))  # (parameter rounding of the plane's answer)
+        at_end = ((np.abs(s - lo) <= rounding) | (np.abs(s - hi) <= rounding)) & (d0 > 0) & (d0 <= plane.tol3)
         # Only a strictly closer pair replaces the plane's answer (below), so crossings whose
         # curves already meet exactly in space (d0 = 0, common for lines and circles whose
         # p-curves are exact) keep theirs without Newton: Newton runs per pair independently.
-        k = np.flatnonzero(d0 > 0) if _FAST else np.arange(s.size)
-        if k.size == 0:
+        k = np.flatnonzero((d0 > 0) & ~at_end) if _FAST else np.flatnonzero(~at_end)
+        if k.size == 0 and not at_end.any():
             return s, u
         s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s[k], u[k], plane.t3)
+        ends = np.flatnonzero(at_end)
+        if ends.size:
+            s_end = np.where(np.abs(s[ends] - lo) <= np.abs(s[ends] - hi), lo, hi)
+            u_end, _ = _project(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)), np.asarray(c3.evaluate(s_end)), plane.t3)
     except InvalidInputError:
         return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
     # Only a strictly closer pair replaces the plane's answer: at a tangential touching Newton
@@ -495,6 +510,8 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     ok = (d3 <= plane.tol3) & (d3 < d0[k])
     s, u = s.copy(), u.copy()
     s[k[ok]], u[k[ok]] = s3[ok], u3[ok]
+    if ends.size:
+        s[ends], u[ends] = s_end, u_end  # (the foot: the closest point of the edge to the end)
     return s, u
 
 

@@ -474,11 +474,14 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     a vertex to disagree about it.  Crossings that converge in space within ``tol3``, closer
     than they were, take the refined parameters; the others keep theirs.
 
-    A crossing at an end of ``c3``'s range ``r1`` (a cut) within ``tol3`` of the edge is that end:
-    the other faces of the cut's edge have their vertex at the end's point, so the edge is split
-    at the end's foot on it.  Newton would move such a crossing along a tangential touching (a
-    section tangent to a face's boundary line where it ends on it: a cylinder across another,
-    tangent to the plane of its boundary lines) by up to ``sqrt(distance / curvature)``.
+    A crossing within ``tol3`` in space of an end of ``c3``'s range ``r1`` (a cut), and of the edge,
+    is that end (the node merge would join them anyway): the other faces of the cut's edge have
+    their vertex at the end's point, so the edge is split at the end's foot on it.  Newton would
+    move such a crossing along a tangential touching by up to ``sqrt(distance / curvature)``: a
+    section tangent to a face's boundary line where it ends on it (a cylinder across another,
+    tangent to the plane of its boundary lines), or the next arc of the same circle (two sections
+    of one sphere–sphere circle meeting on the other sphere's boundary meridian, near a pole where
+    the working plane magnifies the slide past ``eps``).
     """
     if s.size == 0 or e is None or c3 is None:
         return s, u
@@ -490,8 +493,9 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
             return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
         d0 = np.linalg.norm(P - Q, axis=-1)
         lo, hi = min(r1), max(r1)
-        rounding = 1e-9 * (1.0 + abs(lo) + abs(hi))  # (parameter rounding of the plane's answer)
-        at_end = ((np.abs(s - lo) <= rounding) | (np.abs(s - hi) <= rounding)) & (d0 > 0) & (d0 <= plane.tol3)
+        E = np.asarray(c3.evaluate(np.array([lo, hi])))
+        to_lo, to_hi = np.linalg.norm(P - E[0], axis=-1), np.linalg.norm(P - E[1], axis=-1)
+        at_end = (np.minimum(to_lo, to_hi) <= plane.tol3) & (d0 > 0) & (d0 <= plane.tol3)
         # Only a strictly closer pair replaces the plane's answer (below), so crossings whose
         # curves already meet exactly in space (d0 = 0, common for lines and circles whose
         # p-curves are exact) keep theirs without Newton: Newton runs per pair independently.
@@ -501,7 +505,7 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
         s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s[k], u[k], plane.t3)
         ends = np.flatnonzero(at_end)
         if ends.size:
-            s_end = np.where(np.abs(s[ends] - lo) <= np.abs(s[ends] - hi), lo, hi)
+            s_end = np.where(to_lo[ends] <= to_hi[ends], lo, hi)
             u_end, _ = _project(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)), np.asarray(c3.evaluate(s_end)), plane.t3)
     except InvalidInputError:
         return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
@@ -1082,13 +1086,36 @@ def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane,
             if j >= nb and _FAST and _end_contact_only(c, o, plane):
                 continue  # their one meeting is the shared end, which the graph's node merge joins
             x = intersect_curves(c.pc, (c.a, c.b), o.pc, (o.a, o.b), plane.t)
-            s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, x.t1, x.t2)
+            overlaps, touch = _touching_overlaps(x.overlaps, c.spec.curve, plane)
+            s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, np.concatenate([x.t1, touch[0]]),
+                             np.concatenate([x.t2, touch[1]]))
             c.splits += s.tolist()
             o.splits += u.tolist()
-            for (s0, s1), (u0, u1) in x.overlaps:
+            for (s0, s1), (u0, u1) in overlaps:
                 c.splits += [s0, s1]
                 o.splits += [u0, u1]
                 c.dropped.append((s0, s1))
+
+
+def _touching_overlaps(overlaps: list, c3: Any, plane: _Plane) -> tuple[list, tuple[np.ndarray, np.ndarray]]:
+    """The overlaps of a cut with a piece that run farther than ``tol3`` in space, and the middles
+    ``(s, u)`` of the others, which are touchings.
+
+    Two cuts continuing one another (the arcs of one sphere–sphere circle on either side of the other
+    sphere's boundary meridian) lie within tolerance of each other over a stretch about their shared
+    end, which :func:`~coons.kernel.curve_intersect.intersect_curves` reports as an overlap; near a pole
+    the working plane magnifies that stretch past ``eps``, and taken for an overlap it left a sliver of
+    one cut beside the dropped stretch of the other.  Without a 3-D curve every overlap stays one.
+    """
+    if not overlaps or c3 is None or not callable(getattr(c3, "evaluate", None)):
+        return overlaps, (np.zeros(0), np.zeros(0))
+    S = np.array([[s0, 0.5 * (s0 + s1), s1] for (s0, s1), _ in overlaps])
+    P = np.asarray(c3.evaluate(S.ravel())).reshape(S.shape + (-1,))
+    reach = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1)  # (the two chords' length)
+    short = reach <= plane.tol3
+    mids = np.array([[0.5 * (s0 + s1), 0.5 * (u0 + u1)] for (s0, s1), (u0, u1) in overlaps]).reshape(-1, 2)
+    return ([ov for ov, k in zip(overlaps, short.tolist()) if not k],
+            (mids[short, 0], mids[short, 1]))
 
 
 #: Smallest sine of half the angle between two cuts leaving a shared end for :func:`_end_contact_only`

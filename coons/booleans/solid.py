@@ -260,7 +260,16 @@ Status and limitations
   sphere face's section with the side, clipped to the face, is a sliver shorter than its own end
   tolerance at the line's inner end, and the check of the cuts' use took it for a joint that made
   the dangling line a path from the boundary (every Boolean raised; :func:`_free_chains` now takes
-  such a cut for a point).  The union there touches itself along the line, as above.
+  such a cut for a point).  The union there touches itself along the line, as above.  A cylinder
+  across ``Cylinder(2)`` whose wall touches the plane of the wider one's half-face boundary lines
+  (any radius from 0.7 up): the section ends on those lines tangent to them, and the face split's
+  re-solve of that crossing in space slid along the tangency by ``sqrt(gap / curvature)``, up to
+  4.5e-5 off the vertex the section's other faces have (an open shell); and a sphere–sphere circle
+  cut at the small sphere's meridian near the big one's pole (seed 59, one Boolean), whose two
+  arcs lie within tolerance over 4e-8 about their shared end, which the curve intersection
+  reported as an overlap and the split left as a sliver piece.  ``split_face`` now takes a
+  crossing within ``tol3`` of a cut's end for that end and an overlap no longer than ``tol3`` for
+  a touching (``coons.topology.split._in_space``, ``_touching_overlaps``).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

@@ -792,6 +792,12 @@ _HUNT_FIXED = {
     # (cylinder ∩ sphere) − box: the box side touches the lens's cylinder wall along a line that ends
     # inside the side, where the lens's rim touches it (test_contact_line_ending_at_a_touching_rim below).
     "seed49-chain10": (_LENS_AND_BOX, ["&", "-"]),
+    # (box ∪ turned box) ∪ cylinder: the cylinder's wall touches the big box's side y = -1 from inside along a
+    # line from the edge of the hole the turned box makes in that side to the side's top edge.  split_face
+    # drops that line (one region on both sides); the check of the cuts' use took a chain with both ends on
+    # the boundary for a path that separates (test_free_chains_are_dangling_or_bridge_loops below).
+    "seed63-chain31": ([("box", 1.5, 4.0, (-0.25, -0.25, 0.0)), ("box", 1.0, 2.0, (0.0, -0.75, 0.0), 45.0),
+                        ("cyl", 2.0, 2.0, (-0.25, 1.0, 1.0)), ("cyl", 2.0, 2.0, (0.25, 0.25, 0.0))], ["+", "+", "&"]),
 }
 
 
@@ -1036,3 +1042,29 @@ def test_cylinder_across_another_tangent_to_the_plane_of_its_boundary_lines(r, s
     for got, volume in results:
         assert got.check().ok
         assert got.volume == pytest.approx(volume, rel=1e-8)
+
+
+def test_free_chains_are_dangling_or_bridge_loops():
+    """``_free_chains`` (which cuts split_face may drop whole) on the top face of a box with a round hole: a
+    line from the hole's rim to the outer edge bridges the two loops (dropped: one region on both sides); a
+    second such line closes a cycle with it (the two separate the face); a line across from edge to edge
+    separates; a line ending inside the face dangles."""
+    from coons.kernel.analytic import Line
+    from coons.topology.sew import EdgeSpec
+
+    t = resolve(None)
+    X = S._Operand(Box(4.0, 4.0, 4.0) - Cylinder(1.0, 10.0), "A", t)
+    (f,) = [k for k, spec in enumerate(X.specs)
+            if len(spec.loops) == 2 and np.allclose(np.asarray(spec.surface.axis), [0, 0, 1]) and spec.sense]
+
+    def line(p, q):
+        p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+        return EdgeSpec(Line(p, q - p), 0.0, float(np.linalg.norm(q - p)), None, None)
+
+    rim_to_edge = line((1.0, 0.0, 2.0), (2.0, 0.0, 2.0))
+    other_rim_to_edge = line((-1.0, 0.0, 2.0), (-2.0, 0.0, 2.0))
+    across = line((-2.0, 1.5, 2.0), (2.0, 1.5, 2.0))
+    dangling = line((2.0, -1.5, 2.0), (1.5, -1.5, 2.0))
+    assert S._free_chains(X, f, [rim_to_edge], t).tolist() == [True]
+    assert S._free_chains(X, f, [rim_to_edge, other_rim_to_edge], t).tolist() == [True, False]
+    assert S._free_chains(X, f, [across, dangling], t).tolist() == [False, True]

@@ -261,7 +261,16 @@ Status and limitations
   sphere face's section with the side, clipped to the face, is a sliver shorter than its own end
   tolerance at the line's inner end, and the check of the cuts' use took it for a joint that made
   the dangling line a path from the boundary (every Boolean raised; :func:`_free_chains` now takes
-  such a cut for a point).  The union there touches itself along the line, as above.
+  such a cut for a point).  The union there touches itself along the line, as above.  A cylinder
+  across ``Cylinder(2)`` whose wall touches the plane of the wider one's half-face boundary lines
+  (any radius from 0.7 up): the section ends on those lines tangent to them, and the face split's
+  re-solve of that crossing in space slid along the tangency by ``sqrt(gap / curvature)``, up to
+  4.5e-5 off the vertex the section's other faces have (an open shell); and a sphere–sphere circle
+  cut at the small sphere's meridian near the big one's pole (seed 59, one Boolean), whose two
+  arcs lie within tolerance over 4e-8 about their shared end, which the curve intersection
+  reported as an overlap and the split left as a sliver piece.  ``split_face`` now takes a
+  crossing within ``tol3`` of a cut's end for that end and an overlap no longer than ``tol3`` for
+  a touching (``coons.topology.split._in_space``, ``_touching_overlaps``).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.
@@ -3554,14 +3563,23 @@ def _self_crossing(seg: np.ndarray) -> bool:
 def _distance_to_edges(X: _Operand, f: int, Q: np.ndarray, t: Tolerance, others: list[EdgeSpec] = ()
                        ) -> np.ndarray:
     """Distances ``(k,)`` of the points ``Q (k, 3)`` to face ``f``'s boundary edges and the edges ``others``."""
+    return _loop_distances(X, f, Q, t, others).min(axis=1)
+
+
+def _loop_distances(X: _Operand, f: int, Q: np.ndarray, t: Tolerance, others: list[EdgeSpec] = ()
+                    ) -> np.ndarray:
+    """Distances ``(k, L + 1)`` of the points ``Q (k, 3)`` to the edges of each of face ``f``'s ``L`` loops and,
+    last, to the edges ``others`` (``inf`` where there are none)."""
     from coons.booleans.classify import _curve_closest
 
-    best = np.full(Q.shape[0], np.inf)
-    for loop in (*X.specs[f].loops, others):
+    loops = (*X.specs[f].loops, others)
+    best = np.full((Q.shape[0], len(loops)), np.inf)
+    for k, loop in enumerate(loops):
         for e in loop:
             lo, hi = min(e.t0, e.t1), max(e.t0, e.t1)
             tq = np.clip(_curve_closest(e.curve, Q, lo, t), lo, hi)
-            best = np.minimum(best, np.linalg.norm(np.asarray(e.curve.evaluate(tq)).reshape(-1, 3) - Q, axis=1))
+            d = np.linalg.norm(np.asarray(e.curve.evaluate(tq)).reshape(-1, 3) - Q, axis=1)
+            best[:, k] = np.minimum(best[:, k], d)
     return best
 
 
@@ -3593,12 +3611,15 @@ _ALONG_SAMPLES = 17
 
 
 def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.ndarray:
-    """Per cut, whether its chain (cuts joined end to end) has an end inside the face (not on its boundary).
+    """Per cut, whether its chain (cuts joined end to end) separates nothing: it has an end inside the face
+    (not on its boundary), or it bridges loops of the face that neither the boundary nor the chains
+    before it join already (a line of tangent contact from a hole's edge to the outer edge).
 
-    A cut that never leaves the ball of its own tolerance is a point, as sewing collapses it into
-    its vertex (a tangent section clipped to a sliver shorter than its end tolerance): the cut
-    ends within that ball meet there, and the point's own ends are no chain's end nor a neighbour
-    that makes another cut's end a joint.
+    ``split_face`` drops such chains whole (both sides are one region); a chain from a loop back to
+    the loops it joins closes a cycle and separates two regions.  A cut that never leaves the ball
+    of its own tolerance is a point, as sewing collapses it into its vertex (a tangent section
+    clipped to a sliver shorter than its end tolerance): the cut ends within that ball meet there,
+    and the point's own ends are no chain's end nor a neighbour that makes another cut's end a joint.
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -3620,10 +3641,32 @@ def _free_chains(X: _Operand, f: int, cuts: list[EdgeSpec], t: Tolerance) -> np.
     _, comp = connected_components(g, directed=False)
     ends = np.flatnonzero((degree == 0) & real)
     on_boundary = np.zeros(ends.size, dtype=bool)
+    loop = np.zeros(ends.size, dtype=np.int64)
     if ends.size:
-        on_boundary = _distance_to_edges(X, f, E[ends], t) <= 10.0 * thr[ends]
+        L = _loop_distances(X, f, E[ends], t)[:, :-1]
+        loop = np.argmin(L, axis=1)
+        on_boundary = L[np.arange(ends.size), loop] <= 10.0 * thr[ends]
     free_comp = np.zeros(comp.max() + 1, dtype=bool)
     free_comp[comp[ends[~on_boundary] // 2]] = True
+    # Chains with every end on the boundary, in order: a bridge joins loops not yet joined (union-find).
+    joined = list(range(len(X.specs[f].loops)))
+
+    def root(a: int) -> int:
+        while joined[a] != a:
+            a = joined[a]
+        return a
+
+    chain_of = comp[ends[on_boundary] // 2]
+    for c in np.unique(chain_of).tolist():
+        if free_comp[c]:
+            continue
+        loops_c = loop[on_boundary][chain_of == c].tolist()
+        roots = {root(k) for k in loops_c}
+        if len(roots) == len(loops_c) > 1:  # every end on a loop not joined to another end's: a bridge
+            first, *rest = roots
+            for r in rest:
+                joined[r] = first
+            free_comp[c] = True
     return free_comp[comp]
 
 

@@ -46,7 +46,9 @@ in the working plane) and then re-solved between the 3-D curves of the two edge 
 both have derivatives (:func:`~coons.kernel.curve_intersect.refine_intersections`): fitted
 p-curves crossing at a small angle would otherwise put a shared vertex at different places
 in the two faces that meet there.  A crossing whose 3-D points already coincide exactly keeps
-its parameters without Newton (only a strictly closer pair would replace them).
+its parameters without Newton (only a strictly closer pair would replace them), and one at a
+cut's end is that end, the edge split at its foot: along a tangential touching Newton slides by
+``sqrt(gap / curvature)`` off the vertex the cut's other faces have there.
 
 Speed.  The Boolean pipeline clips every intersection branch against a face and then splits
 the face: what depends on the face alone — its working plane, the working-plane p-curves of
@@ -92,7 +94,7 @@ from coons.errors import InvalidInputError
 from coons.kernel.analytic import (TWO_PI, Circle, ConicalSurface, CylindricalSurface, Ellipse, Line,
                                    PlanarSurface, SphericalSurface, ToroidalSurface)
 from coons.kernel.curve import NurbsCurve
-from coons.kernel.curve_intersect import (_derivs, _point1, _scalar_form, curve_box, intersect_curves,
+from coons.kernel.curve_intersect import (_derivs, _point1, _project, _scalar_form, curve_box, intersect_curves,
                                          refine_intersections)
 from coons.kernel.pcurve import Line2D, Trig2D
 from coons.tolerance import Tolerance, resolve
@@ -471,6 +473,15 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     p-curve error ``e`` moves the crossing by ``e / sin(angle)``, enough for two faces sharing
     a vertex to disagree about it.  Crossings that converge in space within ``tol3``, closer
     than they were, take the refined parameters; the others keep theirs.
+
+    A crossing within ``tol3`` in space of an end of ``c3``'s range ``r1`` (a cut), and of the edge,
+    is that end (the node merge would join them anyway): the other faces of the cut's edge have
+    their vertex at the end's point, so the edge is split at the end's foot on it.  Newton would
+    move such a crossing along a tangential touching by up to ``sqrt(distance / curvature)``: a
+    section tangent to a face's boundary line where it ends on it (a cylinder across another,
+    tangent to the plane of its boundary lines), or the next arc of the same circle (two sections
+    of one sphere–sphere circle meeting on the other sphere's boundary meridian, near a pole where
+    the working plane magnifies the slide past ``eps``).
     """
     if s.size == 0 or e is None or c3 is None:
         return s, u
@@ -481,13 +492,21 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
         if P.shape != Q.shape:
             return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
         d0 = np.linalg.norm(P - Q, axis=-1)
+        lo, hi = min(r1), max(r1)
+        E = np.asarray(c3.evaluate(np.array([lo, hi])))
+        to_lo, to_hi = np.linalg.norm(P - E[0], axis=-1), np.linalg.norm(P - E[1], axis=-1)
+        at_end = (np.minimum(to_lo, to_hi) <= plane.tol3) & (d0 > 0) & (d0 <= plane.tol3)
         # Only a strictly closer pair replaces the plane's answer (below), so crossings whose
         # curves already meet exactly in space (d0 = 0, common for lines and circles whose
         # p-curves are exact) keep theirs without Newton: Newton runs per pair independently.
-        k = np.flatnonzero(d0 > 0) if _FAST else np.arange(s.size)
-        if k.size == 0:
+        k = np.flatnonzero((d0 > 0) & ~at_end) if _FAST else np.flatnonzero(~at_end)
+        if k.size == 0 and not at_end.any():
             return s, u
         s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s[k], u[k], plane.t3)
+        ends = np.flatnonzero(at_end)
+        if ends.size:
+            s_end = np.where(to_lo[ends] <= to_hi[ends], lo, hi)
+            u_end, _ = _project(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)), np.asarray(c3.evaluate(s_end)), plane.t3)
     except InvalidInputError:
         return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
     # Only a strictly closer pair replaces the plane's answer: at a tangential touching Newton
@@ -495,6 +514,8 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
     ok = (d3 <= plane.tol3) & (d3 < d0[k])
     s, u = s.copy(), u.copy()
     s[k[ok]], u[k[ok]] = s3[ok], u3[ok]
+    if ends.size:
+        s[ends], u[ends] = s_end, u_end  # (the foot: the closest point of the edge to the end)
     return s, u
 
 
@@ -1065,13 +1086,36 @@ def _intersect_pieces(pieces: list[_Piece], nb: int, plane: _Plane,
             if j >= nb and _FAST and _end_contact_only(c, o, plane):
                 continue  # their one meeting is the shared end, which the graph's node merge joins
             x = intersect_curves(c.pc, (c.a, c.b), o.pc, (o.a, o.b), plane.t)
-            s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, x.t1, x.t2)
+            overlaps, touch = _touching_overlaps(x.overlaps, c.spec.curve, plane)
+            s, u = _in_space(plane, c.spec.curve, (c.a, c.b), o.spec, np.concatenate([x.t1, touch[0]]),
+                             np.concatenate([x.t2, touch[1]]))
             c.splits += s.tolist()
             o.splits += u.tolist()
-            for (s0, s1), (u0, u1) in x.overlaps:
+            for (s0, s1), (u0, u1) in overlaps:
                 c.splits += [s0, s1]
                 o.splits += [u0, u1]
                 c.dropped.append((s0, s1))
+
+
+def _touching_overlaps(overlaps: list, c3: Any, plane: _Plane) -> tuple[list, tuple[np.ndarray, np.ndarray]]:
+    """The overlaps of a cut with a piece that run farther than ``tol3`` in space, and the middles
+    ``(s, u)`` of the others, which are touchings.
+
+    Two cuts continuing one another (the arcs of one sphere–sphere circle on either side of the other
+    sphere's boundary meridian) lie within tolerance of each other over a stretch about their shared
+    end, which :func:`~coons.kernel.curve_intersect.intersect_curves` reports as an overlap; near a pole
+    the working plane magnifies that stretch past ``eps``, and taken for an overlap it left a sliver of
+    one cut beside the dropped stretch of the other.  Without a 3-D curve every overlap stays one.
+    """
+    if not overlaps or c3 is None or not callable(getattr(c3, "evaluate", None)):
+        return overlaps, (np.zeros(0), np.zeros(0))
+    S = np.array([[s0, 0.5 * (s0 + s1), s1] for (s0, s1), _ in overlaps])
+    P = np.asarray(c3.evaluate(S.ravel())).reshape(S.shape + (-1,))
+    reach = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1)  # (the two chords' length)
+    short = reach <= plane.tol3
+    mids = np.array([[0.5 * (s0 + s1), 0.5 * (u0 + u1)] for (s0, s1), (u0, u1) in overlaps]).reshape(-1, 2)
+    return ([ov for ov, k in zip(overlaps, short.tolist()) if not k],
+            (mids[short, 0], mids[short, 1]))
 
 
 #: Smallest sine of half the angle between two cuts leaving a shared end for :func:`_end_contact_only`

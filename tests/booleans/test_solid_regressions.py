@@ -792,6 +792,12 @@ _HUNT_FIXED = {
     # (cylinder ∩ sphere) − box: the box side touches the lens's cylinder wall along a line that ends
     # inside the side, where the lens's rim touches it (test_contact_line_ending_at_a_touching_rim below).
     "seed49-chain10": (_LENS_AND_BOX, ["&", "-"]),
+    # (box ∪ turned box) ∪ cylinder: the cylinder's wall touches the big box's side y = -1 from inside along a
+    # line from the edge of the hole the turned box makes in that side to the side's top edge.  split_face
+    # drops that line (one region on both sides); the check of the cuts' use took a chain with both ends on
+    # the boundary for a path that separates (test_free_chains_are_dangling_or_bridge_loops below).
+    "seed63-chain31": ([("box", 1.5, 4.0, (-0.25, -0.25, 0.0)), ("box", 1.0, 2.0, (0.0, -0.75, 0.0), 45.0),
+                        ("cyl", 2.0, 2.0, (-0.25, 1.0, 1.0)), ("cyl", 2.0, 2.0, (0.25, 0.25, 0.0))], ["+", "+", "&"]),
 }
 
 
@@ -1001,3 +1007,64 @@ def test_contact_line_ending_at_a_touching_rim():
         assert got.volume == pytest.approx(volume, rel=1e-9)
         assert got.area == pytest.approx(area, rel=1e-9)
     assert (lens & box).is_empty
+
+
+def _cross_cylinder_common(r: float, c: float) -> float:
+    """Volume common to the cylinder ``x² + y² ≤ 4`` and ``(y - c)² + z² ≤ r²`` (both longer than the other
+    is wide): the chord ``2 sqrt(4 - y²)`` times the width ``2 sqrt(r² - (y - c)²)``, integrated over y."""
+    from scipy.integrate import quad
+
+    lo, hi = max(c - r, -2.0), min(c + r, 2.0)
+    return quad(lambda y: 4.0 * math.sqrt(max(0.0, 4.0 - y * y)) * math.sqrt(max(0.0, r * r - (y - c) ** 2)),
+                lo, hi, epsabs=1e-13, epsrel=1e-13, limit=200)[0]
+
+
+@pytest.mark.parametrize("r", [0.7, 1.0, 1.5])
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_cylinder_across_another_tangent_to_the_plane_of_its_boundary_lines(r, side):
+    """A cylinder of radius ``r`` along x, its axis at ``y = ±r``, across ``Cylinder(2, 10)``: its wall touches
+    the plane y = 0, which holds the boundary lines of the wide cylinder's half faces.  The section ends
+    on those lines tangent to them; the face split re-solved that crossing in space by Newton, which slid
+    along the tangency by sqrt(gap / curvature) (1.6e-6 to 4.5e-5) off the cut's end, where the other faces
+    have the vertex (the shell was open).  A crossing at a cut's end is now that end.  With ``r = 1`` the
+    thin cylinder also touches the wide one's wall from inside at one point, where the difference pinches
+    (not a manifold: it raises)."""
+    a = Cylinder(2.0, 10.0)
+    b = Cylinder(r, 10.0, direction=(1, 0, 0)).translate((0.0, side * r, 0.0))
+    common = _cross_cylinder_common(r, side * r)
+    va, vb = 40.0 * math.pi, 10.0 * math.pi * r * r
+    results = [(a + b, va + vb - common), (a & b, common)]
+    if r == 1.0:
+        with pytest.raises(BooleanError, match="not a manifold"):
+            a - b
+    else:
+        results.append((a - b, va - common))
+    for got, volume in results:
+        assert got.check().ok
+        assert got.volume == pytest.approx(volume, rel=1e-8)
+
+
+def test_free_chains_are_dangling_or_bridge_loops():
+    """``_free_chains`` (which cuts split_face may drop whole) on the top face of a box with a round hole: a
+    line from the hole's rim to the outer edge bridges the two loops (dropped: one region on both sides); a
+    second such line closes a cycle with it (the two separate the face); a line across from edge to edge
+    separates; a line ending inside the face dangles."""
+    from coons.kernel.analytic import Line
+    from coons.topology.sew import EdgeSpec
+
+    t = resolve(None)
+    X = S._Operand(Box(4.0, 4.0, 4.0) - Cylinder(1.0, 10.0), "A", t)
+    (f,) = [k for k, spec in enumerate(X.specs)
+            if len(spec.loops) == 2 and np.allclose(np.asarray(spec.surface.axis), [0, 0, 1]) and spec.sense]
+
+    def line(p, q):
+        p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+        return EdgeSpec(Line(p, q - p), 0.0, float(np.linalg.norm(q - p)), None, None)
+
+    rim_to_edge = line((1.0, 0.0, 2.0), (2.0, 0.0, 2.0))
+    other_rim_to_edge = line((-1.0, 0.0, 2.0), (-2.0, 0.0, 2.0))
+    across = line((-2.0, 1.5, 2.0), (2.0, 1.5, 2.0))
+    dangling = line((2.0, -1.5, 2.0), (1.5, -1.5, 2.0))
+    assert S._free_chains(X, f, [rim_to_edge], t).tolist() == [True]
+    assert S._free_chains(X, f, [rim_to_edge, other_rim_to_edge], t).tolist() == [True, False]
+    assert S._free_chains(X, f, [across, dangling], t).tolist() == [False, True]

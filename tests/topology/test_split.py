@@ -531,6 +531,25 @@ def test_cut_ending_on_a_meridian_near_a_pole_splits_the_hemisphere():
                                [lens, va - lens, va + vb - lens], rtol=1e-7)
 
 
+
+def test_arcs_of_one_circle_meeting_near_a_pole_touch_rather_than_overlap():
+    """Hunt seed 59 chain 30, one Boolean: ``Sphere(2)`` at (0.5, -0.25, 0) and ``Sphere(1)`` at (-0.25, 0, 1).
+    Their circle is cut at the small sphere's boundary meridian near the big one's pole (latitude 76°);
+    the two arcs on either side lie within tolerance of each other over 4e-8 about their shared end,
+    which the curve intersection reports as an overlap, 1.4e-7 in the working plane there (more than
+    eps).  Taken for one, it dropped a stretch of one arc and left the other's as a sliver piece (no
+    interior point found: every Boolean raised); it is a touching now."""
+    from coons.booleans.solid import difference, intersection, union
+    from coons.topology.primitives import Sphere
+
+    A, B = Sphere(2.0).translate((0.5, -0.25, 0.0)), Sphere(1.0).translate((-0.25, 0.0, 1.0))
+    lens = _lens(2.0, 1.0, math.dist((0.5, -0.25, 0.0), (-0.25, 0.0, 1.0)))
+    va, vb = 4 / 3 * math.pi * 8.0, 4 / 3 * math.pi
+    results = [intersection(A, B), difference(A, B), union(A, B)]
+    assert all(r.check().ok for r in results)
+    np.testing.assert_allclose([r.volume for r in results], [lens, va - lens, va + vb - lens], rtol=1e-8)
+
+
 # ====================================================================== split + sew solids
 def _box_section(f: FaceSpec):
     """The cut x = 0 on the faces of Box(2, 2, 2) it crosses (3-D lines; p-curves projected)."""

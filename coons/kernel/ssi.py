@@ -44,7 +44,9 @@ singular and tangential points):
    so that the branches end there (a chain is taken to pass through the point when its nearest
    sample is within a step of it, or within the 3 × 3 grid cells around it with nearly parallel
    normals: next to a saddle contact, branches leaving through one edge are invisible and the
-   chain turns a cell away; never at the point's image beyond ``G``'s seam).  The poles of a
+   chain turns a cell away; never at the point's image beyond ``G``'s seam).  A chain that ends a
+   cell past the point at ``G``'s box edge, having turned in the point's cell from one arm onto
+   another that runs back towards it, is split on its segment nearest the point instead.  The poles of a
    sphere and the apex of a cone that lie on the other surface split the chains in the same way
    (the p-curve on that surface jumps there; each side ends with the parameter of its own limit).
 4. *Boxes.*  ``F``'s parameters are unwrapped along each chain; chains are cut where they leave
@@ -1252,7 +1254,8 @@ def _near(x: np.ndarray, ref: np.ndarray, fbox: _FieldBox) -> np.ndarray:
 
 
 def _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, grid):
-    """Replace the sample nearest each singular point on the chain by it; flags of the replaced samples.
+    """Replace the sample nearest each singular point on the chain by it; the samples, their flags
+    (split there) and inside flags.
 
     A chain passes through a singular point when its nearest sample is within one chain step of
     it, or lies in the cell of the main grid (``grid = (us, vs)``) that holds the point or in one
@@ -1260,10 +1263,17 @@ def _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, gri
     the segments of a saddle cell may cut its corner, far from the crossing, and two branches
     leaving the point through one edge are invisible on it (no sign change), so the chain turns a
     cell away; a branch merely passing by has no reason to be nearly tangent.
+
+    When that nearest sample ends an open chain a cell away from the point (a point within a cell
+    of ``G``'s box boundary: the chain cut the saddle cell's corner from one arm onto another and
+    then ran along the other arm back towards the point to the boundary), the chain passes the
+    point on its segment nearest to it, not at its end: the point is inserted there, so that the
+    arm before it ends at the point and the rest (the other arm, up to the boundary) starts there.
+    Replacing the end would instead join the first arm to the point along the second.
     """
     split = np.zeros(Xc.shape[0], bool)
     if Xc.shape[0] < 2 or singular.shape[0] == 0:
-        return Xc, split
+        return Xc, split, inside
     seg = np.linalg.norm(np.diff(Pc, axis=0), axis=1)
     closing = float(np.linalg.norm(Pc[0] - Pc[-1])) if loop else 0.0
     before = np.concatenate([[closing], seg])
@@ -1271,6 +1281,7 @@ def _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, gri
     reach = np.maximum(before, after)
     sine = np.linalg.norm(np.cross(_normals(g, Xc[:, 0], Xc[:, 1]), _normals(f, Xc[:, 2], Xc[:, 3])), axis=1)
     Xc = Xc.copy()
+    inserts: list[tuple[int, np.ndarray]] = []
     for s in range(singular.shape[0]):  # loop over singular points (a few)
         on_cell = sine < _SINGULAR_SINE
         for k, lines in enumerate(grid):  # the two parameters of G
@@ -1292,10 +1303,46 @@ def _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, gri
             # The point's image a period beyond G's box (the chain ends at G's seam next to it)
             # is not on this piece: the piece on the other side of the seam runs through it.
             # (1e-9 of the box: round-off of the grid arithmetic, as above.)
-            if all(lines[0] - 1e-9 * (lines[-1] - lines[0]) <= x[j] <= lines[-1] + 1e-9 * (lines[-1] - lines[0])
-                   for j, lines in enumerate(grid)):
+            if not all(lines[0] - 1e-9 * (lines[-1] - lines[0]) <= x[j] <= lines[-1] + 1e-9 * (lines[-1] - lines[0])
+                       for j, lines in enumerate(grid)):
+                continue
+            i = _passing_segment(Pc, sing_pts[s], k, inside) if not loop and d[k] > reach[k] else None
+            if i is None:
                 Xc[k], split[k] = x, True
-    return Xc, split
+            else:
+                inserts.append((i + 1, _near(singular[s], Xc[i], fbox)))
+    if inserts:
+        at = np.array([i for i, _ in inserts])
+        Xc = np.insert(Xc, at, np.array([x for _, x in inserts]), axis=0)
+        split = np.insert(split, at, True)
+        inside = np.insert(inside, at, True)
+    return Xc, split, inside
+
+
+def _passing_segment(Pc: np.ndarray, point: np.ndarray, k: int, inside: np.ndarray) -> int | None:
+    """The segment ``(i, i + 1)`` of an open chain ``Pc`` on which it passes ``point``, when its sample
+    ``k`` nearest the point is an end of the chain and the segment is not the one ending there (else None).
+
+    The segment nearest the point among the run of segments from that end that pass it no farther than
+    the end sample (the chain's approach to the point: a chain that also passes it elsewhere is split
+    there separately), with both samples inside ``F``'s box.
+    """
+    n = Pc.shape[0]
+    if k not in (0, n - 1) or n < 3:
+        return None
+    a, ab = Pc[:-1], np.diff(Pc, axis=0)
+    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), np.finfo(float).tiny),
+                0.0, 1.0)
+    dist = np.linalg.norm(a + s[:, None] * ab - point, axis=1)
+    order = np.arange(n - 2, -1, -1) if k == n - 1 else np.arange(n - 1)
+    # The segment at the end holds the end sample (its distance is the end's up to round-off).
+    far = dist[order[1:]] > np.linalg.norm(Pc[k] - point)
+    run = order[: 1 + (int(np.argmax(far)) if np.any(far) else far.size)]
+    run = run[inside[run] & inside[run + 1]]
+    if run.size == 0:
+        return None
+    i = int(run[np.argmin(dist[run])])
+    return None if i == order[0] else i
 
 
 def _cut(g, f, chains, singular: np.ndarray, fbox: _FieldBox, t: Tolerance,
@@ -1308,7 +1355,7 @@ def _cut(g, f, chains, singular: np.ndarray, fbox: _FieldBox, t: Tolerance,
     pieces: list[tuple[np.ndarray, bool]] = []
     requests: list[tuple[int, str, np.ndarray, np.ndarray]] = []
     for Xc, Pc, inside, loop in chains:  # loop over branches
-        Xc, split = _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, grid)
+        Xc, split, inside = _split_at_singular(g, f, Xc, Pc, inside, loop, singular, sing_pts, fbox, grid)
         n = Xc.shape[0]
         virtual = False
         if loop:

@@ -1068,3 +1068,37 @@ def test_free_chains_are_dangling_or_bridge_loops():
     assert S._free_chains(X, f, [rim_to_edge], t).tolist() == [True]
     assert S._free_chains(X, f, [rim_to_edge, other_rim_to_edge], t).tolist() == [True, False]
     assert S._free_chains(X, f, [across, dangling], t).tolist() == [False, True]
+
+
+def _cylinder_in_sphere_common() -> float:
+    """Volume common to ``Cylinder(1.5, 2)`` about ``(0.5, -1)`` (``-1 ≤ z ≤ 1``) and the sphere of radius 2
+    about ``(0, -1, -1)``: over the cylinder's disc (polar ``r, θ`` about its axis), the z-extent of
+    ``[-1, 1] ∩ [-1 - h, -1 + h]`` with ``h² = 4 - x² - (y + 1)² = 3.75 - r cos θ - r²`` (``h ≤ 2`` throughout:
+    the extent is ``h``)."""
+    from scipy.integrate import quad
+
+    def inner(th: float) -> float:
+        return quad(lambda r: r * math.sqrt(max(3.75 - r * math.cos(th) - r * r, 0.0)), 0.0, 1.5,
+                    epsabs=1e-14, epsrel=1e-13)[0]
+
+    return 2.0 * quad(inner, 0.0, math.pi, epsabs=1e-13, epsrel=1e-13)[0]
+
+
+@pytest.mark.parametrize("degrees", [0.0, 180.0, 90.0])
+def test_sphere_internally_tangent_to_a_cylinder_wall_at_its_rim(degrees):
+    """Hunt seed 61 chain 6: ``Sphere(2)`` about ``(0, -1, -1)`` holds the section of ``Cylinder(1.5, 2)``
+    about ``(0.5, -1)`` at z = -1 and touches its wall from inside at ``(2, -1, -1)``, on the bottom rim: a
+    double point of the section on the wall (``v + 1 = ±(√3/2) u`` there).  The sphere is turned about the
+    cylinder's axis by ``degrees``; at 0° and 180° the point lies on the boundary lines of the cylinder's half
+    faces.  The marching grid of a half face (its box one cell wider) joined the arm inside the face to
+    the arm beyond it in the point's cell and ended a cell past the point at the box edge; the point
+    replaced that end, so the section came back to the point along the arm outside the face, and the face
+    split raised (cut used 0 times).  The difference is a horn ending at the point (the bottom disc
+    lies in the sphere): a manifold, as are the other two."""
+    a = Cylinder(1.5, 2.0).translate((0.5, -1.0, 0.0))
+    s = Sphere(2.0).translate((0.0, -1.0, -1.0)).rotate((0.5, -1.0, 0.0), (0, 0, 1), degrees)
+    common = _cylinder_in_sphere_common()
+    va, vs = 4.5 * math.pi, 32.0 * math.pi / 3.0
+    for got, volume in ((a & s, common), (a - s, va - common), (a + s, va + vs - common)):
+        assert got.check().ok
+        assert got.volume == pytest.approx(volume, rel=1e-8)

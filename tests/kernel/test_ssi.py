@@ -768,3 +768,33 @@ def test_extrapolated_end_parameters_stay_in_the_box():
     # inside the box: unchanged by it
     box[0, 0] = -1.0
     np.testing.assert_allclose(_extrapolated_ends(X, P, free, box)[0], [-0.1, 0.5, 0.0, 0.0], atol=1e-15)
+
+
+@pytest.mark.parametrize("half", [0, 1])
+def test_singular_point_a_cell_inside_the_grid_box_ends_the_branch_on_its_own_arm(half):
+    """A sphere of radius 2 internally tangent to a cylinder of radius 1.5 at ``u = 0``, ``v = 0``: the section
+    on the wall is ``v = ±√3 |sin(u / 2)|``, a double point there.  A half face's box (one cell wider, as a
+    Boolean asks) holds the point a cell from its edge; the grid joined the arm inside ``[π, 2π]`` (or
+    ``[0, π]``) to the arm beyond it in the point's cell and the chain ended at the box edge.  The branch
+    now ends at the point coming along its own arm, and the arm beyond is a piece from the point."""
+    cyl = CylindricalSurface([0.5, -1, -1], [0, 0, 1], [1, 0, 0], 1.5)
+    sphere = SphericalSurface([0, -1, -1], [0, 0, 1], [1, 0, 0], 2.0)
+    pad = 0.01 * PI
+    u0 = PI * (1 - half)
+    box_a = ((u0 - pad, u0 + PI + pad), (-0.02, 2.02))
+    r = march_intersection(cyl, sphere, box_a, ((u0 - pad, u0 + PI + pad), (-PI / 2, PI / 2)))
+    point = np.array([2.0, -1.0, -1.0])
+    main = [c for c in r.curves if c.curve.length() > 1.0]
+    assert len(main) == 1
+    c = main[0]
+    t = np.linspace(c.t0, c.t1, 2001)
+    uv = c.pcurve_a.evaluate(t)
+    ends = c.curve.evaluate(np.array([c.t0, c.t1]))
+    assert np.linalg.norm(ends - point, axis=1).min() <= TOL.linear
+    # On the arm inside the half face, up to the point (was: up to 0.032 beyond it in u and back).
+    assert np.all(uv[:, 0] <= 2 * PI + 1e-9) if half == 0 else np.all(uv[:, 0] >= -1e-9)
+    np.testing.assert_allclose(uv[:, 1], math.sqrt(3) * np.abs(np.sin(uv[:, 0] / 2)), rtol=0, atol=ON)
+    beyond = [c for c in r.curves if c.curve.length() <= 1.0]
+    assert len(beyond) == 1
+    ends = beyond[0].curve.evaluate(np.array([beyond[0].t0, beyond[0].t1]))
+    assert np.linalg.norm(ends - point, axis=1).min() <= TOL.linear

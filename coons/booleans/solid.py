@@ -168,8 +168,8 @@ Status and limitations
   piece not decided locally, by propagation or by boxes); a Boolean still costs the whole of
   both operands in ``sew_faces`` (vertex clustering, matching and the topological checks over
   all faces), and array passes over all edge uses in the T-junction, merge and fuse passes,
-  so sequential cuts into a large part still grow with its size, if slowly; the plate of the
-  benchmark is still slower than OCCT in one call (``benchmarks/results/booleans_brep.md``).
+  so sequential cuts into a large part still grow with its size, if slowly (the figures against
+  OCCT: ``benchmarks/results/booleans_brep.md``).
   Carried from Boolean to Boolean (all keyed weakly by immutable objects, so a result never
   depends on what ran before, only the time does; ``tests/booleans/test_solid_booleans.py``
   compares warm and cold chains): a result remembers the completed face specs it was sewn
@@ -214,7 +214,11 @@ Status and limitations
 * Singular intersection curves other than the equal cylinders' ellipses are marched and raise
   a ``BooleanError`` (at ``"split"`` or ``"intersect"``) in configurations found failing:
   cylinders of different radii touching at a point (the thin one internally tangent to the
-  thick one, a double point of their quartic), and nearly equal cylinders (radii and axes off by
+  thick one, a double point of their quartic: with the thin one's half-face boundaries turned 20°
+  about its axis, ``Cylinder(2, 10) + Cylinder(0.5, 10, direction=(1, 0, 0)).rotate(..., 20°)
+  .translate((0, 1.5, 0.3))`` raises "not a manifold" at ``"sew"`` although the union is one, and
+  the difference, which pinches there, comes back touching itself; at 0° both are right), and
+  nearly equal cylinders (radii and axes off by
   more than a quarter of ``tol.linear``, ``kernel.intersect._EQUAL_CYLINDERS_GAP``, so marched)
   whose axes pass about ``1e-4`` apart (two near-touching branches).
 * Chains of Booleans in special position (cylinders, boxes turned 30° or 45° and spheres on a
@@ -270,7 +274,15 @@ Status and limitations
   arcs lie within tolerance over 4e-8 about their shared end, which the curve intersection
   reported as an overlap and the split left as a sliver piece.  ``split_face`` now takes a
   crossing within ``tol3`` of a cut's end for that end and an overlap no longer than ``tol3`` for
-  a touching (``coons.topology.split._in_space``, ``_touching_overlaps``).
+  a touching (``coons.topology.split._in_space``, ``_touching_overlaps``).  A cylinder wall touching
+  a box side from inside along a line from the edge of a hole in that side to its outer edge (seed
+  63): ``split_face`` drops the line (one region on both sides) and the check of the cuts' use took a
+  chain with both ends on the boundary for a separating path (:func:`_free_chains` now lets a chain
+  bridge loops not yet joined).  A sphere internally tangent to a cylinder wall at a corner of its
+  half faces (on a boundary line and the rim; seed 61, one Boolean): the double point of the section
+  lay one cell inside the marching grid's padded box, the grid joined the arm inside the face to the
+  arm beyond it, and the branch reached the corner from outside the face (``kernel.ssi`` now splits a
+  chain that ends a cell past a singular point on its segment nearest the point).
 * Edges are fused back only along one curve object or collinear lines: two co-circular arcs
   of different Circle objects keep the vertex between them.
 * Disjoint operands need no special case: every face is one piece classified against the other.

@@ -1963,10 +1963,14 @@ def _near_loop_segments(d: "_FaceData", spec: FaceSpec, lo: np.ndarray, hi: np.n
     hit = np.ones((lo.shape[0], llo.shape[0]), dtype=bool)
     for ax in (0, 1):  # (coordinate by coordinate: numpy reduces the short last axis row by row)
         hit &= (llo[None, :, ax] <= hi[:, ax, None]) & (lhi[None, :, ax] >= lo[:, ax, None])
-    loops = np.flatnonzero(hit.any(axis=0))
-    ends = np.append(first, d.seg_lo.shape[0])
-    return np.concatenate([np.arange(ends[k], ends[k + 1]) for k in loops.tolist()]) if loops.size \
-        else np.zeros(0, dtype=np.int64)
+    return _loop_segment_rows(first, d.seg_lo.shape[0], np.flatnonzero(hit.any(axis=0)))
+
+
+def _loop_segment_rows(first: np.ndarray, total: int, loops: np.ndarray) -> np.ndarray:
+    """The rows, in order, of the segments of the loops ``loops`` (ascending) of a face whose loops' segments
+    start at rows ``first`` of its ``total``: one range per loop."""
+    count = np.append(first, total)[loops + 1] - first[loops]
+    return np.repeat(first[loops] - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
 
 
 #: Faces of at most this many polygon segments are tested together by :func:`_in_faces`, padded to the
@@ -3986,9 +3990,7 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
         loops = np.flatnonzero(hit.any(axis=0))
         if loops.size == 0:
             continue
-        # (the hit loops' segments in order, as one range each)
-        count = np.append(first, Y.seg_lo[j].shape[0])[loops + 1] - first[loops]
-        seg = np.repeat(first[loops] - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
+        seg = _loop_segment_rows(first, Y.seg_lo[j].shape[0], loops)
         lo, hi = Y.seg_lo[j][seg], Y.seg_hi[j][seg]
         near = np.ones((r.size, seg.size), dtype=bool)
         for ax in (0, 1):

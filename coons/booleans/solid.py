@@ -3980,24 +3980,23 @@ def _local_tests(cand: list[tuple], Y: "_Operand | list[_Operand]", t: Tolerance
         r = np.asarray(rows)
         q, mr = uv_y[r], m[r]
         # Only the segments of loops whose box comes near a point (a plate's face of many holes).
-        # (coordinate by coordinate, points by boxes, reduced over the points, the first axis: numpy's
-        # all() over a short last axis runs row by row)
         first, llo, lhi = _loop_boxes(Y._data[j], Y.specs[j])
-        hit = np.ones((r.size, llo.shape[0]), dtype=bool)
-        for ax in (0, 1):
-            qa, ma = q[:, ax, None], mr[:, ax, None]
-            hit &= (qa >= llo[None, :, ax] - ma) & (qa <= lhi[None, :, ax] + ma)
-        loops = np.flatnonzero(hit.any(axis=0))
+        loops = np.flatnonzero(_points_near_boxes(q, mr, llo, lhi).any(axis=0))
         if loops.size == 0:
             continue
         seg = _loop_segment_rows(first, Y.seg_lo[j].shape[0], loops)
-        lo, hi = Y.seg_lo[j][seg], Y.seg_hi[j][seg]
-        near = np.ones((r.size, seg.size), dtype=bool)
-        for ax in (0, 1):
-            qa, ma = q[:, ax, None], mr[:, ax, None]
-            near &= (qa >= lo[None, :, ax] - ma) & (qa <= hi[None, :, ax] + ma)
-        ok[r[near.any(axis=1)]] = False
+        ok[r[_points_near_boxes(q, mr, Y.seg_lo[j][seg], Y.seg_hi[j][seg]).any(axis=1)]] = False
     return ok, cos
+
+
+def _points_near_boxes(q: np.ndarray, m: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``(n, b)`` bool: whether the point ``q[i]`` lies in the box ``[lo[j], hi[j]]`` enlarged by its margins
+    ``m[i]`` (all ``(·, 2)``); coordinate by coordinate (numpy's all() over a short last axis runs row by row)."""
+    near = np.ones((q.shape[0], lo.shape[0]), dtype=bool)
+    for ax in (0, 1):
+        qa, ma = q[:, ax, None], m[:, ax, None]
+        near &= (qa >= lo[None, :, ax] - ma) & (qa <= hi[None, :, ax] + ma)
+    return near
 
 
 #: Faces of more loops than this have their points tested against the segments of the loops whose
@@ -4889,8 +4888,7 @@ def _merge_all(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
         P3 = np.concatenate([x.points for x in tables])  # start, end, mid
         tree = cKDTree(P3[:, 2])
         pairs = tree.query_pairs(r=max(t.linear, 1e-12), output_type="ndarray").reshape(-1, 2)
-        kind = np.array([_SURFACE_KINDS.setdefault(type(f.surface), len(_SURFACE_KINDS)) for f in faces],
-                        dtype=np.int64)[face_of]
+        kind = _surface_kinds(faces)[face_of]
         face_first = np.cumsum(counts) - counts  # (each face's first row in P3)
         hit = _first_merge(faces, t, pairs, P3, W, tol, face_of, kind, face_first, counts, failed, seen)
         if hit is None:
@@ -4902,6 +4900,12 @@ def _merge_all(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec]:
 
 #: Surface type -> a number, by which the merge compares the faces' surface types row by row.
 _SURFACE_KINDS: dict[type, int] = {}
+
+
+def _surface_kinds(faces: list[FaceSpec]) -> np.ndarray:
+    """``(F,)`` int64: each face's surface type as its number in :data:`_SURFACE_KINDS`."""
+    return np.array([_SURFACE_KINDS.setdefault(type(f.surface), len(_SURFACE_KINDS)) for f in faces],
+                    dtype=np.int64)
 
 
 def _first_merge(faces: list[FaceSpec], t: Tolerance, pairs: np.ndarray, P3: np.ndarray, W: np.ndarray,
@@ -5052,8 +5056,7 @@ def _merge_new(faces: list[FaceSpec], t: Tolerance) -> list[FaceSpec] | None:
                              + [number[layer[4][a]] for layer, a in zip(rec.layers, alive)])
     own = (np.concatenate([x.points for x in tables]), np.concatenate([x.where for x in tables]),
            np.concatenate([x.ranges[:, 2] for x in tables]),
-           np.repeat(np.array([_SURFACE_KINDS.setdefault(type(faces[i].surface), len(_SURFACE_KINDS)) for i in R],
-                              dtype=np.int64), counts_r))
+           np.repeat(_surface_kinds([faces[i] for i in R]), counts_r))
     P3, W, tol, kind = (np.concatenate([own[c]] + [layer[c][a] for layer, a in zip(rec.layers, alive)])
                         for c in range(4))
     pairs = np.zeros((0, 2), dtype=np.int64)

@@ -492,21 +492,22 @@ def _in_space(plane: _Plane, c3: Any, r1, e: EdgeSpec | None, s: np.ndarray, u: 
         if P.shape != Q.shape:
             return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
         d0 = np.linalg.norm(P - Q, axis=-1)
-        lo, hi = min(r1), max(r1)
-        E = np.asarray(c3.evaluate(np.array([lo, hi])))
-        to_lo, to_hi = np.linalg.norm(P - E[0], axis=-1), np.linalg.norm(P - E[1], axis=-1)
-        at_end = (np.minimum(to_lo, to_hi) <= plane.tol3) & (d0 > 0) & (d0 <= plane.tol3)
         # Only a strictly closer pair replaces the plane's answer (below), so crossings whose
         # curves already meet exactly in space (d0 = 0, common for lines and circles whose
         # p-curves are exact) keep theirs without Newton: Newton runs per pair independently.
-        k = np.flatnonzero((d0 > 0) & ~at_end) if _FAST else np.flatnonzero(~at_end)
-        if k.size == 0 and not at_end.any():
+        apart = d0 > 0
+        if _FAST and not apart.any():
             return s, u
+        lo, hi = min(r1), max(r1)
+        E = np.asarray(c3.evaluate(np.array([lo, hi])))  # (the cut's two ends)
+        to_lo, to_hi = np.linalg.norm(P - E[0], axis=-1), np.linalg.norm(P - E[1], axis=-1)
+        ends = np.flatnonzero((np.minimum(to_lo, to_hi) <= plane.tol3) & apart & (d0 <= plane.tol3))
+        k = np.setdiff1d(np.flatnonzero(apart) if _FAST else np.arange(s.size), ends)
         s3, u3, d3 = refine_intersections(c3, r1, e.curve, (e.t0, e.t1), s[k], u[k], plane.t3)
-        ends = np.flatnonzero(at_end)
         if ends.size:
-            s_end = np.where(to_lo[ends] <= to_hi[ends], lo, hi)
-            u_end, _ = _project(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)), np.asarray(c3.evaluate(s_end)), plane.t3)
+            nearer_lo = to_lo[ends] <= to_hi[ends]
+            s_end = np.where(nearer_lo, lo, hi)
+            u_end, _ = _project(e.curve, (min(e.t0, e.t1), max(e.t0, e.t1)), E[np.where(nearer_lo, 0, 1)], plane.t3)
     except InvalidInputError:
         return s, u  # curves of another dimension (a 2-D curve given as "3-D"): keep the plane's answer
     # Only a strictly closer pair replaces the plane's answer: at a tangential touching Newton
